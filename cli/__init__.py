@@ -1,0 +1,1 @@
+"""The `fmcw-cl` command line (click): one module per command."""

@@ -1,0 +1,53 @@
+"""`fmcw-cl info`: what a capture holds."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+import numpy as np
+
+from fmcw_cl.capture import Capture
+from fmcw_cl.engine import estimate_capture_delay
+from fmcw_cl.stages.lut import build_lut
+from fmcw_cl.stages.sync import CLEAN_MISFIT
+
+
+@click.command("info")
+@click.argument("capture", type=click.Path(path_type=Path))
+@click.option("--points", default=1000, show_default=True,
+              help="Resampling intervals, for the unambiguous range.")
+def command(capture, points):
+    """Describe CAPTURE: duration, periods, sweep bandwidth, ranges, sync delay, levels.
+
+    \b
+    Example:
+      fmcw-cl info data_samples/static_0p3m.h5
+    """
+    with Capture(capture) as cap:
+        i = cap.info
+        m = i.modulation
+        lut = build_lut(i.tuning_current_a, i.tuning_frequency_hz, m.current_min_a,
+                        m.current_max_a, points, i.refractive_index)
+        lag, votes, misfit = estimate_capture_delay(cap)
+        beat, _ = cap.read(0, min(i.samples, int(20 * i.samples_per_period)))
+        clipped = np.mean(np.abs(beat.astype(np.int32)) >= i.full_scale)
+        lines = [
+            f"capture        {capture}",
+            f"samples        {i.samples} per channel at {i.sample_rate_hz / 1e6:g} MS/s, "
+            f"{i.bits} bits",
+            f"duration       {i.duration_s:.6f} s, {i.periods:.1f} modulation periods",
+            f"modulation     {m.waveform} {m.frequency_hz / 1e3:g} kHz, "
+            f"{m.current_min_a * 1e3:g}-{m.current_max_a * 1e3:g} mA",
+            f"G(I) table     {i.tuning_current_a.size} points, "
+            f"{i.tuning_current_a[0] * 1e3:g}-{i.tuning_current_a[-1] * 1e3:g} mA",
+            f"sweep          {lut.bandwidth_hz / 1e9:.3f} GHz, range resolution "
+            f"{lut.range_resolution_m * 1e3:.3f} mm, n = {i.refractive_index:g}",
+            f"unambiguous    {lut.unambiguous_range_m:.4f} m at --points {points}",
+            f"sync delay     sync lags the optics by {lag:+.3f} samples ({votes} periods, "
+            f"misfit {misfit:.3f}{'' if misfit <= CLEAN_MISFIT else ', UNRELIABLE'})",
+            f"beat level     rms {beat.std():.0f} codes, peak {np.abs(beat).max()} of "
+            f"{i.full_scale}, clipped {100 * clipped:.3f} % (first 20 periods)",
+            f"truth          {'yes' if i.has_truth else 'no'}",
+        ]
+        click.echo("\n".join(lines))

@@ -1,0 +1,379 @@
+"""Capture files (contract section 1): open, validate, read in chunks, write.
+
+A capture holds two int16 ADC channels (beat, sync) that may be several GB long, so
+reading is always by sample range; nothing here loads a whole channel.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+from .atomic import atomic_path
+from .errors import CaptureError
+
+FORMAT = "capture"
+FORMAT_VERSION = 1
+
+
+@dataclass(frozen=True)
+class Modulation:
+    """Injection-current modulation: a symmetric triangle between two currents."""
+
+    frequency_hz: float
+    current_min_a: float
+    current_max_a: float
+    waveform: str = "triangle"
+
+    @property
+    def period_s(self) -> float:
+        return 1.0 / self.frequency_hz
+
+
+@dataclass(frozen=True)
+class CaptureInfo:
+    """Everything about a capture except its samples."""
+
+    path: Path
+    samples: int
+    sample_rate_hz: float
+    bits: int
+    modulation: Modulation
+    tuning_current_a: np.ndarray
+    tuning_frequency_hz: np.ndarray
+    refractive_index: float = 1.0
+    has_truth: bool = False
+
+    @property
+    def duration_s(self) -> float:
+        return self.samples / self.sample_rate_hz
+
+    @property
+    def samples_per_period(self) -> float:
+        """Nominal modulation period in samples (not necessarily an integer)."""
+        return self.sample_rate_hz / self.modulation.frequency_hz
+
+    @property
+    def periods(self) -> float:
+        return self.samples / self.samples_per_period
+
+    @property
+    def full_scale(self) -> int:
+        """Largest positive ADC code, 2**(bits-1) - 1."""
+        return 2 ** (self.bits - 1) - 1
+
+
+@dataclass(frozen=True)
+class Chunk:
+    """Samples [start, stop) of both channels; `core` is the range this chunk owns.
+
+    The margins around the core let a stage look past the core's ends (filters,
+    interpolation, a half-sweep that starts in the core and ends after it).
+    """
+
+    start: int
+    beat: np.ndarray
+    sync: np.ndarray
+    core_start: int
+    core_stop: int
+
+    @property
+    def stop(self) -> int:
+        return self.start + self.beat.size
+
+
+@dataclass(frozen=True)
+class Truth:
+    """The true trajectory written by simulators (SI units)."""
+
+    time_s: np.ndarray
+    distance_m: np.ndarray
+    velocity_mps: np.ndarray
+    acceleration_mps2: np.ndarray
+
+
+def _attr(obj: h5py.HLObject, name: str, path: Path, where: str):
+    if name not in obj.attrs:
+        raise CaptureError(path, f"missing attribute {where} {name!r}")
+    value = obj.attrs[name]
+    if isinstance(value, bytes):
+        value = value.decode()
+    if isinstance(value, np.ndarray) and value.size == 1:
+        value = value.reshape(()).item()
+    return value
+
+
+def _number(obj, name: str, path: Path, where: str, lo: float, hi: float) -> float:
+    value = _attr(obj, name, path, where)
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise CaptureError(path, f"attribute {where} {name!r} is not a number: {value!r}") from None
+    if not (math.isfinite(x) and lo <= x <= hi):
+        raise CaptureError(path, f"attribute {where} {name!r} = {x:g} is outside [{lo:g}, {hi:g}]")
+    return x
+
+
+def _dataset(f: h5py.File, name: str, path: Path) -> h5py.Dataset:
+    obj = f.get(name)
+    if not isinstance(obj, h5py.Dataset):
+        raise CaptureError(path, f"missing dataset {name}")
+    return obj
+
+
+def validate(f: h5py.File, path: Path) -> CaptureInfo:
+    """Check an open HDF5 file against the capture contract and describe it.
+
+    Raises
+    ------
+    CaptureError
+        naming the file and the first problem found.
+    """
+    kind = f.attrs.get("fmcw_format")
+    if isinstance(kind, bytes):
+        kind = kind.decode()
+    if kind != FORMAT:
+        got = "missing" if kind is None else repr(kind)
+        raise CaptureError(path, f"not a capture file (attribute fmcw_format is {got})")
+    version = _attr(f, "format_version", path, "/")
+    if int(version) != FORMAT_VERSION:
+        raise CaptureError(path, f"unsupported capture format_version {version}")
+
+    beat = _dataset(f, "adc/beat", path)
+    sync = _dataset(f, "adc/sync", path)
+    for ds in (beat, sync):
+        if ds.ndim != 1 or ds.dtype.kind not in "iu":
+            raise CaptureError(path, f"{ds.name} must be a 1-D integer array, got {ds.dtype}{ds.shape}")
+    if beat.shape != sync.shape:
+        raise CaptureError(path, f"/adc/beat has {beat.shape[0]} samples but /adc/sync has {sync.shape[0]}")
+    adc = f["adc"]
+    fs = _number(adc, "sample_rate_hz", path, "/adc", 1e3, 1e12)
+    bits = int(_number(adc, "bits", path, "/adc", 2, 16))
+
+    mod = f.get("modulation")
+    if mod is None:
+        raise CaptureError(path, "missing group /modulation")
+    waveform = str(_attr(mod, "waveform", path, "/modulation"))
+    if waveform != "triangle":
+        raise CaptureError(path, f"modulation waveform {waveform!r} is not supported (only 'triangle')")
+    fmod = _number(mod, "frequency_hz", path, "/modulation", 1e-3, fs / 20)
+    imin = _number(mod, "current_min_a", path, "/modulation", 0.0, 100.0)
+    imax = _number(mod, "current_max_a", path, "/modulation", 0.0, 100.0)
+    if not imin < imax:
+        raise CaptureError(path, f"current_min_a ({imin:g} A) is not below current_max_a ({imax:g} A)")
+
+    cur = np.asarray(_dataset(f, "laser/tuning_current_a", path)[()], dtype=np.float64)
+    freq = np.asarray(_dataset(f, "laser/tuning_frequency_hz", path)[()], dtype=np.float64)
+    if cur.ndim != 1 or cur.shape != freq.shape or cur.size < 4:
+        raise CaptureError(path, "the G(I) table needs two 1-D arrays of the same length, at least 4 points")
+    if not (np.all(np.isfinite(cur)) and np.all(np.isfinite(freq))):
+        raise CaptureError(path, "the G(I) table holds NaN or infinite values")
+    if np.any(np.diff(cur) <= 0):
+        raise CaptureError(path, "the G(I) table currents are not strictly increasing")
+    if cur[0] > imin or cur[-1] < imax:
+        raise CaptureError(
+            path,
+            f"the G(I) table ({cur[0] * 1e3:g}-{cur[-1] * 1e3:g} mA) does not cover the "
+            f"modulation range ({imin * 1e3:g}-{imax * 1e3:g} mA)",
+        )
+    if np.any(freq <= 0):
+        raise CaptureError(path, "the G(I) table frequencies must be absolute optical frequencies (Hz > 0)")
+
+    n = 1.0
+    optics = f.get("optics")
+    if optics is not None and "refractive_index" in optics.attrs:
+        n = _number(optics, "refractive_index", path, "/optics", 1.0, 5.0)
+
+    info = CaptureInfo(
+        path=path,
+        samples=int(beat.shape[0]),
+        sample_rate_hz=fs,
+        bits=bits,
+        modulation=Modulation(fmod, imin, imax, waveform),
+        tuning_current_a=cur,
+        tuning_frequency_hz=freq,
+        refractive_index=n,
+        has_truth="truth/distance_m" in f,
+    )
+    if info.samples < 2 * info.samples_per_period:
+        raise CaptureError(
+            path, f"capture is too short: {info.samples} samples, fewer than two modulation periods"
+        )
+    return info
+
+
+class Capture:
+    """An open capture file. Use as a context manager; read by sample range.
+
+    Examples
+    --------
+    >>> with Capture("run.h5") as cap:                      # doctest: +SKIP
+    ...     for chunk in cap.chunks(periods=4096, margin=6000):
+    ...         ...
+    """
+
+    def __init__(self, path: str | os.PathLike) -> None:
+        self.path = Path(path)
+        if not self.path.exists():
+            raise CaptureError(self.path, "no such file")
+        try:
+            self._file = h5py.File(self.path, "r")
+        except OSError as exc:
+            reason = str(exc).split("(")[0].strip() or "unreadable"
+            raise CaptureError(self.path, f"not a readable HDF5 file ({reason})") from None
+        try:
+            self.info = validate(self._file, self.path)
+        except CaptureError:
+            self._file.close()
+            raise
+        except (KeyError, OSError, TypeError, ValueError) as exc:
+            self._file.close()
+            raise CaptureError(self.path, f"damaged capture ({exc})") from None
+        self._beat = self._file["adc/beat"]
+        self._sync = self._file["adc/sync"]
+
+    def __enter__(self) -> Capture:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def close(self) -> None:
+        self._file.close()
+
+    def read(self, start: int, stop: int) -> tuple[np.ndarray, np.ndarray]:
+        """Samples [start, stop) of (beat, sync) as int16 ADC codes (clipped to the file)."""
+        start = max(0, int(start))
+        stop = min(self.info.samples, int(stop))
+        if stop <= start:
+            empty = np.zeros(0, np.int16)
+            return empty, empty.copy()
+        try:
+            beat = self._beat[start:stop]
+            sync = self._sync[start:stop]
+        except (OSError, ValueError) as exc:
+            raise CaptureError(self.path, f"cannot read samples {start}-{stop} ({exc})") from None
+        return beat.astype(np.int16, copy=False), sync.astype(np.int16, copy=False)
+
+    def chunks(self, periods: int, margin: int = 0, start: int = 0, stop: int | None = None
+               ) -> Iterator[Chunk]:
+        """Iterate over the capture in chunks of whole modulation periods.
+
+        Parameters
+        ----------
+        periods : int
+            Modulation periods per chunk core; the core is round(periods * P) samples
+            with P = sample_rate / modulation frequency.
+        margin : int
+            Extra samples read on each side of the core (clipped at the file ends).
+        start, stop : int
+            Sample range to cover (default: the whole capture).
+        """
+        if periods < 1:
+            raise ValueError("periods must be >= 1")
+        stop = self.info.samples if stop is None else min(stop, self.info.samples)
+        core = max(1, round(periods * self.info.samples_per_period))
+        for core_start in range(int(start), stop, core):
+            core_stop = min(core_start + core, stop)
+            lo = max(0, core_start - margin)
+            hi = min(self.info.samples, core_stop + margin)
+            beat, sync = self.read(lo, hi)
+            yield Chunk(lo, beat, sync, core_start, core_stop)
+
+    def truth(self) -> Truth | None:
+        """The simulator's true trajectory, or None when the capture has none."""
+        if not self.info.has_truth:
+            return None
+        g = self._file["truth"]
+        return Truth(*(np.asarray(g[k][()], dtype=np.float64) for k in
+                       ("time_s", "distance_m", "velocity_mps", "acceleration_mps2")))
+
+
+class CaptureWriter:
+    """Write a capture chunk by chunk; the file appears under its name only when closed.
+
+    Parameters
+    ----------
+    path : path-like
+        Destination file.
+    samples : int
+        Total samples per channel (the datasets are created at full size).
+    sample_rate_hz, bits, modulation :
+        ADC and modulation description (contract section 1).
+    tuning_current_a, tuning_frequency_hz : array_like
+        The offline G(I) table (A, absolute Hz).
+    refractive_index : float, optional
+        Written to /optics when not None.
+    compression : str, optional
+        HDF5 filter for the ADC channels ("gzip" for small sample files; None is
+        fastest to read).
+    """
+
+    def __init__(self, path, samples: int, sample_rate_hz: float, bits: int, modulation: Modulation,
+                 tuning_current_a, tuning_frequency_hz, refractive_index: float | None = None,
+                 compression: str | None = None, attrs: dict | None = None) -> None:
+        self.path = Path(path)
+        self._atomic = atomic_path(self.path)
+        tmp = self._atomic.__enter__()
+        try:
+            self._file = h5py.File(tmp, "w")
+            f = self._file
+            f.attrs["fmcw_format"] = FORMAT
+            f.attrs["format_version"] = FORMAT_VERSION
+            for k, v in (attrs or {}).items():
+                f.attrs[k] = v
+            adc = f.create_group("adc")
+            adc.attrs["sample_rate_hz"] = float(sample_rate_hz)
+            adc.attrs["bits"] = int(bits)
+            chunk = (min(samples, 1 << 20),)
+            opts = {"compression": compression, "shuffle": compression is not None}
+            self.beat = adc.create_dataset("beat", (samples,), np.int16, chunks=chunk, **opts)
+            self.sync = adc.create_dataset("sync", (samples,), np.int16, chunks=chunk, **opts)
+            mod = f.create_group("modulation")
+            mod.attrs["waveform"] = modulation.waveform
+            mod.attrs["frequency_hz"] = float(modulation.frequency_hz)
+            mod.attrs["current_min_a"] = float(modulation.current_min_a)
+            mod.attrs["current_max_a"] = float(modulation.current_max_a)
+            laser = f.create_group("laser")
+            laser.create_dataset("tuning_current_a", data=np.asarray(tuning_current_a, np.float64))
+            laser.create_dataset("tuning_frequency_hz", data=np.asarray(tuning_frequency_hz, np.float64))
+            if refractive_index is not None:
+                f.create_group("optics").attrs["refractive_index"] = float(refractive_index)
+        except BaseException as exc:
+            self._abort(exc)
+            raise
+
+    def write(self, start: int, beat: np.ndarray, sync: np.ndarray) -> None:
+        """Store samples [start, start + len) of both channels."""
+        self.beat[start:start + beat.size] = beat
+        self.sync[start:start + sync.size] = sync
+
+    def write_truth(self, truth: Truth) -> None:
+        g = self._file.require_group("truth")
+        for name in ("time_s", "distance_m", "velocity_mps", "acceleration_mps2"):
+            g.create_dataset(name, data=np.asarray(getattr(truth, name), np.float64))
+
+    def _abort(self, exc: BaseException) -> None:
+        f = getattr(self, "_file", None)
+        if f is not None:
+            f.close()
+        self._atomic.__exit__(type(exc), exc, exc.__traceback__)
+
+    def close(self) -> None:
+        self._file.close()
+        self._atomic.__exit__(None, None, None)
+
+    def __enter__(self) -> CaptureWriter:
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        if exc is None:
+            self.close()
+        else:
+            self._abort(exc)

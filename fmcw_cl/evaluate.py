@@ -1,0 +1,45 @@
+"""Accuracy of a track against a capture's /truth (used by tests and benchmarks)."""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.interpolate import CubicSpline
+
+from .capture import Truth
+from .track import Track
+
+
+def truth_at(truth: Truth, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """True distance, velocity and acceleration at times t (cubic interpolation)."""
+    return tuple(CubicSpline(truth.time_s, y)(t) for y in
+                 (truth.distance_m, truth.velocity_mps, truth.acceleration_mps2))
+
+
+def accuracy(track: Track, truth: Truth) -> dict:
+    """Error figures of the valid pairs (SI units).
+
+    Returns valid share, distance bias/std/p95/max, velocity p95/max, acceleration
+    p95/max (acceleration where defined).
+    """
+    v = track.valid
+    r, vel, acc = truth_at(truth, track.time_s[v])
+    ed = track.distance_m[v] - r
+    ev = track.velocity_mps[v] - vel
+    ea = track.acceleration_mps2[v] - acc
+    ea = ea[np.isfinite(ea)]
+
+    def p95(x):
+        return float(np.percentile(np.abs(x), 95)) if x.size else float("nan")
+
+    def mx(x):
+        return float(np.max(np.abs(x))) if x.size else float("nan")
+
+    return {
+        "pairs": int(track.pairs),
+        "valid_share": float(np.mean(v)) if track.pairs else 0.0,
+        "distance_bias_m": float(np.mean(ed)) if ed.size else float("nan"),
+        "distance_std_m": float(np.std(ed)) if ed.size else float("nan"),
+        "distance_p95_m": p95(ed), "distance_max_m": mx(ed),
+        "velocity_p95_mps": p95(ev), "velocity_max_mps": mx(ev),
+        "acceleration_p95_mps2": p95(ea), "acceleration_max_mps2": mx(ea),
+    }

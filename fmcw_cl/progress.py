@@ -1,0 +1,49 @@
+"""Progress on long commands: done share, MS/s, multiple of real time, time left.
+
+Shown on stderr only when it is a terminal (and not --quiet), redrawn at most five
+times a second.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+
+
+class Progress:
+    """Progress of one job measured in ADC samples (per channel)."""
+
+    def __init__(self, label: str, total: int = 1, sample_rate_hz: float = 1.0,
+                 enabled: bool | None = None, stream=None) -> None:
+        self.stream = stream or sys.stderr
+        self.enabled = self.stream.isatty() if enabled is None else enabled
+        self.label, self.total, self.fs = label, max(1, total), sample_rate_hz
+        self.started = time.perf_counter()
+        self._last = 0.0
+
+    def rate(self, done: int) -> tuple[float, float]:
+        """(samples per second, multiple of real time) so far."""
+        elapsed = max(time.perf_counter() - self.started, 1e-9)
+        sps = done / elapsed
+        return sps, sps / self.fs
+
+    def __call__(self, done: int, total: int | None = None,
+                 sample_rate_hz: float | None = None) -> None:
+        self.total = max(1, total) if total else self.total
+        self.fs = sample_rate_hz or self.fs
+        if not self.enabled:
+            return
+        now = time.perf_counter()
+        if now - self._last < 0.2 and done < self.total:
+            return
+        self._last = now
+        sps, rt = self.rate(done)
+        left = (self.total - done) / sps if sps > 0 else float("inf")
+        self.stream.write(f"\r{self.label}  {100 * done / self.total:5.1f} %  "
+                          f"{sps / 1e6:7.1f} MS/s  {rt:6.2f}x real time  {left:5.1f} s left ")
+        self.stream.flush()
+
+    def close(self) -> None:
+        if self.enabled:
+            self.stream.write("\r\033[K")
+            self.stream.flush()

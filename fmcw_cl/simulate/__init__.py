@@ -1,0 +1,8 @@
+"""A physical simulator of the FMCW LiDAR: DFB laser, moving target, two-channel ADC."""
+
+from .laser import DfbLaser, paper_dfb
+from .scene import SCENARIOS, Trajectory, jump, rail, static
+from .writer import SimulationConfig, simulate_capture
+
+__all__ = ["DfbLaser", "paper_dfb", "Trajectory", "static", "rail", "jump", "SCENARIOS",
+           "SimulationConfig", "simulate_capture"]

@@ -1,0 +1,143 @@
+"""Synthesise a two-channel capture (beat, sync) chunk by chunk into a capture file.
+
+The beat phase comes from the optical phase, phi = 2 pi [nu(t) tau - nu'(t) tau^2 / 2]
+with tau = 2 R(t) n / c, so a moving target gets its Doppler shift from the physics;
+laser phase noise enters as the difference of one random-walk phase at t and t - tau.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..capture import CaptureWriter, Modulation, Truth
+from ..physics import C
+from .laser import DfbLaser, paper_dfb
+from .scene import Trajectory
+
+CHUNK = 1 << 20
+TRUTH_STEP_S = 10e-6
+HISTORY = 64  # phase-noise history kept across chunks (supports tau < 64 samples)
+
+
+@dataclass(frozen=True)
+class SimulationConfig:
+    """Instrument parameters of a simulated capture (defaults: the paper's set-up).
+
+    ADC levels are in codes of a `bits`-bit converter. `sync_delay_samples` is how far
+    the sync channel lags the optics (negative: it leads); None draws it from the seed
+    in [-40, 40]. `start_phase` is the modulation phase at sample 0 (None: from the seed).
+    """
+
+    sample_rate_hz: float = 100e6
+    bits: int = 14
+    modulation: Modulation = Modulation(20e3, 0.160, 0.480)
+    laser: DfbLaser = field(default_factory=paper_dfb)
+    refractive_index: float = 1.0
+    echo_codes: float = 1500.0      # beat amplitude at <= 0.1 m and 320 mA, ~1/R beyond
+    echo_ref_m: float = 0.1
+    noise_codes: float = 25.0       # rms white noise of the beat channel
+    leak_codes: float = 800.0       # intensity triangle leaking through the balanced detector
+    lens_distance_m: float = 0.012  # internal reflection of the collimating lens
+    lens_codes: float = 60.0
+    sync_codes: float = 6000.0      # sync amplitude for the full current swing
+    sync_noise_codes: float = 4.0
+    sync_delay_samples: float | None = None
+    start_phase: float | None = None
+    table_points: int = 25
+    table_noise_hz: float = 5e6     # rms error of the offline wavelength meter (0.04 pm)
+
+
+def _triangle(phase):
+    """Unit triangle: 0 at phase 0, 1 at 0.5; returns value and d(value)/d(phase)."""
+    p = phase - np.floor(phase)
+    rising = p < 0.5
+    return np.where(rising, 2 * p, 2 - 2 * p), np.where(rising, 2.0, -2.0)
+
+
+def simulate_capture(path, trajectory: Trajectory, duration_s: float, seed: int = 0,
+                     config: SimulationConfig | None = None, start_s: float = 0.0,
+                     compression: str | None = None,
+                     progress: Callable[[int, int], None] | None = None) -> dict:
+    """Write a simulated capture of `trajectory` to `path` and return its hidden parameters.
+
+    Parameters
+    ----------
+    path : path-like
+        Output capture file (written atomically).
+    trajectory : Trajectory
+        Target motion; its time `start_s` is sample 0 of the capture.
+    duration_s : float
+        Capture length in seconds.
+    seed : int
+        Seed of every random draw: the same seed gives the same file.
+    config : SimulationConfig
+        Instrument parameters.
+    progress : callable(done_samples, total_samples), optional
+
+    Returns
+    -------
+    dict with the drawn sync delay (samples) and start phase.
+    """
+    cfg = config or SimulationConfig()
+    rng = np.random.default_rng(seed)
+    fs, mod, laser, n_idx = cfg.sample_rate_hz, cfg.modulation, cfg.laser, cfg.refractive_index
+    delay = rng.uniform(-40, 40) if cfg.sync_delay_samples is None else cfg.sync_delay_samples
+    phase0 = rng.uniform(0, 1) if cfg.start_phase is None else cfg.start_phase
+    target_phase = rng.uniform(0, 2 * np.pi)
+    table_i, table_f = laser.tuning_table(rng, cfg.table_points, noise_hz=cfg.table_noise_hz)
+    samples = int(round(duration_s * fs))
+    lo, hi = -(2 ** (cfg.bits - 1)), 2 ** (cfg.bits - 1) - 1
+    span = mod.current_max_a - mod.current_min_a
+    sigma_pn = np.sqrt(2 * np.pi * laser.linewidth_hz / fs)  # rad per sample, random walk
+    hist = np.zeros(HISTORY)  # laser phase of the last HISTORY samples
+    tau_lens = 2 * cfg.lens_distance_m * n_idx / C
+
+    writer = CaptureWriter(path, samples, fs, cfg.bits, mod, table_i, table_f,
+                           refractive_index=n_idx, compression=compression,
+                           attrs={"generator": "fmcw-cl simulate"})
+    with writer:
+        for start in range(0, samples, CHUNK):
+            m = min(CHUNK, samples - start)
+            t = (start + np.arange(m)) / fs
+            tri, dtri = _triangle(t * mod.frequency_hz + phase0)
+            cur = mod.current_min_a + span * tri
+            didt = span * mod.frequency_hz * dtri
+            nu = laser.frequency(cur)
+            dnu = laser.tuning_slope(cur) * didt
+            power = laser.relative_power(cur)
+
+            dist, _, _ = trajectory.at(t + start_s)
+            tau = 2 * dist * n_idx / C
+            cycles = nu * tau - dnu * tau * tau / 2
+            # laser phase noise: phi(t) - phi(t - tau) with a Brownian bridge inside a sample
+            walk = np.concatenate([hist, hist[-1] + np.cumsum(rng.normal(0, sigma_pn, m))])
+            hist = walk[-HISTORY:]
+            lag = tau * fs
+            k = np.floor(lag).astype(np.int64)
+            frac = lag - k
+            idx = HISTORY + np.arange(m)
+            inc = walk[idx - k] - walk[idx - k - 1]
+            bridge = frac * inc + np.sqrt(frac * (1 - frac)) * sigma_pn * rng.standard_normal(m)
+            pnoise = walk[idx] - walk[idx - k] + bridge
+
+            echo = cfg.echo_codes * np.minimum(1.0, cfg.echo_ref_m / np.maximum(dist, 1e-6))
+            lens = nu * tau_lens - dnu * tau_lens**2 / 2
+            beat = (echo * power * np.cos(2 * np.pi * (cycles % 1.0) + pnoise + target_phase)
+                    + cfg.lens_codes * power * np.cos(2 * np.pi * (lens % 1.0))
+                    + cfg.leak_codes * (power - 1.0)
+                    + rng.normal(0, cfg.noise_codes, m))
+
+            tri_s, _ = _triangle((t - delay / fs) * mod.frequency_hz + phase0)
+            sync = cfg.sync_codes * (tri_s - 0.5) + rng.normal(0, cfg.sync_noise_codes, m)
+            writer.write(start, np.clip(np.rint(beat), lo, hi).astype(np.int16),
+                         np.clip(np.rint(sync), lo, hi).astype(np.int16))
+            if progress:
+                progress(start + m, samples)
+
+        tt = np.arange(0, samples / fs, TRUTH_STEP_S)
+        writer.write_truth(Truth(tt, *trajectory.at(tt + start_s)))
+        writer._file.attrs["sim_seed"] = int(seed)
+    return {"sync_delay_samples": float(delay), "start_phase": float(phase0)}

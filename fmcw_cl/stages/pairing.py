@@ -1,0 +1,149 @@
+"""Stage 6: Doppler-paired distance and velocity from rising + falling half-sweeps.
+
+Resampled at uniform optical frequency nu_j, a half-sweep of a target at distance
+R(t) = R_c + v (t - t_c) has the beat phase 2 pi nu_j tau(t_j), tau = 2 n R / c:
+a tone at R_c plus a Doppler term 2 pi v beta_j, beta_j = (2n/c) nu_j (t_j - t_c),
+which is itself chirped because t_j is not linear in j. Multiplying the half-sweep
+by exp(-2 pi i v beta_j) ("de-chirp") leaves a clean tone at R_c on the positive
+side of the spectrum, even where the raw real beat folds through 0 Hz.
+
+The tracker iterates: de-chirp every half-sweep with the current velocity of its
+pair, measure both apparent distances, correct the velocity from their difference,
+and regularise the velocities by continuity (outliers and unmeasured pairs are
+filled from trusted neighbours). The first pass uses v = 0, which is the paper's
+method (plain FFT of each half-sweep).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.ndimage import median_filter
+
+from ..physics import C
+from .lut import Lut
+from .spectrum import find_peaks, power_spectra
+
+SNR_MIN_DB = 10.0     # a half-sweep's peak must stand this far above the floor
+CONSISTENT_MPS = 0.1  # a velocity this far from its neighbours' median is an outlier
+CONVERGED_MPS = 0.05  # final velocity correction must be below this (peak not smeared)
+NEIGHBOURS = 8        # half-width (pairs) of the continuity median
+
+
+@dataclass(frozen=True)
+class DopplerModel:
+    """What the LUT and the window imply for the Doppler term.
+
+    Attributes
+    ----------
+    beta_rise, beta_fall : (N,) Doppler phase in cycles per (m/s) at each resampled point.
+    k_rise, k_fall : apparent-distance shift per m/s of uncorrected velocity (s);
+        the window-weighted slope of beta, i.e. the effective sweep time.
+    metres_per_bin : distance of one bin of the padded FFT (m).
+    nfft : padded FFT length.
+    """
+
+    beta_rise: np.ndarray
+    beta_fall: np.ndarray
+    k_rise: float
+    k_fall: float
+    metres_per_bin: float
+    nfft: int
+
+
+def doppler_model(lut: Lut, half_sweep_s: float, nfft: int, win: np.ndarray) -> DopplerModel:
+    """Build the de-chirp bases and effective times for a LUT and window."""
+    n, nidx = lut.points, lut.refractive_index
+    dnu = lut.bandwidth_hz / n
+    j = np.arange(n) - (n - 1) / 2
+    metres_per_cycle = C / (2 * nidx * dnu)   # distance of a tone of 1 cycle per point
+
+    def basis(u):
+        return (2 * nidx / C) * lut.nu_hz * (u - 0.5) * half_sweep_s
+
+    def k_eff(beta):
+        # a small phase error eps_j moves the peak by the window-weighted LS slope
+        return metres_per_cycle * np.sum(win * j * beta) / np.sum(win * j * j)
+
+    br, bf = basis(lut.u_rise), basis(lut.u_fall)
+    return DopplerModel(br, bf, float(k_eff(br)), float(k_eff(bf)),
+                        metres_per_cycle / nfft, nfft)
+
+
+@dataclass(frozen=True)
+class PairResult:
+    """Per pair: Doppler-free distance (m), velocity (m/s), and the half-sweeps' view."""
+
+    distance: np.ndarray
+    velocity: np.ndarray
+    valid: np.ndarray
+    dist_rise: np.ndarray
+    dist_fall: np.ndarray
+    snr_rise: np.ndarray
+    snr_fall: np.ndarray
+
+
+def measure(x: np.ndarray, beta: np.ndarray, v: np.ndarray | None, model: DopplerModel,
+            lo_bin: int) -> tuple[np.ndarray, np.ndarray]:
+    """Apparent distance (m) and SNR (dB) of half-sweeps de-chirped at velocities v."""
+    if v is not None:
+        x = x * np.exp(-2j * np.pi * np.outer(v, beta))
+    pk = find_peaks(power_spectra(x, model.nfft), lo_bin)
+    return pk.bin * model.metres_per_bin, pk.snr_db
+
+
+def solve_pair(d_r, d_f, v0, half_gap, model: DopplerModel):
+    """Distance at the pair's centre time and velocity from two apparent distances.
+
+    d_r = R_m - v h + dv k_r and d_f = R_m + v h + dv k_f with v = v0 + dv, where
+    h is half the time between the sweeps' centres (the target moves meanwhile).
+    """
+    dv = (d_f - d_r - 2 * v0 * half_gap) / (2 * half_gap + model.k_fall - model.k_rise)
+    dist = 0.5 * (d_r + d_f) - 0.5 * dv * (model.k_rise + model.k_fall)
+    return dist, v0 + dv, dv
+
+
+def regularise(v: np.ndarray, trusted: np.ndarray, time: np.ndarray) -> np.ndarray:
+    """Continuity prior: running median of trusted velocities, gaps filled linearly."""
+    if not np.any(trusted):
+        return np.zeros_like(v)
+    smooth = median_filter(v, size=2 * NEIGHBOURS + 1, mode="nearest")
+    return np.interp(time, time[trusted], smooth[trusted])
+
+
+def track_pairs(xr: np.ndarray, xf: np.ndarray, t_rise: np.ndarray, t_fall: np.ndarray,
+                model: DopplerModel, lo_bin: int, iterations: int = 6, dechirp: bool = True,
+                measure=measure) -> PairResult:
+    """Doppler-free distance and velocity of consecutive rising/falling half-sweeps.
+
+    Parameters
+    ----------
+    xr, xf : (P, N) resampled, windowed rising and falling half-sweeps of each pair.
+    t_rise, t_fall : (P,) centre times of those half-sweeps (s).
+    model : the LUT's Doppler model.
+    lo_bin : first FFT bin searched (minimum range).
+    iterations : de-chirp passes after the plain first pass.
+    dechirp : False gives the paper's method (one plain pass, no fold handling).
+    measure : the de-chirp + spectrum + peak step (numpy here; a backend may swap it).
+    """
+    half_gap = 0.5 * (t_fall - t_rise)
+    t_mid = 0.5 * (t_fall + t_rise)
+    v0 = np.zeros(t_mid.size)
+    passes = 1 + (iterations if dechirp else 0)
+    for it in range(passes):
+        vv = v0 if it > 0 else None
+        d_r, s_r = measure(xr, model.beta_rise, vv, model, lo_bin)
+        d_f, s_f = measure(xf, model.beta_fall, vv, model, lo_bin)
+        dist, vel, dv = solve_pair(d_r, d_f, v0, half_gap, model)
+        heard = (s_r >= SNR_MIN_DB) & (s_f >= SNR_MIN_DB)
+        if it + 1 < passes:
+            # the plain first pass smears fast targets: allow 20 % there, not later
+            med = median_filter(vel, size=2 * NEIGHBOURS + 1, mode="nearest")
+            tol = CONSISTENT_MPS + (0.2 * np.abs(med) if it == 0 else 0.0)
+            v0 = regularise(vel, heard & (np.abs(vel - med) < tol), t_mid)
+    med = median_filter(vel, size=2 * NEIGHBOURS + 1, mode="nearest")
+    valid = heard
+    if dechirp:
+        valid = valid & (np.abs(dv) < CONVERGED_MPS) & (np.abs(vel - med) < CONSISTENT_MPS)
+    return PairResult(dist, vel, valid, d_r, d_f, s_r, s_f)

@@ -1,0 +1,64 @@
+"""Stage 5: spectra of the resampled half-sweeps and their peaks.
+
+A real FFT (or, after a Doppler de-chirp, a complex one) zero-padded to a power of
+two at least twice the points; the peak is searched above a minimum range (DC, the
+intensity ramp and the lens reflection sit below it) and located between bins by a
+parabola through the log power of three bins (Gaussian interpolation; with a Hann
+window and 2x padding its bias is below 0.003 bin, see tests).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.fft
+
+
+def fft_length(points: int) -> int:
+    """Zero-padded FFT length: the power of two >= 2 * points."""
+    return 1 << int(np.ceil(np.log2(2 * points)))
+
+
+def power_spectra(x: np.ndarray, nfft: int) -> np.ndarray:
+    """|FFT|^2 of each row over the non-negative frequencies 0 .. nfft/2 - 1.
+
+    Real rows use a real FFT; complex rows (de-chirped) keep only the positive side,
+    where the de-chirped range tone lies.
+    """
+    if np.iscomplexobj(x):
+        spec = scipy.fft.fft(x, nfft, axis=1, workers=-1)[:, : nfft // 2]
+    else:
+        spec = scipy.fft.rfft(x, nfft, axis=1, workers=-1)[:, : nfft // 2]
+    return spec.real**2 + spec.imag**2
+
+
+@dataclass(frozen=True)
+class Peaks:
+    """Per half-sweep: peak position (fractional bin of the padded FFT), SNR (dB)."""
+
+    bin: np.ndarray
+    snr_db: np.ndarray
+
+
+def find_peaks(power: np.ndarray, lo: int, hi: int | None = None) -> Peaks:
+    """Largest peak of each row in bins [lo, hi), interpolated, with its SNR.
+
+    The SNR is the peak power over the median power of the band (the noise floor).
+    """
+    hi = power.shape[1] if hi is None else hi
+    band = power[:, lo:hi]
+    k = np.argmax(band, axis=1)
+    rows = np.arange(power.shape[0])
+    kk = np.clip(k + lo, 1, power.shape[1] - 2)
+    tiny = np.finfo(np.float64).tiny
+    a = np.log(power[rows, kk - 1] + tiny)
+    b = np.log(power[rows, kk] + tiny)
+    c = np.log(power[rows, kk + 1] + tiny)
+    den = a - 2 * b + c
+    with np.errstate(divide="ignore", invalid="ignore"):
+        delta = np.where(den < 0, 0.5 * (a - c) / den, 0.0)
+    floor = np.median(band, axis=1)
+    with np.errstate(divide="ignore"):
+        snr = 10 * np.log10(power[rows, kk] / np.maximum(floor, tiny))
+    return Peaks(kk + np.clip(delta, -0.5, 0.5), snr.astype(np.float32))

@@ -1,0 +1,74 @@
+"""Track files (contract section 2): the measured trajectory, written atomically."""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+from .atomic import atomic_path
+
+FORMAT = "track"
+FORMAT_VERSION = 1
+
+
+@dataclass
+class Track:
+    """Per half-sweep and per pair results, with the parameters that made them."""
+
+    sweep_time_s: np.ndarray
+    sweep_rising: np.ndarray
+    sweep_distance_m: np.ndarray
+    sweep_snr_db: np.ndarray
+    time_s: np.ndarray
+    distance_m: np.ndarray
+    velocity_mps: np.ndarray
+    acceleration_mps2: np.ndarray
+    valid: np.ndarray
+    attrs: dict = field(default_factory=dict)
+
+    @property
+    def pairs(self) -> int:
+        return int(self.time_s.size)
+
+
+def track_path(outdir: str | os.PathLike, capture: str | os.PathLike) -> Path:
+    """OUTDIR/<capture stem>.track.h5"""
+    return Path(outdir) / f"{Path(capture).stem}.track.h5"
+
+
+def write_track(path: str | os.PathLike, track: Track) -> Path:
+    """Write `track` to `path` atomically (a temporary name, renamed when complete)."""
+    path = Path(path)
+    with atomic_path(path) as tmp, h5py.File(tmp, "w") as f:
+        f.attrs["fmcw_format"] = FORMAT
+        f.attrs["format_version"] = FORMAT_VERSION
+        for k, v in track.attrs.items():
+            f.attrs[k] = v
+        s = f.create_group("sweeps")
+        s.create_dataset("time_s", data=np.asarray(track.sweep_time_s, np.float64))
+        s.create_dataset("current_rising", data=np.asarray(track.sweep_rising, bool))
+        s.create_dataset("distance_m", data=np.asarray(track.sweep_distance_m, np.float64))
+        s.create_dataset("snr_db", data=np.asarray(track.sweep_snr_db, np.float32))
+        t = f.create_group("track")
+        t.create_dataset("time_s", data=np.asarray(track.time_s, np.float64))
+        t.create_dataset("distance_m", data=np.asarray(track.distance_m, np.float64))
+        t.create_dataset("velocity_mps", data=np.asarray(track.velocity_mps, np.float64))
+        t.create_dataset("acceleration_mps2", data=np.asarray(track.acceleration_mps2, np.float64))
+        t.create_dataset("valid", data=np.asarray(track.valid, bool))
+    return path
+
+
+def read_track(path: str | os.PathLike) -> Track:
+    """Read a track file written by `write_track` (or any writer of the contract)."""
+    with h5py.File(path, "r") as f:
+        if f.attrs.get("fmcw_format") != FORMAT:
+            raise ValueError(f"{path}: not a track file")
+        s, t = f["sweeps"], f["track"]
+        attrs = {k: (v.decode() if isinstance(v, bytes) else v) for k, v in f.attrs.items()}
+        return Track(s["time_s"][()], s["current_rising"][()], s["distance_m"][()],
+                     s["snr_db"][()], t["time_s"][()], t["distance_m"][()],
+                     t["velocity_mps"][()], t["acceleration_mps2"][()], t["valid"][()], attrs)

@@ -1,0 +1,34 @@
+"""Shared fixtures: small simulated captures, made once per test session."""
+
+from __future__ import annotations
+
+import os
+import tempfile
+
+import pytest
+
+# keep PoCL's kernel cache out of the user's home during tests
+os.environ.setdefault("POCL_CACHE_DIR", tempfile.mkdtemp(prefix="pocl-cache-"))
+
+from fmcw_cl.simulate import SimulationConfig, jump, simulate_capture, static  # noqa: E402
+
+
+@pytest.fixture(scope="session")
+def capdir(tmp_path_factory):
+    return tmp_path_factory.mktemp("captures")
+
+
+@pytest.fixture(scope="session")
+def static_capture(capdir):
+    """20 ms of a static target at 0.25 m."""
+    path = capdir / "static.h5"
+    simulate_capture(path, static(0.02, 0.25), 0.02, seed=11)
+    return path
+
+
+@pytest.fixture(scope="session")
+def jump_capture(capdir):
+    """The full 300 ms jump (120 MB)."""
+    path = capdir / "jump.h5"
+    simulate_capture(path, jump(0.3), 0.3, seed=3, config=SimulationConfig())
+    return path

@@ -1,0 +1,130 @@
+"""Capture files: round trip, chunked reads, validation of malformed layouts."""
+
+from __future__ import annotations
+
+import h5py
+import numpy as np
+import pytest
+
+from fmcw_cl.capture import Capture, CaptureWriter, Modulation
+from fmcw_cl.errors import CaptureError
+
+MOD = Modulation(20e3, 0.16, 0.48)
+TABLE_I = np.linspace(0.02, 0.5, 25)
+TABLE_F = 193.6e12 - 4e11 * TABLE_I
+
+
+def write(path, samples=23_457, seed=0):
+    rng = np.random.default_rng(seed)
+    beat = rng.integers(-8192, 8192, samples, dtype=np.int16)
+    sync = rng.integers(-8192, 8192, samples, dtype=np.int16)
+    with CaptureWriter(path, samples, 1e8, 14, MOD, TABLE_I, TABLE_F, refractive_index=1.0003) as w:
+        w.write(0, beat[:10_000], sync[:10_000])
+        w.write(10_000, beat[10_000:], sync[10_000:])
+    return beat, sync
+
+
+def test_round_trip(tmp_path):
+    path = tmp_path / "c.h5"
+    beat, sync = write(path)
+    with Capture(path) as cap:
+        info = cap.info
+        assert info.samples == beat.size
+        assert info.sample_rate_hz == 1e8 and info.bits == 14
+        assert info.modulation == MOD
+        assert info.refractive_index == pytest.approx(1.0003)
+        np.testing.assert_array_equal(info.tuning_current_a, TABLE_I)
+        b, s = cap.read(0, info.samples)
+        np.testing.assert_array_equal(b, beat)
+        np.testing.assert_array_equal(s, sync)
+        b, s = cap.read(1234, 5678)
+        np.testing.assert_array_equal(b, beat[1234:5678])
+    assert not (tmp_path / "c.h5.part").exists()
+
+
+@pytest.mark.parametrize("periods,margin", [(1, 0), (3, 17), (2, 4999)])
+def test_chunks_cover_capture_exactly(tmp_path, periods, margin):
+    path = tmp_path / "c.h5"
+    beat, sync = write(path, samples=23_457)  # 4.69 periods: the last one partial
+    with Capture(path) as cap:
+        cores, n = [], 0
+        for ch in cap.chunks(periods=periods, margin=margin):
+            assert ch.start == max(0, ch.core_start - margin)
+            np.testing.assert_array_equal(ch.beat, beat[ch.start:ch.stop])
+            np.testing.assert_array_equal(ch.sync, sync[ch.start:ch.stop])
+            cores.append(beat[ch.core_start:ch.core_stop])
+            assert ch.core_start == n
+            n = ch.core_stop
+        np.testing.assert_array_equal(np.concatenate(cores), beat)
+
+
+def test_interrupted_writer_leaves_nothing(tmp_path):
+    path = tmp_path / "c.h5"
+    with pytest.raises(RuntimeError), CaptureWriter(path, 100, 1e8, 14, MOD, TABLE_I, TABLE_F):
+        raise RuntimeError("boom")
+    assert list(tmp_path.iterdir()) == []
+
+
+def _mutations():
+    def drop(name):
+        return lambda f: f.__delitem__(name)
+
+    def attr(obj, name, value):
+        def m(f):
+            f[obj].attrs[name] = value
+        return m
+
+    def table(values=None, currents=None):
+        def m(f):
+            if values is not None:
+                del f["laser/tuning_frequency_hz"]
+                f["laser/tuning_frequency_hz"] = values
+            if currents is not None:
+                del f["laser/tuning_current_a"]
+                f["laser/tuning_current_a"] = currents
+        return m
+
+    def resize_sync(f):
+        del f["adc/sync"]
+        f["adc/sync"] = np.zeros(100, np.int16)
+
+    nan_table = TABLE_F.copy()
+    nan_table[3] = np.nan
+    return [
+        (lambda f: f.attrs.__delitem__("fmcw_format"), "not a capture"),
+        (attr("/", "fmcw_format", "track"), "not a capture"),
+        (drop("adc/beat"), "missing dataset adc/beat"),
+        (drop("adc/sync"), "missing dataset adc/sync"),
+        (resize_sync, "samples but /adc/sync has"),
+        (attr("adc", "sample_rate_hz", -5.0), "sample_rate_hz"),
+        (lambda f: f["adc"].attrs.__delitem__("sample_rate_hz"), "missing attribute"),
+        (attr("modulation", "waveform", "sine"), "not supported"),
+        (attr("modulation", "frequency_hz", 0.0), "frequency_hz"),
+        (attr("modulation", "current_min_a", 0.5), "not below"),
+        (table(values=nan_table), "NaN"),
+        (table(currents=TABLE_I[::-1].copy()), "not strictly increasing"),
+        (table(currents=np.linspace(0.2, 0.5, 25)), "does not cover"),
+    ]
+
+
+@pytest.mark.parametrize("mutate,message", _mutations())
+def test_malformed_captures_are_named_and_explained(tmp_path, mutate, message):
+    path = tmp_path / "bad.h5"
+    write(path)
+    with h5py.File(path, "a") as f:
+        mutate(f)
+    with pytest.raises(CaptureError) as err:
+        Capture(path)
+    assert str(err.value).startswith(str(path))
+    assert message in str(err.value)
+
+
+def test_not_hdf5_and_too_short(tmp_path):
+    junk = tmp_path / "junk.h5"
+    junk.write_bytes(b"not an hdf5 file at all" * 10)
+    with pytest.raises(CaptureError, match="not a readable HDF5 file"):
+        Capture(junk)
+    short = tmp_path / "short.h5"
+    write(short, samples=9_000)  # fewer than two 5000-sample periods
+    with pytest.raises(CaptureError, match="too short"):
+        Capture(short)

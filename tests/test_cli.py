@@ -1,0 +1,67 @@
+"""The command line as a user runs it: simulate, info, process, errors."""
+
+from __future__ import annotations
+
+import json
+import re
+import subprocess
+import sys
+
+import h5py
+import numpy as np
+
+from fmcw_cl.track import read_track
+
+
+def fmcw(*args, check=True):
+    proc = subprocess.run([sys.executable, "-m", "fmcw_cl.cli.main", *map(str, args)],
+                          capture_output=True, text=True)
+    if check:
+        assert proc.returncode == 0, proc.stderr
+    return proc
+
+
+def test_simulate_info_process(tmp_path):
+    cap = tmp_path / "st.h5"
+    fmcw("simulate", "static", "-o", cap, "--distance", "0.2", "--duration", "0.01", "--seed", "3")
+    info = fmcw("info", cap).stdout
+    assert "200.0 modulation periods" in info and "truth          yes" in info
+    bandwidth = float(re.search(r"sweep\s+([\d.]+) GHz", info).group(1))
+    assert abs(bandwidth - 160.0) < 0.1
+    out = tmp_path / "tracks"
+    res = fmcw("process", cap, "-o", out, "--json")
+    summary = json.loads(res.stdout)[0]
+    assert summary["pairs"] == 198 and summary["valid_share"] == 1.0
+    track_file = out / "st.track.h5"
+    with h5py.File(track_file) as f:
+        assert f.attrs["fmcw_format"] == "track" and f.attrs["format_version"] == 1
+        for name in ("points", "device", "software", "sync_delay_samples", "source"):
+            assert name in f.attrs
+        for ds, dtype in (("sweeps/time_s", "f8"), ("sweeps/current_rising", "b1"),
+                          ("sweeps/distance_m", "f8"), ("sweeps/snr_db", "f4"),
+                          ("track/time_s", "f8"), ("track/distance_m", "f8"),
+                          ("track/velocity_mps", "f8"), ("track/acceleration_mps2", "f8"),
+                          ("track/valid", "b1")):
+            assert f[ds].dtype == np.dtype(dtype), ds
+        assert f["sweeps/time_s"].shape[0] == 2 * f["track/time_s"].shape[0]
+    track = read_track(track_file)
+    assert np.all(np.abs(track.distance_m - 0.2) < 1e-4)
+    assert np.all(np.diff(track.time_s) > 0)
+
+
+def test_bad_capture_one_line_and_others_still_converted(tmp_path, static_capture):
+    bad = tmp_path / "bad.h5"
+    bad.write_text("this is no hdf5")
+    out = tmp_path / "tracks"
+    res = fmcw("process", bad, static_capture, "-o", out, "-q", check=False)
+    assert res.returncode == 1
+    lines = res.stderr.strip().splitlines()
+    assert len(lines) == 1 and str(bad) in lines[0] and "Traceback" not in res.stderr
+    assert (out / "static.track.h5").exists()
+    assert not (out / "bad.track.h5").exists()
+    assert not list(out.glob("*.part"))
+
+
+def test_help_shows_examples():
+    for cmd in ("process", "simulate", "info"):
+        assert "Example:" in fmcw(cmd, "--help").stdout

@@ -1,0 +1,98 @@
+"""The simulator's physics, checked numerically against the paper and first principles."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from fmcw_cl.capture import Capture
+from fmcw_cl.physics import C
+from fmcw_cl.simulate import SimulationConfig, Trajectory, jump, paper_dfb, rail, simulate_capture
+from fmcw_cl.simulate.laser import DfbLaser
+
+
+def test_dfb_tuning_matches_paper_fig3():
+    laser = paper_dfb()
+    assert C / laser.frequency(0.020) == pytest.approx(1548.12e-9, abs=1e-13)
+    assert C / laser.frequency(0.500) == pytest.approx(1549.76e-9, abs=2e-12)
+    assert laser.frequency(0.020) - laser.frequency(0.500) == pytest.approx(205e9, rel=1e-9)
+    assert laser.frequency(0.160) - laser.frequency(0.480) == pytest.approx(160e9, rel=1e-9)
+    slope = np.abs(laser.tuning_slope(np.array([0.160, 0.480])))
+    assert 2.0 < slope[1] / slope[0] < 2.6  # the local chirp rate varies by about 2x
+    cur, freq = laser.tuning_table(np.random.default_rng(0))
+    assert cur.size == 25 and cur[0] == 0.020 and cur[-1] == 0.500
+    assert np.std(freq - laser.frequency(cur)) < 50e6
+
+
+def test_scenarios_follow_the_paper():
+    t = np.arange(0, 0.3, 1e-5)
+    r, v, a = jump(0.3).at(t)
+    assert v.max() == pytest.approx(7.15, abs=0.05) and abs(t[v.argmax()] - 0.078) < 0.002
+    assert 340 < a.max() < 380 and 340 < -a.min() < 400
+    assert 0.3 <= r.max() <= 0.4
+    landing = (t > 0.18) & (t < 0.215)
+    assert a[landing].max() == pytest.approx(300, rel=0.05)
+    assert r[0] == pytest.approx(r[-1], abs=1e-6)  # back on the ground
+    r, v, a = rail(0.4).at(t)
+    assert v.max() == pytest.approx(2.7, abs=0.02) and a.max() == pytest.approx(22.5, abs=0.1)
+
+
+def test_trajectory_derivatives_are_consistent():
+    t = np.arange(0.05, 0.25, 1e-6)
+    r, v, a = jump(0.3).at(t)
+    np.testing.assert_allclose(np.gradient(r, t)[1:-1], v[1:-1], atol=2e-4)
+    np.testing.assert_allclose(np.gradient(v, t)[1:-1], a[1:-1], atol=0.05)
+
+
+def _linear_laser() -> DfbLaser:
+    """A linearly tuned laser (-500 GHz/A) so that beats are pure tones in time."""
+    return DfbLaser(C / 1549e-9, 0.32, 500e9, 0.0, linewidth_hz=0.0)
+
+
+def _tone(x: np.ndarray, fs: float) -> float:
+    """Frequency of the strongest tone (Hz), from a heavily zero-padded FFT."""
+    spec = np.abs(np.fft.rfft((x - x.mean()) * np.hanning(x.size), 1 << 20))
+    spec[:50] = 0
+    return np.argmax(spec) * fs / (1 << 20)
+
+
+@pytest.mark.parametrize("velocity", [0.0, 2.0, -3.0])
+def test_beat_and_doppler_from_the_optical_phase(tmp_path, velocity):
+    """Linear sweep: beat = |nu'| tau -+ 2 v / lambda in the two directions."""
+    cfg = replace(SimulationConfig(), laser=_linear_laser(), noise_codes=1.0, lens_codes=0.0,
+                  leak_codes=0.0, sync_delay_samples=0.0, start_phase=0.0)
+    r0 = 0.2
+    traj = Trajectory.from_velocity(0, 0.002, lambda t: np.full_like(t, velocity),
+                                    np.zeros_like, r0)
+    path = tmp_path / "tone.h5"
+    simulate_capture(path, traj, 0.002, seed=1, config=cfg)
+    with Capture(path) as cap:
+        beat, _ = cap.read(0, 10_000)
+    fs = cfg.sample_rate_hz
+    # start_phase 0: current rises over samples 0..2500 and falls over 2500..5000
+    rising, falling = beat[5200:7300].astype(float), beat[7700:9800].astype(float)
+    f_r, f_f = _tone(rising, fs), _tone(falling, fs)
+    lam = C / cfg.laser.frequency(0.32)
+    chirp = 500e9 * 320e-3 * 2 * 20e3           # |nu'| in Hz/s
+    r_mid = r0 + velocity * 7500 / fs
+    assert 0.5 * (f_r + f_f) == pytest.approx(chirp * 2 * r_mid / C, rel=2e-3)
+    assert 0.5 * (f_f - f_r) == pytest.approx(2 * velocity / lam, abs=0.01 * 2 * 3 / lam)
+
+
+def test_capture_is_deterministic_and_valid(tmp_path):
+    a, b = tmp_path / "a.h5", tmp_path / "b.h5"
+    for p in (a, b):
+        hidden = simulate_capture(p, jump(0.3), 0.001, seed=9, start_s=0.07)
+    with Capture(a) as ca, Capture(b) as cb:
+        np.testing.assert_array_equal(ca.read(0, 100_000)[0], cb.read(0, 100_000)[0])
+        info = ca.info
+        assert info.samples == 100_000 and info.has_truth
+        beat, sync = ca.read(0, info.samples)
+        assert beat.dtype == np.int16 and np.abs(beat).max() <= 8191
+        assert -40 <= hidden["sync_delay_samples"] <= 40
+        truth = ca.truth()
+        assert truth.time_s[0] == 0 and truth.distance_m.size == truth.time_s.size
+        # the excerpt starts at scenario time 0.07: fast take-off
+        assert truth.velocity_mps[0] > 5

@@ -1,0 +1,147 @@
+"""Each numpy stage on synthetic data with a known answer."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from fmcw_cl.physics import C
+from fmcw_cl.simulate import paper_dfb
+from fmcw_cl.stages import kinematics, lpf, pairing, resample, spectrum, sync
+from fmcw_cl.stages.lut import build_lut
+
+HP = 2500.0  # half-period, samples
+
+
+def triangle(n, half, t0, amp=3000.0, noise=0.0, seed=0):
+    """Triangle with a minimum at sample t0 (+ k * 2 half), values in [-amp/2, amp/2]."""
+    p = ((np.arange(n) - t0) / (2 * half)) % 1.0
+    tri = np.where(p < 0.5, 2 * p, 2 - 2 * p)
+    return amp * (tri - 0.5) + np.random.default_rng(seed).normal(0, noise, n)
+
+
+def test_cic_rejects_beats_near_multiples_of_the_decimated_rate():
+    fs = 100e6
+    t = np.arange(400_000) / fs
+    for f in (3.9e6, 4.1e6, 8.05e6):
+        y, _, _ = lpf.intensity(1000 * np.cos(2 * np.pi * f * t), fs)
+        assert np.abs(y[100:-100]).max() < 1.0   # > 60 dB down
+    y, t0, step = lpf.intensity(np.full(10_000, 7.0), fs)
+    assert y[50:-50] == pytest.approx(7.0)
+    assert (t0, step) == (36.0, 25.0)
+
+
+def test_turning_points_sub_sample_and_split_on_dropped_samples():
+    x = triangle(200_000, HP, t0=1234.56, noise=4.0)
+    tp = sync.sync_turning_points(np.rint(x), HP)
+    assert tp.segment.max() == 0
+    expect = 1234.56 + HP * np.round((tp.time - 1234.56) / HP)
+    assert np.abs(tp.time - expect).max() < 0.05
+    assert np.all(tp.is_max == (np.round((tp.time - 1234.56) / HP) % 2 == 1))
+    dropped = np.delete(x, np.arange(100_000, 100_003))   # 3 samples lost
+    tp = sync.sync_turning_points(np.rint(dropped), HP)
+    assert tp.segment.max() == 1
+
+
+@pytest.mark.parametrize("lag,sign", [(17.3, 1.0), (-31.7, -1.0), (0.4, 1.0)])
+def test_delay_from_the_intensity_triangle(lag, sign):
+    n = 400_000
+    sync_ch = triangle(n, HP, t0=777.0, amp=6000, noise=4, seed=1)
+    optical = triangle(n, HP, t0=777.0 - lag, amp=800, noise=25, seed=2)
+    lags, misfit = sync.period_delays(sign * optical, sync_ch, 100e6, HP)
+    est, used, best = sync.combine_delays(lags, misfit)
+    assert est == pytest.approx(lag, abs=0.1)
+    assert used > 0.8 * lags.size and best < sync.CLEAN_MISFIT
+
+
+def test_lut_uniform_frequency_and_mirror():
+    laser = paper_dfb()
+    cur = np.linspace(0.02, 0.5, 25)
+    lut = build_lut(cur, laser.frequency(cur), 0.16, 0.48, points=1000)
+    assert lut.bandwidth_hz == pytest.approx(160e9, rel=1e-6)
+    np.testing.assert_allclose(lut.u_rise, 1 - lut.u_fall)
+    # rising: current = 0.16 + 0.32 u; the frequency there is nu_j, uniformly spaced
+    nu = laser.frequency(0.16 + 0.32 * lut.u_rise)
+    np.testing.assert_allclose(nu, lut.nu_hz, atol=2e3)
+    np.testing.assert_allclose(np.diff(lut.nu_hz), 160e6, rtol=1e-9)
+    assert lut.unambiguous_range_m == pytest.approx(1000 * C / (4 * 160e9), rel=1e-6)
+
+
+def test_resample_cubic_from_codes():
+    n = 20_000
+    f = 0.013  # cycles per sample
+    codes = np.rint(3000 * np.sin(2 * np.pi * f * np.arange(n))).astype(np.int16)
+    rng = np.random.default_rng(4)
+    starts = rng.uniform(2, 10_000, 7)
+    u = np.sort(rng.uniform(0, 1, 333))
+    ones = np.ones(u.size)
+    y = resample.resample(codes, starts, np.full(7, 2500.0), u, ones)
+    p = starts[:, None] + 2500.0 * u
+    exact = 3000 * np.sin(2 * np.pi * f * p)
+    exact -= exact.mean(axis=1, keepdims=True)
+    assert np.abs(y - exact).max() < 2.0   # rounding to codes + cubic error
+
+
+@pytest.mark.parametrize("points", [1000, 2048, 777])
+def test_peak_interpolation_bias_is_small(points):
+    nfft = spectrum.fft_length(points)
+    win = resample.window(points)
+    true_bins = np.linspace(60.0, 300.0, 41) + 0.137
+    j = np.arange(points)
+    x = np.cos(2 * np.pi * np.outer(true_bins / nfft, j)) * win
+    pk = spectrum.find_peaks(spectrum.power_spectra(x, nfft), 20)
+    assert np.abs(pk.bin - true_bins).max() < 0.01   # padded bins: < 0.005 resolution cells
+    assert np.all(pk.snr_db > 40)
+
+
+def _synthetic_pair(lut, model, r_m, v, half_s, noise, rng):
+    """Resampled rising/falling sweeps of a target moving at v (m/s), centred at R = r_m."""
+    n = lut.points
+    win = resample.window(n)
+    out = []
+    for beta, u, dt in ((model.beta_rise, lut.u_rise, -half_s / 2),
+                        (model.beta_fall, lut.u_fall, half_s / 2)):
+        r_c = r_m + v * dt
+        phase = lut.nu_hz * 2 * r_c / C + v * beta + rng.uniform()
+        x = np.cos(2 * np.pi * phase) + rng.normal(0, noise, n)
+        out.append((x - x.mean()) * win)
+        del u
+    return out
+
+
+def test_tracker_resolves_folds_and_the_paper_method_does_not():
+    laser = paper_dfb()
+    cur = np.linspace(0.02, 0.5, 25)
+    lut = build_lut(cur, laser.frequency(cur), 0.16, 0.48, points=1000)
+    half_s = 25e-6
+    nfft = spectrum.fft_length(1000)
+    model = pairing.doppler_model(lut, half_s, nfft, resample.window(1000))
+    rng = np.random.default_rng(0)
+    # 300 pairs: accelerating from 1 to 7 m/s at 0.12 m, where v K > R (fold) from ~4 m/s
+    pairs = 300
+    t_mid = np.arange(pairs) * 50e-6
+    v = np.linspace(1.0, 7.0, pairs)
+    r = 0.12 + np.cumsum(v) * 50e-6
+    xr, xf = map(np.array, zip(*(_synthetic_pair(lut, model, r[i], v[i], half_s, 0.3, rng)
+                                 for i in range(pairs)), strict=False))
+    lo = int(0.03 / model.metres_per_bin)
+    assert abs(model.k_rise) * 7.0 > 0.12   # the fold really happens
+    res = pairing.track_pairs(xr, xf, t_mid - half_s / 2, t_mid + half_s / 2, model, lo)
+    assert res.valid.mean() > 0.98
+    ok = res.valid
+    assert np.abs(res.distance[ok] - r[ok]).max() < 0.05e-3
+    assert np.abs(res.velocity[ok] - v[ok]).max() < 2e-3
+    paper = pairing.track_pairs(xr, xf, t_mid - half_s / 2, t_mid + half_s / 2, model, lo,
+                                dechirp=False)
+    assert np.percentile(np.abs(paper.distance - r), 95) > 5e-3   # centimetres off
+
+
+def test_acceleration_skips_gaps():
+    period = 50e-6
+    t = np.arange(200) * period
+    v = 3.0 + 120.0 * t + 400.0 * t**2
+    valid = np.ones(200, bool)
+    valid[90:95] = False
+    a = kinematics.acceleration(v, valid, period)
+    assert np.all(np.isnan(a[90:95]))
+    np.testing.assert_allclose(a[valid], (120.0 + 800.0 * t)[valid], rtol=1e-6)
