@@ -72,6 +72,10 @@ def command(ctx, captures, outdir, points, backend, min_range, no_dechirp, skip_
             continue
         s = summary(cap, out, track)
         results.append(s)
+        if track.attrs["near_range_limit_pairs"]:
+            click.echo(f"warning: {cap}: {track.attrs['near_range_limit_pairs']} pairs lie within 5 % of "
+                       f"the unambiguous range ({track.attrs['unambiguous_range_m']:.3f} m); a farther "
+                       "target would alias: raise --points", err=True)
         if not track.attrs["sync_delay_reliable"]:
             click.echo(f"warning: {cap}: the sync delay estimate is unreliable (a target beat "
                        "near 0 Hz in every period); velocities may be biased", err=True)

@@ -17,13 +17,14 @@ import numpy as np
 
 from . import __version__
 from .capture import Capture, CaptureInfo
-from .errors import CaptureError
+from .errors import CaptureError, FmcwError
 from .stages import kinematics, pairing, resample, spectrum, sync
 from .stages.lut import Lut, build_lut
 from .track import Track
 
 DELAY_STRETCHES = 6           # stretches of the capture used to estimate the sync delay
 DELAY_STRETCH_PERIODS = 200
+NEAR_LIMIT = 0.95             # distances beyond this share of the unambiguous range may be aliased
 
 
 @dataclass(frozen=True)
@@ -93,6 +94,9 @@ def make_plan(cap: Capture, options: Options) -> Plan:
     win = resample.window(options.points)
     nfft = spectrum.fft_length(options.points)
     model = pairing.doppler_model(lut, info.modulation.period_s / 2, nfft, win)
+    if not 0 <= options.min_range_m < 0.9 * lut.unambiguous_range_m:
+        raise FmcwError(f"--min-range {options.min_range_m:g} m is not below the unambiguous range "
+                        f"{lut.unambiguous_range_m:.3f} m of --points {options.points}")
     lo_bin = max(1, int(np.ceil(options.min_range_m / model.metres_per_bin)))
     lag, votes, misfit = estimate_capture_delay(cap)
     if not np.isfinite(lag):
@@ -203,6 +207,7 @@ def process(path, options: Options | None = None, backend=None,
         "bandwidth_hz": lut.bandwidth_hz,
         "range_resolution_m": lut.range_resolution_m,
         "unambiguous_range_m": lut.unambiguous_range_m,
+        "near_range_limit_pairs": int(np.sum(dist[valid] > NEAR_LIMIT * lut.unambiguous_range_m)),
         "refractive_index": info.refractive_index,
         "sync_delay_samples": plan.lag,
         "sync_delay_periods_used": plan.lag_periods,
