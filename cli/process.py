@@ -9,7 +9,7 @@ from pathlib import Path
 import click
 import numpy as np
 
-from fmcw_cl.engine import Options, process
+from fmcw_cl.engine import Options, make_backend, process
 from fmcw_cl.errors import FmcwError
 from fmcw_cl.progress import Progress
 from fmcw_cl.track import track_path, write_track
@@ -34,8 +34,11 @@ def summary(capture: Path, out: Path, track) -> dict:
               help="Folder for the <capture stem>.track.h5 files.")
 @click.option("--points", default=1000, show_default=True,
               help="Resampling intervals per half-sweep (unambiguous range N c / 4nB).")
-@click.option("--backend", type=click.Choice(["auto", "numpy"]), default="auto", show_default=True,
-              help="Stage implementation; auto picks the fastest available.")
+@click.option("--backend", type=click.Choice(["auto", "opencl", "numpy"]), default="auto",
+              show_default=True, help="Stage implementation; auto: OpenCL when a device works.")
+@click.option("--device", default=None,
+              help="OpenCL device: index P or P:D, or a name substring (default: PYOPENCL_CTX, "
+                   "else the first GPU, else the first device); see `fmcw-cl devices`.")
 @click.option("--min-range", default=0.03, show_default=True,
               help="Ignore peaks below this distance (m): DC, intensity ramp, lens reflection.")
 @click.option("--no-dechirp", is_flag=True, help="The paper's method alone (no Doppler de-chirp).")
@@ -43,8 +46,8 @@ def summary(capture: Path, out: Path, track) -> dict:
 @click.option("--json", "as_json", is_flag=True, help="Print the summaries as JSON on stdout.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress, no summary.")
 @click.pass_context
-def command(ctx, captures, outdir, points, backend, min_range, no_dechirp, skip_existing, as_json,
-            quiet):
+def command(ctx, captures, outdir, points, backend, device, min_range, no_dechirp, skip_existing,
+            as_json, quiet):
     """Convert CAPTURE files into tracks (distance, velocity, acceleration).
 
     \b
@@ -53,6 +56,7 @@ def command(ctx, captures, outdir, points, backend, min_range, no_dechirp, skip_
     """
     outdir.mkdir(parents=True, exist_ok=True)
     options = Options(points=points, min_range_m=min_range, dechirp=not no_dechirp)
+    stages = make_backend(backend, device, warn=lambda m: click.echo(m, err=True))
     results, failed = [], 0
     for cap in captures:
         out = track_path(outdir, cap)
@@ -60,7 +64,7 @@ def command(ctx, captures, outdir, points, backend, min_range, no_dechirp, skip_
             continue
         bar = Progress(cap.name, enabled=False if quiet else None)
         try:
-            track = process(cap, options, progress=bar)
+            track = process(cap, options, stages, progress=bar)
             bar.close()
             write_track(out, track)
         except FmcwError as exc:

@@ -67,6 +67,23 @@ class NumpyBackend:
         return pairing.measure(x, beta, v, model, lo_bin)
 
 
+def make_backend(name: str = "auto", device: str | None = None, warn=None):
+    """The stage implementation: "numpy", "opencl", or "auto" (OpenCL when a device
+    works, else numpy with a one-line warning through `warn`)."""
+    if name == "numpy":
+        return NumpyBackend()
+    from .opencl.backend import OpenCLBackend
+
+    try:
+        return OpenCLBackend(device)
+    except FmcwError as exc:
+        if name == "opencl":
+            raise
+        if warn:
+            warn(f"warning: OpenCL unavailable ({exc}); using the numpy backend")
+        return NumpyBackend()
+
+
 def estimate_capture_delay(cap: Capture) -> tuple[float, int, float]:
     """Sync lag (samples) pooled over stretches spread through the capture.
 

@@ -62,6 +62,11 @@ def test_bad_capture_one_line_and_others_still_converted(tmp_path, static_captur
     assert not list(out.glob("*.part"))
 
 
+def test_devices_lists_and_marks_one():
+    out = fmcw("devices").stdout.splitlines()
+    assert sum(line.startswith("*") for line in out) == 1
+
+
 def test_help_shows_examples():
-    for cmd in ("process", "simulate", "info"):
+    for cmd in ("process", "simulate", "info", "devices"):
         assert "Example:" in fmcw(cmd, "--help").stdout

@@ -65,7 +65,10 @@ def find_peaks(power: np.ndarray, lo: int, hi: int | None = None) -> Peaks:
         delta = np.where(den < 0, 0.5 * (a - c) / den, 0.0)
     cols = np.arange(lo, hi)
     outside = np.abs(cols[None, :] - kk[:, None]) > GUARD_BINS
-    floor = np.sum(band * outside, axis=1) / np.maximum(outside.sum(axis=1), 1)
+    count = outside.sum(axis=1)
+    # a band narrower than the guard has no outside: use the whole band's mean
+    floor = np.where(count > 0, np.sum(band * outside, axis=1) / np.maximum(count, 1),
+                     band.mean(axis=1))
     with np.errstate(divide="ignore"):
         snr = 10 * np.log10(power[rows, kk] / np.maximum(floor, tiny))
     return Peaks(kk + np.clip(delta, -0.5, 0.5), snr.astype(np.float32))

@@ -1,0 +1,33 @@
+"""`fmcw-cl devices`: the OpenCL platforms and devices seen, and which one is used."""
+
+from __future__ import annotations
+
+import click
+
+from fmcw_cl.errors import FmcwError
+from fmcw_cl.opencl.context import devices, select_device
+
+
+@click.command("devices")
+@click.option("--device", default=None, help="Selector to resolve (index P[:D] or name substring).")
+def command(device):
+    """List OpenCL platforms and devices; mark the one `process` would use.
+
+    \b
+    Example:
+      fmcw-cl devices
+      PYOPENCL_CTX=0:0 fmcw-cl devices
+    """
+    seen = devices()
+    try:
+        chosen = select_device(device)
+    except FmcwError as exc:
+        chosen = None
+        click.echo(f"no device selected: {exc}", err=True)
+    for p, d, plat, dev in seen:
+        mark = "*" if chosen is not None and dev.int_ptr == chosen.int_ptr else " "
+        mem = dev.global_mem_size / 2**30
+        click.echo(f"{mark} {p}:{d}  {plat.name.strip()} / {dev.name.strip()}  "
+                   f"({dev.max_compute_units} units, {mem:.1f} GiB, OpenCL {dev.version.strip()})")
+    if not seen:
+        raise FmcwError("no OpenCL device found: pip install pocl-binary-distribution")

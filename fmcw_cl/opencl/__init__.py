@@ -1,0 +1,1 @@
+"""OpenCL backend: context and program cache, one launcher per kernel."""

@@ -1,0 +1,130 @@
+"""Device choice and the program cache.
+
+A platform/device is chosen deliberately (never "whatever comes first"): by index
+"P" or "P:D", by a substring of the platform or device name, or by the standard
+PYOPENCL_CTX; by default the first GPU, else the first device of the first platform
+that has one. Programs are built once per context and cached; a failed build saves
+its log to a file and says where.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from ..errors import FmcwError
+
+try:  # pyopencl is a dependency, but a broken OpenCL install must not break numpy use
+    import pyopencl as cl
+except Exception:  # noqa: BLE001 - any import failure means: no OpenCL here
+    cl = None
+
+
+def available() -> bool:
+    """Whether any OpenCL device can be seen."""
+    try:
+        return bool(devices())
+    except FmcwError:
+        return False
+
+
+def devices() -> list[tuple[int, int, object, object]]:
+    """All (platform index, device index, platform, device) seen."""
+    if cl is None:
+        raise FmcwError("pyopencl cannot be imported: pip install pyopencl pocl-binary-distribution")
+    try:
+        platforms = cl.get_platforms()
+    except cl.Error:
+        return []
+    out = []
+    for p, plat in enumerate(platforms):
+        try:
+            devs = plat.get_devices()
+        except cl.Error:
+            continue
+        out.extend((p, d, plat, dev) for d, dev in enumerate(devs))
+    return out
+
+
+def describe(device) -> str:
+    return f"{device.platform.name.strip()} / {device.name.strip()}"
+
+
+def select_device(selector: str | None = None):
+    """The OpenCL device named by `selector` (see module doc)."""
+    seen = devices()
+    if not seen:
+        raise FmcwError("no OpenCL device found: pip install pocl-binary-distribution "
+                        "(a CPU OpenCL), or install your GPU vendor's OpenCL driver")
+    selector = selector if selector is not None else os.environ.get("PYOPENCL_CTX")
+    if selector:
+        parts = selector.split(":")
+        if all(x.isdigit() for x in parts if x):
+            p = int(parts[0])
+            d = int(parts[1]) if len(parts) > 1 and parts[1] else 0
+            for pi, di, _, dev in seen:
+                if (pi, di) == (p, d):
+                    return dev
+            raise FmcwError(f"no OpenCL device {selector!r}; `fmcw-cl devices` lists them")
+        for _, _, plat, dev in seen:
+            if selector.lower() in f"{plat.name} {dev.name}".lower():
+                return dev
+        raise FmcwError(f"no OpenCL device matches {selector!r}; `fmcw-cl devices` lists them")
+    gpus = [dev for *_, dev in seen if dev.type & cl.device_type.GPU]
+    return gpus[0] if gpus else seen[0][3]
+
+
+@dataclass
+class Runtime:
+    """A context and queue on one device, with its built programs."""
+
+    device: object
+    context: object = None
+    queue: object = None
+    programs: dict = field(default_factory=dict)
+    kernels: dict = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        self.context = cl.Context([self.device])
+        self.queue = cl.CommandQueue(self.context)
+
+    @property
+    def name(self) -> str:
+        return describe(self.device)
+
+    def kernel(self, program: str, name: str):
+        """Kernel `name` of kernels/<program>.cl (built and retrieved once)."""
+        key = (program, name)
+        if key not in self.kernels:
+            self.kernels[key] = cl.Kernel(self.program(program), name)
+        return self.kernels[key]
+
+    def program(self, name: str):
+        """kernels/<name>.cl built for this context (cached)."""
+        if name not in self.programs:
+            from fmcw_cl.kernels import source
+
+            prog = cl.Program(self.context, source(name))
+            try:
+                prog.build(options=["-cl-std=CL1.2"])
+            except cl.Error as exc:
+                log = Path(tempfile.gettempdir()) / f"fmcw-cl-{name}-build.log"
+                log.write_text(str(exc))
+                raise FmcwError(f"kernel {name}.cl failed to build on {self.name}; "
+                                f"build log: {log}") from None
+            self.programs[name] = prog
+        return self.programs[name]
+
+
+_RUNTIMES: dict[int, Runtime] = {}
+
+
+def runtime(selector: str | None = None) -> Runtime:
+    """The (cached) runtime of the selected device: one context per device and process."""
+    dev = select_device(selector)
+    key = dev.int_ptr
+    if key not in _RUNTIMES:
+        _RUNTIMES[key] = Runtime(dev)
+    return _RUNTIMES[key]
