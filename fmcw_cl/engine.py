@@ -68,13 +68,21 @@ class NumpyBackend:
 
 
 def make_backend(name: str = "auto", device: str | None = None, warn=None):
-    """The stage implementation: "numpy", "opencl", or "auto" (OpenCL when a device
-    works, else numpy with a one-line warning through `warn`)."""
+    """The stage implementation: "numpy", "opencl", or "auto".
+
+    "auto" takes OpenCL on a GPU and numpy otherwise: on PoCL (CPU) the OpenCL path
+    measured slower end to end than numpy so far (see benchmarks/README.md), and a
+    default must not be the slower path. A failing OpenCL falls back to numpy with a
+    one-line warning through `warn`; "opencl" forces it (and fails loudly).
+    """
     if name == "numpy":
         return NumpyBackend()
     from .opencl.backend import OpenCLBackend
+    from .opencl.context import cl, select_device
 
     try:
+        if name == "auto" and not (select_device(device).type & cl.device_type.GPU):
+            return NumpyBackend()
         return OpenCLBackend(device)
     except FmcwError as exc:
         if name == "opencl":
