@@ -1,0 +1,28 @@
+"""The wheel ships every package: an editable install would hide a missing one."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def declared_packages() -> set[str]:
+    text = (ROOT / "pyproject.toml").read_text()
+    line = re.search(r"^packages = \[(.*)\]$", text, re.M).group(1)
+    return set(re.findall(r'"([\w.]+)"', line))
+
+
+def test_every_package_directory_is_declared():
+    found = {"fmcw_cl." + ".".join(p.parent.relative_to(ROOT / "fmcw_cl").parts)
+             for p in (ROOT / "fmcw_cl").rglob("__init__.py")}
+    found = {f.rstrip(".") for f in found}
+    found |= {"fmcw_cl.cli", "fmcw_cl.kernels"}          # mapped from cli/ and kernels/
+    assert found == declared_packages()
+
+
+def test_kernels_are_package_data():
+    text = (ROOT / "pyproject.toml").read_text()
+    assert '"fmcw_cl.kernels" = ["*.cl"]' in text
+    assert sorted(p.stem for p in (ROOT / "kernels").glob("*.cl")) == ["fft", "peak", "resample"]
