@@ -5,7 +5,7 @@ from __future__ import annotations
 import click
 
 from fmcw_cl.errors import FmcwError
-from fmcw_cl.opencl.context import devices, select_device
+from fmcw_cl.opencl.context import describe, devices, select_device
 
 
 @click.command("devices")
@@ -24,10 +24,10 @@ def command(device):
     except FmcwError as exc:
         chosen = None
         click.echo(f"no device selected: {exc}", err=True)
-    for p, d, plat, dev in seen:
+    for p, d, _, dev in seen:
         mark = "*" if chosen is not None and dev.int_ptr == chosen.int_ptr else " "
         mem = dev.global_mem_size / 2**30
-        click.echo(f"{mark} {p}:{d}  {plat.name.strip()} / {dev.name.strip()}  "
+        click.echo(f"{mark} {p}:{d}  {describe(dev)}  "
                    f"({dev.max_compute_units} units, {mem:.1f} GiB, OpenCL {dev.version.strip()})")
     if not seen:
         raise FmcwError("no OpenCL device found: pip install pocl-binary-distribution")

@@ -33,7 +33,7 @@ class OpenCLBackend:
 
 
 def spectra(backend: OpenCLBackend, x: np.ndarray, nfft: int) -> np.ndarray:
-    """Power spectra copied back to the host (for tests and `process --keep-spectra`)."""
+    """Power spectra of the plain (not de-chirped) rows of x, copied back to the host."""
     import pyopencl as cl
 
     d = k_spectrum.power_spectra(backend.rt, backend.bufs, x, None, None, nfft)

@@ -22,14 +22,6 @@ except Exception:  # noqa: BLE001 - any import failure means: no OpenCL here
     cl = None
 
 
-def available() -> bool:
-    """Whether any OpenCL device can be seen."""
-    try:
-        return bool(devices())
-    except FmcwError:
-        return False
-
-
 def devices() -> list[tuple[int, int, object, object]]:
     """All (platform index, device index, platform, device) seen."""
     if cl is None:

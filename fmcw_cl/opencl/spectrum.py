@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from ..stages.spectrum import GUARD_BINS, Peaks
@@ -11,7 +13,9 @@ from .context import Runtime, cl
 LOCAL = 256
 
 
+@functools.lru_cache(maxsize=8)
 def _tables(nfft: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Bit-reversal permutation and twiddles of an nfft-point FFT (made once per length)."""
     bits = int(np.log2(nfft))
     idx = np.arange(nfft)
     rev = np.zeros(nfft, np.int64)
