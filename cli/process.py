@@ -58,11 +58,11 @@ def command(ctx, captures, outdir, points, backend, device, min_range, no_dechir
     options = Options(points=points, min_range_m=min_range, dechirp=not no_dechirp)
     stages = make_backend(backend, device, warn=lambda m: click.echo(m, err=True))
     results, failed = [], 0
-    for cap in captures:
+    for number, cap in enumerate(captures, 1):
         out = track_path(outdir, cap)
         if skip_existing and out.exists():
             continue
-        bar = Progress(cap.name, enabled=False if quiet else None)
+        bar = Progress(f"[{number}/{len(captures)}] {cap.name}", enabled=False if quiet else None)
         try:
             track = process(cap, options, stages, progress=bar)
             bar.close()

@@ -12,6 +12,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -110,8 +111,12 @@ def estimate_capture_delay(cap: Capture) -> tuple[float, int, float]:
     return sync.combine_delays(np.concatenate(lags), np.concatenate(misfits))
 
 
-def make_plan(cap: Capture, options: Options) -> Plan:
-    """Fit G(I), build the LUT and the Doppler model, estimate the sync delay."""
+def make_plan(cap: Capture, options: Options, lag: float | None = None) -> Plan:
+    """Fit G(I), build the LUT and the Doppler model, estimate the sync delay.
+
+    A known `lag` (samples the sync lags the optics, e.g. from a track) skips the
+    estimate.
+    """
     info = cap.info
     lut = build_lut(info.tuning_current_a, info.tuning_frequency_hz,
                     info.modulation.current_min_a, info.modulation.current_max_a,
@@ -123,7 +128,7 @@ def make_plan(cap: Capture, options: Options) -> Plan:
         raise FmcwError(f"--min-range {options.min_range_m:g} m is not below the unambiguous range "
                         f"{lut.unambiguous_range_m:.3f} m of --points {options.points}")
     lo_bin = max(1, int(np.ceil(options.min_range_m / model.metres_per_bin)))
-    lag, votes, misfit = estimate_capture_delay(cap)
+    lag, votes, misfit = estimate_capture_delay(cap) if lag is None else (lag, 0, 0.0)
     if not np.isfinite(lag):
         raise CaptureError(info.path, "no laser intensity triangle in the beat channel: "
                                       "cannot align the sync to the optics")
@@ -220,6 +225,9 @@ def process(path, options: Options | None = None, backend=None,
     vel[~valid] = np.nan
     acc = kinematics.acceleration(vel, valid, period_s)
 
+    def interleave(rise, fall):
+        return np.stack([res[rise], res[fall]], axis=1).ravel()
+
     sweep_t = np.stack([t_r, t_f], axis=1).ravel()
     lut = plan.lut
     attrs = {
@@ -243,14 +251,16 @@ def process(path, options: Options | None = None, backend=None,
         "backend": backend.name,
         "device": backend.device,
         "software": f"fmcw-cl {__version__}",
-        "source": str(info.path),
+        "source": str(Path(info.path).resolve()),
         "capture_duration_s": info.duration_s,
         "processing_time_s": time.perf_counter() - started,
     }
     return Track(
         sweep_time_s=sweep_t,
         sweep_rising=np.tile([True, False], t_r.size),
-        sweep_distance_m=np.stack([res["dist_rise"], res["dist_fall"]], axis=1).ravel(),
-        sweep_snr_db=np.stack([res["snr_rise"], res["snr_fall"]], axis=1).ravel(),
+        sweep_distance_m=interleave("dist_rise", "dist_fall"),
+        sweep_snr_db=interleave("snr_rise", "snr_fall"),
+        sweep_distance_dechirped_m=interleave("dechirped_rise", "dechirped_fall"),
+        sweep_snr_dechirped_db=interleave("dechirped_snr_rise", "dechirped_snr_fall"),
         time_s=times[order], distance_m=dist, velocity_mps=vel, acceleration_mps2=acc,
         valid=valid, attrs=attrs)

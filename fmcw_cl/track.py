@@ -29,6 +29,8 @@ class Track:
     acceleration_mps2: np.ndarray
     valid: np.ndarray
     attrs: dict = field(default_factory=dict)
+    sweep_distance_dechirped_m: np.ndarray | None = None   # after the final de-chirp
+    sweep_snr_dechirped_db: np.ndarray | None = None
 
     @property
     def pairs(self) -> int:
@@ -53,6 +55,10 @@ def write_track(path: str | os.PathLike, track: Track) -> Path:
         s.create_dataset("current_rising", data=np.asarray(track.sweep_rising, bool))
         s.create_dataset("distance_m", data=np.asarray(track.sweep_distance_m, np.float64))
         s.create_dataset("snr_db", data=np.asarray(track.sweep_snr_db, np.float32))
+        if track.sweep_distance_dechirped_m is not None:
+            s.create_dataset("distance_dechirped_m",
+                             data=np.asarray(track.sweep_distance_dechirped_m, np.float64))
+            s.create_dataset("snr_dechirped_db", data=np.asarray(track.sweep_snr_dechirped_db, np.float32))
         t = f.create_group("track")
         t.create_dataset("time_s", data=np.asarray(track.time_s, np.float64))
         t.create_dataset("distance_m", data=np.asarray(track.distance_m, np.float64))
@@ -69,6 +75,10 @@ def read_track(path: str | os.PathLike) -> Track:
             raise ValueError(f"{path}: not a track file")
         s, t = f["sweeps"], f["track"]
         attrs = {k: (v.decode() if isinstance(v, bytes) else v) for k, v in f.attrs.items()}
+        optional = {name: s[key][()] for name, key in (("sweep_distance_dechirped_m", "distance_dechirped_m"),
+                                                        ("sweep_snr_dechirped_db", "snr_dechirped_db"))
+                    if key in s}
         return Track(s["time_s"][()], s["current_rising"][()], s["distance_m"][()],
                      s["snr_db"][()], t["time_s"][()], t["distance_m"][()],
-                     t["velocity_mps"][()], t["acceleration_mps2"][()], t["valid"][()], attrs)
+                     t["velocity_mps"][()], t["acceleration_mps2"][()], t["valid"][()], attrs,
+                     **optional)

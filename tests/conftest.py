@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import os
+import subprocess
+import sys
 import tempfile
 
 import pytest
@@ -11,6 +13,20 @@ import pytest
 os.environ.setdefault("POCL_CACHE_DIR", tempfile.mkdtemp(prefix="pocl-cache-"))
 
 from fmcw_cl.simulate import SimulationConfig, jump, simulate_capture, static  # noqa: E402
+
+
+def run_cli(*args, check=True) -> subprocess.CompletedProcess:
+    """`fmcw-cl ARGS` in a subprocess, as a user runs it; asserts success unless told."""
+    proc = subprocess.run([sys.executable, "-m", "fmcw_cl.cli.main", *map(str, args)],
+                          capture_output=True, text=True)
+    if check:
+        assert proc.returncode == 0, proc.stderr
+    return proc
+
+
+@pytest.fixture(scope="session")
+def fmcw():
+    return run_cli
 
 
 @pytest.fixture(scope="session")
@@ -32,3 +48,12 @@ def jump_capture(capdir):
     path = capdir / "jump.h5"
     simulate_capture(path, jump(0.3), 0.3, seed=3, config=SimulationConfig())
     return path
+
+
+@pytest.fixture(scope="session")
+def jump_track(capdir, jump_capture):
+    """The jump processed by the numpy backend, written as a track file."""
+    from fmcw_cl.engine import process
+    from fmcw_cl.track import track_path, write_track
+
+    return write_track(track_path(capdir, jump_capture), process(jump_capture))

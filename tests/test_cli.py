@@ -4,8 +4,6 @@ from __future__ import annotations
 
 import json
 import re
-import subprocess
-import sys
 
 import h5py
 import numpy as np
@@ -13,15 +11,7 @@ import numpy as np
 from fmcw_cl.track import read_track
 
 
-def fmcw(*args, check=True):
-    proc = subprocess.run([sys.executable, "-m", "fmcw_cl.cli.main", *map(str, args)],
-                          capture_output=True, text=True)
-    if check:
-        assert proc.returncode == 0, proc.stderr
-    return proc
-
-
-def test_simulate_info_process(tmp_path):
+def test_simulate_info_process(tmp_path, fmcw):
     cap = tmp_path / "st.h5"
     fmcw("simulate", "static", "-o", cap, "--distance", "0.2", "--duration", "0.01", "--seed", "3")
     info = fmcw("info", cap).stdout
@@ -49,7 +39,7 @@ def test_simulate_info_process(tmp_path):
     assert np.all(np.diff(track.time_s) > 0)
 
 
-def test_bad_capture_one_line_and_others_still_converted(tmp_path, static_capture):
+def test_bad_capture_one_line_and_others_still_converted(tmp_path, static_capture, fmcw):
     bad = tmp_path / "bad.h5"
     bad.write_text("this is no hdf5")
     out = tmp_path / "tracks"
@@ -62,11 +52,11 @@ def test_bad_capture_one_line_and_others_still_converted(tmp_path, static_captur
     assert not list(out.glob("*.part"))
 
 
-def test_devices_lists_and_marks_one():
+def test_devices_lists_and_marks_one(fmcw):
     out = fmcw("devices").stdout.splitlines()
     assert sum(line.startswith("*") for line in out) == 1
 
 
-def test_help_shows_examples():
-    for cmd in ("process", "simulate", "info", "devices"):
+def test_help_shows_examples(fmcw):
+    for cmd in ("process", "simulate", "info", "devices", "import", "report", "bench"):
         assert "Example:" in fmcw(cmd, "--help").stdout

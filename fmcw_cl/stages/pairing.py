@@ -73,7 +73,12 @@ def doppler_model(lut: Lut, half_sweep_s: float, nfft: int, win: np.ndarray) -> 
 
 @dataclass(frozen=True)
 class PairResult:
-    """Per pair: Doppler-free distance (m), velocity (m/s), and the half-sweeps' view."""
+    """Per pair: Doppler-free distance (m), velocity (m/s), and the half-sweeps' view.
+
+    ``dist_*``/``snr_*`` are each half-sweep's own apparent distance and SNR from its
+    plain spectrum (Doppler shift included, folds folded); ``dechirped_*`` are the
+    same after the final de-chirp (equal to the plain ones without de-chirp).
+    """
 
     distance: np.ndarray
     velocity: np.ndarray
@@ -82,6 +87,10 @@ class PairResult:
     dist_fall: np.ndarray
     snr_rise: np.ndarray
     snr_fall: np.ndarray
+    dechirped_rise: np.ndarray
+    dechirped_fall: np.ndarray
+    dechirped_snr_rise: np.ndarray
+    dechirped_snr_fall: np.ndarray
 
 
 def measure(x: np.ndarray, beta: np.ndarray, v: np.ndarray | None, model: DopplerModel,
@@ -136,6 +145,8 @@ def track_pairs(xr: np.ndarray, xf: np.ndarray, t_rise: np.ndarray, t_fall: np.n
         d_r, s_r = measure(xr, model.beta_rise, vv, model, lo_bin)
         d_f, s_f = measure(xf, model.beta_fall, vv, model, lo_bin)
         dist, vel, dv = solve_pair(d_r, d_f, v0, half_gap, model)
+        if it == 0:
+            plain = (d_r, d_f, s_r, s_f)
         heard = (s_r >= SNR_MIN_DB) & (s_f >= SNR_MIN_DB)
         if it + 1 < passes:
             # the plain first pass smears fast targets: allow 20 % there, not later
@@ -146,4 +157,4 @@ def track_pairs(xr: np.ndarray, xf: np.ndarray, t_rise: np.ndarray, t_fall: np.n
     valid = heard
     if dechirp:
         valid = valid & (np.abs(dv) < CONVERGED_MPS) & (np.abs(vel - med) < CONSISTENT_MPS)
-    return PairResult(dist, vel, valid, d_r, d_f, s_r, s_f)
+    return PairResult(dist, vel, valid, *plain, d_r, d_f, s_r, s_f)

@@ -1,0 +1,47 @@
+"""`fmcw-cl import`: raw DAQ dumps and an OSA G(I) table to a capture."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from fmcw_cl.capture import Modulation
+from fmcw_cl.ingest import import_capture
+from fmcw_cl.progress import Progress
+
+
+@click.command("import")
+@click.argument("dump", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--tuning", required=True, type=click.Path(dir_okay=False, path_type=Path),
+              help="OSA CSV of the G(I) table: current (mA), wavelength (nm) per row.")
+@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, path_type=Path),
+              help="The capture file to write.")
+@click.option("--sample-rate", default=100e6, show_default=True, help="ADC sample rate (Hz).")
+@click.option("--frequency", default=20e3, show_default=True,
+              help="Triangle repetition frequency of the injection current (Hz).")
+@click.option("--current-min", default=0.160, show_default=True, help="Lowest injection current (A).")
+@click.option("--current-max", default=0.480, show_default=True, help="Highest injection current (A).")
+@click.option("--bits", default=14, show_default=True, help="Effective ADC resolution.")
+@click.option("--order", type=click.Choice(["beat,sync", "sync,beat"]), default="beat,sync",
+              show_default=True, help="Channel order in the dump.")
+@click.option("--refractive-index", default=None, type=float, help="Of the medium [1.0].")
+@click.option("--air", is_flag=True, help="The OSA reports wavelengths in air (not vacuum).")
+@click.option("-q", "--quiet", is_flag=True, help="No progress.")
+def command(dump, tuning, output, sample_rate, frequency, current_min, current_max, bits, order,
+            refractive_index, air, quiet):
+    """Make a capture from DUMP (interleaved int16 binary, or .npy (N, 2) / (2, N)).
+
+    \b
+    Example:
+      fmcw-cl import run7.bin --tuning dfb_osa.csv -o run7.h5 --sample-rate 100e6 \\
+          --frequency 20e3 --current-min 0.160 --current-max 0.480
+    """
+    bar = Progress(output.name, enabled=False if quiet else None)
+    try:
+        import_capture(dump, tuning, output, sample_rate, Modulation(frequency, current_min, current_max),
+                       bits, order, refractive_index, air, progress=bar)
+    finally:
+        bar.close()
+    if not quiet:
+        click.echo(f"{dump} + {tuning} -> {output}")

@@ -1,0 +1,140 @@
+"""A track's report: pictures of the paper's figures and its event table.
+
+`make_report` writes, into one folder (each file atomically):
+kinematics.png, spectra.png (when the source capture is readable), precision.png
+(static targets only), events.md and events.json.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+
+from ..atomic import atomic_path
+from ..capture import Capture, Truth
+from ..errors import CaptureError
+from ..evaluate import truth_at
+from ..track import Track, read_track
+from .events import Event, compare, find_events
+
+STATIC_MPS = 0.01        # a track is "static" when 95 % of its |velocity| is below this
+SLOW_MPS = 0.2           # spectra are shown where the target is this slow (no Doppler smear)
+SPECTRA_SPAN_S = 0.01    # stretch of spectra shown
+TRUTH_GRID_S = 1e-6      # the true events are found on this grid
+
+UNITS = {"distance_m": "m", "velocity_mps": "m/s", "acceleration_mps2": "m/s²"}
+
+
+def is_static(track: Track) -> bool:
+    v = track.velocity_mps[track.valid]
+    return v.size > 10 and float(np.percentile(np.abs(v), 95)) < STATIC_MPS
+
+
+def true_events(truth: Truth, t0: float, t1: float) -> list[Event]:
+    """Events of the true trajectory between t0 and t1 (s), on a fine grid."""
+    g = np.arange(max(t0, truth.time_s[0]), min(t1, truth.time_s[-1]), TRUTH_GRID_S)
+    return find_events(g, *truth_at(truth, g), refine_s=20 * TRUTH_GRID_S)
+
+
+def events_markdown(rows: list[dict], title: str) -> str:
+    """The event table as Markdown (times in ms; errors when a truth was matched)."""
+    truth = any(r["true_time_s"] is not None for r in rows)
+    head = "| event | time (ms) | value | unit |"
+    rule = "|---|---:|---:|---|"
+    if truth:
+        head += " true time (ms) | true value | time error (ms) | value error (%) |"
+        rule += "---:|---:|---:|---:|"
+    lines = [f"# Events: {title}", "", head, rule]
+    for r in rows:
+        line = (f"| {r['kind'].replace('_', ' ')} | {1e3 * r['time_s']:.3f} | {r['value']:.4g} | "
+                f"{UNITS[r['quantity']]} |")
+        if truth:
+            if r["true_time_s"] is None:
+                line += " – | – | – | – |"
+            else:
+                rel = r["value_error_rel"]
+                line += (f" {1e3 * r['true_time_s']:.3f} | {r['true_value']:.4g} | "
+                         f"{1e3 * r['time_error_s']:+.3f} | "
+                         f"{'–' if rel is None else f'{100 * rel:+.2f}'} |")
+        lines.append(line)
+    if not rows:
+        lines.append("| (none: the target is at rest) | | | |")
+    return "\n".join(lines) + "\n"
+
+
+def _write_text(path: Path, text: str) -> None:
+    with atomic_path(path) as tmp:
+        tmp.write_text(text, encoding="utf-8")
+
+
+def _source(track: Track, capture: str | os.PathLike | None) -> Path | None:
+    src = capture or track.attrs.get("source")
+    return Path(src) if src and Path(src).is_file() else None
+
+
+def make_report(track_file: str | os.PathLike, outdir: str | os.PathLike,
+                capture: str | os.PathLike | None = None, at_s: float | None = None,
+                span_s: float = SPECTRA_SPAN_S) -> dict:
+    """Write the report of one track; returns what was written and the event rows.
+
+    Parameters
+    ----------
+    track_file : a track written by `fmcw-cl process`.
+    outdir : folder for the report (created).
+    capture : the source capture (default: the track's ``source`` attribute); without
+        it there is no truth overlay and no spectra.
+    at_s : centre (s) of the spectra's stretch; default: the farthest moment where the
+        target is slow (the nonlinearity smears far targets most, Doppler none).
+    span_s : length (s) of the spectra's stretch.
+    """
+    from . import figures  # matplotlib only when a report is made
+    from .spectra import stretch_spectra
+
+    try:
+        track = read_track(track_file)
+    except (OSError, ValueError, KeyError) as exc:
+        raise CaptureError(Path(track_file), f"not a readable track file ({exc})") from None
+    out = Path(outdir)
+    out.mkdir(parents=True, exist_ok=True)
+    src = _source(track, capture)
+    truth = None
+    if src is not None:
+        with Capture(src) as cap:
+            truth = cap.truth()
+    written: list[Path] = []
+    ev = find_events(track.time_s, np.where(track.valid, track.distance_m, np.nan),
+                     track.velocity_mps, track.acceleration_mps2)
+    t0, t1 = (float(track.time_s[0]), float(track.time_s[-1])) if track.pairs else (0.0, 0.0)
+    rows = compare(ev, true_events(truth, t0, t1) if truth is not None else [])
+
+    with atomic_path(out / "kinematics.png") as tmp:
+        figures.kinematics(track, tmp, truth, ev)
+    written.append(out / "kinematics.png")
+    if src is not None and track.pairs:
+        if at_s is None:
+            slow = track.valid & (np.abs(np.nan_to_num(track.velocity_mps, nan=np.inf)) < SLOW_MPS)
+            at_s = (float(track.time_s[slow][np.argmax(track.distance_m[slow])]) if slow.any()
+                    else 0.5 * (t0 + t1))
+        sp = stretch_spectra(src, at_s - span_s / 2, at_s + span_s / 2, int(track.attrs["points"]),
+                             float(track.attrs["sync_delay_samples"]), float(track.attrs["min_range_m"]))
+        chosen = int(np.argmin(np.abs(sp.time_s - at_s)))
+        with atomic_path(out / "spectra.png") as tmp:
+            figures.spectra(sp, tmp, chosen, float(track.attrs["unambiguous_range_m"]))
+        written.append(out / "spectra.png")
+    if is_static(track):
+        true_d = float(np.median(truth.distance_m)) if truth is not None else None
+        with atomic_path(out / "precision.png") as tmp:
+            figures.precision(track, tmp, true_d)
+        written.append(out / "precision.png")
+    title = Path(str(track.attrs.get("source", track_file))).name
+    _write_text(out / "events.md", events_markdown(rows, title))
+    _write_text(out / "events.json", json.dumps(
+        {"track": str(track_file), "source": str(src) if src else None, "events": rows}, indent=2))
+    written += [out / "events.md", out / "events.json"]
+    return {"written": [str(p) for p in written], "events": rows}
+
+
+__all__ = ["make_report", "find_events", "compare", "Event", "is_static"]

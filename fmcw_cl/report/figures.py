@@ -1,0 +1,122 @@
+"""The report's pictures (matplotlib, headless): the paper's Fig. 10, 5/6(a) and 6(c)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")  # files only; never needs a display
+
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from ..capture import Truth  # noqa: E402
+from ..evaluate import truth_at  # noqa: E402
+from ..track import Track  # noqa: E402
+from .events import Event  # noqa: E402
+from .spectra import Spectra  # noqa: E402
+
+PANELS = (("distance_m", "distance (m)"), ("velocity_mps", "velocity (m/s)"),
+          ("acceleration_mps2", "acceleration (m/s²)"))
+
+
+def kinematics(track: Track, path: Path, truth: Truth | None = None,
+               events: list[Event] = ()) -> Path:
+    """Distance, velocity and acceleration over time (ms) in three stacked panels.
+
+    Invalid pairs are gaps (NaN); the true trajectory is overlaid dashed when given,
+    and the events are marked on their panel.
+    """
+    t_ms = 1e3 * track.time_s
+    fig, axes = plt.subplots(3, 1, sharex=True, figsize=(9, 8), constrained_layout=True)
+    true = truth_at(truth, track.time_s) if truth is not None else None
+    for k, (ax, (name, label)) in enumerate(zip(axes, PANELS, strict=True)):
+        y = np.where(track.valid, getattr(track, name), np.nan)
+        ax.plot(t_ms, y, color="C0", lw=1.0, label="measured")
+        if true is not None:
+            ax.plot(t_ms, true[k], color="k", lw=0.8, ls="--", label="truth")
+        marks = [e for e in events if e.quantity == name]
+        if marks:
+            ax.plot([1e3 * e.time_s for e in marks], [e.value for e in marks], "o", ms=5,
+                    mfc="none", color="C3", label="events")
+        ax.set_ylabel(label)
+        ax.grid(alpha=0.3)
+    axes[0].legend(loc="best", fontsize=8)
+    axes[-1].set_xlabel("time (ms)")
+    valid = 100 * np.mean(track.valid) if track.pairs else 0.0
+    axes[0].set_title(f"{Path(str(track.attrs.get('source', ''))).name}: {track.pairs} pairs "
+                      f"every {1e6 * _pair_step(track):.0f} µs, {valid:.1f} % valid")
+    fig.savefig(path, dpi=120, format="png")
+    plt.close(fig)
+    return path
+
+
+def _pair_step(track: Track) -> float:
+    return float(np.median(np.diff(track.time_s))) if track.pairs > 1 else float("nan")
+
+
+def spectra(sp: Spectra, path: Path, chosen: int, max_range_m: float) -> Path:
+    """Waterfalls before/after the correction, and one half-sweep's spectra compared.
+
+    The waterfalls show the half-sweeps of the chosen one's direction only: rising and
+    falling sweeps of a moving target differ by the Doppler shift, and interleaved they
+    would stripe the picture.
+    """
+    fig = plt.figure(figsize=(11, 8), constrained_layout=True)
+    grid = fig.add_gridspec(2, 2, height_ratios=[3, 2])
+    same = sp.rising == sp.rising[chosen]
+    t_ms = 1e3 * sp.time_s
+    direction = "rising" if sp.rising[chosen] else "falling"
+    for col, (axis, db, title) in enumerate((
+            (sp.raw_distance_m, sp.raw_db, "before: plain FFT of the time samples"),
+            (sp.distance_m, sp.corrected_db, "after: resampled at uniform optical frequency"))):
+        ax = fig.add_subplot(grid[0, col])
+        keep = axis <= max_range_m
+        im = ax.imshow(db[same][:, keep].T, origin="lower", aspect="auto", cmap="viridis",
+                       vmin=-40, vmax=0, interpolation="nearest",
+                       extent=(t_ms[same][0], t_ms[same][-1], 1e3 * axis[0], 1e3 * axis[keep][-1]))
+        ax.axvline(t_ms[chosen], color="w", lw=0.8, ls=":")
+        ax.set_title(f"{title}\n(current-{direction} half-sweeps)", fontsize=10)
+        ax.set_xlabel("time (ms)")
+        ax.set_ylabel("distance (mm)")
+    fig.colorbar(im, ax=fig.axes, label="power (dB re. peak)", shrink=0.6, location="right")
+    ax = fig.add_subplot(grid[1, :])
+    for axis, db, label in ((sp.raw_distance_m, sp.raw_db, "before correction"),
+                            (sp.distance_m, sp.corrected_db, "after correction")):
+        keep = axis <= max_range_m
+        ax.plot(1e3 * axis[keep], db[chosen, keep], lw=1.0, label=label)
+    ax.set_title(f"half-sweep at {t_ms[chosen]:.3f} ms (current {direction})", fontsize=10)
+    ax.set_xlabel("distance (mm)")
+    ax.set_ylabel("power (dB re. peak)")
+    ax.set_ylim(-60, 3)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.savefig(path, dpi=110, format="png")
+    plt.close(fig)
+    return path
+
+
+def precision(track: Track, path: Path, true_distance_m: float | None = None) -> Path:
+    """Histogram of a static target's distance with its Gaussian fit (the paper's Fig. 6c)."""
+    d = track.distance_m[track.valid]
+    mean, std = float(np.mean(d)), float(np.std(d))
+    fig, ax = plt.subplots(figsize=(7, 4.5), constrained_layout=True)
+    x_um = 1e6 * (d - mean)
+    ax.hist(x_um, bins=min(60, max(10, d.size // 20)), density=True, color="C0", alpha=0.7,
+            label=f"{d.size} pairs")
+    s_um = max(1e6 * std, 1e-9)
+    g = np.linspace(x_um.min(), x_um.max(), 300)
+    ax.plot(g, np.exp(-0.5 * (g / s_um) ** 2) / (s_um * np.sqrt(2 * np.pi)), "k", lw=1.2,
+            label=f"Gaussian: σ = {s_um:.2f} µm")
+    if true_distance_m is not None:
+        ax.axvline(1e6 * (true_distance_m - mean), color="C3", ls="--",
+                   label=f"truth ({1e6 * (mean - true_distance_m):+.1f} µm bias)")
+    ax.set_xlabel(f"distance − {mean * 1e3:.4f} mm (µm)")
+    ax.set_ylabel("probability density (1/µm)")
+    ax.set_title(f"static target: mean {mean * 1e3:.4f} mm, standard deviation {s_um:.2f} µm")
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3)
+    fig.savefig(path, dpi=120, format="png")
+    plt.close(fig)
+    return path

@@ -1,0 +1,99 @@
+"""`fmcw-cl report`: events against /truth, the pictures, and the spectra's physics."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from fmcw_cl.capture import Capture
+from fmcw_cl.evaluate import truth_at
+from fmcw_cl.report import make_report
+from fmcw_cl.report.events import find_events
+from fmcw_cl.report.spectra import stretch_spectra
+from fmcw_cl.track import read_track
+
+
+def exact_extremum(truth, t0, t1, quantity, sign):
+    """(time, value) of the true extremum in [t0, t1] on a 1 us grid, independent of
+    the event finder."""
+    g = np.arange(t0, t1, 1e-6)
+    y = truth_at(truth, g)[("distance_m", "velocity_mps", "acceleration_mps2").index(quantity)]
+    i = np.argmax(sign * y)
+    return g[i], y[i]
+
+
+@pytest.fixture(scope="module")
+def jump_report(tmp_path_factory, jump_track):
+    out = tmp_path_factory.mktemp("report")
+    return out, make_report(jump_track, out)
+
+
+@pytest.mark.parametrize("kind,quantity,window,sign", [
+    ("velocity_peak", "velocity_mps", (0.05, 0.10), 1),            # leg protraction, 7.15 m/s
+    ("acceleration_valley", "acceleration_mps2", (0.08, 0.10), -1),  # takeoff, -361 m/s^2
+    ("impact", "acceleration_mps2", (0.18, 0.21), 1),              # landing, 300 m/s^2
+])
+def test_jump_events_match_truth(jump_report, jump_capture, kind, quantity, window, sign):
+    _, got = jump_report
+    with Capture(jump_capture) as cap:
+        truth = cap.truth()
+    t_true, v_true = exact_extremum(truth, *window, quantity, sign)
+    found = [e for e in got["events"] if e["kind"] == kind and window[0] <= e["time_s"] <= window[1]]
+    assert len(found) == 1
+    e = found[0]
+    assert abs(e["time_s"] - t_true) <= 0.5e-3
+    assert abs(e["value"] - v_true) <= 0.01 * abs(v_true)
+    assert e["true_time_s"] is not None and abs(e["time_error_s"]) <= 0.5e-3
+
+
+def test_jump_report_files(jump_report):
+    out, got = jump_report
+    names = {p.rsplit("/", 1)[-1] for p in got["written"]}
+    assert names == {"kinematics.png", "spectra.png", "events.md", "events.json"}  # moving: no precision
+    for name in ("kinematics.png", "spectra.png"):
+        assert (out / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert not list(out.glob("*.part"))
+    table = json.loads((out / "events.json").read_text())
+    assert [e["kind"] for e in table["events"]].count("impact") == 2   # the strike and the bounce
+    md = (out / "events.md").read_text()
+    assert "| impact |" in md and "time error (ms)" in md
+
+
+def test_static_report_has_precision_and_no_events(tmp_path, static_capture):
+    from fmcw_cl.engine import process
+    from fmcw_cl.track import write_track
+
+    track_file = write_track(tmp_path / "s.track.h5", process(static_capture))
+    got = make_report(track_file, tmp_path / "rep")
+    assert any(p.endswith("precision.png") for p in got["written"])
+    assert got["events"] == []
+
+
+def test_noise_makes_no_events():
+    rng = np.random.default_rng(0)
+    t = np.arange(4000) * 50e-6
+    events = find_events(t, 0.3 + 3e-6 * rng.standard_normal(t.size), 4e-4 * rng.standard_normal(t.size),
+                         0.3 * rng.standard_normal(t.size))
+    assert events == []
+
+
+def test_correction_sharpens_the_spectrum(jump_capture, jump_track):
+    """Near the apex (0.3 m) the corrected peak is narrow and where the track says; the
+    plain FFT's is smeared over many bins (the paper's Fig. 5 against 6a)."""
+    track = read_track(jump_track)
+    sp = stretch_spectra(jump_capture, 0.134, 0.136, 1000, float(track.attrs["sync_delay_samples"]))
+    i = sp.distance_m.searchsorted(0.05)
+
+    def width(axis, db):
+        return np.ptp(axis[np.flatnonzero(db >= -6)])   # extent above -6 dB (m)
+
+    for row in range(sp.time_s.size):
+        assert width(sp.distance_m[i:], sp.corrected_db[row, i:]) < 5e-3   # Hann: ~2 resolution cells
+        assert width(sp.raw_distance_m, sp.raw_db[row]) > 30e-3
+    # each peak is where the track's half-sweep distance (with its Doppler shift) says
+    k = np.searchsorted(track.sweep_time_s, sp.time_s - 1e-6)
+    assert np.allclose(track.sweep_time_s[k], sp.time_s, atol=1e-7)
+    peak = sp.distance_m[i + np.argmax(sp.corrected_db[:, i:], axis=1)]
+    assert np.all(np.abs(peak - track.sweep_distance_m[k]) < 0.5e-3)   # a bin is 0.46 mm
