@@ -12,6 +12,7 @@ import numpy as np
 from fmcw_cl.engine import Options, make_backend, process
 from fmcw_cl.errors import FmcwError
 from fmcw_cl.progress import Progress
+from fmcw_cl.stages import faults
 from fmcw_cl.track import track_path, write_track
 
 
@@ -25,6 +26,8 @@ def summary(capture: Path, out: Path, track) -> dict:
         "valid_share": float(np.mean(track.valid)) if track.pairs else 0.0,
         "sync_delay_samples": float(a["sync_delay_samples"]), "device": a["device"],
         "processing_time_s": secs, "real_time_multiple": dur / secs if secs > 0 else None,
+        "invalid": {name: int(a[f"invalid_{name}"]) for code, name in faults.REASONS.items()
+                    if code and f"invalid_{name}" in a},
     }
 
 
@@ -42,12 +45,14 @@ def summary(capture: Path, out: Path, track) -> dict:
 @click.option("--min-range", default=0.03, show_default=True,
               help="Ignore peaks below this distance (m): DC, intensity ramp, lens reflection.")
 @click.option("--no-dechirp", is_flag=True, help="The paper's method alone (no Doppler de-chirp).")
+@click.option("--no-range-check", is_flag=True,
+              help="Skip the 2N-point resampling that flags targets beyond the unambiguous range.")
 @click.option("--skip-existing", is_flag=True, help="Leave captures whose track exists.")
 @click.option("--json", "as_json", is_flag=True, help="Print the summaries as JSON on stdout.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress, no summary.")
 @click.pass_context
-def command(ctx, captures, outdir, points, backend, device, min_range, no_dechirp, skip_existing,
-            as_json, quiet):
+def command(ctx, captures, outdir, points, backend, device, min_range, no_dechirp, no_range_check,
+            skip_existing, as_json, quiet):
     """Convert CAPTURE files into tracks (distance, velocity, acceleration).
 
     \b
@@ -55,7 +60,8 @@ def command(ctx, captures, outdir, points, backend, device, min_range, no_dechir
       fmcw-cl process data_samples/static_0p3m.h5 -o tracks/
     """
     outdir.mkdir(parents=True, exist_ok=True)
-    options = Options(points=points, min_range_m=min_range, dechirp=not no_dechirp)
+    options = Options(points=points, min_range_m=min_range, dechirp=not no_dechirp,
+                      range_check=not no_range_check)
     stages = make_backend(backend, device, warn=lambda m: click.echo(m, err=True))
     results, failed = [], 0
     for number, cap in enumerate(captures, 1):
@@ -88,6 +94,9 @@ def command(ctx, captures, outdir, points, backend, device, min_range, no_dechir
                        f"{100 * s['valid_share']:.1f} % valid, sync delay "
                        f"{s['sync_delay_samples']:+.2f} samples, {s['device']}, "
                        f"{s['processing_time_s']:.1f} s ({s['real_time_multiple']:.2f}x real time)")
+            why = ", ".join(f"{n} {name}" for name, n in s["invalid"].items() if n)
+            if why:
+                click.echo(f"  invalid pairs: {why}")
     if as_json:
         click.echo(json.dumps(results, indent=2))
     if failed:

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -208,6 +209,15 @@ def validate(f: h5py.File, path: Path) -> CaptureInfo:
     return info
 
 
+def _open_problem(message: str) -> str:
+    """h5py's open error in a user's words."""
+    m = re.search(r"truncated file: eof = (\d+).*stored_eof = (\d+)", message)
+    if m:
+        return (f"truncated HDF5 file ({int(m.group(1))} of {int(m.group(2))} bytes: an interrupted "
+                "copy or write?)")
+    return f"not a readable HDF5 file ({message.split('(')[0].strip() or 'unreadable'})"
+
+
 class Capture:
     """An open capture file. Use as a context manager; read by sample range.
 
@@ -225,8 +235,7 @@ class Capture:
         try:
             self._file = h5py.File(self.path, "r")
         except OSError as exc:
-            reason = str(exc).split("(")[0].strip() or "unreadable"
-            raise CaptureError(self.path, f"not a readable HDF5 file ({reason})") from None
+            raise CaptureError(self.path, _open_problem(str(exc))) from None
         try:
             self.info = validate(self._file, self.path)
         except CaptureError:

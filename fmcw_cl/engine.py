@@ -19,12 +19,13 @@ import numpy as np
 from . import __version__
 from .capture import Capture, CaptureInfo
 from .errors import CaptureError, FmcwError
-from .stages import kinematics, pairing, resample, spectrum, sync
+from .stages import faults, kinematics, pairing, resample, spectrum, sync
 from .stages.lut import Lut, build_lut
 from .track import Track
 
 DELAY_STRETCHES = 6           # stretches of the capture used to estimate the sync delay
 DELAY_STRETCH_PERIODS = 200
+PERIOD_TOLERANCE = 0.03      # sync period against /modulation frequency_hz
 NEAR_LIMIT = 0.95             # distances beyond this share of the unambiguous range may be aliased
 
 
@@ -38,6 +39,7 @@ class Options:
     iterations: int = 6           # de-chirp passes
     chunk_periods: int = 2048     # modulation periods per chunk core
     context_periods: int = 64     # periods of context on each side of a core
+    range_check: bool = True      # flag targets beyond the unambiguous range (2N resampling)
 
 
 @dataclass(frozen=True)
@@ -53,6 +55,7 @@ class Plan:
     lag: float          # samples the sync lags the optics
     lag_periods: int    # periods that voted for it
     lag_misfit: float   # rms misfit of those periods' triangles (clean: < 0.2)
+    check: tuple | None = None   # (LUT, window, model) at 2N points for the range check
 
 
 class NumpyBackend:
@@ -71,18 +74,18 @@ class NumpyBackend:
 def make_backend(name: str = "auto", device: str | None = None, warn=None):
     """The stage implementation: "numpy", "opencl", or "auto".
 
-    "auto" takes OpenCL on a GPU and numpy otherwise: on PoCL (CPU) the OpenCL path
-    measured slower end to end than numpy so far (see benchmarks/README.md), and a
-    default must not be the slower path. A failing OpenCL falls back to numpy with a
-    one-line warning through `warn`; "opencl" forces it (and fails loudly).
+    "auto" takes OpenCL where `opencl_preferred` says so (a GPU) and numpy otherwise:
+    on PoCL (CPU) the OpenCL path measured slower end to end than numpy so far (see
+    benchmarks/README.md), and a default must not be the slower path. A failing
+    OpenCL (no platform, a kernel that does not build) falls back to numpy with a
+    one-line warning through `warn`; "opencl" forces it and fails loudly.
     """
     if name == "numpy":
         return NumpyBackend()
     from .opencl.backend import OpenCLBackend
-    from .opencl.context import cl, select_device
 
     try:
-        if name == "auto" and not (select_device(device).type & cl.device_type.GPU):
+        if name == "auto" and not opencl_preferred(device):
             return NumpyBackend()
         return OpenCLBackend(device)
     except FmcwError as exc:
@@ -91,6 +94,13 @@ def make_backend(name: str = "auto", device: str | None = None, warn=None):
         if warn:
             warn(f"warning: OpenCL unavailable ({exc}); using the numpy backend")
         return NumpyBackend()
+
+
+def opencl_preferred(device: str | None = None) -> bool:
+    """Whether "auto" should use OpenCL on the selected device: on GPUs."""
+    from .opencl.context import cl, select_device
+
+    return bool(select_device(device).type & cl.device_type.GPU)
 
 
 def estimate_capture_delay(cap: Capture) -> tuple[float, int, float]:
@@ -128,11 +138,39 @@ def make_plan(cap: Capture, options: Options, lag: float | None = None) -> Plan:
         raise FmcwError(f"--min-range {options.min_range_m:g} m is not below the unambiguous range "
                         f"{lut.unambiguous_range_m:.3f} m of --points {options.points}")
     lo_bin = max(1, int(np.ceil(options.min_range_m / model.metres_per_bin)))
+    check_sync_period(cap)
     lag, votes, misfit = estimate_capture_delay(cap) if lag is None else (lag, 0, 0.0)
     if not np.isfinite(lag):
         raise CaptureError(info.path, "no laser intensity triangle in the beat channel: "
                                       "cannot align the sync to the optics")
-    return Plan(info, options, lut, win, model, lo_bin, lag, votes, misfit)
+    check = None
+    if options.range_check:
+        lut2 = build_lut(info.tuning_current_a, info.tuning_frequency_hz, info.modulation.current_min_a,
+                         info.modulation.current_max_a, 2 * options.points, info.refractive_index)
+        win2 = resample.window(2 * options.points)
+        check = (lut2, win2, pairing.doppler_model(lut2, info.modulation.period_s / 2,
+                                                   spectrum.fft_length(2 * options.points), win2))
+    return Plan(info, options, lut, win, model, lo_bin, lag, votes, misfit, check)
+
+
+def check_sync_period(cap: Capture, periods: int = 40) -> None:
+    """The sync must be a triangle at the modulation frequency: a flat or saturated
+    channel, or a period off `frequency_hz` by more than PERIOD_TOLERANCE, is refused."""
+    info = cap.info
+    hp = info.samples_per_period / 2
+    a = max(0, info.samples // 2 - int(periods * hp))
+    _, sy = cap.read(a, min(info.samples, a + int(2 * periods * hp)))
+    cr = sync.crossings(sy, hp, smooth=33)
+    alternate = cr.direction[1:] != cr.direction[:-1]
+    if np.ptp(sy) < 64 or alternate.sum() < 4:
+        raise CaptureError(info.path, "no turning points in the sync channel (flat, saturated "
+                                      "or not a triangle)")
+    measured = 2 * float(np.median(np.diff(cr.time)[alternate])) / info.sample_rate_hz
+    nominal = info.modulation.period_s
+    if abs(measured / nominal - 1) > PERIOD_TOLERANCE:
+        raise CaptureError(info.path, f"the sync repeats every {measured * 1e6:.2f} us but /modulation "
+                                      f"frequency_hz ({info.modulation.frequency_hz:g} Hz) says "
+                                      f"{nominal * 1e6:.2f} us")
 
 
 @dataclass
@@ -142,6 +180,7 @@ class _Pairs:
     t_rise: np.ndarray
     t_fall: np.ndarray
     result: pairing.PairResult
+    reason: np.ndarray
 
 
 def _chunk_pairs(plan: Plan, chunk, backend) -> _Pairs | None:
@@ -165,7 +204,20 @@ def _chunk_pairs(plan: Plan, chunk, backend) -> _Pairs | None:
     first = chunk.start + hs.start[r] + plan.lag      # sync time of the pair's first turn
     own = (first >= chunk.core_start) & (first < chunk.core_stop)
     sel = pairing.PairResult(*(getattr(res, k)[own] for k in res.__dataclass_fields__))
-    return _Pairs(t_r[own], t_f[own], sel)
+    r, f = r[own], f[own]
+    clip = (faults.clipped(chunk.beat, hs.start[r], hs.length[r], info.full_scale)
+            | faults.clipped(chunk.beat, hs.start[f], hs.length[f], info.full_scale))
+    alias = np.zeros(r.size, bool)
+    if plan.check is not None and r.size:
+        lut2, win2, model2 = plan.check
+        for idx, u in ((r, lut2.u_rise), (f, lut2.u_fall)):
+            x2 = backend.resample(chunk.beat, hs.start[idx], hs.length[idx], u, win2)
+            d2, s2 = backend.measure(x2, None, None, model2, plan.lo_bin)
+            alias |= faults.beyond_range(d2, s2, plan.lut.unambiguous_range_m, pairing.SNR_MIN_DB)
+    heard = (sel.dechirped_snr_rise >= pairing.SNR_MIN_DB) & (sel.dechirped_snr_fall >= pairing.SNR_MIN_DB)
+    reason = faults.reasons(sel.valid, heard, clip, alias)
+    sel.valid[:] = reason == faults.OK
+    return _Pairs(t_r[own], t_f[own], sel, reason)
 
 
 def _fill_gaps(t_mid: np.ndarray, period: float) -> np.ndarray:
@@ -219,6 +271,8 @@ def process(path, options: Options | None = None, backend=None,
         return np.concatenate([x, np.full(n_missing, fill, dtype=np.asarray(x).dtype)])[order]
 
     valid = with_gaps(res["valid"], False)
+    reason_owned = np.concatenate([p.reason for p in parts])
+    reason = with_gaps(reason_owned, faults.SYNC_GAP)
     dist = with_gaps(res["distance"], np.nan)
     vel = with_gaps(res["velocity"], np.nan)
     dist[~valid] = np.nan
@@ -241,6 +295,9 @@ def process(path, options: Options | None = None, backend=None,
         "range_resolution_m": lut.range_resolution_m,
         "unambiguous_range_m": lut.unambiguous_range_m,
         "near_range_limit_pairs": int(np.sum(dist[valid] > NEAR_LIMIT * lut.unambiguous_range_m)),
+        "range_check": bool(options.range_check),
+        "reason_codes": ", ".join(f"{k} {v}" for k, v in faults.REASONS.items()),
+        **{f"invalid_{name}": int(np.sum(reason == code)) for code, name in faults.REASONS.items() if code},
         "refractive_index": info.refractive_index,
         "sync_delay_samples": plan.lag,
         "sync_delay_periods_used": plan.lag_periods,
@@ -263,4 +320,4 @@ def process(path, options: Options | None = None, backend=None,
         sweep_distance_dechirped_m=interleave("dechirped_rise", "dechirped_fall"),
         sweep_snr_dechirped_db=interleave("dechirped_snr_rise", "dechirped_snr_fall"),
         time_s=times[order], distance_m=dist, velocity_mps=vel, acceleration_mps2=acc,
-        valid=valid, attrs=attrs)
+        valid=valid, attrs=attrs, reason=reason, sweep_reason=np.repeat(reason_owned, 2))

@@ -31,6 +31,8 @@ class Track:
     attrs: dict = field(default_factory=dict)
     sweep_distance_dechirped_m: np.ndarray | None = None   # after the final de-chirp
     sweep_snr_dechirped_db: np.ndarray | None = None
+    reason: np.ndarray | None = None          # per pair, codes of fmcw_cl.stages.faults
+    sweep_reason: np.ndarray | None = None    # per half-sweep: its pair's code
 
     @property
     def pairs(self) -> int:
@@ -59,12 +61,16 @@ def write_track(path: str | os.PathLike, track: Track) -> Path:
             s.create_dataset("distance_dechirped_m",
                              data=np.asarray(track.sweep_distance_dechirped_m, np.float64))
             s.create_dataset("snr_dechirped_db", data=np.asarray(track.sweep_snr_dechirped_db, np.float32))
+        if track.sweep_reason is not None:
+            s.create_dataset("reason", data=np.asarray(track.sweep_reason, np.uint8))
         t = f.create_group("track")
         t.create_dataset("time_s", data=np.asarray(track.time_s, np.float64))
         t.create_dataset("distance_m", data=np.asarray(track.distance_m, np.float64))
         t.create_dataset("velocity_mps", data=np.asarray(track.velocity_mps, np.float64))
         t.create_dataset("acceleration_mps2", data=np.asarray(track.acceleration_mps2, np.float64))
         t.create_dataset("valid", data=np.asarray(track.valid, bool))
+        if track.reason is not None:
+            t.create_dataset("reason", data=np.asarray(track.reason, np.uint8))
     return path
 
 
@@ -75,9 +81,10 @@ def read_track(path: str | os.PathLike) -> Track:
             raise ValueError(f"{path}: not a track file")
         s, t = f["sweeps"], f["track"]
         attrs = {k: (v.decode() if isinstance(v, bytes) else v) for k, v in f.attrs.items()}
-        optional = {name: s[key][()] for name, key in (("sweep_distance_dechirped_m", "distance_dechirped_m"),
-                                                        ("sweep_snr_dechirped_db", "snr_dechirped_db"))
-                    if key in s}
+        optional = {name: g[key][()] for name, g, key in (
+            ("sweep_distance_dechirped_m", s, "distance_dechirped_m"),
+            ("sweep_snr_dechirped_db", s, "snr_dechirped_db"),
+            ("sweep_reason", s, "reason"), ("reason", t, "reason")) if key in g}
         return Track(s["time_s"][()], s["current_rising"][()], s["distance_m"][()],
                      s["snr_db"][()], t["time_s"][()], t["distance_m"][()],
                      t["velocity_mps"][()], t["acceleration_mps2"][()], t["valid"][()], attrs,

@@ -9,6 +9,7 @@ import pytest
 from fmcw_cl.capture import Capture, CaptureWriter
 from fmcw_cl.engine import Options, process
 from fmcw_cl.errors import FmcwError
+from fmcw_cl.stages import faults
 
 
 def test_chunk_size_does_not_change_the_track(static_capture):
@@ -37,6 +38,7 @@ def test_dropped_samples_split_the_stream(tmp_path, static_capture):
     whole = process(static_capture)
     track = process(cut)
     assert 1 <= np.sum(~track.valid) <= 3
+    assert np.all(track.reason[~track.valid] == faults.SYNC_GAP)
     bad_t = track.time_s[~track.valid]
     assert np.all(np.abs(bad_t - 0.01) < 2e-4)          # around sample 1 000 000
     assert track.pairs >= whole.pairs - 1                # the lost period is listed, invalid

@@ -73,3 +73,27 @@ def test_opencl_track_equals_numpy_track(request, name):
     assert np.abs(a.distance_m[v] - b.distance_m[v]).max() < 0.01e-3
     assert np.abs(a.velocity_mps[v] - b.velocity_mps[v]).max() < 1e-3
     assert b.attrs["backend"] == "opencl" and b.attrs["device"] == OpenCLBackend().device
+
+
+def test_kernel_build_failure_falls_back_or_fails(monkeypatch):
+    """A kernel that does not build: auto warns and takes numpy, opencl fails, and the
+    build log is saved where the message says."""
+    import re
+
+    import fmcw_cl.kernels
+
+    from fmcw_cl import engine
+    from fmcw_cl.errors import FmcwError
+    from fmcw_cl.opencl import context
+
+    monkeypatch.setattr(fmcw_cl.kernels, "source", lambda name: "__kernel void broken( {")
+    monkeypatch.setattr(context, "_RUNTIMES", {})            # a fresh context, no cached builds
+    monkeypatch.setattr(engine, "opencl_preferred", lambda device=None: True)
+    with pytest.raises(FmcwError, match=r"kernel resample\.cl failed to build on .*; build log: ") as err:
+        engine.make_backend("opencl")
+    log = re.search(r"build log: (\S+)", str(err.value)).group(1)
+    assert "broken" in open(log).read() or "error" in open(log).read().lower()
+    warnings = []
+    backend = engine.make_backend("auto", warn=warnings.append)
+    assert backend.name == "numpy"
+    assert len(warnings) == 1 and warnings[0].startswith("warning: OpenCL unavailable (kernel resample.cl")

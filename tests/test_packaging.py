@@ -10,7 +10,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def declared_packages() -> set[str]:
     text = (ROOT / "pyproject.toml").read_text()
-    line = re.search(r"^packages = \[(.*)\]$", text, re.M).group(1)
+    line = re.search(r"^packages = \[(.*?)\]", text, re.M | re.S).group(1)
     return set(re.findall(r'"([\w.]+)"', line))
 
 

@@ -17,9 +17,12 @@ class OpenCLBackend:
     """Same interface as engine.NumpyBackend."""
 
     name = "opencl"
+    programs = ("resample", "fft", "peak")
 
     def __init__(self, selector: str | None = None) -> None:
         self.rt = runtime(selector)
+        for program in self.programs:      # build now: a failure must surface before any work
+            self.rt.program(program)
         self.bufs = Buffers(self.rt)
         self.device = self.rt.name
 

@@ -21,6 +21,7 @@ from . import lpf
 FIT_FRACTION = 0.35   # half-width of the crossing line fit, as a share of the half-period
 GRID_TOLERANCE = 0.02  # allowed deviation of a half-period from the nominal, share
 JUMP_SAMPLES = 0.5     # smallest timing jump (samples) that splits the stream
+SPIKE = 0.05           # a sample this far (share of the swing) off its moving average is a spike
 
 
 @dataclass(frozen=True)
@@ -49,6 +50,17 @@ def _line_fit_crossing(x: np.ndarray, level: float, centre: np.ndarray, half: in
         return centre - intercept / slope
 
 
+def _despike(x: np.ndarray, near: np.ndarray, threshold: float) -> np.ndarray:
+    """x with the samples at `near` that stand out of their 5-sample median replaced
+    by it (glitches of one or two samples); a copy."""
+    idx = np.clip(near[:, None] + np.arange(-2, 3), 0, x.size - 1)
+    med = np.median(x[idx], axis=1)
+    bad = np.abs(x[near] - med) > threshold
+    out = x.copy()
+    out[near[bad]] = med[bad]
+    return out
+
+
 def crossings(x: np.ndarray, half_period: float, level: float | None = None,
               smooth: int = 1) -> Crossings:
     """Mid-level crossings of a triangle-like signal.
@@ -62,7 +74,9 @@ def crossings(x: np.ndarray, half_period: float, level: float | None = None,
     level : float, optional
         Crossing level; default the middle of the 0.5 and 99.5 percentiles.
     smooth : int
-        Moving-average length used only to find crossings (not to time them).
+        Moving-average length used to find crossings (not to time them) and, when
+        above 1, to replace isolated spikes (more than SPIKE of the swing off the
+        moving average) before the timing fits.
 
     Returns
     -------
@@ -76,7 +90,15 @@ def crossings(x: np.ndarray, half_period: float, level: float | None = None,
     if level is None:
         level = 0.5 * (lo + hi)
     hyst = 0.1 * (hi - lo)
-    xs = uniform_filter1d(x, smooth) - level if smooth > 1 else x - level
+    if smooth > 1:
+        m = uniform_filter1d(x, smooth)
+        near = np.flatnonzero(np.abs(x - m) > SPIKE * (hi - lo))
+        if near.size:              # a glitch would pull the line fits by samples
+            x = _despike(x, near, SPIKE * (hi - lo))
+            m = uniform_filter1d(x, smooth)
+        xs = m - level
+    else:
+        xs = x - level
     event = np.where(xs > hyst, 1, np.where(xs < -hyst, -1, 0)).astype(np.int8)
     pos = np.where(event != 0, np.arange(x.size), 0)
     np.maximum.accumulate(pos, out=pos)
@@ -86,6 +108,8 @@ def crossings(x: np.ndarray, half_period: float, level: float | None = None,
         return Crossings(np.zeros(0), np.zeros(0, np.int8))
     direction = state[flips]
     half = max(2, int(FIT_FRACTION * half_period))
+    if x.size < 2 * half + 2:          # too short for a single crossing fit
+        return Crossings(np.zeros(0), np.zeros(0, np.int8))
     guess = flips.astype(np.float64)
     for _ in range(2):
         centre = np.rint(np.nan_to_num(guess, nan=-1.0)).astype(np.int64)

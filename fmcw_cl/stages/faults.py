@@ -1,0 +1,60 @@
+"""Why a pair is invalid: reason codes and the checks that set them.
+
+Written per pair in ``/track/reason`` and per half-sweep in ``/sweeps/reason`` (a
+half-sweep carries its pair's code). When several apply, the first in this order wins:
+a missing sync beats a clipped beat beats a weak echo beats an alias beats an
+unsettled tracker (with no echo, the range check only sees noise).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+OK = 0
+SYNC_GAP = 1       # no pair measured here: dropped samples or a broken sync stretch
+CLIPPED = 2        # the beat reaches the ADC's full scale inside the pair's half-sweeps
+NO_ECHO = 3        # a half-sweep's peak is below the SNR threshold (no target, beam blocked)
+BEYOND_RANGE = 4   # the target lies beyond the unambiguous range (its peak is an alias)
+UNSTABLE = 5       # the de-chirp did not settle or the velocity disagrees with its neighbours
+
+REASONS = {
+    OK: "ok",
+    SYNC_GAP: "sync_gap",
+    CLIPPED: "clipped",
+    NO_ECHO: "no_echo",
+    BEYOND_RANGE: "beyond_range",
+    UNSTABLE: "unstable",
+}
+
+RANGE_MARGIN = 1.02   # a 2N-point peak beyond this share of the N-point range is an alias
+
+
+def clipped(codes: np.ndarray, starts: np.ndarray, lengths: np.ndarray, full_scale: int) -> np.ndarray:
+    """Whether any sample of each half-sweep [start, start + length] reaches full scale.
+
+    Parameters
+    ----------
+    codes : (n,) int16 beat codes of the chunk.
+    starts, lengths : (S,) half-sweeps in samples of `codes`.
+    full_scale : 2^(bits-1); codes at -full_scale or full_scale - 1 are clipped.
+    """
+    hit = (codes <= -full_scale) | (codes >= full_scale - 1)
+    count = np.concatenate([[0], np.cumsum(hit, dtype=np.int64)])
+    a = np.clip(np.floor(starts).astype(np.int64), 0, codes.size)
+    b = np.clip(np.ceil(starts + lengths).astype(np.int64) + 1, 0, codes.size)
+    return count[b] > count[a]
+
+
+def beyond_range(distance_2n_m: np.ndarray, snr_2n_db: np.ndarray, unambiguous_m: float,
+                 snr_min_db: float) -> np.ndarray:
+    """Half-sweeps whose peak, resampled at twice the points (twice the range), lies
+    beyond the unambiguous range of the N-point resampling."""
+    return (snr_2n_db >= snr_min_db) & (distance_2n_m > RANGE_MARGIN * unambiguous_m)
+
+
+def reasons(valid: np.ndarray, heard: np.ndarray, clip: np.ndarray, alias: np.ndarray) -> np.ndarray:
+    """Per-pair code (uint8) from the tracker's verdict and the fault checks."""
+    code = np.full(valid.shape, OK, np.uint8)
+    for mask, value in ((~valid, UNSTABLE), (alias, BEYOND_RANGE), (~heard, NO_ECHO), (clip, CLIPPED)):
+        code[mask] = value          # later assignments take precedence
+    return code

@@ -1,0 +1,159 @@
+"""Faults inside good captures are flagged with a reason, and the rest stays accurate;
+bad captures are refused in one clear line; Ctrl-C leaves nothing torn."""
+
+from __future__ import annotations
+
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from dataclasses import replace
+
+import h5py
+import numpy as np
+import pytest
+
+from fmcw_cl.capture import Capture
+from fmcw_cl.engine import Options, process
+from fmcw_cl.errors import CaptureError
+from fmcw_cl.simulate import SimulationConfig, simulate_capture, static
+from fmcw_cl.stages import faults
+
+R = 0.25            # the static_capture fixture's distance
+STRETCH = (0.008, 0.010)
+
+
+def mutated(src, dst, beat=None, sync=None):
+    """A copy of `src` with beat/sync edited in place by the given functions."""
+    shutil.copy(src, dst)
+    with h5py.File(dst, "a") as f:
+        for name, fn in (("adc/beat", beat), ("adc/sync", sync)):
+            if fn is not None:
+                x = f[name][()]
+                fn(x)
+                f[name][...] = x
+    return dst
+
+
+def inside(track, margin=60e-6):
+    t0, t1 = STRETCH
+    return (track.time_s > t0 - margin) & (track.time_s < t1 + margin)
+
+
+def assert_rest_accurate(track, hit):
+    rest = ~hit
+    assert np.all(track.valid[rest]) and np.all(track.reason[rest] == faults.OK)
+    np.testing.assert_allclose(track.distance_m[rest], R, atol=5e-5)
+    assert np.percentile(np.abs(track.velocity_mps[rest]), 95) < 1e-3
+
+
+def test_clipped_stretch(tmp_path, static_capture):
+    a, b = (int(t * 100e6) for t in STRETCH)
+
+    def clip(x):
+        x[a:b] = np.clip(x[a:b].astype(np.int32) * 8, -8192, 8191)
+
+    track = process(mutated(static_capture, tmp_path / "clip.h5", beat=clip))
+    core = (track.time_s > STRETCH[0] + 60e-6) & (track.time_s < STRETCH[1] - 60e-6)
+    assert np.all(track.reason[core] == faults.CLIPPED) and not track.valid[core].any()
+    hit = track.reason != faults.OK
+    assert np.all(hit <= inside(track))
+    assert_rest_accurate(track, hit)
+    assert track.attrs["invalid_clipped"] == hit.sum()
+
+
+def test_beam_blocked(tmp_path, static_capture):
+    dark = tmp_path / "dark.h5"
+    cfg = replace(SimulationConfig(), echo_codes=0.0)
+    simulate_capture(dark, static(0.02, R), 0.02, seed=11, config=cfg)
+    with Capture(dark) as cap:
+        blocked, _ = cap.read(0, cap.info.samples)
+    a, b = (int(t * 100e6) for t in STRETCH)
+
+    def block(x):
+        x[a:b] = blocked[a:b]
+
+    track = process(mutated(static_capture, tmp_path / "blocked.h5", beat=block))
+    core = (track.time_s > STRETCH[0] + 60e-6) & (track.time_s < STRETCH[1] - 60e-6)
+    assert np.all(track.reason[core] == faults.NO_ECHO)
+    hit = track.reason != faults.OK
+    assert np.all(hit <= inside(track))
+    assert_rest_accurate(track, hit)
+
+
+def test_sync_spikes_are_harmless(tmp_path, static_capture):
+    rng = np.random.default_rng(5)
+
+    def spikes(x):
+        at = rng.choice(x.size, 40, replace=False)
+        x[at] = np.where(rng.random(40) < 0.5, 8191, -8192)
+
+    clean = process(static_capture)
+    track = process(mutated(static_capture, tmp_path / "spiky.h5", sync=spikes))
+    assert track.pairs == clean.pairs
+    assert_rest_accurate(track, np.zeros(track.pairs, bool))
+
+
+@pytest.mark.parametrize("distance,flagged", [(0.44, False), (0.60, True)])
+def test_target_beyond_the_unambiguous_range(tmp_path, distance, flagged):
+    path = tmp_path / "far.h5"
+    simulate_capture(path, static(0.01, distance), 0.01, seed=17)
+    track = process(path, Options(points=1000))
+    assert track.attrs["unambiguous_range_m"] < 0.47
+    if flagged:      # its alias would read 2 x 0.468 - 0.60 = 0.34 m, with a good SNR
+        assert np.all(track.reason == faults.BEYOND_RANGE) and not track.valid.any()
+    else:
+        assert track.valid.all()
+        np.testing.assert_allclose(track.distance_m, distance, atol=1e-4)
+
+
+def bad_sync(value=None, frequency=None):
+    def m(f):
+        if value is not None:
+            f["adc/sync"][...] = value
+        if frequency is not None:
+            f["modulation"].attrs["frequency_hz"] = frequency
+    return m
+
+
+@pytest.mark.parametrize("mutate,message", [
+    (bad_sync(value=0), "no turning points in the sync channel"),
+    (bad_sync(value=8191), "no turning points in the sync channel"),
+    (bad_sync(frequency=20.8e3), r"the sync repeats every 50\.0\d us but /modulation frequency_hz "
+                                 r"\(20800 Hz\) says 48\.08 us"),
+])
+def test_bad_sync_is_refused(tmp_path, static_capture, mutate, message):
+    path = tmp_path / "bad.h5"
+    shutil.copy(static_capture, path)
+    with h5py.File(path, "a") as f:
+        mutate(f)
+    with pytest.raises(CaptureError) as err:
+        process(path)
+    assert str(err.value).startswith(str(path)) and re.search(message, str(err.value))
+
+
+def test_truncated_file(tmp_path, static_capture, fmcw):
+    cut = tmp_path / "cut.h5"
+    shutil.copy(static_capture, cut)
+    with open(cut, "r+b") as fh:
+        fh.truncate(cut.stat().st_size // 2)
+    proc = fmcw("process", cut, static_capture, "-o", tmp_path / "out", "-q", check=False)
+    assert proc.returncode == 1
+    assert proc.stderr.strip() == f"error: {cut}: truncated HDF5 file " \
+        f"({cut.stat().st_size} of {static_capture.stat().st_size} bytes: an interrupted copy or write?)"
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["static.track.h5"]
+
+
+def test_ctrl_c_stops_cleanly(tmp_path, jump_capture):
+    out = tmp_path / "out"
+    proc = subprocess.Popen([sys.executable, "-m", "fmcw_cl.cli.main", "process", str(jump_capture),
+                             "-o", str(out), "-q"], stderr=subprocess.PIPE, text=True)
+    time.sleep(4.0)
+    assert proc.poll() is None, "finished before it could be interrupted"
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130
+    assert err.strip() == "interrupted"
+    assert list(out.iterdir()) == []            # neither a track nor a .part
