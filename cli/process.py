@@ -16,19 +16,74 @@ from fmcw_cl.stages import faults
 from fmcw_cl.track import track_path, write_track
 
 
-def summary(capture: Path, out: Path, track) -> dict:
+def summary(capture, out, attrs: dict, valid: np.ndarray) -> dict:
     """The facts a user checks after a conversion."""
-    a = track.attrs
+    a = attrs
     dur = float(a["capture_duration_s"])
     secs = float(a["processing_time_s"])
     return {
-        "capture": str(capture), "track": str(out), "duration_s": dur, "pairs": track.pairs,
-        "valid_share": float(np.mean(track.valid)) if track.pairs else 0.0,
+        "capture": str(capture), "track": str(out), "duration_s": dur, "pairs": int(valid.size),
+        "valid_share": float(np.mean(valid)) if valid.size else 0.0,
         "sync_delay_samples": float(a["sync_delay_samples"]), "device": a["device"],
         "processing_time_s": secs, "real_time_multiple": dur / secs if secs > 0 else None,
         "invalid": {name: int(a[f"invalid_{name}"]) for code, name in faults.REASONS.items()
                     if code and f"invalid_{name}" in a},
     }
+
+
+def report(s: dict, attrs: dict, quiet: bool, as_json: bool) -> None:
+    """Warnings (always, on stderr) and the one-screen summary of one capture."""
+    cap = s["capture"]
+    if attrs["near_range_limit_pairs"]:
+        click.echo(f"warning: {cap}: {attrs['near_range_limit_pairs']} pairs lie within 5 % of "
+                   f"the unambiguous range ({attrs['unambiguous_range_m']:.3f} m); a farther "
+                   "target would alias: raise --points", err=True)
+    if not attrs["sync_delay_reliable"]:
+        click.echo(f"warning: {cap}: the sync delay estimate is unreliable (a target beat "
+                   "near 0 Hz in every period); velocities may be biased", err=True)
+    if quiet or as_json:
+        return
+    click.echo(f"{cap} -> {s['track']}\n  {s['duration_s']:.3f} s, {s['pairs']} pairs, "
+               f"{100 * s['valid_share']:.1f} % valid, sync delay "
+               f"{s['sync_delay_samples']:+.2f} samples, {s['device']}, "
+               f"{s['processing_time_s']:.1f} s ({s['real_time_multiple']:.2f}x real time)")
+    why = ", ".join(f"{n} {name}" for name, n in s["invalid"].items() if n)
+    if why:
+        click.echo(f"  invalid pairs: {why}")
+
+
+def run_local(captures, outdir, options, stages, quiet, debug):
+    """Yield (capture, out, attrs, valid) or (capture, error) per capture, in order."""
+    for number, cap in enumerate(captures, 1):
+        out = track_path(outdir, cap)
+        bar = Progress(f"[{number}/{len(captures)}] {cap.name}", enabled=False if quiet else None)
+        try:
+            track = process(cap, options, stages, progress=bar)
+            bar.close()
+            write_track(out, track)
+        except FmcwError as exc:
+            bar.close()
+            if debug:
+                raise
+            yield {"capture": str(cap), "error": str(exc)}
+            continue
+        yield {"capture": str(cap), "track": str(out), "attrs": track.attrs, "valid": track.valid}
+
+
+def run_cluster(captures, outdir, options, backend, device, scheduler, quiet):
+    from fmcw_cl.cluster import connect, run_batch
+
+    total = sum(Path(c).stat().st_size if Path(c).is_file() else 0 for c in captures)
+    bar = Progress(f"dask {scheduler}", total, enabled=False if quiet else None)
+    client = connect(scheduler)
+    try:
+        yield from run_batch(client, list(captures), outdir, options, backend, device,
+                             progress=lambda done, n: bar(int(total * done / max(n, 1)), total))
+    finally:
+        bar.close()
+        client.close()
+        if scheduler.startswith("local:"):
+            client.cluster.close()
 
 
 @click.command("process")
@@ -48,55 +103,39 @@ def summary(capture: Path, out: Path, track) -> dict:
 @click.option("--no-range-check", is_flag=True,
               help="Skip the 2N-point resampling that flags targets beyond the unambiguous range.")
 @click.option("--skip-existing", is_flag=True, help="Leave captures whose track exists.")
+@click.option("--scheduler", default=None,
+              help="Run on a Dask cluster: a scheduler address (tcp://host:8786), or local:N for N "
+                   "worker processes here. Paths must be valid on the workers.")
 @click.option("--json", "as_json", is_flag=True, help="Print the summaries as JSON on stdout.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress, no summary.")
 @click.pass_context
 def command(ctx, captures, outdir, points, backend, device, min_range, no_dechirp, no_range_check,
-            skip_existing, as_json, quiet):
+            skip_existing, scheduler, as_json, quiet):
     """Convert CAPTURE files into tracks (distance, velocity, acceleration).
 
     \b
     Example:
       fmcw-cl process data_samples/static_0p3m.h5 -o tracks/
+      fmcw-cl process runs/*.h5 -o tracks/ --scheduler local:2
     """
     outdir.mkdir(parents=True, exist_ok=True)
     options = Options(points=points, min_range_m=min_range, dechirp=not no_dechirp,
                       range_check=not no_range_check)
-    stages = make_backend(backend, device, warn=lambda m: click.echo(m, err=True))
+    todo = [c for c in captures if not (skip_existing and track_path(outdir, c).exists())]
+    if scheduler:
+        runs = run_cluster(todo, outdir, options, backend, device, scheduler, quiet)
+    else:
+        stages = make_backend(backend, device, warn=lambda m: click.echo(m, err=True))
+        runs = run_local(todo, outdir, options, stages, quiet, ctx.obj.get("debug"))
     results, failed = [], 0
-    for number, cap in enumerate(captures, 1):
-        out = track_path(outdir, cap)
-        if skip_existing and out.exists():
-            continue
-        bar = Progress(f"[{number}/{len(captures)}] {cap.name}", enabled=False if quiet else None)
-        try:
-            track = process(cap, options, stages, progress=bar)
-            bar.close()
-            write_track(out, track)
-        except FmcwError as exc:
-            bar.close()
-            if ctx.obj.get("debug"):
-                raise
-            click.echo(f"error: {exc}", err=True)
+    for got in runs:
+        if "error" in got:
+            click.echo(f"error: {got['error']}", err=True)
             failed += 1
             continue
-        s = summary(cap, out, track)
+        s = summary(got["capture"], got["track"], got["attrs"], got["valid"])
         results.append(s)
-        if track.attrs["near_range_limit_pairs"]:
-            click.echo(f"warning: {cap}: {track.attrs['near_range_limit_pairs']} pairs lie within 5 % of "
-                       f"the unambiguous range ({track.attrs['unambiguous_range_m']:.3f} m); a farther "
-                       "target would alias: raise --points", err=True)
-        if not track.attrs["sync_delay_reliable"]:
-            click.echo(f"warning: {cap}: the sync delay estimate is unreliable (a target beat "
-                       "near 0 Hz in every period); velocities may be biased", err=True)
-        if not quiet and not as_json:
-            click.echo(f"{cap} -> {out}\n  {s['duration_s']:.3f} s, {s['pairs']} pairs, "
-                       f"{100 * s['valid_share']:.1f} % valid, sync delay "
-                       f"{s['sync_delay_samples']:+.2f} samples, {s['device']}, "
-                       f"{s['processing_time_s']:.1f} s ({s['real_time_multiple']:.2f}x real time)")
-            why = ", ".join(f"{n} {name}" for name, n in s["invalid"].items() if n)
-            if why:
-                click.echo(f"  invalid pairs: {why}")
+        report(s, got["attrs"], quiet, as_json)
     if as_json:
         click.echo(json.dumps(results, indent=2))
     if failed:

@@ -228,6 +228,35 @@ def _fill_gaps(t_mid: np.ndarray, period: float) -> np.ndarray:
     return np.concatenate(fill) if fill else np.zeros(0)
 
 
+def core_samples(info: CaptureInfo, options: Options) -> int:
+    """Samples in the core of one chunk (chunks start at multiples of this)."""
+    return max(1, round(options.chunk_periods * info.samples_per_period))
+
+
+def split_ranges(info: CaptureInfo, options: Options, seconds: float) -> list[tuple[int, int]]:
+    """The capture cut into ranges of about `seconds` made of whole chunks, so that
+    processing them apart gives exactly the chunks (and the track) of one pass."""
+    core = core_samples(info, options)
+    per = max(1, round(seconds * info.sample_rate_hz / core)) * core
+    return [(a, min(a + per, info.samples)) for a in range(0, info.samples, per)]
+
+
+def capture_parts(cap: Capture, plan: Plan, backend, start: int = 0, stop: int | None = None,
+                  progress: Callable[[int, int, float], None] | None = None) -> list[_Pairs]:
+    """The owned pairs of every chunk whose core lies in samples [start, stop)
+    (`start` a multiple of `core_samples`)."""
+    info, options = cap.info, plan.options
+    margin = int((options.context_periods + 1) * info.samples_per_period + sync.MAX_DELAY_SAMPLES + 8)
+    parts: list[_Pairs] = []
+    for chunk in cap.chunks(options.chunk_periods, margin, start, stop):
+        got = _chunk_pairs(plan, chunk, backend)
+        if got is not None:
+            parts.append(got)
+        if progress:
+            progress(chunk.core_stop, info.samples, info.sample_rate_hz)
+    return parts
+
+
 def process(path, options: Options | None = None, backend=None,
             progress: Callable[[int, int, float], None] | None = None) -> Track:
     """Convert one capture file into a Track (not yet written).
@@ -243,17 +272,15 @@ def process(path, options: Options | None = None, backend=None,
     backend = backend or NumpyBackend()
     started = time.perf_counter()
     with Capture(path) as cap:
-        info = cap.info
         plan = make_plan(cap, options)
-        period = info.samples_per_period
-        margin = int((options.context_periods + 1) * period + sync.MAX_DELAY_SAMPLES + 8)
-        parts: list[_Pairs] = []
-        for chunk in cap.chunks(options.chunk_periods, margin):
-            got = _chunk_pairs(plan, chunk, backend)
-            if got is not None:
-                parts.append(got)
-            if progress:
-                progress(chunk.core_stop, info.samples, info.sample_rate_hz)
+        parts = capture_parts(cap, plan, backend, progress=progress)
+    return assemble(plan, parts, backend, time.perf_counter() - started)
+
+
+def assemble(plan: Plan, parts: list[_Pairs], backend, seconds: float) -> Track:
+    """The track from the owned pairs of all chunks, in capture order: missing periods
+    filled as invalid, acceleration, attributes. `seconds`: the processing time."""
+    info, options = plan.info, plan.options
     if not parts:
         raise CaptureError(info.path, "no complete modulation period found in the sync channel")
     t_r = np.concatenate([p.t_rise for p in parts])
@@ -310,7 +337,7 @@ def process(path, options: Options | None = None, backend=None,
         "software": f"fmcw-cl {__version__}",
         "source": str(Path(info.path).resolve()),
         "capture_duration_s": info.duration_s,
-        "processing_time_s": time.perf_counter() - started,
+        "processing_time_s": seconds,
     }
     return Track(
         sweep_time_s=sweep_t,

@@ -1,0 +1,158 @@
+"""Batch conversion on a Dask cluster (optional extra: ``pip install fmcw-cl[cluster]``).
+
+Two levels of parallelism:
+- one task per capture: the worker reads the capture, converts it and writes its
+  track (atomically) to the shared output folder;
+- a long capture is cut into ranges of whole chunks (`engine.split_ranges`): a worker
+  task makes the plan once (G(I), LUT, sync delay), range tasks convert their chunks
+  with it, and the client stitches the pairs and writes the track. Because the ranges
+  are whole chunks of the one-machine pass, the track equals the one-machine track.
+
+Each worker process builds its backend (its OpenCL context and programs) once and
+reuses it across tasks; the device comes from the worker's environment
+(``PYOPENCL_CTX``, e.g. one GPU per worker) unless `device` is given.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Iterator
+from pathlib import Path
+
+from .capture import Capture
+from .engine import Options, assemble, capture_parts, make_backend, make_plan, process, split_ranges
+from .errors import FmcwError
+from .track import track_path, write_track
+
+TASK_SECONDS = 1.0      # capture seconds per range task of a long capture
+
+_BACKENDS: dict = {}    # per worker process: (name, device) -> backend
+
+
+def _backend(name: str, device: str | None):
+    key = (name, device)
+    if key not in _BACKENDS:
+        _BACKENDS[key] = make_backend(name, device)
+    return _BACKENDS[key]
+
+
+def connect(scheduler: str):
+    """A Dask client: ``local:N`` starts a LocalCluster of N worker processes here;
+    anything else is a scheduler address (``tcp://host:8786``)."""
+    try:
+        from dask.distributed import Client, LocalCluster
+    except ImportError:
+        raise FmcwError("--scheduler needs Dask: pip install 'fmcw-cl[cluster]'") from None
+    if scheduler.startswith("local:"):
+        n = int(scheduler.split(":", 1)[1])
+        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                               dashboard_address=None)
+        return Client(cluster)
+    return Client(scheduler)
+
+
+def _convert(capture: str, out: str, options: Options, backend: str, device: str | None) -> dict:
+    """Task: one whole capture to its track file (or the error, as data)."""
+    try:
+        track = process(capture, options, _backend(backend, device))
+        write_track(out, track)
+        return {"capture": capture, "track": out, "attrs": track.attrs, "valid": track.valid,
+                "pairs": track.pairs}
+    except FmcwError as exc:
+        return {"capture": capture, "error": str(exc)}
+
+
+def _plan(capture: str, options: Options, task_seconds: float):
+    """Task: the plan of a long capture and its ranges."""
+    with Capture(capture) as cap:
+        return make_plan(cap, options), split_ranges(cap.info, options, task_seconds)
+
+
+def _range(capture: str, plan, start: int, stop: int, backend: str, device: str | None):
+    """Task: the owned pairs of one range, and which backend made them."""
+    stages = _backend(backend, device)
+    with Capture(capture) as cap:
+        return capture_parts(cap, plan, stages, start, stop), stages.name, stages.device
+
+
+class _Made:
+    """What assemble() records of the backend that made the pairs."""
+
+    def __init__(self, name: str, device: str) -> None:
+        self.name, self.device = name, device
+
+
+def run_batch(client, captures: list[Path], outdir: Path, options: Options, backend: str = "auto",
+              device: str | None = None, split_seconds: float = 2 * TASK_SECONDS,
+              task_seconds: float = TASK_SECONDS,
+              progress: Callable[[int, int], None] | None = None) -> Iterator[dict]:
+    """Convert `captures` on the cluster; yields one result per capture as it completes:
+    ``{"capture", "track", "attrs", "valid", "pairs"}`` or ``{"capture", "error"}``.
+
+    Captures longer than `split_seconds` are split into ranges of about `task_seconds`
+    (whole chunks) across workers.
+    Paths must be valid on the workers (a shared filesystem).
+    """
+    started = time.perf_counter()
+    jobs: dict = {}                 # future -> (kind, capture, track path, range index)
+    refused = []
+    for cap in captures:            # submitted now, not when the results are first asked for
+        out = str(track_path(outdir, cap))
+        try:
+            with Capture(cap) as c:
+                long = c.info.duration_s > split_seconds
+        except FmcwError as exc:
+            refused.append({"capture": str(cap), "error": str(exc)})
+            continue
+        if long:
+            jobs[client.submit(_plan, str(cap), options, task_seconds, pure=False)] = ("plan", cap, out, None)
+        else:
+            jobs[client.submit(_convert, str(cap), out, options, backend, device, pure=False)] = (
+                "convert", cap, out, None)
+    return _collect(client, jobs, refused, backend, device, started, progress)
+
+
+def _collect(client, jobs: dict, refused: list, backend: str, device: str | None, started: float,
+             progress) -> Iterator[dict]:
+    """Results of run_batch's tasks as they complete; long captures' ranges submitted
+    when their plan is ready, stitched when their last range is."""
+    from dask.distributed import as_completed
+
+    yield from refused
+    total, done = len(jobs), 0
+    ranges: dict = {}               # capture -> [plan, number of ranges, {index: parts}]
+    pending = as_completed(list(jobs))
+    for fut in pending:
+        kind, cap, out, index = jobs.pop(fut)
+        try:
+            value = fut.result()
+        except FmcwError as exc:
+            value = {"capture": str(cap), "error": str(exc)}
+            kind = "convert"
+            ranges.pop(str(cap), None)
+        if kind == "plan":
+            plan, cuts = value
+            shared = client.scatter(plan)
+            ranges[str(cap)] = [plan, len(cuts), {}]
+            for i, (a, b) in enumerate(cuts):
+                f = client.submit(_range, str(cap), shared, a, b, backend, device, pure=False)
+                jobs[f] = ("range", cap, out, i)
+                pending.add(f)
+            continue
+        if kind == "range":
+            if str(cap) not in ranges:          # an earlier range of it failed
+                continue
+            plan, count, got = ranges[str(cap)]
+            got[index] = value
+            if len(got) < count:
+                continue
+            del ranges[str(cap)]
+            parts = [p for i in range(count) for p in got[i][0]]
+            track = assemble(plan, parts, _Made(*got[0][1:]), time.perf_counter() - started)
+            write_track(out, track)
+            value = {"capture": str(cap), "track": out, "attrs": track.attrs, "valid": track.valid,
+                     "pairs": track.pairs}
+        done += 1
+        if progress:
+            progress(done, total)
+        yield value
