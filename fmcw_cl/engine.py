@@ -25,6 +25,7 @@ from .track import Track
 
 DELAY_STRETCHES = 6           # stretches of the capture used to estimate the sync delay
 DELAY_STRETCH_PERIODS = 200
+CHECK_STRIDE = 4             # the 2N-point range check runs on every 4th pair
 PERIOD_TOLERANCE = 0.03      # sync period against /modulation frequency_hz
 NEAR_LIMIT = 0.95             # distances beyond this share of the unambiguous range may be aliased
 
@@ -209,15 +210,27 @@ def _chunk_pairs(plan: Plan, chunk, backend) -> _Pairs | None:
             | faults.clipped(chunk.beat, hs.start[f], hs.length[f], info.full_scale))
     alias = np.zeros(r.size, bool)
     if plan.check is not None and r.size:
-        lut2, win2, model2 = plan.check
-        for idx, u in ((r, lut2.u_rise), (f, lut2.u_fall)):
-            x2 = backend.resample(chunk.beat, hs.start[idx], hs.length[idx], u, win2)
-            d2, s2 = backend.measure(x2, None, None, model2, plan.lo_bin)
-            alias |= faults.beyond_range(d2, s2, plan.lut.unambiguous_range_m, pairing.SNR_MIN_DB)
+        alias = _beyond_range(plan, chunk.beat, hs, r, f, backend)
     heard = (sel.dechirped_snr_rise >= pairing.SNR_MIN_DB) & (sel.dechirped_snr_fall >= pairing.SNR_MIN_DB)
     reason = faults.reasons(sel.valid, heard, clip, alias)
     sel.valid[:] = reason == faults.OK
     return _Pairs(t_r[own], t_f[own], sel, reason)
+
+
+def _beyond_range(plan: Plan, beat: np.ndarray, hs, r: np.ndarray, f: np.ndarray, backend) -> np.ndarray:
+    """The 2N-point range check of pairs (r, f), run on every CHECK_STRIDE-th pair; a pair
+    is flagged when a checked pair on either side of it is (a target crosses the range
+    limit within a few pairs, where the N-point distance is ambiguous anyway)."""
+    lut2, win2, model2 = plan.check
+    checked = np.unique(np.r_[np.arange(0, r.size, CHECK_STRIDE), r.size - 1])
+    beyond = np.zeros(checked.size, bool)
+    for idx, u in ((r[checked], lut2.u_rise), (f[checked], lut2.u_fall)):
+        x2 = backend.resample(beat, hs.start[idx], hs.length[idx], u, win2)
+        d2, s2 = backend.measure(x2, None, None, model2, plan.lo_bin)
+        beyond |= faults.beyond_range(d2, s2, plan.lut.unambiguous_range_m, pairing.SNR_MIN_DB)
+    right = np.searchsorted(checked, np.arange(r.size))          # first checked pair >= i
+    left = np.searchsorted(checked, np.arange(r.size), side="right") - 1
+    return beyond[right] | beyond[np.maximum(left, 0)]
 
 
 def _fill_gaps(t_mid: np.ndarray, period: float) -> np.ndarray:
