@@ -52,6 +52,15 @@ def test_bad_capture_one_line_and_others_still_converted(tmp_path, static_captur
     assert not list(out.glob("*.part"))
 
 
+def test_skip_existing_resumes_a_batch(tmp_path, static_capture, fmcw):
+    out = tmp_path / "tracks"
+    fmcw("process", static_capture, "-o", out, "-q")
+    done = out / "static.track.h5"
+    stamp = done.stat().st_mtime_ns
+    res = fmcw("process", static_capture, "-o", out, "--skip-existing", "--json")
+    assert json.loads(res.stdout) == [] and done.stat().st_mtime_ns == stamp
+
+
 def test_devices_lists_and_marks_one(fmcw):
     out = fmcw("devices").stdout.splitlines()
     assert sum(line.startswith("*") for line in out) == 1

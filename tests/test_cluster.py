@@ -10,12 +10,10 @@ import time
 import numpy as np
 import pytest
 
-distributed = pytest.importorskip("dask.distributed")
-
-from fmcw_cl.cluster import connect, run_batch  # noqa: E402
-from fmcw_cl.engine import Options, process  # noqa: E402
-from fmcw_cl.simulate import simulate_capture, static  # noqa: E402
-from fmcw_cl.track import read_track  # noqa: E402
+from fmcw_cl.cluster import connect, run_batch
+from fmcw_cl.engine import Options, process
+from fmcw_cl.simulate import simulate_capture, static
+from fmcw_cl.track import read_track
 
 OPTIONS = Options(chunk_periods=500, context_periods=16)   # 25 ms chunks: several per capture
 

@@ -97,3 +97,16 @@ def test_kernel_build_failure_falls_back_or_fails(monkeypatch):
     backend = engine.make_backend("auto", warn=warnings.append)
     assert backend.name == "numpy"
     assert len(warnings) == 1 and warnings[0].startswith("warning: OpenCL unavailable (kernel resample.cl")
+
+
+def test_no_opencl_platform(monkeypatch):
+    from fmcw_cl import engine
+    from fmcw_cl.errors import FmcwError
+    from fmcw_cl.opencl import context
+
+    monkeypatch.setattr(context, "devices", lambda: [])
+    with pytest.raises(FmcwError, match="no OpenCL device found: pip install pocl-binary-distribution"):
+        engine.make_backend("opencl")
+    warnings = []
+    assert engine.make_backend("auto", warn=warnings.append).name == "numpy"
+    assert len(warnings) == 1 and "no OpenCL device found" in warnings[0]
