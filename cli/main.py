@@ -9,7 +9,7 @@ import click
 from fmcw_cl import __version__
 from fmcw_cl.errors import FmcwError
 
-from . import bench, devices, import_dump, info, process, report, simulate
+from . import bench, calibrate, devices, import_dump, info, process, report, simulate
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
@@ -27,8 +27,8 @@ def cli(ctx: click.Context, debug: bool) -> None:
     ctx.obj = {"debug": debug}
 
 
-for command in (process.command, simulate.command, import_dump.command, info.command, report.command,
-                devices.command, bench.command):
+for command in (process.command, calibrate.command, simulate.command, import_dump.command, info.command,
+                report.command, devices.command, bench.command):
     cli.add_command(command)
 
 

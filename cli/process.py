@@ -41,6 +41,11 @@ def report(s: dict, attrs: dict, quiet: bool, as_json: bool) -> None:
     if not attrs["sync_delay_reliable"]:
         click.echo(f"warning: {cap}: the sync delay estimate is unreliable (a target beat "
                    "near 0 Hz in every period); velocities may be biased", err=True)
+    if attrs.get("tuning_matches") is False:
+        source = "chirp calibration" if attrs.get("chirp") else "G(I) table"
+        click.echo(f"warning: {cap}: its peaks are {attrs['tuning_peak_width_ratio']:.1f}x wider than the "
+                   f"window's own: the laser's chirp does not match the {source} (fmcw-cl calibrate)",
+                   err=True)
     if quiet or as_json:
         return
     click.echo(f"{cap} -> {s['track']}\n  {s['duration_s']:.3f} s, {s['pairs']} pairs, "
@@ -100,6 +105,8 @@ def run_cluster(captures, outdir, options, backend, device, scheduler, quiet):
 @click.option("--min-range", default=0.03, show_default=True,
               help="Ignore peaks below this distance (m): DC, intensity ramp, lens reflection.")
 @click.option("--no-dechirp", is_flag=True, help="The paper's method alone (no Doppler de-chirp).")
+@click.option("--chirp", default=None, type=click.Path(dir_okay=False),
+              help="A chirp calibration (fmcw-cl calibrate) to use instead of the G(I) table.")
 @click.option("--no-range-check", is_flag=True,
               help="Skip the 2N-point resampling that flags targets beyond the unambiguous range.")
 @click.option("--skip-existing", is_flag=True, help="Leave captures whose track exists.")
@@ -109,7 +116,7 @@ def run_cluster(captures, outdir, options, backend, device, scheduler, quiet):
 @click.option("--json", "as_json", is_flag=True, help="Print the summaries as JSON on stdout.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress, no summary.")
 @click.pass_context
-def command(ctx, captures, outdir, points, backend, device, min_range, no_dechirp, no_range_check,
+def command(ctx, captures, outdir, points, backend, device, min_range, no_dechirp, chirp, no_range_check,
             skip_existing, scheduler, as_json, quiet):
     """Convert CAPTURE files into tracks (distance, velocity, acceleration).
 
@@ -120,7 +127,7 @@ def command(ctx, captures, outdir, points, backend, device, min_range, no_dechir
     """
     outdir.mkdir(parents=True, exist_ok=True)
     options = Options(points=points, min_range_m=min_range, dechirp=not no_dechirp,
-                      range_check=not no_range_check)
+                      range_check=not no_range_check, chirp=str(chirp) if chirp else None)
     todo = [c for c in captures if not (skip_existing and track_path(outdir, c).exists())]
     if scheduler:
         runs = run_cluster(todo, outdir, options, backend, device, scheduler, quiet)

@@ -23,9 +23,13 @@ from fmcw_cl.simulate import SCENARIOS, SimulationConfig, simulate_capture
 @click.option("--noise", default=None, type=float, help="Beat noise, rms ADC codes [25].")
 @click.option("--sync-delay", default=None, type=float,
               help="Samples the sync lags the optics [drawn from the seed in +-40].")
+@click.option("--thermal-lag-us", default=0.0, show_default=True,
+              help="First-order lag (us) of the thermal part of the laser tuning; the capture "
+                   "keeps the static G(I) table, as a lab would.")
 @click.option("--compress", is_flag=True, help="gzip the ADC channels (small files, slow reads).")
 @click.option("-q", "--quiet", is_flag=True, help="No progress.")
-def command(scenario, output, duration, seed, distance, start, noise, sync_delay, compress, quiet):
+def command(scenario, output, duration, seed, distance, start, noise, sync_delay, thermal_lag_us, compress,
+            quiet):
     """Simulate SCENARIO (static, rail or jump) into a capture file.
 
     \b
@@ -41,6 +45,8 @@ def command(scenario, output, duration, seed, distance, start, noise, sync_delay
         cfg = replace(cfg, noise_codes=noise)
     if sync_delay is not None:
         cfg = replace(cfg, sync_delay_samples=sync_delay)
+    if thermal_lag_us:
+        cfg = replace(cfg, thermal_lag_s=thermal_lag_us * 1e-6)
     bar = Progress(output.name, int(duration * cfg.sample_rate_hz), cfg.sample_rate_hz,
                    enabled=False if quiet else None)
     hidden = simulate_capture(output, trajectory, duration, seed, cfg, start_s=start,

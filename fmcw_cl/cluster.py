@@ -20,7 +20,16 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 
 from .capture import Capture
-from .engine import Options, assemble, capture_parts, make_backend, make_plan, process, split_ranges
+from .engine import (
+    Options,
+    assemble,
+    capture_parts,
+    check_tuning,
+    make_backend,
+    make_plan,
+    process,
+    split_ranges,
+)
 from .errors import FmcwError
 from .track import track_path, write_track
 
@@ -149,6 +158,8 @@ def _collect(client, jobs: dict, refused: list, backend: str, device: str | None
             del ranges[str(cap)]
             parts = [p for i in range(count) for p in got[i][0]]
             track = assemble(plan, parts, _Made(*got[0][1:]), time.perf_counter() - started)
+            with Capture(cap) as c:
+                check_tuning(c, plan, track)
             write_track(out, track)
             value = {"capture": str(cap), "track": out, "attrs": track.attrs, "valid": track.valid,
                      "pairs": track.pairs}

@@ -41,6 +41,7 @@ class Options:
     chunk_periods: int = 2048     # modulation periods per chunk core
     context_periods: int = 64     # periods of context on each side of a core
     range_check: bool = True      # flag targets beyond the unambiguous range (2N resampling)
+    chirp: str | None = None      # a calibration file (fmcw-cl calibrate) instead of G(I)
 
 
 @dataclass(frozen=True)
@@ -57,6 +58,8 @@ class Plan:
     lag_periods: int    # periods that voted for it
     lag_misfit: float   # rms misfit of those periods' triangles (clean: < 0.2)
     check: tuple | None = None   # (LUT, window, model) at 2N points for the range check
+    lag_refined: bool = False    # moved to kinematic consistency (chirp calibrations)
+    lag_mismatch_mps: float = float("nan")   # what remains of the inconsistency there
 
 
 class NumpyBackend:
@@ -122,16 +125,30 @@ def estimate_capture_delay(cap: Capture) -> tuple[float, int, float]:
     return sync.combine_delays(np.concatenate(lags), np.concatenate(misfits))
 
 
+def make_lut(info: CaptureInfo, points: int, chirp=None) -> Lut:
+    """The LUT at `points`: from the capture's G(I), or from a chirp calibration."""
+    lut = build_lut(info.tuning_current_a, info.tuning_frequency_hz, info.modulation.current_min_a,
+                    info.modulation.current_max_a, points, info.refractive_index)
+    if chirp is None:
+        return lut
+    from .chirp import chirp_lut
+    return chirp_lut(chirp, points, float(np.mean(lut.nu_hz)), info.refractive_index)
+
+
 def make_plan(cap: Capture, options: Options, lag: float | None = None) -> Plan:
-    """Fit G(I), build the LUT and the Doppler model, estimate the sync delay.
+    """Fit G(I) (or read the chirp calibration), build the LUT and the Doppler model,
+    estimate the sync delay (with a calibration: refined on the data, see `refine`).
 
     A known `lag` (samples the sync lags the optics, e.g. from a track) skips the
     estimate.
     """
     info = cap.info
-    lut = build_lut(info.tuning_current_a, info.tuning_frequency_hz,
-                    info.modulation.current_min_a, info.modulation.current_max_a,
-                    options.points, info.refractive_index)
+    chirp = None
+    if options.chirp:
+        from .chirp import check_chirp, read_chirp
+        chirp = read_chirp(options.chirp)
+        check_chirp(chirp, info, options.chirp)
+    lut = make_lut(info, options.points, chirp)
     win = resample.window(options.points)
     nfft = spectrum.fft_length(options.points)
     model = pairing.doppler_model(lut, info.modulation.period_s / 2, nfft, win)
@@ -140,18 +157,22 @@ def make_plan(cap: Capture, options: Options, lag: float | None = None) -> Plan:
                         f"{lut.unambiguous_range_m:.3f} m of --points {options.points}")
     lo_bin = max(1, int(np.ceil(options.min_range_m / model.metres_per_bin)))
     check_sync_period(cap)
+    known = lag is not None
     lag, votes, misfit = estimate_capture_delay(cap) if lag is None else (lag, 0, 0.0)
     if not np.isfinite(lag):
         raise CaptureError(info.path, "no laser intensity triangle in the beat channel: "
                                       "cannot align the sync to the optics")
     check = None
     if options.range_check:
-        lut2 = build_lut(info.tuning_current_a, info.tuning_frequency_hz, info.modulation.current_min_a,
-                         info.modulation.current_max_a, 2 * options.points, info.refractive_index)
+        lut2 = make_lut(info, 2 * options.points, chirp)
         win2 = resample.window(2 * options.points)
         check = (lut2, win2, pairing.doppler_model(lut2, info.modulation.period_s / 2,
                                                    spectrum.fft_length(2 * options.points), win2))
-    return Plan(info, options, lut, win, model, lo_bin, lag, votes, misfit, check)
+    plan = Plan(info, options, lut, win, model, lo_bin, lag, votes, misfit, check)
+    if chirp is not None and not known:
+        from .refine import refine_lag
+        plan = refine_lag(cap, plan)
+    return plan
 
 
 def check_sync_period(cap: Capture, periods: int = 40) -> None:
@@ -189,7 +210,9 @@ def _chunk_pairs(plan: Plan, chunk, backend) -> _Pairs | None:
     hp = info.samples_per_period / 2
     tp = sync.sync_turning_points(chunk.sync, hp)
     hs = sync.half_sweeps(tp, plan.lag)
-    fits = (hs.start >= 2) & (hs.start + hs.length < chunk.beat.size - 3)
+    u_lo = min(plan.lut.u_rise.min(), plan.lut.u_fall.min(), 0.0)
+    u_hi = max(plan.lut.u_rise.max(), plan.lut.u_fall.max(), 1.0)
+    fits = (hs.start + u_lo * hs.length >= 2) & (hs.start + u_hi * hs.length < chunk.beat.size - 3)
     r = np.flatnonzero(hs.rising[:-1] & ~hs.rising[1:] & (hs.segment[:-1] == hs.segment[1:])
                        & fits[:-1] & fits[1:])
     if r.size == 0:
@@ -287,7 +310,20 @@ def process(path, options: Options | None = None, backend=None,
     with Capture(path) as cap:
         plan = make_plan(cap, options)
         parts = capture_parts(cap, plan, backend, progress=progress)
-    return assemble(plan, parts, backend, time.perf_counter() - started)
+        track = assemble(plan, parts, backend, time.perf_counter() - started)
+        check_tuning(cap, plan, track)
+    return track
+
+
+def check_tuning(cap: Capture, plan: Plan, track: Track) -> None:
+    """Record how much wider than the window's own the peaks of the stillest stretch
+    are (`tuning_peak_width_ratio`; `tuning_matches` is false beyond WIDTH_LIMIT): the
+    sign that the laser's real chirp has left its G(I) table or its calibration."""
+    from .refine import WIDTH_LIMIT, peak_width_ratio, stillest
+
+    ratio = peak_width_ratio(cap, plan, stillest(track.time_s, track.velocity_mps))
+    track.attrs["tuning_peak_width_ratio"] = ratio
+    track.attrs["tuning_matches"] = bool(not ratio > WIDTH_LIMIT)
 
 
 def assemble(plan: Plan, parts: list[_Pairs], backend, seconds: float) -> Track:
@@ -332,6 +368,7 @@ def assemble(plan: Plan, parts: list[_Pairs], backend, seconds: float) -> Track:
         "dechirp_iterations": options.iterations if options.dechirp else 0,
         "min_range_m": options.min_range_m,
         "bandwidth_hz": lut.bandwidth_hz,
+        "tuning": "chirp calibration" if options.chirp else "static G(I) table",
         "range_resolution_m": lut.range_resolution_m,
         "unambiguous_range_m": lut.unambiguous_range_m,
         "near_range_limit_pairs": int(np.sum(dist[valid] > NEAR_LIMIT * lut.unambiguous_range_m)),
@@ -342,7 +379,10 @@ def assemble(plan: Plan, parts: list[_Pairs], backend, seconds: float) -> Track:
         "sync_delay_samples": plan.lag,
         "sync_delay_periods_used": plan.lag_periods,
         "sync_delay_misfit": plan.lag_misfit,
-        "sync_delay_reliable": bool(plan.lag_misfit <= sync.CLEAN_MISFIT),
+        "sync_delay_reliable": bool(plan.lag_misfit <= sync.CLEAN_MISFIT or plan.lag_refined),
+        "sync_delay_refined": bool(plan.lag_refined),
+        "sync_delay_mismatch_mps": float(plan.lag_mismatch_mps),
+        "chirp": str(Path(options.chirp).resolve()) if options.chirp else "",
         "acceleration_smoothing": f"Savitzky-Golay derivative, order {kinematics.POLYORDER}, "
                                   f"{kinematics.WINDOW_PAIRS} pairs",
         "backend": backend.name,

@@ -48,6 +48,8 @@ class SimulationConfig:
     start_phase: float | None = None
     table_points: int = 25
     table_noise_hz: float = 5e6     # rms error of the offline wavelength meter (0.04 pm)
+    thermal_lag_s: float = 0.0      # first-order lag of the thermal part of the tuning
+    thermal_fraction: float = 0.8   # share of the tuning that is thermal (the rest: carriers)
 
 
 def _triangle(phase):
@@ -55,6 +57,28 @@ def _triangle(phase):
     p = phase - np.floor(phase)
     rising = p < 0.5
     return np.where(rising, 2 * p, 2 - 2 * p), np.where(rising, 2.0, -2.0)
+
+
+def thermal_offset(phase, lag_s: float, period_s: float, span_a: float):
+    """Lag of a first-order-filtered triangle behind the current, in steady state.
+
+    The thermal current I_th follows dI_th/dt = (I - I_th) / lag. For a triangle of
+    slope +-r (A/s) and half-period T, x = I_th - I obeys x' = -x/lag -+ r, whose
+    periodic solution starts each rising half at x_a = r lag tanh(T / 2 lag) and each
+    falling half at -x_a. Returns x (A) and dx/dt (A/s) at `phase` (periods).
+    """
+    p = phase - np.floor(phase)
+    if lag_s <= 0:
+        zero = np.zeros_like(p)
+        return zero, zero
+    half = period_s / 2
+    r = span_a / half
+    rising = p < 0.5
+    s = np.where(rising, p, p - 0.5) * period_s
+    x_rise = -r * lag_s + r * lag_s * (np.tanh(half / (2 * lag_s)) + 1) * np.exp(-s / lag_s)
+    x = np.where(rising, x_rise, -x_rise)
+    slope = np.where(rising, r, -r)
+    return x, -x / lag_s - slope
 
 
 def simulate_capture(path, trajectory: Trajectory, duration_s: float, seed: int = 0,
@@ -105,8 +129,11 @@ def simulate_capture(path, trajectory: Trajectory, duration_s: float, seed: int 
             tri, dtri = _triangle(t * mod.frequency_hz + phase0)
             cur = mod.current_min_a + span * tri
             didt = span * mod.frequency_hz * dtri
-            nu = laser.frequency(cur)
-            dnu = laser.tuning_slope(cur) * didt
+            # the tuning sees the current with its thermal part lagging; the power does not
+            x, dxdt = thermal_offset(t * mod.frequency_hz + phase0, cfg.thermal_lag_s, mod.period_s, span)
+            tuned = cur + cfg.thermal_fraction * x
+            nu = laser.frequency(tuned)
+            dnu = laser.tuning_slope(tuned) * (didt + cfg.thermal_fraction * dxdt)
             power = laser.relative_power(cur)
 
             dist, _, _ = trajectory.at(t + start_s)

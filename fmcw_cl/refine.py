@@ -1,0 +1,144 @@
+"""Per-capture refinement of the sync delay when a chirp calibration is used.
+
+A calibrated LUT is tied to the timing of its calibration capture. In another capture
+the sync may sit a few samples differently against the optics (cables, and the paper's
+intensity-based estimate is biased when a beat passes 0 Hz at the late optical turning
+points). A delay error shifts the resampling instants along a nonlinear chirp, which
+moves the rising and falling peaks in opposite directions: a velocity appears that the
+distance does not show. So the delay is chosen where the velocity integrates to the
+change of distance (kinematic consistency), over a few stretches of the capture, by
+secant steps.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+from scipy.integrate import trapezoid
+
+from .capture import Capture
+
+STRETCHES = 3
+STRETCH_PERIODS = 240
+STEP_SAMPLES = 2.0        # first secant step
+MAX_SHIFT_SAMPLES = 200.0
+TOLERANCE_SAMPLES = 0.02
+MAX_EVALUATIONS = 6
+MIN_RUN = 60              # pairs of a valid run used
+
+
+def mismatch(cap: Capture, plan, lag: float) -> float:
+    """Mean over stretches of (integral of velocity - change of distance) / duration (m/s);
+    NaN when no stretch has a long valid run."""
+    from .engine import NumpyBackend, capture_parts
+
+    info = cap.info
+    p = replace(plan, lag=lag, check=None)
+    length = int(STRETCH_PERIODS * info.samples_per_period)
+    starts = np.linspace(0, max(0, info.samples - length), STRETCHES).astype(np.int64)
+    out = []
+    for a in np.unique(starts):
+        parts = capture_parts(cap, p, NumpyBackend(), int(a), int(a) + length)
+        if not parts:
+            continue
+        t = np.concatenate([0.5 * (q.t_rise + q.t_fall) for q in parts])
+        d = np.concatenate([q.result.distance for q in parts])
+        v = np.concatenate([q.result.velocity for q in parts])
+        ok = np.concatenate([q.reason == 0 for q in parts])
+        edges = np.flatnonzero(np.diff(np.r_[0, ok.astype(np.int8), 0]))
+        runs = sorted(zip(edges[::2], edges[1::2], strict=True), key=lambda r: r[0] - r[1])
+        if not runs or runs[0][1] - runs[0][0] < MIN_RUN:
+            continue
+        i, j = runs[0]
+        tt, dd, vv = t[i:j], d[i:j], v[i:j]
+        out.append((trapezoid(vv, tt) - (dd[-1] - dd[0])) / (tt[-1] - tt[0]))
+    return float(np.mean(out)) if out else float("nan")
+
+
+def refine_lag(cap: Capture, plan):
+    """The plan with its lag moved to where the track is kinematically consistent.
+
+    Keeps the estimate (and marks it unreliable through lag_misfit = inf) when no
+    stretch can be measured."""
+    lag0 = plan.lag
+    xs = [lag0, lag0 + STEP_SAMPLES]
+    ms = [mismatch(cap, plan, x) for x in xs]
+    while len(xs) < MAX_EVALUATIONS and np.isfinite(ms[-1]) and np.isfinite(ms[-2]):
+        slope = (ms[-1] - ms[-2]) / (xs[-1] - xs[-2])
+        if slope == 0:
+            break
+        nxt = float(np.clip(xs[-1] - ms[-1] / slope, lag0 - MAX_SHIFT_SAMPLES, lag0 + MAX_SHIFT_SAMPLES))
+        done = abs(nxt - xs[-1]) < TOLERANCE_SAMPLES
+        xs.append(nxt)
+        ms.append(mismatch(cap, plan, nxt))
+        if done:
+            break
+    good = [k for k, m in enumerate(ms) if np.isfinite(m)]
+    if not good:
+        return replace(plan, lag_misfit=float("inf"))
+    best = min(good, key=lambda k: abs(ms[k]))
+    return replace(plan, lag=xs[best], lag_refined=True, lag_mismatch_mps=abs(ms[best]))
+
+
+WIDTH_PERIODS = 100       # periods whose peaks are measured by the tuning check
+WIDTH_LIMIT = 1.1         # peaks this much wider than the window's own say: tuning mismatch
+
+
+def _widths(power: np.ndarray, lo: int) -> np.ndarray:
+    """Width (bins) of each row's highest peak beyond `lo` at half its power, the
+    crossings interpolated linearly between bins."""
+    band = power[:, lo:]
+    out = np.full(band.shape[0], np.nan)
+    for i, row in enumerate(band):
+        k = int(np.argmax(row))
+        half = 0.5 * row[k]
+        below = np.flatnonzero(row < half)
+        left, right = below[below < k], below[below > k]
+        if left.size == 0 or right.size == 0:
+            continue
+        a, b = left[-1], right[0]          # last bin below half on each side
+        xa = a + (half - row[a]) / (row[a + 1] - row[a])
+        xb = b - (half - row[b]) / (row[b - 1] - row[b])
+        out[i] = xb - xa
+    return out
+
+
+def stillest(time_s: np.ndarray, velocity_mps: np.ndarray, pairs: int = WIDTH_PERIODS) -> float:
+    """Start time (s) of the `pairs` consecutive pairs with the smallest mean |velocity|
+    (plain spectra of a moving target smear through the Doppler term); the middle of
+    the track when no velocity is known."""
+    speed = np.nan_to_num(np.abs(velocity_mps), nan=1e3)
+    if time_s.size <= pairs or speed.min() >= 1e3:
+        return float(time_s[time_s.size // 2]) if time_s.size else 0.0
+    run = np.convolve(speed, np.ones(pairs) / pairs, mode="valid")
+    return float(time_s[int(np.argmin(run))])
+
+
+def peak_width_ratio(cap: Capture, plan, t0_s: float) -> float:
+    """Median half-power width of the plain peaks of WIDTH_PERIODS periods from `t0_s`,
+    over that of the window's own peak: about 1 when the LUT matches the laser's real
+    chirp, more when the tuning has moved away from the table or calibration."""
+    from .stages import resample, spectrum, sync
+
+    info = cap.info
+    spp = info.samples_per_period
+    a = max(0, int(t0_s * info.sample_rate_hz - spp))
+    beat, sy = cap.read(a, a + int((WIDTH_PERIODS + 2) * spp))
+    hs = sync.half_sweeps(sync.sync_turning_points(sy, spp / 2), plan.lag)
+    u_lo = min(plan.lut.u_rise.min(), plan.lut.u_fall.min(), 0.0)
+    u_hi = max(plan.lut.u_rise.max(), plan.lut.u_fall.max(), 1.0)
+    fits = (hs.start + u_lo * hs.length >= 2) & (hs.start + u_hi * hs.length < beat.size - 3)
+    nfft = plan.model.nfft
+    widths = []
+    for rising in (True, False):
+        sel = fits & (hs.rising == rising)
+        if sel.any():
+            x = resample.resample(beat, hs.start[sel], hs.length[sel], plan.lut.u(rising), plan.window)
+            widths.append(_widths(spectrum.power_spectra(x, nfft), plan.lo_bin))
+    if not widths:
+        return float("nan")
+    j = np.arange(plan.lut.points)
+    tones = np.array([plan.window * np.cos(2 * np.pi * (0.2 + f) * j / 8) for f in (0.0, 0.25, 0.5)])
+    reference = float(np.nanmedian(_widths(spectrum.power_spectra(tones, nfft), 1)))
+    return float(np.nanmedian(np.concatenate(widths)) / reference)
