@@ -38,7 +38,7 @@ class Options:
     min_range_m: float = 0.03     # peaks below are ignored (DC, intensity ramp, lens)
     dechirp: bool = True          # False: the paper's method alone
     iterations: int = 6           # de-chirp passes
-    chunk_periods: int = 2048     # modulation periods per chunk core
+    chunk_periods: int = 1024     # modulation periods per chunk core (peak memory ~0.6 GB)
     context_periods: int = 64     # periods of context on each side of a core
     range_check: bool = True      # flag targets beyond the unambiguous range (2N resampling)
     chirp: str | None = None      # a calibration file (fmcw-cl calibrate) instead of G(I)
