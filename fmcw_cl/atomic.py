@@ -26,3 +26,17 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
+
+
+@contextlib.contextmanager
+def atomic_hdf5(path: str | os.PathLike, fmt: str, version: int, attrs: dict | None = None):
+    """An HDF5 file written atomically, its root stamped with `fmcw_format`,
+    `format_version` and `attrs`; yields the open h5py.File."""
+    import h5py
+
+    with atomic_path(path) as tmp, h5py.File(tmp, "w") as f:
+        f.attrs["fmcw_format"] = fmt
+        f.attrs["format_version"] = version
+        for k, v in (attrs or {}).items():
+            f.attrs[k] = v
+        yield f

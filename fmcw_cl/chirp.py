@@ -16,7 +16,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from .atomic import atomic_path
+from .atomic import atomic_hdf5
 from .errors import CaptureError, FmcwError
 from .stages.lut import Lut
 
@@ -57,11 +57,7 @@ class Chirp:
 def write_chirp(path: str | os.PathLike, chirp: Chirp) -> Path:
     """Write atomically (a temporary name renamed when complete)."""
     path = Path(path)
-    with atomic_path(path) as tmp, h5py.File(tmp, "w") as f:
-        f.attrs["fmcw_format"] = FORMAT
-        f.attrs["format_version"] = FORMAT_VERSION
-        for k, v in chirp.attrs.items():
-            f.attrs[k] = v
+    with atomic_hdf5(path, FORMAT, FORMAT_VERSION, chirp.attrs) as f:
         for name in ("rising", "falling"):
             d: Direction = getattr(chirp, name)
             g = f.create_group(name)

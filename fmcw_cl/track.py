@@ -9,7 +9,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from .atomic import atomic_path
+from .atomic import atomic_hdf5
 
 FORMAT = "track"
 FORMAT_VERSION = 1
@@ -47,11 +47,7 @@ def track_path(outdir: str | os.PathLike, capture: str | os.PathLike) -> Path:
 def write_track(path: str | os.PathLike, track: Track) -> Path:
     """Write `track` to `path` atomically (a temporary name, renamed when complete)."""
     path = Path(path)
-    with atomic_path(path) as tmp, h5py.File(tmp, "w") as f:
-        f.attrs["fmcw_format"] = FORMAT
-        f.attrs["format_version"] = FORMAT_VERSION
-        for k, v in track.attrs.items():
-            f.attrs[k] = v
+    with atomic_hdf5(path, FORMAT, FORMAT_VERSION, track.attrs) as f:
         s = f.create_group("sweeps")
         s.create_dataset("time_s", data=np.asarray(track.sweep_time_s, np.float64))
         s.create_dataset("current_rising", data=np.asarray(track.sweep_rising, bool))
