@@ -32,12 +32,21 @@ class Crossings:
     direction: np.ndarray
 
 
-def _line_fit_crossing(x: np.ndarray, level: float, centre: np.ndarray, half: int) -> np.ndarray:
-    """Where a straight line fitted to x[centre-half : centre+half] reaches `level`."""
-    n = x.size
-    i = np.arange(n, dtype=np.float64)
-    cx = np.concatenate([[0.0], np.cumsum(x - level)])
-    cix = np.concatenate([[0.0], np.cumsum(i * (x - level))])
+def _prefix_sums(x: np.ndarray, level: float) -> tuple[np.ndarray, np.ndarray]:
+    """Prefix sums of (x - level) and i (x - level): any window's line fit in O(1)."""
+    y = x - level
+    cx = np.zeros(x.size + 1)
+    np.cumsum(y, out=cx[1:])
+    y *= np.arange(x.size, dtype=np.float64)
+    cix = np.zeros(x.size + 1)
+    np.cumsum(y, out=cix[1:])
+    return cx, cix
+
+
+def _line_fit_crossing(sums: tuple[np.ndarray, np.ndarray], centre: np.ndarray, half: int) -> np.ndarray:
+    """Where a straight line fitted to x[centre-half : centre+half] reaches the level of
+    `sums` (from _prefix_sums)."""
+    cx, cix = sums
     a = centre - half
     b = centre + half + 1
     m = float(b[0] - a[0]) if a.size else 1.0
@@ -111,11 +120,12 @@ def crossings(x: np.ndarray, half_period: float, level: float | None = None,
     if x.size < 2 * half + 2:          # too short for a single crossing fit
         return Crossings(np.zeros(0), np.zeros(0, np.int8))
     guess = flips.astype(np.float64)
+    sums = _prefix_sums(x, level)
     for _ in range(2):
         centre = np.rint(np.nan_to_num(guess, nan=-1.0)).astype(np.int64)
         ok = np.isfinite(guess) & (centre - half >= 0) & (centre + half < x.size)
-        guess = np.where(ok, _line_fit_crossing(x, level, np.clip(centre, half, x.size - half - 1),
-                                                 half), np.nan)
+        guess = np.where(ok, _line_fit_crossing(sums, np.clip(centre, half, x.size - half - 1), half),
+                         np.nan)
     keep = np.isfinite(guess)
     return Crossings(guess[keep], direction[keep])
 
