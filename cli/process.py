@@ -78,12 +78,10 @@ def run_local(captures, outdir, options, stages, quiet, debug):
 def run_cluster(captures, outdir, options, backend, device, scheduler, quiet):
     from fmcw_cl.cluster import connect, run_batch
 
-    total = sum(Path(c).stat().st_size if Path(c).is_file() else 0 for c in captures)
-    bar = Progress(f"dask {scheduler}", total, enabled=False if quiet else None)
+    bar = Progress(f"dask {scheduler}", enabled=False if quiet else None)
     client = connect(scheduler)
     try:
-        yield from run_batch(client, list(captures), outdir, options, backend, device,
-                             progress=lambda done, n: bar(int(total * done / max(n, 1)), total))
+        yield from run_batch(client, list(captures), outdir, options, backend, device, progress=bar)
     finally:
         bar.close()
         client.close()

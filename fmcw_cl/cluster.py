@@ -94,22 +94,26 @@ class _Made:
 def run_batch(client, captures: list[Path], outdir: Path, options: Options, backend: str = "auto",
               device: str | None = None, split_seconds: float = 2 * TASK_SECONDS,
               task_seconds: float = TASK_SECONDS,
-              progress: Callable[[int, int], None] | None = None) -> Iterator[dict]:
+              progress: Callable[[int, int, float], None] | None = None) -> Iterator[dict]:
     """Convert `captures` on the cluster; yields one result per capture as it completes:
     ``{"capture", "track", "attrs", "valid", "pairs"}`` or ``{"capture", "error"}``.
 
     Captures longer than `split_seconds` are split into ranges of about `task_seconds`
     (whole chunks) across workers.
-    Paths must be valid on the workers (a shared filesystem).
+    Paths must be valid on the workers (a shared filesystem). `progress` is called as
+    each capture completes with (samples done, samples in the batch, sample rate), as
+    `engine.process` calls it per chunk.
     """
     started = time.perf_counter()
     jobs: dict = {}                 # future -> (kind, capture, track path, range index)
+    samples: dict = {}              # capture -> (samples, sample rate)
     refused = []
     for cap in captures:            # submitted now, not when the results are first asked for
         out = str(track_path(outdir, cap))
         try:
             with Capture(cap) as c:
                 long = c.info.duration_s > split_seconds
+                samples[str(cap)] = (c.info.samples, c.info.sample_rate_hz)
         except FmcwError as exc:
             refused.append({"capture": str(cap), "error": str(exc)})
             continue
@@ -118,17 +122,17 @@ def run_batch(client, captures: list[Path], outdir: Path, options: Options, back
         else:
             jobs[client.submit(_convert, str(cap), out, options, backend, device, pure=False)] = (
                 "convert", cap, out, None)
-    return _collect(client, jobs, refused, backend, device, started, progress)
+    return _collect(client, jobs, samples, refused, backend, device, started, progress)
 
 
-def _collect(client, jobs: dict, refused: list, backend: str, device: str | None, started: float,
-             progress) -> Iterator[dict]:
+def _collect(client, jobs: dict, samples: dict, refused: list, backend: str, device: str | None,
+             started: float, progress) -> Iterator[dict]:
     """Results of run_batch's tasks as they complete; long captures' ranges submitted
     when their plan is ready, stitched when their last range is."""
     from dask.distributed import as_completed
 
     yield from refused
-    total, done = len(jobs), 0
+    total, done = sum(n for n, _ in samples.values()), 0
     ranges: dict = {}               # capture -> [plan, number of ranges, {index: parts}]
     pending = as_completed(list(jobs))
     for fut in pending:
@@ -163,7 +167,8 @@ def _collect(client, jobs: dict, refused: list, backend: str, device: str | None
             write_track(out, track)
             value = {"capture": str(cap), "track": out, "attrs": track.attrs, "valid": track.valid,
                      "pairs": track.pairs}
-        done += 1
+        n, fs = samples[str(cap)]
+        done += n
         if progress:
-            progress(done, total)
+            progress(done, total, fs)
         yield value

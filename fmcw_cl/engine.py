@@ -210,9 +210,7 @@ def _chunk_pairs(plan: Plan, chunk, backend) -> _Pairs | None:
     hp = info.samples_per_period / 2
     tp = sync.sync_turning_points(chunk.sync, hp)
     hs = sync.half_sweeps(tp, plan.lag)
-    u_lo = min(plan.lut.u_rise.min(), plan.lut.u_fall.min(), 0.0)
-    u_hi = max(plan.lut.u_rise.max(), plan.lut.u_fall.max(), 1.0)
-    fits = (hs.start + u_lo * hs.length >= 2) & (hs.start + u_hi * hs.length < chunk.beat.size - 3)
+    fits = resample.inside(hs.start, hs.length, plan.lut, chunk.beat.size)
     r = np.flatnonzero(hs.rising[:-1] & ~hs.rising[1:] & (hs.segment[:-1] == hs.segment[1:])
                        & fits[:-1] & fits[1:])
     if r.size == 0:
@@ -234,8 +232,7 @@ def _chunk_pairs(plan: Plan, chunk, backend) -> _Pairs | None:
     alias = np.zeros(r.size, bool)
     if plan.check is not None and r.size:
         alias = _beyond_range(plan, chunk.beat, hs, r, f, backend)
-    heard = (sel.dechirped_snr_rise >= pairing.SNR_MIN_DB) & (sel.dechirped_snr_fall >= pairing.SNR_MIN_DB)
-    reason = faults.reasons(sel.valid, heard, clip, alias)
+    reason = faults.reasons(sel.valid, sel.heard, clip, alias)
     sel.valid[:] = reason == faults.OK
     return _Pairs(t_r[own], t_f[own], sel, reason)
 

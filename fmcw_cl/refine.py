@@ -47,10 +47,9 @@ def mismatch(cap: Capture, plan, lag: float) -> float:
         v = np.concatenate([q.result.velocity for q in parts])
         ok = np.concatenate([q.reason == 0 for q in parts])
         edges = np.flatnonzero(np.diff(np.r_[0, ok.astype(np.int8), 0]))
-        runs = sorted(zip(edges[::2], edges[1::2], strict=True), key=lambda r: r[0] - r[1])
-        if not runs or runs[0][1] - runs[0][0] < MIN_RUN:
+        i, j = max(zip(edges[::2], edges[1::2], strict=True), key=lambda r: r[1] - r[0], default=(0, 0))
+        if j - i < MIN_RUN:
             continue
-        i, j = runs[0]
         tt, dd, vv = t[i:j], d[i:j], v[i:j]
         out.append((trapezoid(vv, tt) - (dd[-1] - dd[0])) / (tt[-1] - tt[0]))
     return float(np.mean(out)) if out else float("nan")
@@ -126,9 +125,7 @@ def peak_width_ratio(cap: Capture, plan, t0_s: float) -> float:
     a = max(0, int(t0_s * info.sample_rate_hz - spp))
     beat, sy = cap.read(a, a + int((WIDTH_PERIODS + 2) * spp))
     hs = sync.half_sweeps(sync.sync_turning_points(sy, spp / 2), plan.lag)
-    u_lo = min(plan.lut.u_rise.min(), plan.lut.u_fall.min(), 0.0)
-    u_hi = max(plan.lut.u_rise.max(), plan.lut.u_fall.max(), 1.0)
-    fits = (hs.start + u_lo * hs.length >= 2) & (hs.start + u_hi * hs.length < beat.size - 3)
+    fits = resample.inside(hs.start, hs.length, plan.lut, beat.size)
     nfft = plan.model.nfft
     widths = []
     for rising in (True, False):

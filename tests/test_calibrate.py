@@ -102,3 +102,19 @@ def test_chirp_file_errors(tmp_path, static_capture, setup):
                      config=replace(SimulationConfig(), sample_rate_hz=125e6))
     with pytest.raises(CaptureError, match="calibrated at sample_rate_hz"):
         process(other, Options(chirp=str(chirp)))
+
+
+def test_report_spectra_use_the_tracks_chirp(setup):
+    """The report's "after" spectra of a calibrated track are made with its calibration."""
+    from fmcw_cl.report.spectra import stretch_spectra
+
+    lag, d, chirp = setup
+    cal = d / "cal.h5"
+    track = process(cal, Options(chirp=str(chirp)))
+    sp = stretch_spectra(cal, 0.009, 0.011, 1000, float(track.attrs["sync_delay_samples"]),
+                         chirp=track.attrs["chirp"])
+    i = sp.distance_m.searchsorted(0.05)
+    peak = sp.distance_m[i + np.argmax(sp.corrected_db[:, i:], axis=1)]
+    np.testing.assert_allclose(peak, 0.3, atol=0.5e-3)                  # a bin is ~0.5 mm
+    for row in sp.corrected_db[:, i:]:
+        assert np.ptp(sp.distance_m[i:][row >= -6]) < 5e-3           # sharp: ~2 resolution cells

@@ -69,10 +69,10 @@ def test_long_capture_split_into_ranges(client, batch, tmp_path):
     out.mkdir()
     done = []
     (res,) = run_batch(client, [long], out, OPTIONS, "numpy", split_seconds=0.05, task_seconds=0.05,
-                       progress=lambda d, n: done.append((d, n)))
+                       progress=lambda d, n, fs: done.append((d, n, fs)))
     local = process(long, OPTIONS)
     assert_same(res["track"], local)
-    assert local.valid.all() and done == [(1, 1)]
+    assert local.valid.all() and done == [(10_000_000, 10_000_000, 100e6)]   # 0.1 s, once
 
 
 def test_killed_worker_is_rescheduled(client, batch, tmp_path):

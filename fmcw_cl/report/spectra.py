@@ -49,7 +49,8 @@ def _db(power: np.ndarray, axis_m: np.ndarray, min_range_m: float) -> np.ndarray
 
 
 def stretch_spectra(path, t0_s: float, t1_s: float, points: int = 1000,
-                    lag: float | None = None, min_range_m: float = 0.03) -> Spectra:
+                    lag: float | None = None, min_range_m: float = 0.03,
+                    chirp: str | None = None) -> Spectra:
     """Spectra of every half-sweep whose centre lies in [t0_s, t1_s) (s).
 
     Parameters
@@ -60,10 +61,12 @@ def stretch_spectra(path, t0_s: float, t1_s: float, points: int = 1000,
     lag : samples the sync lags the optics (the track's ``sync_delay_samples``);
         estimated from the capture when None.
     min_range_m : the dB scale of each spectrum is its peak beyond this distance (m).
+    chirp : the track's chirp calibration, if it was made with one (the "after"
+        spectra use the LUT the track used).
     """
     with Capture(path) as cap:
         info = cap.info
-        plan = make_plan(cap, Options(points=points), lag)
+        plan = make_plan(cap, Options(points=points, chirp=chirp), lag)
         fs = info.sample_rate_hz
         hp = info.samples_per_period / 2
         margin = int(2 * info.samples_per_period + sync.MAX_DELAY_SAMPLES)
@@ -72,8 +75,7 @@ def stretch_spectra(path, t0_s: float, t1_s: float, points: int = 1000,
         beat, sy = cap.read(a, b)
     hs = sync.half_sweeps(sync.sync_turning_points(sy, hp), plan.lag)
     centre = (a + hs.centre) / fs
-    keep = ((centre >= t0_s) & (centre < t1_s) & (hs.start >= 2)
-            & (hs.start + hs.length < beat.size - 3))
+    keep = (centre >= t0_s) & (centre < t1_s) & resample.inside(hs.start, hs.length, plan.lut, beat.size)
     if not keep.any():
         raise ValueError(f"{path}: no complete half-sweep between {t0_s:g} and {t1_s:g} s")
     start, length, rising = hs.start[keep], hs.length[keep], hs.rising[keep]

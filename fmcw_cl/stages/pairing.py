@@ -91,6 +91,7 @@ class PairResult:
     dechirped_fall: np.ndarray
     dechirped_snr_rise: np.ndarray
     dechirped_snr_fall: np.ndarray
+    heard: np.ndarray           # both final peaks at least SNR_MIN_DB over their floors
 
 
 def measure(x: np.ndarray, beta: np.ndarray, v: np.ndarray | None, model: DopplerModel,
@@ -157,4 +158,4 @@ def track_pairs(xr: np.ndarray, xf: np.ndarray, t_rise: np.ndarray, t_fall: np.n
     valid = heard
     if dechirp:
         valid = valid & (np.abs(dv) < CONVERGED_MPS) & (np.abs(vel - med) < CONSISTENT_MPS)
-    return PairResult(dist, vel, valid, *plain, d_r, d_f, s_r, s_f)
+    return PairResult(dist, vel, valid, *plain, d_r, d_f, s_r, s_f, heard)

@@ -30,6 +30,15 @@ def positions(starts: np.ndarray, lengths: np.ndarray, u: np.ndarray) -> np.ndar
     return np.asarray(starts, np.float64)[:, None] + np.outer(lengths, u)
 
 
+def inside(starts: np.ndarray, lengths: np.ndarray, lut, size: int) -> np.ndarray:
+    """Half-sweeps whose every resampling position, in either direction of `lut`, keeps
+    the cubic kernel's four samples inside `size` codes (with a sample of margin). A
+    calibrated LUT may reach past the half-sweep's ends (u < 0 or u > 1)."""
+    lo = min(lut.u_rise.min(), lut.u_fall.min(), 0.0)
+    hi = max(lut.u_rise.max(), lut.u_fall.max(), 1.0)
+    return (starts + lo * lengths >= 2) & (starts + hi * lengths < size - 3)
+
+
 def resample(codes: np.ndarray, starts: np.ndarray, lengths: np.ndarray, u: np.ndarray,
              win: np.ndarray | None = None) -> np.ndarray:
     """Resampled, mean-removed, windowed half-sweeps.
