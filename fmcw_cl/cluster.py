@@ -71,10 +71,11 @@ def _convert(capture: str, out: str, options: Options, backend: str, device: str
         return {"capture": capture, "error": str(exc)}
 
 
-def _plan(capture: str, options: Options, task_seconds: float):
+def _plan(capture: str, options: Options, task_seconds: float, backend: str, device: str | None):
     """Task: the plan of a long capture and its ranges."""
     with Capture(capture) as cap:
-        return make_plan(cap, options), split_ranges(cap.info, options, task_seconds)
+        return (make_plan(cap, options, backend=_backend(backend, device)),
+                split_ranges(cap.info, options, task_seconds))
 
 
 def _range(capture: str, plan, start: int, stop: int, backend: str, device: str | None):
@@ -118,7 +119,8 @@ def run_batch(client, captures: list[Path], outdir: Path, options: Options, back
             refused.append({"capture": str(cap), "error": str(exc)})
             continue
         if long:
-            jobs[client.submit(_plan, str(cap), options, task_seconds, pure=False)] = ("plan", cap, out, None)
+            jobs[client.submit(_plan, str(cap), options, task_seconds, backend, device,
+                               pure=False)] = ("plan", cap, out, None)
         else:
             jobs[client.submit(_convert, str(cap), out, options, backend, device, pure=False)] = (
                 "convert", cap, out, None)

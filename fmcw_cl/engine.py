@@ -19,7 +19,7 @@ import numpy as np
 from . import __version__
 from .capture import Capture, CaptureInfo
 from .errors import CaptureError, FmcwError
-from .stages import faults, kinematics, pairing, resample, spectrum, sync
+from .stages import faults, kinematics, lpf, pairing, resample, spectrum, sync
 from .stages.lut import Lut, build_lut
 from .track import Track
 
@@ -68,6 +68,12 @@ class NumpyBackend:
     name = "numpy"
     device = "numpy (CPU)"
 
+    def intensity(self, codes, sample_rate_hz):
+        return lpf.intensity(codes, sample_rate_hz)
+
+    def turning_points(self, codes, half_period):
+        return sync.sync_turning_points(codes, half_period)
+
     def resample(self, codes, starts, lengths, u, win):
         return resample.resample(codes, starts, lengths, u, win)
 
@@ -107,10 +113,11 @@ def opencl_preferred(device: str | None = None) -> bool:
     return bool(select_device(device).type & cl.device_type.GPU)
 
 
-def estimate_capture_delay(cap: Capture) -> tuple[float, int, float]:
+def estimate_capture_delay(cap: Capture, intensity=lpf.intensity) -> tuple[float, int, float]:
     """Sync lag (samples) pooled over stretches spread through the capture.
 
-    Returns (lag, periods used, misfit); see `sync.combine_delays`.
+    Returns (lag, periods used, misfit); see `sync.combine_delays`. `intensity` is the
+    low-pass step (a backend's).
     """
     info = cap.info
     hp = info.samples_per_period / 2
@@ -119,7 +126,7 @@ def estimate_capture_delay(cap: Capture) -> tuple[float, int, float]:
     lags, misfits = [], []
     for a in np.unique(starts):
         beat, sy = cap.read(a, a + length)
-        lg, mf = sync.period_delays(beat, sy, info.sample_rate_hz, hp)
+        lg, mf = sync.period_delays(beat, sy, info.sample_rate_hz, hp, intensity)
         lags.append(lg)
         misfits.append(mf)
     return sync.combine_delays(np.concatenate(lags), np.concatenate(misfits))
@@ -135,12 +142,12 @@ def make_lut(info: CaptureInfo, points: int, chirp=None) -> Lut:
     return chirp_lut(chirp, points, float(np.mean(lut.nu_hz)), info.refractive_index)
 
 
-def make_plan(cap: Capture, options: Options, lag: float | None = None) -> Plan:
+def make_plan(cap: Capture, options: Options, lag: float | None = None, backend=None) -> Plan:
     """Fit G(I) (or read the chirp calibration), build the LUT and the Doppler model,
     estimate the sync delay (with a calibration: refined on the data, see `refine`).
 
     A known `lag` (samples the sync lags the optics, e.g. from a track) skips the
-    estimate.
+    estimate; `backend` runs its low-pass (default numpy).
     """
     info = cap.info
     chirp = None
@@ -158,7 +165,8 @@ def make_plan(cap: Capture, options: Options, lag: float | None = None) -> Plan:
     lo_bin = max(1, int(np.ceil(options.min_range_m / model.metres_per_bin)))
     check_sync_period(cap)
     known = lag is not None
-    lag, votes, misfit = estimate_capture_delay(cap) if lag is None else (lag, 0, 0.0)
+    intensity = backend.intensity if backend is not None else lpf.intensity
+    lag, votes, misfit = estimate_capture_delay(cap, intensity) if lag is None else (lag, 0, 0.0)
     if not np.isfinite(lag):
         raise CaptureError(info.path, "no laser intensity triangle in the beat channel: "
                                       "cannot align the sync to the optics")
@@ -182,12 +190,13 @@ def check_sync_period(cap: Capture, periods: int = 40) -> None:
     hp = info.samples_per_period / 2
     a = max(0, info.samples // 2 - int(periods * hp))
     _, sy = cap.read(a, min(info.samples, a + int(2 * periods * hp)))
-    cr = sync.crossings(sy, hp, smooth=33)
+    cr = sync.crossings(sy, hp)
     alternate = cr.direction[1:] != cr.direction[:-1]
-    if np.ptp(sy) < 64 or alternate.sum() < 4:
+    whole = alternate[1:] & alternate[:-1]            # two crossings apart: one period
+    if np.ptp(sy) < 64 or whole.sum() < 3:
         raise CaptureError(info.path, "no turning points in the sync channel (flat, saturated "
                                       "or not a triangle)")
-    measured = 2 * float(np.median(np.diff(cr.time)[alternate])) / info.sample_rate_hz
+    measured = float(np.median((cr.time[2:] - cr.time[:-2])[whole])) / info.sample_rate_hz
     nominal = info.modulation.period_s
     if abs(measured / nominal - 1) > PERIOD_TOLERANCE:
         raise CaptureError(info.path, f"the sync repeats every {measured * 1e6:.2f} us but /modulation "
@@ -208,7 +217,7 @@ class _Pairs:
 def _chunk_pairs(plan: Plan, chunk, backend) -> _Pairs | None:
     info = plan.info
     hp = info.samples_per_period / 2
-    tp = sync.sync_turning_points(chunk.sync, hp)
+    tp = backend.turning_points(chunk.sync, hp)
     hs = sync.half_sweeps(tp, plan.lag)
     fits = resample.inside(hs.start, hs.length, plan.lut, chunk.beat.size)
     r = np.flatnonzero(hs.rising[:-1] & ~hs.rising[1:] & (hs.segment[:-1] == hs.segment[1:])
@@ -305,7 +314,7 @@ def process(path, options: Options | None = None, backend=None,
     backend = backend or NumpyBackend()
     started = time.perf_counter()
     with Capture(path) as cap:
-        plan = make_plan(cap, options)
+        plan = make_plan(cap, options, backend=backend)
         parts = capture_parts(cap, plan, backend, progress=progress)
         track = assemble(plan, parts, backend, time.perf_counter() - started)
         check_tuning(cap, plan, track)

@@ -2,7 +2,15 @@
 
 from importlib.resources import files
 
+# programs built from more than one file (device functions first)
+PROGRAMS = {"spectrum": ("peak", "fft")}
+
+
+def files_of(program: str) -> tuple[str, ...]:
+    """The kernels/<name>.cl files that make up `program`."""
+    return PROGRAMS.get(program, (program,))
+
 
 def source(name: str) -> str:
-    """The text of kernels/<name>.cl."""
-    return files(__name__).joinpath(f"{name}.cl").read_text()
+    """The OpenCL C text of program `name` (its files concatenated)."""
+    return "\n".join(files(__name__).joinpath(f"{f}.cl").read_text() for f in files_of(name))

@@ -1,64 +1,156 @@
-// Stage 5a: de-chirp, zero-pad and FFT each half-sweep; write the power of the
-// non-negative frequencies 0 .. nfft/2 - 1. One work-group per half-sweep; the
-// transform runs in local memory (radix-2, decimation in time, bit-reversed load).
+// Stage 5a: de-chirp, zero-pad and FFT each half-sweep in local memory, then its peak
+// (peak.cl, built into the same program). One work-group per half-sweep, thousands
+// per launch. The transform is radix-4 decimation in frequency, in place (one
+// complex buffer of nfft: 16 KB at 2048 points, so it fits every GPU's local memory),
+// with a last radix-2 stage when log2(nfft) is odd; its output is in digit-reversed
+// order, which `perm` undoes while the power is taken. Only the peaks leave the
+// device, and the power of bins 0 .. nfft/2 - 1 when `keep_power` asks for it.
 // De-chirp: x_j * exp(-2 pi i v beta_j), the phase reduced modulo one cycle first so
-// that float32 keeps its precision; v = 0 gives the plain spectrum of the real sweep.
+// that float32 keeps its precision. Twins: fmcw_cl.stages.pairing.measure and
+// fmcw_cl.stages.spectrum.power_spectra.
 
-__kernel void dechirp_fft_power(__global const float *x,
-                                const int points,
-                                __global const float *beta,      // cycles per m/s, (points,)
-                                __global const float *velocity,  // m/s, one per sweep
-                                __global const int *bitrev,      // (nfft,)
-                                __global const float *tw_re,     // exp(-2 pi i m / nfft), m < nfft/2
-                                __global const float *tw_im,
-                                const int nfft,
-                                __global float *power,           // (sweeps, nfft/2)
-                                __local float *re,
-                                __local float *im)
+// sin and cos of 2 pi p (p in cycles): reduced to half an angle in [-pi/2, pi/2],
+// Taylor polynomials there (error < 1e-7), then the double-angle formulas. PoCL's
+// sin/cos builtins cost more than the whole transform.
+void sincos_cycles(const float p, float *s, float *c)
+{
+    const float r = p - floor(p + 0.5f);               // [-0.5, 0.5) cycles
+    const float h = 3.14159265358979f * r;             // half the angle
+    const float h2 = h * h;
+    const float sh = h * (1.0f + h2 * (-1.6666667e-1f + h2 * (8.3333333e-3f + h2 * (-1.9841270e-4f
+                   + h2 * (2.7557319e-6f + h2 * -2.5052108e-8f)))));
+    const float ch = 1.0f + h2 * (-0.5f + h2 * (4.1666667e-2f + h2 * (-1.3888889e-3f
+                   + h2 * (2.4801587e-5f + h2 * (-2.7557319e-7f + h2 * 2.0876757e-9f)))));
+    *s = 2.0f * sh * ch;
+    *c = ch * ch - sh * sh;
+}
+
+// The stages of blocks of lb points and smaller (lb = n: the whole transform).
+void fft_dif(__local float *re, __local float *im, const int n, int lb,
+             __global const float *tw_re, __global const float *tw_im)  // exp(-2 pi i m / n), m < n
+{
+    const int lid = get_local_id(0);
+    const int lsz = get_local_size(0);
+    for (; lb >= 4; lb >>= 2) {
+        const int q = lb >> 2;
+        const int step = n / lb;
+        for (int t = lid; t < (n >> 2); t += lsz) {
+            const int j = t & (q - 1);
+            const int b = ((t - j) << 2) + j;
+            const float a0r = re[b], a0i = im[b];
+            const float a1r = re[b + q], a1i = im[b + q];
+            const float a2r = re[b + 2 * q], a2i = im[b + 2 * q];
+            const float a3r = re[b + 3 * q], a3i = im[b + 3 * q];
+            const float s02r = a0r + a2r, s02i = a0i + a2i;
+            const float d02r = a0r - a2r, d02i = a0i - a2i;
+            const float s13r = a1r + a3r, s13i = a1i + a3i;
+            const float d13r = a1r - a3r, d13i = a1i - a3i;
+            const float y1r = d02r + d13i, y1i = d02i - d13r;    // d02 - i d13
+            const float y2r = s02r - s13r, y2i = s02i - s13i;
+            const float y3r = d02r - d13i, y3i = d02i + d13r;    // d02 + i d13
+            const int e = j * step;
+            const float w1r = tw_re[e], w1i = tw_im[e];
+            const float w2r = tw_re[2 * e], w2i = tw_im[2 * e];
+            const float w3r = tw_re[3 * e], w3i = tw_im[3 * e];
+            re[b] = s02r + s13r;
+            im[b] = s02i + s13i;
+            re[b + q] = y1r * w1r - y1i * w1i;
+            im[b + q] = y1r * w1i + y1i * w1r;
+            re[b + 2 * q] = y2r * w2r - y2i * w2i;
+            im[b + 2 * q] = y2r * w2i + y2i * w2r;
+            re[b + 3 * q] = y3r * w3r - y3i * w3i;
+            im[b + 3 * q] = y3r * w3i + y3i * w3r;
+        }
+        barrier(CLK_LOCAL_MEM_FENCE);
+    }
+    if (lb == 2) {
+        for (int t = lid; t < (n >> 1); t += lsz) {
+            const int b = t << 1;
+            const float a0r = re[b], a0i = im[b];
+            const float a1r = re[b + 1], a1i = im[b + 1];
+            re[b] = a0r + a1r;
+            im[b] = a0i + a1i;
+            re[b + 1] = a0r - a1r;
+            im[b + 1] = a0i - a1i;
+        }
+        barrier(CLK_LOCAL_MEM_FENCE);
+    }
+}
+
+// Sample j of a half-sweep, de-chirped: x_j exp(-2 pi i v beta_j).
+void load(__global const float *row, __global const float *beta, const float v,
+          const int dechirp, const int j, float *re, float *im)
+{
+    const float xr = row[j];
+    if (dechirp) {
+        float c, sn;
+        sincos_cycles(v * beta[j], &sn, &c);
+        *re = xr * c;
+        *im = -xr * sn;
+    } else {
+        *re = xr;
+        *im = 0.0f;
+    }
+}
+
+__kernel void spectrum_peak(__global const float *x,          // (sweeps, points)
+                            const int points,
+                            __global const float *beta,       // cycles per m/s, (points,)
+                            __global const float *velocity,   // m/s, one per sweep
+                            const int dechirp,                // 0: plain spectrum
+                            __global const float *tw_re,      // (nfft,)
+                            __global const float *tw_im,
+                            __global const int *perm,         // bin k sits at perm[k]
+                            const int nfft,
+                            const int lo,
+                            const int hi,
+                            const int guard,
+                            __global float *bin,              // (sweeps,)
+                            __global float *snr,              // (sweeps,)
+                            __global float *power,            // (sweeps, nfft/2) if keep_power
+                            const int keep_power,
+                            __local float *re,                // nfft
+                            __local float *im,                // nfft
+                            __local float *pw)                // nfft/2
 {
     const int s = get_group_id(0);
     const int lid = get_local_id(0);
     const int lsz = get_local_size(0);
-    const float v = velocity[s];
+    const float v = dechirp ? velocity[s] : 0.0f;
     __global const float *row = x + (size_t)s * points;
-    for (int i = lid; i < nfft; i += lsz) {
-        float a = 0.0f;
-        float b = 0.0f;
-        if (i < points) {
-            float ph = v * beta[i];
-            ph = ph - floor(ph);
-            const float ang = 6.2831853071795865f * ph;
-            const float xr = row[i];
-            a = xr * cos(ang);
-            b = -xr * sin(ang);
-        }
-        const int r = bitrev[i];
-        re[r] = a;
-        im[r] = b;
+    // the first radix-4 stage straight from the input: its upper half is the zero
+    // padding (points <= nfft / 2), so each butterfly has two inputs
+    const int q = nfft >> 2;
+    for (int j = lid; j < q; j += lsz) {
+        float a0r = 0.0f, a0i = 0.0f, a1r = 0.0f, a1i = 0.0f;
+        if (j < points) load(row, beta, v, dechirp, j, &a0r, &a0i);
+        if (j + q < points) load(row, beta, v, dechirp, j + q, &a1r, &a1i);
+        const float y1r = a0r + a1i, y1i = a0i - a1r;     // a0 - i a1
+        const float y2r = a0r - a1r, y2i = a0i - a1i;
+        const float y3r = a0r - a1i, y3i = a0i + a1r;     // a0 + i a1
+        const float w1r = tw_re[j], w1i = tw_im[j];
+        const float w2r = tw_re[2 * j], w2i = tw_im[2 * j];
+        const float w3r = tw_re[3 * j], w3i = tw_im[3 * j];
+        re[j] = a0r + a1r;
+        im[j] = a0i + a1i;
+        re[j + q] = y1r * w1r - y1i * w1i;
+        im[j + q] = y1r * w1i + y1i * w1r;
+        re[j + 2 * q] = y2r * w2r - y2i * w2i;
+        im[j + 2 * q] = y2r * w2i + y2i * w2r;
+        re[j + 3 * q] = y3r * w3r - y3i * w3i;
+        im[j + 3 * q] = y3r * w3i + y3i * w3r;
     }
     barrier(CLK_LOCAL_MEM_FENCE);
+    fft_dif(re, im, nfft, q, tw_re, tw_im);
     const int half_n = nfft >> 1;
-    int stride = half_n;
-    for (int len = 2; len <= nfft; len <<= 1) {
-        const int span = len >> 1;
-        for (int bf = lid; bf < half_n; bf += lsz) {
-            const int k = bf & (span - 1);
-            const int i = ((bf - k) << 1) + k;
-            const int j = i + span;
-            const float wr = tw_re[k * stride];
-            const float wi = tw_im[k * stride];
-            const float tr = wr * re[j] - wi * im[j];
-            const float ti = wr * im[j] + wi * re[j];
-            const float ur = re[i];
-            const float ui = im[i];
-            re[i] = ur + tr;
-            im[i] = ui + ti;
-            re[j] = ur - tr;
-            im[j] = ui - ti;
-        }
-        stride >>= 1;
-        barrier(CLK_LOCAL_MEM_FENCE);
-    }
     __global float *out = power + (size_t)s * half_n;
-    for (int i = lid; i < half_n; i += lsz) out[i] = re[i] * re[i] + im[i] * im[i];
+    for (int k = lid; k < half_n; k += lsz) {
+        const int p = perm[k];
+        const float q = re[p] * re[p] + im[p] * im[p];
+        pw[k] = q;
+        if (keep_power) out[k] = q;
+    }
+    barrier(CLK_LOCAL_MEM_FENCE);
+    // the transform's buffers are free now: the peak's scratch lives there
+    local_peak(pw, half_n, lo, hi, guard, re, (__local int *)im, re + lsz, bin + s, snr + s);
 }

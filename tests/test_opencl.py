@@ -8,7 +8,7 @@ import pytest
 from fmcw_cl.engine import Options, make_backend, process
 from fmcw_cl.opencl import spectrum as k_spectrum
 from fmcw_cl.opencl.backend import OpenCLBackend, spectra
-from fmcw_cl.stages import resample, spectrum
+from fmcw_cl.stages import lpf, resample, spectrum, sync
 
 
 @pytest.fixture(scope="module")
@@ -26,27 +26,39 @@ def test_resample_kernel_matches_numpy(backend, sweeps, points):
     u = np.sort(rng.uniform(0, 1, points))
     for uu in (u, 1 - u[::-1]):                                    # both sweep directions
         ref = resample.resample(codes, starts, lengths, uu, resample.window(points))
-        got = backend.resample(codes, starts, lengths, uu, resample.window(points))
+        got = backend.resample(codes, starts, lengths, uu, resample.window(points)).get(backend.rt.queue)
         assert got.shape == ref.shape
         assert np.abs(got - ref).max() < 0.02     # codes; float32 positions keep 1e-6 sample
 
 
-@pytest.mark.parametrize("sweeps,nfft", [(1, 2048), (301, 2048), (17, 4096), (3, 64)])
+def _measure(backend, rows, beta, v, nfft, lo, hi=None):
+    pk, _ = k_spectrum.measure(backend.rt, backend.bufs, rows, beta, v, nfft, lo, hi)
+    return pk
+
+
+@pytest.mark.parametrize("sweeps,nfft", [(1, 2048), (301, 2048), (17, 4096), (3, 64), (6, 128)])
 def test_fft_kernel_matches_numpy(backend, sweeps, nfft):
+    """Both transform shapes (log2 nfft odd: a radix-2 stage; even: radix-4 only),
+    plain and de-chirped with folds of several cycles."""
     rng = np.random.default_rng(nfft + sweeps)
     points = nfft // 2 - 3
     x = rng.normal(0, 100, (sweeps, points))
     ref = spectrum.power_spectra(x, nfft)
     got = spectra(backend, x.astype(np.float32), nfft)
     assert np.abs(got - ref).max() <= 1e-5 * ref.max()
-    beta = rng.uniform(-30, 30, points)          # de-chirp, folds of several cycles
+    beta = rng.uniform(-30, 30, points)
     v = rng.uniform(-8, 8, sweeps)
     ref = spectrum.power_spectra(x * np.exp(-2j * np.pi * np.outer(v, beta)), nfft)
-    d = k_spectrum.power_spectra(backend.rt, backend.bufs, x.astype(np.float32), beta, v, nfft)
-    got = k_spectrum.find_peaks(backend.rt, backend.bufs, d, sweeps, nfft, 1)
+    got = _measure(backend, x.astype(np.float32), beta, v, nfft, 1)
     want = spectrum.find_peaks(ref, 1)
     np.testing.assert_allclose(got.bin, want.bin, atol=1e-3)
     np.testing.assert_allclose(got.snr_db, want.snr_db, atol=1e-2)
+
+
+def test_fft_tables_undo_the_digit_reversal():
+    for nfft in (8, 32, 2048, 4096):
+        _, _, perm = k_spectrum.tables(nfft)
+        assert np.unique(perm).size == nfft // 2 and perm.max() < nfft
 
 
 def test_peak_kernel_on_tones_and_band_edges(backend):
@@ -55,12 +67,57 @@ def test_peak_kernel_on_tones_and_band_edges(backend):
     j = np.arange(points)
     x = np.cos(2 * np.pi * np.outer(true_bins / nfft, j)) * resample.window(points)
     x += np.random.default_rng(1).normal(0, 0.01, x.shape)
-    d = k_spectrum.power_spectra(backend.rt, backend.bufs, x.astype(np.float32), None, None, nfft)
     for lo, hi in ((30, None), (30, 700)):
-        got = k_spectrum.find_peaks(backend.rt, backend.bufs, d, x.shape[0], nfft, lo, hi)
+        got = _measure(backend, x.astype(np.float32), None, None, nfft, lo, hi)
         want = spectrum.find_peaks(spectrum.power_spectra(x, nfft), lo, hi)
         np.testing.assert_allclose(got.bin, want.bin, atol=2e-3)
         np.testing.assert_allclose(got.snr_db, want.snr_db, atol=0.02)
+
+
+def test_measure_on_device_rows_equals_host_rows(backend):
+    """The resampled rows stay on the device across passes: same peaks as uploading."""
+    rng = np.random.default_rng(5)
+    codes = rng.integers(-2000, 2000, 40_001).astype(np.int16)
+    starts = rng.uniform(2, 30_000, 9)
+    u = np.linspace(0, 1, 1000)
+    win = resample.window(1000)
+    rows = backend.resample(codes, starts, np.full(9, 2500.0), u, win)
+    beta = rng.uniform(-10, 10, 1000)
+    v = rng.uniform(-3, 3, 9)
+    for vv in (None, v):
+        a = _measure(backend, rows, beta, vv, 2048, 20)
+        b = _measure(backend, rows.get(backend.rt.queue), beta, vv, 2048, 20)
+        np.testing.assert_array_equal(a.bin, b.bin)
+
+
+def sync_codes(n, half, t0, noise, seed, spikes=0):
+    """A sync triangle as int16 codes, with isolated glitches of either sign."""
+    rng = np.random.default_rng(seed)
+    p = ((np.arange(n) - t0) / (2 * half)) % 1.0
+    x = 6000 * (np.where(p < 0.5, 2 * p, 2 - 2 * p) - 0.5) + rng.normal(0, noise, n)
+    at = rng.integers(10, n - 10, spikes)
+    x[at] += rng.choice([-1, 1], spikes) * rng.uniform(800, 20_000, spikes)
+    return np.clip(np.rint(x), -32768, 32767).astype(np.int16)
+
+
+@pytest.mark.parametrize("n,half,spikes", [(200_001, 2500.0, 0), (123_457, 2500.0, 40),
+                                           (50_003, 1234.5, 7), (9_999, 300.0, 3)])
+def test_sync_kernels_match_numpy(backend, n, half, spikes):
+    """Block means and the despiked line-fit sums are exact integers on both sides, so
+    the turning points are bitwise equal; odd lengths and partial periods at both ends."""
+    x = sync_codes(n, half, t0=0.37 * half, noise=5.0, seed=n, spikes=spikes)
+    f = sync.block_length(half)
+    np.testing.assert_array_equal(backend._means(x, f), sync.block_means(x, f))
+    hw = sync.fit_half_width(half)
+    centre = np.random.default_rng(1).integers(hw + 2, n - hw - 2, 33)
+    got = backend._sums(x, centre, hw, 300.0)
+    for a, b in zip(got, sync.line_fit_sums(x, centre, hw, 300.0), strict=True):
+        np.testing.assert_array_equal(a, b)
+    ref = sync.sync_turning_points(x, half)
+    got = backend.turning_points(x, half)
+    assert ref.time.size > 2
+    np.testing.assert_array_equal(got.time, ref.time)
+    np.testing.assert_array_equal(got.segment, ref.segment)
 
 
 @pytest.mark.parametrize("name", ["static_capture", "jump_capture"])
@@ -89,14 +146,14 @@ def test_kernel_build_failure_falls_back_or_fails(monkeypatch):
     monkeypatch.setattr(fmcw_cl.kernels, "source", lambda name: "__kernel void broken( {")
     monkeypatch.setattr(context, "_RUNTIMES", {})            # a fresh context, no cached builds
     monkeypatch.setattr(engine, "opencl_preferred", lambda device=None: True)
-    with pytest.raises(FmcwError, match=r"kernel resample\.cl failed to build on .*; build log: ") as err:
+    with pytest.raises(FmcwError, match=r"kernel \w+\.cl failed to build on .*; build log: ") as err:
         engine.make_backend("opencl")
     log = re.search(r"build log: (\S+)", str(err.value)).group(1)
     assert "broken" in open(log).read() or "error" in open(log).read().lower()
     warnings = []
     backend = engine.make_backend("auto", warn=warnings.append)
     assert backend.name == "numpy"
-    assert len(warnings) == 1 and warnings[0].startswith("warning: OpenCL unavailable (kernel resample.cl")
+    assert len(warnings) == 1 and re.match(r"warning: OpenCL unavailable \(kernel \w+\.cl", warnings[0])
 
 
 def test_no_opencl_platform(monkeypatch):
@@ -110,3 +167,16 @@ def test_no_opencl_platform(monkeypatch):
     warnings = []
     assert engine.make_backend("auto", warn=warnings.append).name == "numpy"
     assert len(warnings) == 1 and "no OpenCL device found" in warnings[0]
+
+
+@pytest.mark.parametrize("n", [400_003, 5_000, 73, 72, 0])
+def test_lpf_kernel_matches_numpy(backend, n):
+    """The CIC decimator and the centred FIR (zero-padded ends), on a chirped beat that
+    sweeps through multiples of the decimated rate, plus the intensity triangle."""
+    t = np.arange(n) / 100e6
+    x = 3000 * np.cos(2 * np.pi * (1e6 * t + 0.5 * 2e12 * t**2)) + 400 * np.sin(2 * np.pi * 2e4 * t)
+    codes = np.rint(x + np.random.default_rng(n).normal(0, 30, n)).astype(np.int16)
+    ref = lpf.intensity(codes, 100e6)
+    got = backend.intensity(codes, 100e6)
+    assert got[0].shape == ref[0].shape and got[1:] == ref[1:]
+    assert np.all(np.abs(got[0] - ref[0]) < 1e-3)     # codes; float32 sums of 73 taps

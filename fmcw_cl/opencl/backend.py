@@ -1,14 +1,20 @@
-"""The OpenCL backend: the resampling and the de-chirp/FFT/peak stages on a device.
-
-Low-pass, sync and pairing stay on the host (numpy); see docs/pipeline.md.
+"""The OpenCL backend: the low-pass, sync crossings, resampling and the de-chirp/FFT/
+peak stage on a device. The resampled half-sweeps stay on the device across the tracker's passes;
+only turning points' sums and peaks come back. The hysteresis on the short stream of
+block means, the turning-point grid and pairing stay on the host (docs/pipeline.md).
 """
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
+from ..stages import sync
+from . import lpf as k_lpf
 from . import resample as k_resample
 from . import spectrum as k_spectrum
+from . import sync as k_sync
 from .buffers import Buffers
 from .context import runtime
 
@@ -17,7 +23,7 @@ class OpenCLBackend:
     """Same interface as engine.NumpyBackend."""
 
     name = "opencl"
-    programs = ("resample", "fft", "peak")
+    programs = ("lpf", "sync", "resample", "spectrum")
 
     def __init__(self, selector: str | None = None) -> None:
         self.rt = runtime(selector)
@@ -25,21 +31,25 @@ class OpenCLBackend:
             self.rt.program(program)
         self.bufs = Buffers(self.rt)
         self.device = self.rt.name
+        self._means = functools.partial(k_sync.block_means, self.rt, self.bufs)
+        self._sums = functools.partial(k_sync.line_fit_sums, self.rt, self.bufs)
+
+    def intensity(self, codes, sample_rate_hz):
+        return k_lpf.intensity(self.rt, self.bufs, codes, sample_rate_hz)
+
+    def turning_points(self, codes, half_period):
+        cr = sync.crossings(codes, half_period, means=self._means, sums=self._sums)
+        return sync.turning_points(cr, half_period)
 
     def resample(self, codes, starts, lengths, u, win):
         return k_resample.resample(self.rt, self.bufs, codes, starts, lengths, u, win)
 
     def measure(self, x, beta, v, model, lo_bin):
-        d_power = k_spectrum.power_spectra(self.rt, self.bufs, x, beta, v, model.nfft)
-        pk = k_spectrum.find_peaks(self.rt, self.bufs, d_power, x.shape[0], model.nfft, lo_bin)
+        pk, _ = k_spectrum.measure(self.rt, self.bufs, x, beta, v, model.nfft, lo_bin)
         return pk.bin * model.metres_per_bin, pk.snr_db
 
 
-def spectra(backend: OpenCLBackend, x: np.ndarray, nfft: int) -> np.ndarray:
-    """Power spectra of the plain (not de-chirped) rows of x, copied back to the host."""
-    import pyopencl as cl
-
-    d = k_spectrum.power_spectra(backend.rt, backend.bufs, x, None, None, nfft)
-    out = np.empty((x.shape[0], nfft // 2), np.float32)
-    cl.enqueue_copy(backend.rt.queue, out, d)
-    return out
+def spectra(backend: OpenCLBackend, x, nfft: int) -> np.ndarray:
+    """Power spectra (sweeps, nfft/2) of the plain (not de-chirped) rows of x."""
+    _, power = k_spectrum.measure(backend.rt, backend.bufs, x, None, None, nfft, 1, keep_power=True)
+    return power

@@ -2,28 +2,80 @@
 
 from __future__ import annotations
 
+import weakref
+
 import numpy as np
 
 from .context import Runtime, cl
 
 
 class Buffers:
-    """Named device buffers that grow when needed and are otherwise reused."""
+    """Named device buffers that grow when needed and are otherwise reused, and a pool
+    of anonymous ones for arrays that stay on the device (`DeviceRows`)."""
 
     def __init__(self, rt: Runtime) -> None:
         self.rt = rt
         self._bufs: dict[str, object] = {}
         self._sizes: dict[str, int] = {}
+        self._sources: dict[str, np.ndarray] = {}
+        self._free: list[tuple[int, object]] = []
 
     def get(self, name: str, nbytes: int):
         nbytes = max(int(nbytes), 4)
         if self._sizes.get(name, 0) < nbytes:
             self._bufs[name] = cl.Buffer(self.rt.context, cl.mem_flags.READ_WRITE, nbytes)
             self._sizes[name] = nbytes
+            self._sources.pop(name, None)
         return self._bufs[name]
 
     def upload(self, name: str, array: np.ndarray):
         buf = self.get(name, array.nbytes)
+        self._sources.pop(name, None)
         if array.nbytes:
             cl.enqueue_copy(self.rt.queue, buf, np.ascontiguousarray(array))
         return buf
+
+    def upload_once(self, name: str, array: np.ndarray):
+        """Like `upload`, but skipped when this very array was the last one uploaded
+        (a chunk's codes serve several launches). On a CPU device the buffer wraps the
+        host array (CL_MEM_USE_HOST_PTR: no copy at all on PoCL)."""
+        if self._sources.get(name) is array:
+            return self._bufs[name]
+        array = np.ascontiguousarray(array)
+        if self.rt.device.type & cl.device_type.CPU and array.nbytes:
+            self._bufs[name] = cl.Buffer(self.rt.context, cl.mem_flags.READ_ONLY
+                                         | cl.mem_flags.USE_HOST_PTR, hostbuf=array)
+            self._sizes[name] = 0            # never reused for another array
+        else:
+            self.upload(name, array)
+        self._sources[name] = array          # held: the buffer may point into it
+        return self._bufs[name]
+
+    def lease(self, nbytes: int):
+        """A buffer of at least `nbytes` from the pool; give it back with `release`."""
+        nbytes = max(int(nbytes), 4)
+        for i, (size, _) in enumerate(self._free):
+            if size >= nbytes:
+                return self._free.pop(i)
+        return nbytes, cl.Buffer(self.rt.context, cl.mem_flags.READ_WRITE, nbytes)
+
+    def release(self, leased) -> None:
+        self._free.append(leased)
+
+
+class DeviceRows:
+    """A (rows, points) float32 array that stays on the device; its buffer returns to
+    the pool when the object is dropped."""
+
+    def __init__(self, bufs: Buffers, rows: int, points: int) -> None:
+        self.shape = (rows, points)
+        leased = bufs.lease(4 * rows * points)
+        self.buffer = leased[1]
+        self._finalizer = weakref.finalize(self, bufs.release, leased)
+
+    def get(self, queue) -> np.ndarray:
+        """A host copy."""
+        out = np.empty(self.shape, np.float32)
+        if out.size:
+            cl.enqueue_copy(queue, out, self.buffer)
+        return out

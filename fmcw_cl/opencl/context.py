@@ -86,6 +86,11 @@ class Runtime:
     def name(self) -> str:
         return describe(self.device)
 
+    def group_size(self, cpu: int, gpu: int) -> int:
+        """A work-group size by device type: PoCL vectorises across work-items and
+        measured fastest with small groups; GPUs want many work-items a group."""
+        return gpu if self.device.type & cl.device_type.GPU else cpu
+
     def kernel(self, program: str, name: str):
         """Kernel `name` of kernels/<program>.cl (built and retrieved once)."""
         key = (program, name)
@@ -96,7 +101,7 @@ class Runtime:
     def program(self, name: str):
         """kernels/<name>.cl built for this context (cached)."""
         if name not in self.programs:
-            from fmcw_cl.kernels import source
+            from fmcw_cl.kernels import files_of, source
 
             prog = cl.Program(self.context, source(name))
             try:
@@ -104,7 +109,8 @@ class Runtime:
             except cl.Error as exc:
                 log = Path(tempfile.gettempdir()) / f"fmcw-cl-{name}-build.log"
                 log.write_text(str(exc))
-                raise FmcwError(f"kernel {name}.cl failed to build on {self.name}; "
+                cl_files = " + ".join(f"{f}.cl" for f in files_of(name))
+                raise FmcwError(f"kernel {cl_files} failed to build on {self.name}; "
                                 f"build log: {log}") from None
             self.programs[name] = prog
         return self.programs[name]

@@ -1,4 +1,5 @@
-"""Launchers of kernels/fft.cl and kernels/peak.cl (twins: fmcw_cl.stages.spectrum)."""
+"""Launcher of kernels/fft.cl + peak.cl (twins: fmcw_cl.stages.spectrum.power_spectra,
+find_peaks, and fmcw_cl.stages.pairing.measure)."""
 
 from __future__ import annotations
 
@@ -7,57 +8,73 @@ import functools
 import numpy as np
 
 from ..stages.spectrum import GUARD_BINS, Peaks
-from .buffers import Buffers
+from .buffers import Buffers, DeviceRows
 from .context import Runtime, cl
-
-LOCAL = 256
 
 
 @functools.lru_cache(maxsize=8)
-def _tables(nfft: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Bit-reversal permutation and twiddles of an nfft-point FFT (made once per length)."""
-    bits = int(np.log2(nfft))
-    idx = np.arange(nfft)
-    rev = np.zeros(nfft, np.int64)
-    for b in range(bits):
-        rev |= ((idx >> b) & 1) << (bits - 1 - b)
-    m = np.arange(nfft // 2)
+def tables(nfft: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Twiddles exp(-2 pi i m / nfft), m < nfft, and where the radix-4 decimation-in-
+    frequency transform (radix 2 last when log2(nfft) is odd) leaves bin k: the first
+    stage puts k mod 4 in quarter k mod 4, and so on, the digits of k reversed."""
+    m = np.arange(nfft)
     tw = np.exp(-2j * np.pi * m / nfft)
-    return rev.astype(np.int32), tw.real.astype(np.float32), tw.imag.astype(np.float32)
+    radices, n = [], nfft
+    while n >= 4:
+        radices.append(4)
+        n //= 4
+    if n == 2:
+        radices.append(2)
+    k = np.arange(nfft // 2)
+    perm = np.zeros_like(k)
+    rest, block = k.copy(), nfft
+    for r in radices:
+        block //= r
+        perm += (rest % r) * block
+        rest //= r
+    return tw.real.astype(np.float32), tw.imag.astype(np.float32), perm.astype(np.int32)
 
 
-def power_spectra(rt: Runtime, bufs: Buffers, x: np.ndarray, beta: np.ndarray | None,
-                  velocity: np.ndarray | None, nfft: int):
-    """Device buffer of |FFT|^2 over bins 0 .. nfft/2 - 1 of the de-chirped rows of x."""
-    sweeps, points = x.shape
-    rev, twr, twi = _tables(nfft)
-    beta = np.zeros(points) if beta is None else beta
-    velocity = np.zeros(sweeps) if velocity is None else velocity
-    args = [bufs.upload("x", np.asarray(x, np.float32)), np.int32(points),
-            bufs.upload("beta", np.asarray(beta, np.float32)),
-            bufs.upload("velocity", np.asarray(velocity, np.float32)),
-            bufs.upload("bitrev", rev), bufs.upload("tw_re", twr), bufs.upload("tw_im", twi),
-            np.int32(nfft)]
-    d_power = bufs.get("power", 4 * sweeps * (nfft // 2))
-    k = rt.kernel("fft", "dechirp_fft_power")
-    k(rt.queue, (sweeps * LOCAL,), (LOCAL,), *args, d_power,
-      cl.LocalMemory(4 * nfft), cl.LocalMemory(4 * nfft))
-    return d_power
+def local_size(rt: Runtime, nfft: int) -> int:
+    """Work-group size: by device type, and the peak's scratch (2 per work-item) must
+    fit in half the transform's buffer."""
+    return min(rt.group_size(16, 256), nfft // 4)
 
 
-def find_peaks(rt: Runtime, bufs: Buffers, d_power, sweeps: int, nfft: int, lo: int,
-               hi: int | None = None) -> Peaks:
-    """Peaks of the spectra in a device buffer (see the numpy twin)."""
+def measure(rt: Runtime, bufs: Buffers, rows, beta: np.ndarray | None,
+            velocity: np.ndarray | None, nfft: int, lo: int, hi: int | None = None,
+            keep_power: bool = False) -> tuple[Peaks, np.ndarray | None]:
+    """Peaks of the de-chirped (velocity given) or plain spectra of `rows` (DeviceRows
+    or a host array), and the power spectra (sweeps, nfft/2) when `keep_power`."""
+    if not isinstance(rows, DeviceRows):
+        host = np.ascontiguousarray(rows, np.float32)
+        rows = DeviceRows(bufs, *host.shape)
+        if host.size:
+            cl.enqueue_copy(rt.queue, rows.buffer, host)
+    sweeps, points = rows.shape
     half = nfft // 2
     hi = half if hi is None else hi
-    d_bin = bufs.get("bin", 4 * sweeps)
-    d_snr = bufs.get("snr", 4 * sweeps)
-    k = rt.kernel("peak", "peak")
-    k(rt.queue, (sweeps * LOCAL,), (LOCAL,), d_power, np.int32(half), np.int32(lo), np.int32(hi),
-      np.int32(GUARD_BINS), d_bin, d_snr, cl.LocalMemory(4 * LOCAL), cl.LocalMemory(4 * LOCAL),
-      cl.LocalMemory(4 * LOCAL))
+    if sweeps == 0:
+        return Peaks(np.zeros(0), np.zeros(0, np.float32)), np.zeros((0, half), np.float32)
+    twr, twi, perm = tables(nfft)
+    dechirp = velocity is not None
+    d_beta = bufs.upload("beta", np.asarray(beta if dechirp else np.zeros(points), np.float32))
+    d_v = bufs.upload("velocity", np.asarray(velocity if dechirp else np.zeros(1), np.float32))
+    d_bin, d_snr = bufs.get("bin", 4 * sweeps), bufs.get("snr", 4 * sweeps)
+    d_power = bufs.get("power", 4 * sweeps * half if keep_power else 4)
+    lsz = local_size(rt, nfft)
+    rt.kernel("spectrum", "spectrum_peak")(
+        rt.queue, (sweeps * lsz,), (lsz,), rows.buffer, np.int32(points), d_beta, d_v,
+        np.int32(dechirp), bufs.upload_once("tw_re", twr), bufs.upload_once("tw_im", twi),
+        bufs.upload_once("perm", perm), np.int32(nfft), np.int32(lo), np.int32(hi),
+        np.int32(GUARD_BINS), d_bin, d_snr, d_power, np.int32(keep_power),
+        cl.LocalMemory(4 * nfft), cl.LocalMemory(4 * nfft), cl.LocalMemory(4 * half))
     b = np.empty(sweeps, np.float32)
     s = np.empty(sweeps, np.float32)
     cl.enqueue_copy(rt.queue, b, d_bin)
     cl.enqueue_copy(rt.queue, s, d_snr)
-    return Peaks(b.astype(np.float64), s)
+    power = None
+    if keep_power:
+        power = np.empty((sweeps, half), np.float32)
+        cl.enqueue_copy(rt.queue, power, d_power)
+    return Peaks(b.astype(np.float64), s), power

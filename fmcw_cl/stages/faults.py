@@ -38,11 +38,10 @@ def clipped(codes: np.ndarray, starts: np.ndarray, lengths: np.ndarray, full_sca
     starts, lengths : (S,) half-sweeps in samples of `codes`.
     full_scale : 2^(bits-1); codes at -full_scale or full_scale - 1 are clipped.
     """
-    hit = (codes <= -full_scale) | (codes >= full_scale - 1)
-    count = np.concatenate([[0], np.cumsum(hit, dtype=np.int64)])
+    hit = np.flatnonzero((codes <= -full_scale) | (codes >= full_scale - 1))
     a = np.clip(np.floor(starts).astype(np.int64), 0, codes.size)
     b = np.clip(np.ceil(starts + lengths).astype(np.int64) + 1, 0, codes.size)
-    return count[b] > count[a]
+    return np.searchsorted(hit, b) > np.searchsorted(hit, a)   # a clipped sample in [a, b)
 
 
 def beyond_range(distance_2n_m: np.ndarray, snr_2n_db: np.ndarray, unambiguous_m: float,

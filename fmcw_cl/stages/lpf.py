@@ -46,7 +46,10 @@ def lowpass(x: np.ndarray, taps: np.ndarray) -> np.ndarray:
 
     The first and last len(taps)//2 outputs see a zero-padded input.
     """
-    return np.convolve(x, taps, mode="same")
+    if x.size == 0:
+        return np.zeros(0)
+    h = taps.size // 2
+    return np.convolve(x, taps)[h: h + x.size]
 
 
 def intensity(beat: np.ndarray, sample_rate_hz: float, factor: int = DECIMATION

@@ -29,6 +29,7 @@ SNR_MIN_DB = 10.0     # a half-sweep's peak must stand this far above the floor
 CONSISTENT_MPS = 0.1  # a velocity this far from its neighbours' median is an outlier
 CONVERGED_MPS = 0.05  # final velocity correction must be below this (peak not smeared)
 NEIGHBOURS = 8        # half-width (pairs) of the continuity median
+STOP_MPS = 1e-3       # de-chirp passes end once no pair's de-chirp velocity moves this much
 
 
 @dataclass(frozen=True)
@@ -133,7 +134,9 @@ def track_pairs(xr: np.ndarray, xf: np.ndarray, t_rise: np.ndarray, t_fall: np.n
     t_rise, t_fall : (P,) centre times of those half-sweeps (s).
     model : the LUT's Doppler model.
     lo_bin : first FFT bin searched (minimum range).
-    iterations : de-chirp passes after the plain first pass.
+    iterations : de-chirp passes after the plain first pass, at most: they stop early
+        once the velocities they would de-chirp with next move by less than STOP_MPS
+        (a further pass would repeat this one; a still or slow target needs one).
     dechirp : False gives the paper's method (one plain pass, no fold handling).
     measure : the de-chirp + spectrum + peak step (numpy here; a backend may swap it).
     """
@@ -153,7 +156,10 @@ def track_pairs(xr: np.ndarray, xf: np.ndarray, t_rise: np.ndarray, t_fall: np.n
             # the plain first pass smears fast targets: allow 20 % there, not later
             med = median_filter(vel, size=2 * NEIGHBOURS + 1, mode="nearest")
             tol = CONSISTENT_MPS + (0.2 * np.abs(med) if it == 0 else 0.0)
-            v0 = regularise(vel, heard & (np.abs(vel - med) < tol), t_mid)
+            v_next = regularise(vel, heard & (np.abs(vel - med) < tol), t_mid)
+            if it > 0 and np.max(np.abs(v_next - v0), initial=0.0) < STOP_MPS:
+                break
+            v0 = v_next
     med = median_filter(vel, size=2 * NEIGHBOURS + 1, mode="nearest")
     valid = heard
     if dechirp:

@@ -14,14 +14,15 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.ndimage import uniform_filter1d
+from numpy.lib.stride_tricks import sliding_window_view
 
 from . import lpf
 
 FIT_FRACTION = 0.35   # half-width of the crossing line fit, as a share of the half-period
 GRID_TOLERANCE = 0.02  # allowed deviation of a half-period from the nominal, share
 JUMP_SAMPLES = 0.5     # smallest timing jump (samples) that splits the stream
-SPIKE = 0.05           # a sample this far (share of the swing) off its moving average is a spike
+SPIKE = 0.05           # a sample this far (share of the swing) off its 5-sample median is a spike
+MAX_BLOCK = 64         # longest block (samples) of the coarse crossing search
 
 
 @dataclass(frozen=True)
@@ -32,47 +33,101 @@ class Crossings:
     direction: np.ndarray
 
 
-def _prefix_sums(x: np.ndarray, level: float) -> tuple[np.ndarray, np.ndarray]:
-    """Prefix sums of (x - level) and i (x - level): any window's line fit in O(1)."""
-    y = x - level
-    cx = np.zeros(x.size + 1)
-    np.cumsum(y, out=cx[1:])
-    y *= np.arange(x.size, dtype=np.float64)
-    cix = np.zeros(x.size + 1)
-    np.cumsum(y, out=cix[1:])
-    return cx, cix
+def block_length(half_period: float) -> int:
+    """Samples per block of the coarse crossing search: at least 40 blocks a half-period."""
+    return int(np.clip(half_period // 40, 1, MAX_BLOCK))
 
 
-def _line_fit_crossing(sums: tuple[np.ndarray, np.ndarray], centre: np.ndarray, half: int) -> np.ndarray:
-    """Where a straight line fitted to x[centre-half : centre+half] reaches the level of
-    `sums` (from _prefix_sums)."""
-    cx, cix = sums
-    a = centre - half
-    b = centre + half + 1
-    m = float(b[0] - a[0]) if a.size else 1.0
-    sx = cx[b] - cx[a]
-    sixc = (cix[b] - cix[a]) - centre * sx          # sum (i - c) x
+def block_means(x: np.ndarray, factor: int) -> np.ndarray:
+    """Means of the whole blocks of `factor` samples (float64): the coarse stream in
+    which crossings are found."""
+    m = x.size // factor
+    return np.asarray(x[: m * factor]).reshape(m, factor).mean(axis=1, dtype=np.float64)
+
+
+@dataclass(frozen=True)
+class Coarse:
+    """Crossings found in the block means: the first block of each new state, the
+    direction, the crossing level and the swing (peak to peak), in codes."""
+
+    block: np.ndarray
+    direction: np.ndarray
+    level: float
+    swing: float
+
+
+def coarse_crossings(blocks: np.ndarray, level: float | None = None) -> Coarse:
+    """Mid-level crossings of the block means, with a hysteresis of 10 % of the swing.
+
+    A 3-block median first removes what averaging left of a glitch.
+    """
+    if blocks.size < 3:
+        return Coarse(np.zeros(0, np.int64), np.zeros(0, np.int8), 0.0, 0.0)
+    # a triangle's values are uniform between its extremes: the 5 and 95 percentiles
+    # give its middle and swing, and unlike the extremes they are not rounded off by
+    # the block averaging at the corners
+    lo, hi = np.percentile(blocks, [5.0, 95.0])
+    level = 0.5 * (lo + hi) if level is None else level
+    swing = (hi - lo) / 0.9
+    hyst = 0.1 * swing
+    b = blocks.copy()
+    p, q, r = blocks[:-2], blocks[1:-1], blocks[2:]
+    b[1:-1] = np.maximum(np.minimum(p, q), np.minimum(np.maximum(p, q), r))   # median of 3
+    xs = b - level
+    event = np.where(xs > hyst, 1, np.where(xs < -hyst, -1, 0)).astype(np.int8)
+    pos = np.where(event != 0, np.arange(b.size), 0)
+    np.maximum.accumulate(pos, out=pos)
+    state = event[pos]
+    flips = np.flatnonzero((state[1:] != state[:-1]) & (state[:-1] != 0)) + 1
+    return Coarse(flips, state[flips], float(level), float(swing))
+
+
+def fit_half_width(half_period: float) -> int:
+    """Half-width (samples) of the crossing line fits."""
+    return max(2, int(FIT_FRACTION * half_period))
+
+
+def line_fit_sums(x: np.ndarray, centre: np.ndarray, half: int, spike: float
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """Sums of x and (i - c) x over x[c - half : c + half + 1] for each centre c,
+    spikes (samples more than `spike` codes off the median of their 5-sample
+    neighbourhood) replaced by that median first. Exact for integer codes.
+
+    Requires 2 <= c - half and c + half < x.size - 2. The numpy twin of the
+    `line_fit` kernel (kernels/sync.cl).
+    """
+    w = sliding_window_view(np.asarray(x), 2 * half + 5)[centre - half - 2].astype(np.float64)
+    # a spike is more than `spike` off at least 3 of its 4 neighbours, so off one of
+    # the two adjacent ones: only those candidates need the median
+    jump = np.abs(np.diff(w, axis=1)) > spike
+    cand = np.zeros(w.shape, bool)
+    cand[:, 2:-2] = jump[:, 1:-2] | jump[:, 2:-1]
+    if cand.any():
+        r, c = np.nonzero(cand)
+        med = np.median(w[r[:, None], c[:, None] + np.arange(-2, 3)], axis=1)
+        bad = np.abs(w[r, c] - med) > spike
+        w[r[bad], c[bad]] = med[bad]
+    w = w[:, 2:-2]
+    return w.sum(axis=1), w @ np.arange(-half, half + 1, dtype=np.float64)
+
+
+def line_fit_crossing(s0: np.ndarray, s1: np.ndarray, centre: np.ndarray, half: int,
+                      level: float) -> np.ndarray:
+    """Where the least-squares line of each window (sums from `line_fit_sums`)
+    reaches `level`."""
+    m = 2 * half + 1
     s2 = half * (half + 1) * (2 * half + 1) / 3.0   # sum (i - c)^2 over the window
-    slope = sixc / s2
-    intercept = sx / m                               # value at i = c (sum (i - c) = 0)
     with np.errstate(divide="ignore", invalid="ignore"):
-        return centre - intercept / slope
-
-
-def _despike(x: np.ndarray, near: np.ndarray, threshold: float) -> np.ndarray:
-    """x with the samples at `near` that stand out of their 5-sample median replaced
-    by it (glitches of one or two samples); a copy."""
-    idx = np.clip(near[:, None] + np.arange(-2, 3), 0, x.size - 1)
-    med = np.median(x[idx], axis=1)
-    bad = np.abs(x[near] - med) > threshold
-    out = x.copy()
-    out[near[bad]] = med[bad]
-    return out
+        return centre - (s0 / m - level) / (s1 / s2)
 
 
 def crossings(x: np.ndarray, half_period: float, level: float | None = None,
-              smooth: int = 1) -> Crossings:
+              means=block_means, sums=line_fit_sums) -> Crossings:
     """Mid-level crossings of a triangle-like signal.
+
+    Found in block means (`block_length`), then each timed by a straight-line fit
+    to the full-rate samples within FIT_FRACTION of a half-period around it, twice
+    (the second fit centred on the first one's crossing).
 
     Parameters
     ----------
@@ -81,53 +136,31 @@ def crossings(x: np.ndarray, half_period: float, level: float | None = None,
     half_period : float
         Nominal half-period in samples of `x`.
     level : float, optional
-        Crossing level; default the middle of the 0.5 and 99.5 percentiles.
-    smooth : int
-        Moving-average length used to find crossings (not to time them) and, when
-        above 1, to replace isolated spikes (more than SPIKE of the swing off the
-        moving average) before the timing fits.
+        Crossing level; default the middle of the swing.
+    means, sums : the block-mean and line-fit steps (the OpenCL backend swaps in its
+        kernels).
 
     Returns
     -------
     Crossings with times in samples of `x`; crossings whose fit window would leave
     the array are dropped.
     """
-    x = np.asarray(x, dtype=np.float64)
-    if x.size < 4:
-        return Crossings(np.zeros(0), np.zeros(0, np.int8))
-    lo, hi = np.percentile(x, [0.5, 99.5])
-    if level is None:
-        level = 0.5 * (lo + hi)
-    hyst = 0.1 * (hi - lo)
-    if smooth > 1:
-        m = uniform_filter1d(x, smooth)
-        near = np.flatnonzero(np.abs(x - m) > SPIKE * (hi - lo))
-        if near.size:              # a glitch would pull the line fits by samples
-            x = _despike(x, near, SPIKE * (hi - lo))
-            m = uniform_filter1d(x, smooth)
-        xs = m - level
-    else:
-        xs = x - level
-    event = np.where(xs > hyst, 1, np.where(xs < -hyst, -1, 0)).astype(np.int8)
-    pos = np.where(event != 0, np.arange(x.size), 0)
-    np.maximum.accumulate(pos, out=pos)
-    state = event[pos]
-    flips = np.flatnonzero((state[1:] != state[:-1]) & (state[:-1] != 0)) + 1
-    if flips.size == 0:
-        return Crossings(np.zeros(0), np.zeros(0, np.int8))
-    direction = state[flips]
-    half = max(2, int(FIT_FRACTION * half_period))
-    if x.size < 2 * half + 2:          # too short for a single crossing fit
-        return Crossings(np.zeros(0), np.zeros(0, np.int8))
-    guess = flips.astype(np.float64)
-    sums = _prefix_sums(x, level)
+    none = Crossings(np.zeros(0), np.zeros(0, np.int8))
+    half = fit_half_width(half_period)
+    if x.size < 2 * half + 6:          # too short for a single crossing fit
+        return none
+    factor = block_length(half_period)
+    co = coarse_crossings(means(x, factor), level)
+    guess = co.block * factor + 0.5 * (factor - 1)
     for _ in range(2):
         centre = np.rint(np.nan_to_num(guess, nan=-1.0)).astype(np.int64)
-        ok = np.isfinite(guess) & (centre - half >= 0) & (centre + half < x.size)
-        guess = np.where(ok, _line_fit_crossing(sums, np.clip(centre, half, x.size - half - 1), half),
-                         np.nan)
+        ok = np.isfinite(guess) & (centre - half >= 2) & (centre + half < x.size - 2)
+        guess = np.full(guess.size, np.nan)
+        if np.any(ok):
+            s0, s1 = sums(x, centre[ok], half, SPIKE * co.swing)
+            guess[ok] = line_fit_crossing(s0, s1, centre[ok], half, co.level)
     keep = np.isfinite(guess)
-    return Crossings(guess[keep], direction[keep])
+    return Crossings(guess[keep], co.direction[keep])
 
 
 @dataclass(frozen=True)
@@ -156,9 +189,16 @@ def turning_points(cr: Crossings, half_period: float) -> TurningPoints:
     near = alternate & (np.abs(gap - half_period) < GRID_TOLERANCE * half_period)
     if not np.any(near):
         return TurningPoints(np.zeros(0), np.zeros(0, bool), np.zeros(0, np.int64))
-    typical = np.median(gap[near])
-    spread = 1.4826 * np.median(np.abs(gap[near] - typical))
-    good = near & (np.abs(gap - typical) < max(JUMP_SAMPLES, 6.0 * spread))
+    # a level off the middle makes the rising and falling spacings differ: compare
+    # each with the typical spacing of its own direction
+    up = d[:-1] > 0
+    typical = np.zeros(gap.size)
+    for side in (up, ~up):
+        if np.any(near & side):
+            typical[side] = np.median(gap[near & side])
+    dev = gap - typical
+    spread = 1.4826 * np.median(np.abs(dev[near]))
+    good = near & (np.abs(dev) < max(JUMP_SAMPLES, 6.0 * spread))
     # turning point i sits between crossings i and i+1; it is trusted when both
     # of its neighbouring spacings are good (a jump spoils the points on both sides)
     tp = 0.5 * (t[:-1] + t[1:])
@@ -179,14 +219,14 @@ def turning_points(cr: Crossings, half_period: float) -> TurningPoints:
 
 def sync_turning_points(sync: np.ndarray, half_period: float) -> TurningPoints:
     """Turning points of the sync channel (higher code = higher current)."""
-    return turning_points(crossings(sync, half_period, smooth=33), half_period)
+    return turning_points(crossings(sync, half_period), half_period)
 
 
 MAX_DELAY_SAMPLES = 400  # search range of the sync-to-optics delay
 
 
 def period_delays(beat: np.ndarray, sync: np.ndarray, sample_rate_hz: float,
-                  half_period: float) -> tuple[np.ndarray, np.ndarray]:
+                  half_period: float, intensity=lpf.intensity) -> tuple[np.ndarray, np.ndarray]:
     """Per-period estimates of how far the sync lags the optics (samples).
 
     The low-passed beat carries the laser intensity triangle, which has the optical
@@ -196,14 +236,16 @@ def period_delays(beat: np.ndarray, sync: np.ndarray, sample_rate_hz: float,
     (Gauss-Newton). The detector imbalance may have either sign: the regression's
     scale takes it.
 
+    `intensity` is the low-pass step (lpf.intensity or a backend's kernel).
+
     Returns
     -------
     lags : (P,) samples, NaN where a period gives no triangle.
     misfit : (P,) rms residual of each period's fit relative to the triangle's rms;
         large where a target beat near 0 Hz leaks into the low band.
     """
-    y, _, step = lpf.intensity(beat, sample_rate_hz)
-    z, _, _ = lpf.intensity(sync, sample_rate_hz)
+    y, _, step = intensity(beat, sample_rate_hz)
+    z, _, _ = intensity(sync, sample_rate_hz)
     edge = lpf.TAPS // 2 + 1
     y, z = y[edge:-edge] - y[edge:-edge].mean(), z[edge:-edge] - z[edge:-edge].mean()
     span = int(MAX_DELAY_SAMPLES / step) + 1

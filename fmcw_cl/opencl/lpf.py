@@ -1,0 +1,41 @@
+"""Launcher of kernels/lpf.cl (twin: fmcw_cl.stages.lpf.intensity)."""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+
+from ..stages import lpf
+from .buffers import Buffers
+from .context import Runtime, cl
+
+
+@functools.lru_cache(maxsize=4)
+def cic_taps(factor: int, order: int = lpf.CIC_ORDER) -> np.ndarray:
+    """Impulse response of `order` cascaded boxcars of `factor` samples (float32)."""
+    h = np.ones(1)
+    for _ in range(order):
+        h = np.convolve(h, np.full(factor, 1.0 / factor))
+    return h.astype(np.float32)
+
+
+def intensity(rt: Runtime, bufs: Buffers, x: np.ndarray, sample_rate_hz: float,
+              factor: int = lpf.DECIMATION) -> tuple[np.ndarray, float, float]:
+    """Low-passed int16 codes at the decimated rate (see the numpy twin)."""
+    if x.dtype != np.int16:
+        raise TypeError("the low-pass kernel takes int16 ADC codes")
+    h = cic_taps(factor)
+    m = max(0, (x.size - (lpf.CIC_ORDER - 1) * (factor - 1)) // factor)
+    out = np.empty(m, np.float32)
+    if m:
+        taps = lpf.lowpass_taps(sample_rate_hz / factor).astype(np.float32)
+        d_dec = bufs.get("lpf_decimated", 4 * m)
+        d_out = bufs.get("lpf_out", 4 * m)
+        rt.kernel("lpf", "cic_decimate")(rt.queue, (m,), None, bufs.upload("lpf_in", x),
+                                         bufs.upload_once("lpf_cic", h), np.int32(h.size),
+                                         np.int32(factor), d_dec)
+        rt.kernel("lpf", "fir_same")(rt.queue, (m,), None, d_dec, np.int32(m),
+                                     bufs.upload("lpf_taps", taps), np.int32(taps.size // 2), d_out)
+        cl.enqueue_copy(rt.queue, out, d_out)
+    return out.astype(np.float64), lpf.CIC_ORDER * (factor - 1) / 2.0, float(factor)
