@@ -96,7 +96,7 @@ def run_cluster(captures, outdir, options, backend, device, scheduler, quiet):
 @click.option("--points", default=1000, show_default=True,
               help="Resampling intervals per half-sweep (unambiguous range N c / 4nB).")
 @click.option("--backend", type=click.Choice(["auto", "opencl", "numpy"]), default="auto",
-              show_default=True, help="Stage implementation; auto: OpenCL on a GPU, else numpy.")
+              show_default=True, help="Stage implementation; auto: OpenCL if a device is there, else numpy.")
 @click.option("--device", default=None,
               help="OpenCL device: index P or P:D, or a name substring (default: PYOPENCL_CTX, "
                    "else the first GPU, else the first device); see `fmcw-cl devices`.")

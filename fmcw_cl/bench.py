@@ -1,8 +1,9 @@
 """Throughput per stage and end to end, for each backend, on a simulated capture.
 
 Real time is 100 MS/s per channel = 40 000 half-sweeps per second (at 20 kHz).
-Each stage is run once to warm up (kernel compilation) and then timed; the figures
-are ratios within one run, on whatever else the machine is doing.
+Each stage is run once to warm up (kernel compilation, caches) and then timed, waiting
+for the device to finish; the figures are ratios within one run, on whatever else the
+machine is doing.
 """
 
 from __future__ import annotations
@@ -16,15 +17,17 @@ import numpy as np
 from .capture import Capture
 from .engine import Options, make_backend, make_plan, process
 from .simulate import rail, simulate_capture
-from .stages import sync
+from .stages import resample, sync
 
 
-def _timed(fn, repeat: int = 3) -> float:
+def _timed(fn, finish, repeat: int = 3) -> float:
     fn()  # warm-up: kernel builds, caches
+    finish()
     best = np.inf
     for _ in range(repeat):
         t = time.perf_counter()
         fn()
+        finish()
         best = min(best, time.perf_counter() - t)
     return best
 
@@ -37,28 +40,36 @@ def _stage_rows(be, path: Path, opts: Options, seconds: float) -> list[dict]:
         beat, sy = cap.read(0, info.samples)
     hp = info.samples_per_period / 2
     hs = sync.half_sweeps(sync.sync_turning_points(sy, hp), plan.lag)
-    ok = (hs.start >= 2) & (hs.start + hs.length < beat.size - 3)
+    ok = resample.inside(hs.start, hs.length, plan.lut, beat.size)
     starts, lengths = hs.start[ok], hs.length[ok]
     sweeps = int(starts.size)
     m = plan.model
     x = be.resample(beat, starts, lengths, plan.lut.u_fall, plan.window)
     v = np.full(sweeps, 1.0)
+    finish = getattr(be, "finish", lambda: None)
 
     def read():
         with Capture(path) as c:
             c.read(0, info.samples)
 
+    def kernels():
+        y = be.resample(beat, starts, lengths, plan.lut.u_fall, plan.window)
+        be.measure(y, m.beta_fall, None, m, plan.lo_bin)
+
     stages = {
         "read (HDF5)": read,
-        "sync turning points": lambda: sync.sync_turning_points(sy, hp),
+        "low-pass (sync delay)": lambda: be.intensity(beat, info.sample_rate_hz),
+        "sync turning points": lambda: be.turning_points(sy, hp),
         "resample": lambda: be.resample(beat, starts, lengths, plan.lut.u_fall, plan.window),
         "FFT + peak": lambda: be.measure(x, m.beta_fall, None, m, plan.lo_bin),
         "de-chirp + FFT + peak": lambda: be.measure(x, m.beta_fall, v, m, plan.lo_bin),
+        "resample + FFT + peak": kernels,
+        "end to end, paper's method": lambda: process(path, Options(dechirp=False), be),
         "end to end (file to track)": lambda: process(path, opts, be),
     }
     rows = []
     for stage, fn in stages.items():
-        secs = _timed(fn, repeat=1 if stage.startswith("end") else 3)
+        secs = _timed(fn, finish, repeat=1 if stage.startswith("end") else 3)
         rows.append({"backend": be.name, "device": be.device, "stage": stage, "seconds": secs,
                      "half_sweeps_per_s": sweeps / secs, "msamples_per_s": info.samples / secs / 1e6,
                      "real_time_multiple": seconds / secs})
@@ -70,7 +81,7 @@ def run(seconds: float = 0.2, points: int = 1000, backends=("numpy", "opencl"),
     """Benchmark rows: backend, device, stage, seconds, half-sweeps/s, MS/s, x real time.
 
     Half-sweeps/s counts the half-sweeps of the whole capture for every stage, so
-    the rows compare directly (the end-to-end row includes all de-chirp passes).
+    the rows compare directly (the end-to-end rows include every pass and check).
     """
     rows = []
     with tempfile.TemporaryDirectory() as tmp:

@@ -74,8 +74,8 @@ def _convert(capture: str, out: str, options: Options, backend: str, device: str
 def _plan(capture: str, options: Options, task_seconds: float, backend: str, device: str | None):
     """Task: the plan of a long capture and its ranges."""
     with Capture(capture) as cap:
-        return (make_plan(cap, options, backend=_backend(backend, device)),
-                split_ranges(cap.info, options, task_seconds))
+        plan = make_plan(cap, options, backend=_backend(backend, device))
+        return plan, split_ranges(cap.info, plan.options, task_seconds)
 
 
 def _range(capture: str, plan, start: int, stop: int, backend: str, device: str | None):

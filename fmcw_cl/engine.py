@@ -10,8 +10,9 @@ boundaries. Memory is bounded by the chunk, not the capture.
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
-from dataclasses import dataclass
+from collections.abc import Callable, Iterator
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -84,19 +85,16 @@ class NumpyBackend:
 def make_backend(name: str = "auto", device: str | None = None, warn=None):
     """The stage implementation: "numpy", "opencl", or "auto".
 
-    "auto" takes OpenCL where `opencl_preferred` says so (a GPU) and numpy otherwise:
-    on PoCL (CPU) the OpenCL path measured slower end to end than numpy so far (see
-    benchmarks/README.md), and a default must not be the slower path. A failing
-    OpenCL (no platform, a kernel that does not build) falls back to numpy with a
-    one-line warning through `warn`; "opencl" forces it and fails loudly.
+    "auto" takes OpenCL whenever a device is there (on PoCL, the CPU, it measured about
+    3x faster end to end than numpy; see benchmarks/README.md). A failing OpenCL (no
+    platform, a kernel that does not build) falls back to numpy with a one-line warning
+    through `warn`; "opencl" forces it and fails loudly.
     """
     if name == "numpy":
         return NumpyBackend()
-    from .opencl.backend import OpenCLBackend
-
     try:
-        if name == "auto" and not opencl_preferred(device):
-            return NumpyBackend()
+        from .opencl.backend import OpenCLBackend
+
         return OpenCLBackend(device)
     except FmcwError as exc:
         if name == "opencl":
@@ -104,13 +102,6 @@ def make_backend(name: str = "auto", device: str | None = None, warn=None):
         if warn:
             warn(f"warning: OpenCL unavailable ({exc}); using the numpy backend")
         return NumpyBackend()
-
-
-def opencl_preferred(device: str | None = None) -> bool:
-    """Whether "auto" should use OpenCL on the selected device: on GPUs."""
-    from .opencl.context import cl, select_device
-
-    return bool(select_device(device).type & cl.device_type.GPU)
 
 
 def estimate_capture_delay(cap: Capture, intensity=lpf.intensity) -> tuple[float, int, float]:
@@ -164,6 +155,7 @@ def make_plan(cap: Capture, options: Options, lag: float | None = None, backend=
                         f"{lut.unambiguous_range_m:.3f} m of --points {options.points}")
     lo_bin = max(1, int(np.ceil(options.min_range_m / model.metres_per_bin)))
     check_sync_period(cap)
+    options = fit_chunks(options, info, backend)
     known = lag is not None
     intensity = backend.intensity if backend is not None else lpf.intensity
     lag, votes, misfit = estimate_capture_delay(cap, intensity) if lag is None else (lag, 0, 0.0)
@@ -181,6 +173,18 @@ def make_plan(cap: Capture, options: Options, lag: float | None = None, backend=
         from .refine import refine_lag
         plan = refine_lag(cap, plan)
     return plan
+
+
+def fit_chunks(options: Options, info: CaptureInfo, backend=None) -> Options:
+    """The options with chunks (core and context) no larger than the backend's device
+    holds; numpy's are bounded by the default itself (about 0.6 GB)."""
+    limit = getattr(backend, "chunk_periods", None)
+    if limit is None:
+        return options
+    fits = limit(info.samples_per_period, options.points) - 2 * options.context_periods - 2
+    if fits >= options.chunk_periods:
+        return options
+    return replace(options, chunk_periods=max(16, fits))
 
 
 def check_sync_period(cap: Capture, periods: int = 40) -> None:
@@ -283,6 +287,16 @@ def split_ranges(info: CaptureInfo, options: Options, seconds: float) -> list[tu
     return [(a, min(a + per, info.samples)) for a in range(0, info.samples, per)]
 
 
+def read_ahead(chunks: Iterator) -> Iterator:
+    """The items of `chunks`, the next one read by a thread while this one is processed
+    (HDF5 reads and the kernels' waits release the GIL)."""
+    with ThreadPoolExecutor(1) as pool:
+        ahead = pool.submit(next, chunks, None)
+        while (item := ahead.result()) is not None:
+            ahead = pool.submit(next, chunks, None)
+            yield item
+
+
 def capture_parts(cap: Capture, plan: Plan, backend, start: int = 0, stop: int | None = None,
                   progress: Callable[[int, int, float], None] | None = None) -> list[_Pairs]:
     """The owned pairs of every chunk whose core lies in samples [start, stop)
@@ -290,7 +304,7 @@ def capture_parts(cap: Capture, plan: Plan, backend, start: int = 0, stop: int |
     info, options = cap.info, plan.options
     margin = int((options.context_periods + 1) * info.samples_per_period + sync.MAX_DELAY_SAMPLES + 8)
     parts: list[_Pairs] = []
-    for chunk in cap.chunks(options.chunk_periods, margin, start, stop):
+    for chunk in read_ahead(cap.chunks(options.chunk_periods, margin, start, stop)):
         got = _chunk_pairs(plan, chunk, backend)
         if got is not None:
             parts.append(got)

@@ -77,11 +77,12 @@ void fft_dif(__local float *re, __local float *im, const int n, int lb,
     }
 }
 
-// Sample j of a half-sweep, de-chirped: x_j exp(-2 pi i v beta_j).
-void load(__global const float *row, __global const float *beta, const float v,
-          const int dechirp, const int j, float *re, float *im)
+// Sample j of the transform's input: a half-sweep de-chirped, x_j exp(-2 pi i v beta_j),
+// or two plain (real) half-sweeps packed as a + i b.
+void load(__global const float *ra, __global const float *rb, __global const float *beta,
+          const float v, const int dechirp, const int j, float *re, float *im)
 {
-    const float xr = row[j];
+    const float xr = ra[j];
     if (dechirp) {
         float c, sn;
         sincos_cycles(v * beta[j], &sn, &c);
@@ -89,18 +90,22 @@ void load(__global const float *row, __global const float *beta, const float v,
         *im = -xr * sn;
     } else {
         *re = xr;
-        *im = 0.0f;
+        *im = rb ? rb[j] : 0.0f;
     }
 }
 
+// A plain (real) half-sweep's spectrum is Hermitian, so plain rows go two to a
+// transform, Z = FFT(a + i b): A_k = (Z_k + conj Z_-k) / 2, B_k = (Z_k - conj Z_-k) / 2i.
+// De-chirped rows are complex: one per transform.
 __kernel void spectrum_peak(__global const float *x,          // (sweeps, points)
+                            const int sweeps,
                             const int points,
                             __global const float *beta,       // cycles per m/s, (points,)
                             __global const float *velocity,   // m/s, one per sweep
-                            const int dechirp,                // 0: plain spectrum
+                            const int dechirp,                // 0: plain spectra, packed
                             __global const float *tw_re,      // (nfft,)
                             __global const float *tw_im,
-                            __global const int *perm,         // bin k sits at perm[k]
+                            __global const int *perm,         // bin k sits at perm[k], k < nfft
                             const int nfft,
                             const int lo,
                             const int hi,
@@ -111,20 +116,24 @@ __kernel void spectrum_peak(__global const float *x,          // (sweeps, points
                             const int keep_power,
                             __local float *re,                // nfft
                             __local float *im,                // nfft
-                            __local float *pw)                // nfft/2
+                            __local float *pw,                // nfft/2
+                            __local float *scratch)           // 3 per work-item
 {
-    const int s = get_group_id(0);
+    const int g = get_group_id(0);
     const int lid = get_local_id(0);
     const int lsz = get_local_size(0);
+    const int s = dechirp ? g : 2 * g;                // first row of this transform
+    const int rows = dechirp || s + 1 == sweeps ? 1 : 2;
     const float v = dechirp ? velocity[s] : 0.0f;
-    __global const float *row = x + (size_t)s * points;
+    __global const float *ra = x + (size_t)s * points;
+    __global const float *rb = rows == 2 ? ra + points : 0;
     // the first radix-4 stage straight from the input: its upper half is the zero
     // padding (points <= nfft / 2), so each butterfly has two inputs
     const int q = nfft >> 2;
     for (int j = lid; j < q; j += lsz) {
         float a0r = 0.0f, a0i = 0.0f, a1r = 0.0f, a1i = 0.0f;
-        if (j < points) load(row, beta, v, dechirp, j, &a0r, &a0i);
-        if (j + q < points) load(row, beta, v, dechirp, j + q, &a1r, &a1i);
+        if (j < points) load(ra, rb, beta, v, dechirp, j, &a0r, &a0i);
+        if (j + q < points) load(ra, rb, beta, v, dechirp, j + q, &a1r, &a1i);
         const float y1r = a0r + a1i, y1i = a0i - a1r;     // a0 - i a1
         const float y2r = a0r - a1r, y2i = a0i - a1i;
         const float y3r = a0r - a1i, y3i = a0i + a1r;     // a0 + i a1
@@ -143,14 +152,25 @@ __kernel void spectrum_peak(__global const float *x,          // (sweeps, points
     barrier(CLK_LOCAL_MEM_FENCE);
     fft_dif(re, im, nfft, q, tw_re, tw_im);
     const int half_n = nfft >> 1;
-    __global float *out = power + (size_t)s * half_n;
-    for (int k = lid; k < half_n; k += lsz) {
-        const int p = perm[k];
-        const float q = re[p] * re[p] + im[p] * im[p];
-        pw[k] = q;
-        if (keep_power) out[k] = q;
+    for (int r = 0; r < rows; ++r) {                  // uniform in the group: barriers are safe
+        __global float *out = power + (size_t)(s + r) * half_n;
+        for (int k = lid; k < half_n; k += lsz) {
+            const int p = perm[k];
+            float e;
+            if (dechirp) {
+                e = re[p] * re[p] + im[p] * im[p];
+            } else {
+                const int m = perm[(nfft - k) & (nfft - 1)];
+                const float cr = r == 0 ? re[p] + re[m] : im[p] + im[m];
+                const float ci = r == 0 ? im[p] - im[m] : re[p] - re[m];
+                e = 0.25f * (cr * cr + ci * ci);
+            }
+            pw[k] = e;
+            if (keep_power) out[k] = e;
+        }
+        barrier(CLK_LOCAL_MEM_FENCE);
+        local_peak(pw, half_n, lo, hi, guard, scratch, (__local int *)(scratch + lsz),
+                   scratch + 2 * lsz, bin + s + r, snr + s + r);
+        barrier(CLK_LOCAL_MEM_FENCE);
     }
-    barrier(CLK_LOCAL_MEM_FENCE);
-    // the transform's buffers are free now: the peak's scratch lives there
-    local_peak(pw, half_n, lo, hi, guard, re, (__local int *)im, re + lsz, bin + s, snr + s);
 }

@@ -22,6 +22,26 @@ def test_chunk_size_does_not_change_the_track(static_capture):
     np.testing.assert_allclose(a.velocity_mps, b.velocity_mps, rtol=0, atol=1e-4)
 
 
+def test_chunks_fit_the_device_memory(static_capture):
+    """A backend whose device holds 300 periods gets chunks of 300 - 2 x 64 context
+    - 2; the track matches the default chunks'."""
+    from fmcw_cl.engine import NumpyBackend
+
+    class Small(NumpyBackend):
+        def chunk_periods(self, samples_per_period, points):
+            return 300
+
+    a = process(static_capture, Options())
+    b = process(static_capture, Options(), Small())
+    np.testing.assert_array_equal(a.valid, b.valid)
+    np.testing.assert_allclose(a.distance_m, b.distance_m, rtol=0, atol=1e-7)
+    from fmcw_cl.engine import fit_chunks
+
+    with Capture(static_capture) as cap:
+        assert fit_chunks(Options(), cap.info, Small()).chunk_periods == 300 - 128 - 2
+        assert fit_chunks(Options(), cap.info, NumpyBackend()).chunk_periods == 1024
+
+
 def test_dropped_samples_split_the_stream(tmp_path, static_capture):
     """Lose 1234 samples in the middle: the periods around the jump are invalid,
     the rest is as accurate as before."""

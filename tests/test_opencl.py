@@ -58,7 +58,7 @@ def test_fft_kernel_matches_numpy(backend, sweeps, nfft):
 def test_fft_tables_undo_the_digit_reversal():
     for nfft in (8, 32, 2048, 4096):
         _, _, perm = k_spectrum.tables(nfft)
-        assert np.unique(perm).size == nfft // 2 and perm.max() < nfft
+        assert np.array_equal(np.sort(perm), np.arange(nfft))
 
 
 def test_peak_kernel_on_tones_and_band_edges(backend):
@@ -145,7 +145,6 @@ def test_kernel_build_failure_falls_back_or_fails(monkeypatch):
 
     monkeypatch.setattr(fmcw_cl.kernels, "source", lambda name: "__kernel void broken( {")
     monkeypatch.setattr(context, "_RUNTIMES", {})            # a fresh context, no cached builds
-    monkeypatch.setattr(engine, "opencl_preferred", lambda device=None: True)
     with pytest.raises(FmcwError, match=r"kernel \w+\.cl failed to build on .*; build log: ") as err:
         engine.make_backend("opencl")
     log = re.search(r"build log: (\S+)", str(err.value)).group(1)

@@ -25,4 +25,5 @@ def test_every_package_directory_is_declared():
 def test_kernels_are_package_data():
     text = (ROOT / "pyproject.toml").read_text()
     assert '"fmcw_cl.kernels" = ["*.cl"]' in text
-    assert sorted(p.stem for p in (ROOT / "kernels").glob("*.cl")) == ["fft", "peak", "resample"]
+    stages = sorted(p.stem for p in (ROOT / "kernels").glob("*.cl"))
+    assert stages == ["fft", "lpf", "peak", "resample", "sync"]

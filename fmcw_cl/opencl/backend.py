@@ -34,6 +34,20 @@ class OpenCLBackend:
         self._means = functools.partial(k_sync.block_means, self.rt, self.bufs)
         self._sums = functools.partial(k_sync.line_fit_sums, self.rt, self.bufs)
 
+    def chunk_periods(self, samples_per_period: float, points: int) -> int:
+        """Modulation periods of one chunk that fit in a quarter of the device's memory
+        (and each buffer in its largest allocation): the two int16 channels, the
+        resampled rows of both directions and the range check's (2N points, a quarter
+        of the pairs)."""
+        dev = self.rt.device
+        per_period = 4 * samples_per_period + 4 * points * (2 + 1)
+        budget = min(dev.global_mem_size // 4, dev.max_mem_alloc_size)
+        return max(1, int(budget // per_period))
+
+    def finish(self) -> None:
+        """Wait for the device (the launches are asynchronous)."""
+        self.rt.queue.finish()
+
     def intensity(self, codes, sample_rate_hz):
         return k_lpf.intensity(self.rt, self.bufs, codes, sample_rate_hz)
 

@@ -7,7 +7,7 @@ import numpy as np
 from .buffers import Buffers, DeviceRows
 from .context import Runtime, cl
 
-LOCAL = 128
+LOCAL = (32, 128)   # work-group size on CPUs, GPUs
 
 
 def resample(rt: Runtime, bufs: Buffers, codes: np.ndarray, starts: np.ndarray,
@@ -31,7 +31,8 @@ def resample(rt: Runtime, bufs: Buffers, codes: np.ndarray, starts: np.ndarray,
     out = DeviceRows(bufs, sweeps, points)
     if sweeps == 0:
         return out
+    lsz = rt.group_size(*LOCAL)
     k = rt.kernel("resample", "resample")
-    k(rt.queue, (sweeps * LOCAL,), (LOCAL,), d_codes, d_base, d_off, d_dlen, d_int, d_frac, d_u, d_win,
-      np.int32(points), out.buffer, cl.LocalMemory(4 * LOCAL))
+    k(rt.queue, (sweeps * lsz,), (lsz,), d_codes, d_base, d_off, d_dlen, d_int, d_frac, d_u, d_win,
+      np.int32(points), out.buffer, cl.LocalMemory(4 * lsz))
     return out

@@ -15,8 +15,8 @@ from .context import Runtime, cl
 @functools.lru_cache(maxsize=8)
 def tables(nfft: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Twiddles exp(-2 pi i m / nfft), m < nfft, and where the radix-4 decimation-in-
-    frequency transform (radix 2 last when log2(nfft) is odd) leaves bin k: the first
-    stage puts k mod 4 in quarter k mod 4, and so on, the digits of k reversed."""
+    frequency transform (radix 2 last when log2(nfft) is odd) leaves bin k < nfft: the
+    first stage puts k mod 4 in quarter k mod 4, and so on, the digits of k reversed."""
     m = np.arange(nfft)
     tw = np.exp(-2j * np.pi * m / nfft)
     radices, n = [], nfft
@@ -25,9 +25,8 @@ def tables(nfft: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         n //= 4
     if n == 2:
         radices.append(2)
-    k = np.arange(nfft // 2)
-    perm = np.zeros_like(k)
-    rest, block = k.copy(), nfft
+    perm = np.zeros(nfft, np.int64)
+    rest, block = m.copy(), nfft
     for r in radices:
         block //= r
         perm += (rest % r) * block
@@ -36,8 +35,7 @@ def tables(nfft: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 def local_size(rt: Runtime, nfft: int) -> int:
-    """Work-group size: by device type, and the peak's scratch (2 per work-item) must
-    fit in half the transform's buffer."""
+    """Work-group size by device type, at most one work-item per first-stage butterfly."""
     return min(rt.group_size(16, 256), nfft // 4)
 
 
@@ -63,12 +61,14 @@ def measure(rt: Runtime, bufs: Buffers, rows, beta: np.ndarray | None,
     d_bin, d_snr = bufs.get("bin", 4 * sweeps), bufs.get("snr", 4 * sweeps)
     d_power = bufs.get("power", 4 * sweeps * half if keep_power else 4)
     lsz = local_size(rt, nfft)
+    groups = sweeps if dechirp else (sweeps + 1) // 2    # plain rows: two per transform
     rt.kernel("spectrum", "spectrum_peak")(
-        rt.queue, (sweeps * lsz,), (lsz,), rows.buffer, np.int32(points), d_beta, d_v,
-        np.int32(dechirp), bufs.upload_once("tw_re", twr), bufs.upload_once("tw_im", twi),
+        rt.queue, (groups * lsz,), (lsz,), rows.buffer, np.int32(sweeps), np.int32(points), d_beta,
+        d_v, np.int32(dechirp), bufs.upload_once("tw_re", twr), bufs.upload_once("tw_im", twi),
         bufs.upload_once("perm", perm), np.int32(nfft), np.int32(lo), np.int32(hi),
         np.int32(GUARD_BINS), d_bin, d_snr, d_power, np.int32(keep_power),
-        cl.LocalMemory(4 * nfft), cl.LocalMemory(4 * nfft), cl.LocalMemory(4 * half))
+        cl.LocalMemory(4 * nfft), cl.LocalMemory(4 * nfft), cl.LocalMemory(4 * half),
+        cl.LocalMemory(12 * lsz))
     b = np.empty(sweeps, np.float32)
     s = np.empty(sweeps, np.float32)
     cl.enqueue_copy(rt.queue, b, d_bin)
