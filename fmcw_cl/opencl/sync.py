@@ -27,7 +27,8 @@ def block_means(rt: Runtime, bufs: Buffers, x: np.ndarray, factor: int) -> np.nd
 
 def line_fit_sums(rt: Runtime, bufs: Buffers, x: np.ndarray, centre: np.ndarray, half: int,
                   spike: float) -> tuple[np.ndarray, np.ndarray]:
-    """Sums of x and (i - c) x around each centre, spikes replaced (see the twin)."""
+    """Sums of x and (i - c) x around each centre, spikes replaced (see the twin; codes
+    are integers, so `|d| > spike` is `|d| > floor(spike)`)."""
     n = centre.size
     s0 = np.empty(n, np.int64)
     s1 = np.empty(n, np.int64)
@@ -36,7 +37,8 @@ def line_fit_sums(rt: Runtime, bufs: Buffers, x: np.ndarray, centre: np.ndarray,
         d0, d1 = bufs.get("fit_sum0", s0.nbytes), bufs.get("fit_sum1", s1.nbytes)
         rt.kernel("sync", "line_fit")(
             rt.queue, (n * lsz,), (lsz,), _codes(bufs, x),
-            bufs.upload("fit_centre", centre.astype(np.int32)), np.int32(half), np.float32(spike),
+            bufs.upload("fit_centre", centre.astype(np.int32)), np.int32(half), np.int32(np.floor(spike)),
+            np.int32(max(1, (2**31 - 1) // (max(half, 1) * 32768 + 32768))),
             d0, d1, cl.LocalMemory(8 * lsz), cl.LocalMemory(8 * lsz))
         cl.enqueue_copy(rt.queue, s0, d0)
         cl.enqueue_copy(rt.queue, s1, d1)
