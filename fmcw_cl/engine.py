@@ -78,8 +78,8 @@ class NumpyBackend:
     def resample(self, codes, starts, lengths, u, win):
         return resample.resample(codes, starts, lengths, u, win)
 
-    def measure(self, x, beta, v, model, lo_bin):
-        return pairing.measure(x, beta, v, model, lo_bin)
+    def measure(self, x, beta, v, model, lo_bin, rows=None):
+        return pairing.measure(x, beta, v, model, lo_bin, rows)
 
 
 def make_backend(name: str = "auto", device: str | None = None, warn=None):

@@ -96,10 +96,13 @@ void load(__global const float *ra, __global const float *rb, __global const flo
 
 // A plain (real) half-sweep's spectrum is Hermitian, so plain rows go two to a
 // transform, Z = FFT(a + i b): A_k = (Z_k + conj Z_-k) / 2, B_k = (Z_k - conj Z_-k) / 2i.
-// De-chirped rows are complex: one per transform.
-__kernel void spectrum_peak(__global const float *x,          // (sweeps, points)
-                            const int sweeps,
+// De-chirped rows are complex: one per transform, of the rows listed in `index` when
+// `indexed` (the tracker's later passes re-measure only the pairs whose velocity moved).
+__kernel void spectrum_peak(__global const float *x,          // (rows, points)
+                            const int sweeps,                 // transforms' rows (plain: all)
                             const int points,
+                            __global const int *index,        // de-chirp: row of each sweep
+                            const int indexed,                // 0: sweep s is row s
                             __global const float *beta,       // cycles per m/s, (points,)
                             __global const float *velocity,   // m/s, one per sweep
                             const int dechirp,                // 0: plain spectra, packed
@@ -122,10 +125,10 @@ __kernel void spectrum_peak(__global const float *x,          // (sweeps, points
     const int g = get_group_id(0);
     const int lid = get_local_id(0);
     const int lsz = get_local_size(0);
-    const int s = dechirp ? g : 2 * g;                // first row of this transform
+    const int s = dechirp ? g : 2 * g;                // first sweep of this transform
     const int rows = dechirp || s + 1 == sweeps ? 1 : 2;
     const float v = dechirp ? velocity[s] : 0.0f;
-    __global const float *ra = x + (size_t)s * points;
+    __global const float *ra = x + (size_t)(indexed ? index[s] : s) * points;
     __global const float *rb = rows == 2 ? ra + points : 0;
     // the first radix-4 stage straight from the input: its upper half is the zero
     // padding (points <= nfft / 2), so each butterfly has two inputs

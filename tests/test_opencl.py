@@ -88,6 +88,12 @@ def test_measure_on_device_rows_equals_host_rows(backend):
         a = _measure(backend, rows, beta, vv, 2048, 20)
         b = _measure(backend, rows.get(backend.rt.queue), beta, vv, 2048, 20)
         np.testing.assert_array_equal(a.bin, b.bin)
+    # the tracker's later passes: some rows, in any order, each with its velocity
+    pick = np.array([7, 2, 5])
+    got, _ = k_spectrum.measure(backend.rt, backend.bufs, rows, beta, v[pick], 2048, 20, index=pick)
+    want = _measure(backend, rows.get(backend.rt.queue)[pick], beta, v[pick], 2048, 20)
+    np.testing.assert_array_equal(got.bin, want.bin)
+    np.testing.assert_array_equal(got.snr_db, want.snr_db)
 
 
 def sync_codes(n, half, t0, noise, seed, spikes=0):

@@ -58,8 +58,8 @@ class OpenCLBackend:
     def resample(self, codes, starts, lengths, u, win):
         return k_resample.resample(self.rt, self.bufs, codes, starts, lengths, u, win)
 
-    def measure(self, x, beta, v, model, lo_bin):
-        pk, _ = k_spectrum.measure(self.rt, self.bufs, x, beta, v, model.nfft, lo_bin)
+    def measure(self, x, beta, v, model, lo_bin, rows=None):
+        pk, _ = k_spectrum.measure(self.rt, self.bufs, x, beta, v, model.nfft, lo_bin, index=rows)
         return pk.bin * model.metres_per_bin, pk.snr_db
 
 

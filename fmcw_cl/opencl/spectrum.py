@@ -41,15 +41,21 @@ def local_size(rt: Runtime, nfft: int) -> int:
 
 def measure(rt: Runtime, bufs: Buffers, rows, beta: np.ndarray | None,
             velocity: np.ndarray | None, nfft: int, lo: int, hi: int | None = None,
-            keep_power: bool = False) -> tuple[Peaks, np.ndarray | None]:
+            keep_power: bool = False, index: np.ndarray | None = None
+            ) -> tuple[Peaks, np.ndarray | None]:
     """Peaks of the de-chirped (velocity given) or plain spectra of `rows` (DeviceRows
-    or a host array), and the power spectra (sweeps, nfft/2) when `keep_power`."""
+    or a host array), and the power spectra (sweeps, nfft/2) when `keep_power`.
+    `index` (de-chirp only) picks the rows measured, one velocity each."""
     if not isinstance(rows, DeviceRows):
         host = np.ascontiguousarray(rows, np.float32)
         rows = DeviceRows(bufs, *host.shape)
         if host.size:
             cl.enqueue_copy(rt.queue, rows.buffer, host)
     sweeps, points = rows.shape
+    if index is not None:
+        if velocity is None:
+            raise ValueError("an index selects de-chirped rows only")
+        sweeps = int(np.size(index))
     half = nfft // 2
     hi = half if hi is None else hi
     if sweeps == 0:
@@ -63,7 +69,9 @@ def measure(rt: Runtime, bufs: Buffers, rows, beta: np.ndarray | None,
     lsz = local_size(rt, nfft)
     groups = sweeps if dechirp else (sweeps + 1) // 2    # plain rows: two per transform
     rt.kernel("spectrum", "spectrum_peak")(
-        rt.queue, (groups * lsz,), (lsz,), rows.buffer, np.int32(sweeps), np.int32(points), d_beta,
+        rt.queue, (groups * lsz,), (lsz,), rows.buffer, np.int32(sweeps), np.int32(points),
+        bufs.upload("index", np.asarray(index if index is not None else [0], np.int32)),
+        np.int32(index is not None), d_beta,
         d_v, np.int32(dechirp), bufs.upload_once("tw_re", twr), bufs.upload_once("tw_im", twi),
         bufs.upload_once("perm", perm), np.int32(nfft), np.int32(lo), np.int32(hi),
         np.int32(GUARD_BINS), d_bin, d_snr, d_power, np.int32(keep_power),

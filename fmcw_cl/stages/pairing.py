@@ -29,7 +29,7 @@ SNR_MIN_DB = 10.0     # a half-sweep's peak must stand this far above the floor
 CONSISTENT_MPS = 0.1  # a velocity this far from its neighbours' median is an outlier
 CONVERGED_MPS = 0.05  # final velocity correction must be below this (peak not smeared)
 NEIGHBOURS = 8        # half-width (pairs) of the continuity median
-STOP_MPS = 1e-3       # de-chirp passes end once no pair's de-chirp velocity moves this much
+STOP_MPS = 1e-3       # a pair is re-measured when its de-chirp velocity moves this much
 
 
 @dataclass(frozen=True)
@@ -96,8 +96,11 @@ class PairResult:
 
 
 def measure(x: np.ndarray, beta: np.ndarray, v: np.ndarray | None, model: DopplerModel,
-            lo_bin: int) -> tuple[np.ndarray, np.ndarray]:
-    """Apparent distance (m) and SNR (dB) of half-sweeps de-chirped at velocities v."""
+            lo_bin: int, rows: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Apparent distance (m) and SNR (dB) of half-sweeps de-chirped at velocities v
+    (plain spectra when v is None), of the rows `rows` of x only when given."""
+    if rows is not None:
+        x = x[rows]
     if v is not None:
         x = x * np.exp(-2j * np.pi * np.outer(v, beta))
     pk = find_peaks(power_spectra(x, model.nfft), lo_bin)
@@ -130,36 +133,40 @@ def track_pairs(xr: np.ndarray, xf: np.ndarray, t_rise: np.ndarray, t_fall: np.n
 
     Parameters
     ----------
-    xr, xf : (P, N) resampled, windowed rising and falling half-sweeps of each pair.
+    xr, xf : (P, N) resampled, windowed rising and falling half-sweeps of each pair
+        (or a backend's device-resident equivalent).
     t_rise, t_fall : (P,) centre times of those half-sweeps (s).
     model : the LUT's Doppler model.
     lo_bin : first FFT bin searched (minimum range).
-    iterations : de-chirp passes after the plain first pass, at most: they stop early
-        once the velocities they would de-chirp with next move by less than STOP_MPS
-        (a further pass would repeat this one; a still or slow target needs one).
+    iterations : de-chirp passes after the plain first pass, at most. A pass re-measures
+        only the pairs whose de-chirp velocity moved by STOP_MPS or more since they were
+        last measured (the others would repeat their measurement), and the passes end
+        when none did: a still or slow target needs one.
     dechirp : False gives the paper's method (one plain pass, no fold handling).
     measure : the de-chirp + spectrum + peak step (numpy here; a backend may swap it).
     """
     half_gap = 0.5 * (t_fall - t_rise)
     t_mid = 0.5 * (t_fall + t_rise)
-    v0 = np.zeros(t_mid.size)
-    passes = 1 + (iterations if dechirp else 0)
-    for it in range(passes):
-        vv = v0 if it > 0 else None
-        d_r, s_r = measure(xr, model.beta_rise, vv, model, lo_bin)
-        d_f, s_f = measure(xf, model.beta_fall, vv, model, lo_bin)
-        dist, vel, dv = solve_pair(d_r, d_f, v0, half_gap, model)
-        if it == 0:
-            plain = (d_r, d_f, s_r, s_f)
+    vd = np.zeros(t_mid.size)          # the velocity each pair was last de-chirped with
+    d_r, s_r = measure(xr, model.beta_rise, None, model, lo_bin)
+    d_f, s_f = measure(xf, model.beta_fall, None, model, lo_bin)
+    plain = (d_r.copy(), d_f.copy(), s_r.copy(), s_f.copy())
+    dist, vel, dv = solve_pair(d_r, d_f, vd, half_gap, model)
+    heard = (s_r >= SNR_MIN_DB) & (s_f >= SNR_MIN_DB)
+    for it in range(iterations if dechirp else 0):
+        # the plain first pass smears fast targets: allow 20 % there, not later
+        med = median_filter(vel, size=2 * NEIGHBOURS + 1, mode="nearest")
+        tol = CONSISTENT_MPS + (0.2 * np.abs(med) if it == 0 else 0.0)
+        v_next = regularise(vel, heard & (np.abs(vel - med) < tol), t_mid)
+        moved = np.flatnonzero(np.abs(v_next - vd) >= STOP_MPS) if it else np.arange(vd.size)
+        if moved.size == 0:
+            break
+        vd[moved] = v_next[moved]
+        every = None if moved.size == vd.size else moved
+        d_r[moved], s_r[moved] = measure(xr, model.beta_rise, vd[moved], model, lo_bin, every)
+        d_f[moved], s_f[moved] = measure(xf, model.beta_fall, vd[moved], model, lo_bin, every)
+        dist, vel, dv = solve_pair(d_r, d_f, vd, half_gap, model)
         heard = (s_r >= SNR_MIN_DB) & (s_f >= SNR_MIN_DB)
-        if it + 1 < passes:
-            # the plain first pass smears fast targets: allow 20 % there, not later
-            med = median_filter(vel, size=2 * NEIGHBOURS + 1, mode="nearest")
-            tol = CONSISTENT_MPS + (0.2 * np.abs(med) if it == 0 else 0.0)
-            v_next = regularise(vel, heard & (np.abs(vel - med) < tol), t_mid)
-            if it > 0 and np.max(np.abs(v_next - v0), initial=0.0) < STOP_MPS:
-                break
-            v0 = v_next
     med = median_filter(vel, size=2 * NEIGHBOURS + 1, mode="nearest")
     valid = heard
     if dechirp:
