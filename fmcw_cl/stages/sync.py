@@ -47,8 +47,9 @@ def block_means(x: np.ndarray, factor: int) -> np.ndarray:
 
 @dataclass(frozen=True)
 class Coarse:
-    """Crossings found in the block means: the first block of each new state, the
-    direction, the crossing level and the swing (peak to peak), in codes."""
+    """Crossings found in the block means: where each crossed the level (blocks,
+    interpolated), the direction, the crossing level and the swing (peak to peak),
+    in codes."""
 
     block: np.ndarray
     direction: np.ndarray
@@ -62,7 +63,7 @@ def coarse_crossings(blocks: np.ndarray, level: float | None = None) -> Coarse:
     A 3-block median first removes what averaging left of a glitch.
     """
     if blocks.size < 3:
-        return Coarse(np.zeros(0, np.int64), np.zeros(0, np.int8), 0.0, 0.0)
+        return Coarse(np.zeros(0), np.zeros(0, np.int8), 0.0, 0.0)
     # a triangle's values are uniform between its extremes: the 5 and 95 percentiles
     # give its middle and swing, and unlike the extremes they are not rounded off by
     # the block averaging at the corners
@@ -79,7 +80,15 @@ def coarse_crossings(blocks: np.ndarray, level: float | None = None) -> Coarse:
     np.maximum.accumulate(pos, out=pos)
     state = event[pos]
     flips = np.flatnonzero((state[1:] != state[:-1]) & (state[:-1] != 0)) + 1
-    return Coarse(flips, state[flips], float(level), float(swing))
+    # the hysteresis fires after the crossing: go back to the last change of sign
+    # before it and interpolate there
+    sign = xs > 0
+    change = np.where(np.r_[False, sign[1:] != sign[:-1]], np.arange(b.size), 0)
+    np.maximum.accumulate(change, out=change)
+    j = np.maximum(change[flips], 1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        frac = np.clip(xs[j - 1] / (xs[j - 1] - xs[j]), 0.0, 1.0)
+    return Coarse(j - 1 + np.nan_to_num(frac), state[flips], float(level), float(swing))
 
 
 def fit_half_width(half_period: float) -> int:
