@@ -25,7 +25,34 @@ void sincos_cycles(const float p, float *s, float *c)
     *c = ch * ch - sh * sh;
 }
 
-// The stages of blocks of lb points and smaller (lb = n: the whole transform).
+// One radix-4 decimation-in-frequency butterfly: the 4-point DFT of a0..a3, outputs
+// 1..3 turned by the twiddles w^e, w^2e, w^3e, written to b, b + q, b + 2q, b + 3q.
+void radix4(__local float *re, __local float *im, const int b, const int q, const int e,
+            const float a0r, const float a0i, const float a1r, const float a1i,
+            const float a2r, const float a2i, const float a3r, const float a3i,
+            __global const float *tw_re, __global const float *tw_im)
+{
+    const float s02r = a0r + a2r, s02i = a0i + a2i;
+    const float d02r = a0r - a2r, d02i = a0i - a2i;
+    const float s13r = a1r + a3r, s13i = a1i + a3i;
+    const float d13r = a1r - a3r, d13i = a1i - a3i;
+    const float y1r = d02r + d13i, y1i = d02i - d13r;    // d02 - i d13
+    const float y2r = s02r - s13r, y2i = s02i - s13i;
+    const float y3r = d02r - d13i, y3i = d02i + d13r;    // d02 + i d13
+    const float w1r = tw_re[e], w1i = tw_im[e];
+    const float w2r = tw_re[2 * e], w2i = tw_im[2 * e];
+    const float w3r = tw_re[3 * e], w3i = tw_im[3 * e];
+    re[b] = s02r + s13r;
+    im[b] = s02i + s13i;
+    re[b + q] = y1r * w1r - y1i * w1i;
+    im[b + q] = y1r * w1i + y1i * w1r;
+    re[b + 2 * q] = y2r * w2r - y2i * w2i;
+    im[b + 2 * q] = y2r * w2i + y2i * w2r;
+    re[b + 3 * q] = y3r * w3r - y3i * w3i;
+    im[b + 3 * q] = y3r * w3i + y3i * w3r;
+}
+
+// The stages of blocks of lb points and smaller (lb = n: the whole transform), in place.
 void fft_dif(__local float *re, __local float *im, const int n, int lb,
              __global const float *tw_re, __global const float *tw_im)  // exp(-2 pi i m / n), m < n
 {
@@ -37,29 +64,8 @@ void fft_dif(__local float *re, __local float *im, const int n, int lb,
         for (int t = lid; t < (n >> 2); t += lsz) {
             const int j = t & (q - 1);
             const int b = ((t - j) << 2) + j;
-            const float a0r = re[b], a0i = im[b];
-            const float a1r = re[b + q], a1i = im[b + q];
-            const float a2r = re[b + 2 * q], a2i = im[b + 2 * q];
-            const float a3r = re[b + 3 * q], a3i = im[b + 3 * q];
-            const float s02r = a0r + a2r, s02i = a0i + a2i;
-            const float d02r = a0r - a2r, d02i = a0i - a2i;
-            const float s13r = a1r + a3r, s13i = a1i + a3i;
-            const float d13r = a1r - a3r, d13i = a1i - a3i;
-            const float y1r = d02r + d13i, y1i = d02i - d13r;    // d02 - i d13
-            const float y2r = s02r - s13r, y2i = s02i - s13i;
-            const float y3r = d02r - d13i, y3i = d02i + d13r;    // d02 + i d13
-            const int e = j * step;
-            const float w1r = tw_re[e], w1i = tw_im[e];
-            const float w2r = tw_re[2 * e], w2i = tw_im[2 * e];
-            const float w3r = tw_re[3 * e], w3i = tw_im[3 * e];
-            re[b] = s02r + s13r;
-            im[b] = s02i + s13i;
-            re[b + q] = y1r * w1r - y1i * w1i;
-            im[b + q] = y1r * w1i + y1i * w1r;
-            re[b + 2 * q] = y2r * w2r - y2i * w2i;
-            im[b + 2 * q] = y2r * w2i + y2i * w2r;
-            re[b + 3 * q] = y3r * w3r - y3i * w3i;
-            im[b + 3 * q] = y3r * w3i + y3i * w3r;
+            radix4(re, im, b, q, j * step, re[b], im[b], re[b + q], im[b + q],
+                   re[b + 2 * q], im[b + 2 * q], re[b + 3 * q], im[b + 3 * q], tw_re, tw_im);
         }
         barrier(CLK_LOCAL_MEM_FENCE);
     }
@@ -137,20 +143,7 @@ __kernel void spectrum_peak(__global const float *x,          // (rows, points)
         float a0r = 0.0f, a0i = 0.0f, a1r = 0.0f, a1i = 0.0f;
         if (j < points) load(ra, rb, beta, v, dechirp, j, &a0r, &a0i);
         if (j + q < points) load(ra, rb, beta, v, dechirp, j + q, &a1r, &a1i);
-        const float y1r = a0r + a1i, y1i = a0i - a1r;     // a0 - i a1
-        const float y2r = a0r - a1r, y2i = a0i - a1i;
-        const float y3r = a0r - a1i, y3i = a0i + a1r;     // a0 + i a1
-        const float w1r = tw_re[j], w1i = tw_im[j];
-        const float w2r = tw_re[2 * j], w2i = tw_im[2 * j];
-        const float w3r = tw_re[3 * j], w3i = tw_im[3 * j];
-        re[j] = a0r + a1r;
-        im[j] = a0i + a1i;
-        re[j + q] = y1r * w1r - y1i * w1i;
-        im[j + q] = y1r * w1i + y1i * w1r;
-        re[j + 2 * q] = y2r * w2r - y2i * w2i;
-        im[j + 2 * q] = y2r * w2i + y2i * w2r;
-        re[j + 3 * q] = y3r * w3r - y3i * w3i;
-        im[j + 3 * q] = y3r * w3i + y3i * w3r;
+        radix4(re, im, j, q, j, a0r, a0i, a1r, a1i, 0.0f, 0.0f, 0.0f, 0.0f, tw_re, tw_im);
     }
     barrier(CLK_LOCAL_MEM_FENCE);
     fft_dif(re, im, nfft, q, tw_re, tw_im);
