@@ -4,7 +4,7 @@
 
 A 1 s static capture is simulated once (20 000 whole periods) and tiled into longer
 captures (the tiles join seamlessly: whole periods, same target). Each conversion runs
-in a fresh process whose peak resident memory (ru_maxrss) is read back. Prints a
+in a fresh process whose peak resident memory (VmHWM) is read back. Prints a
 Markdown table: time should grow linearly with length, memory stay flat.
 """
 
@@ -23,14 +23,21 @@ import h5py
 from fmcw_cl.capture import Capture, CaptureWriter
 from fmcw_cl.simulate import simulate_capture, static
 
+# Peak memory: VmHWM of the process's own address space. ru_maxrss would not do: Linux
+# carries the parent's high-water mark through fork and exec, and the parent holds the
+# simulated capture.
 CHILD = """
 import json, resource, sys, time
 from fmcw_cl.engine import make_backend, process
 t = time.perf_counter()
 track = process(sys.argv[1], backend=make_backend(sys.argv[2]))
+try:
+    status = open("/proc/self/status").read()
+    peak_kb = int(status.split("VmHWM:")[1].split()[0])
+except (OSError, IndexError):
+    peak_kb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
 print(json.dumps({"seconds": time.perf_counter() - t, "pairs": track.pairs,
-                  "valid": float(track.valid.mean()),
-                  "rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}))
+                  "valid": float(track.valid.mean()), "rss_mb": peak_kb / 1024}))
 """
 
 
