@@ -185,3 +185,13 @@ def test_lpf_kernel_matches_numpy(backend, n):
     got = backend.intensity(codes, 100e6)
     assert got[0].shape == ref[0].shape and got[1:] == ref[1:]
     assert np.all(np.abs(got[0] - ref[0]) < 1e-3)     # codes; float32 sums of 73 taps
+
+
+def test_kernels_build_without_warnings(backend):
+    """Every program builds with -Werror: a program built with warnings can come back
+    from PoCL's kernel cache without its kernels (shared notes, pitfall 3)."""
+    import pyopencl as cl
+    from fmcw_cl.kernels import source
+
+    for name in backend.programs:
+        cl.Program(backend.rt.context, source(name)).build(options=["-cl-std=CL1.2", "-Werror"])
