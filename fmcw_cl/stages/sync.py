@@ -161,13 +161,16 @@ def crossings(x: np.ndarray, half_period: float, level: float | None = None,
     factor = block_length(half_period)
     co = coarse_crossings(means(x, factor), level)
     guess = co.block * factor + 0.5 * (factor - 1)
+    fitted = np.full(guess.size, -1)        # centre of each crossing's last fit
     for _ in range(2):
         centre = np.rint(np.nan_to_num(guess, nan=-1.0)).astype(np.int64)
         ok = np.isfinite(guess) & (centre - half >= 2) & (centre + half < x.size - 2)
-        guess = np.full(guess.size, np.nan)
-        if np.any(ok):
-            s0, s1 = sums(x, centre[ok], half, SPIKE * co.swing)
-            guess[ok] = line_fit_crossing(s0, s1, centre[ok], half, co.level)
+        guess[~ok] = np.nan
+        redo = ok & (centre != fitted)       # a fit on the same centre would repeat itself
+        if np.any(redo):
+            s0, s1 = sums(x, centre[redo], half, SPIKE * co.swing)
+            guess[redo] = line_fit_crossing(s0, s1, centre[redo], half, co.level)
+            fitted[redo] = centre[redo]
     keep = np.isfinite(guess)
     return Crossings(guess[keep], co.direction[keep])
 
