@@ -341,7 +341,8 @@ def check_tuning(cap: Capture, plan: Plan, track: Track) -> None:
     sign that the laser's real chirp has left its G(I) table or its calibration."""
     from .refine import WIDTH_LIMIT, peak_width_ratio, stillest
 
-    ratio = peak_width_ratio(cap, plan, stillest(track.time_s, track.velocity_mps))
+    ratio = peak_width_ratio(cap, plan, stillest(track.time_s, track.velocity_mps),
+                             track.time_s, track.velocity_mps)
     track.attrs["tuning_peak_width_ratio"] = ratio
     track.attrs["tuning_matches"] = bool(not ratio > WIDTH_LIMIT)
 

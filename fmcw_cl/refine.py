@@ -114,10 +114,17 @@ def stillest(time_s: np.ndarray, velocity_mps: np.ndarray, pairs: int = WIDTH_PE
     return float(time_s[int(np.argmin(run))])
 
 
-def peak_width_ratio(cap: Capture, plan, t0_s: float) -> float:
-    """Median half-power width of the plain peaks of WIDTH_PERIODS periods from `t0_s`,
-    over that of the window's own peak: about 1 when the LUT matches the laser's real
-    chirp, more when the tuning has moved away from the table or calibration."""
+def peak_width_ratio(cap: Capture, plan, t0_s: float, time_s: np.ndarray | None = None,
+                     velocity_mps: np.ndarray | None = None) -> float:
+    """Median half-power width of the peaks of WIDTH_PERIODS periods from `t0_s`, over
+    that of the window's own peak: about 1 when the LUT matches the laser's real chirp,
+    more when the tuning has moved away from the table or calibration.
+
+    With a track's velocities (`time_s`, `velocity_mps`) each half-sweep is de-chirped
+    at its pair's velocity first, so that a target that never stands still (a capture
+    of a take-off alone) does not widen its peaks through the Doppler term; the tuning
+    error is not velocity-dependent and still shows.
+    """
     from .stages import resample, spectrum, sync
 
     info = cap.info
@@ -126,13 +133,22 @@ def peak_width_ratio(cap: Capture, plan, t0_s: float) -> float:
     beat, sy = cap.read(a, a + int((WIDTH_PERIODS + 2) * spp))
     hs = sync.half_sweeps(sync.sync_turning_points(sy, spp / 2), plan.lag)
     fits = resample.inside(hs.start, hs.length, plan.lut, beat.size)
+    known = None
+    if time_s is not None and velocity_mps is not None:
+        known = np.isfinite(velocity_mps)
     nfft = plan.model.nfft
     widths = []
     for rising in (True, False):
         sel = fits & (hs.rising == rising)
-        if sel.any():
-            x = resample.resample(beat, hs.start[sel], hs.length[sel], plan.lut.u(rising), plan.window)
-            widths.append(_widths(spectrum.power_spectra(x, nfft), plan.lo_bin))
+        if not sel.any():
+            continue
+        x = resample.resample(beat, hs.start[sel], hs.length[sel], plan.lut.u(rising), plan.window)
+        if known is not None and known.any():
+            t = (a + hs.centre[sel]) / info.sample_rate_hz
+            v = np.interp(t, time_s[known], velocity_mps[known])
+            beta = plan.model.beta_rise if rising else plan.model.beta_fall
+            x = x * np.exp(-2j * np.pi * np.outer(v, beta))
+        widths.append(_widths(spectrum.power_spectra(x, nfft), plan.lo_bin))
     if not widths:
         return float("nan")
     j = np.arange(plan.lut.points)
