@@ -82,6 +82,7 @@ def refine_lag(cap: Capture, plan):
 
 WIDTH_PERIODS = 100       # periods whose peaks are measured by the tuning check
 WIDTH_LIMIT = 1.1         # peaks this much wider than the window's own say: tuning mismatch
+STILL_MPS = 0.05          # a stretch this slow is measured from plain peaks
 
 
 def _widths(power: np.ndarray, lo: int) -> np.ndarray:
@@ -120,10 +121,11 @@ def peak_width_ratio(cap: Capture, plan, t0_s: float, time_s: np.ndarray | None 
     that of the window's own peak: about 1 when the LUT matches the laser's real chirp,
     more when the tuning has moved away from the table or calibration.
 
-    With a track's velocities (`time_s`, `velocity_mps`) each half-sweep is de-chirped
-    at its pair's velocity first, so that a target that never stands still (a capture
-    of a take-off alone) does not widen its peaks through the Doppler term; the tuning
-    error is not velocity-dependent and still shows.
+    Plain peaks of a still stretch are the most sensitive. Where even the stillest
+    stretch moves (median |v| over STILL_MPS in the track given by `time_s`,
+    `velocity_mps`: a capture of a take-off alone), each half-sweep is de-chirped at its
+    pair's velocity first, so that the Doppler term does not widen its peak; a tuning
+    error still does, a little less where it has biased the velocity itself.
     """
     from .stages import resample, spectrum, sync
 
@@ -136,6 +138,9 @@ def peak_width_ratio(cap: Capture, plan, t0_s: float, time_s: np.ndarray | None 
     known = None
     if time_s is not None and velocity_mps is not None:
         known = np.isfinite(velocity_mps)
+        span = known & (time_s >= a / info.sample_rate_hz) & (time_s < (a + beat.size) / info.sample_rate_hz)
+        if not span.any() or np.median(np.abs(velocity_mps[span])) <= STILL_MPS:
+            known = None
     nfft = plan.model.nfft
     widths = []
     for rising in (True, False):
