@@ -38,3 +38,8 @@ def command(seconds, points, backend, device, as_json):
                    f"{r['msamples_per_s']:8.1f} {r['real_time_multiple']:12.3f}")
     for dev in dict.fromkeys(r["device"] for r in rows):
         click.echo(f"device: {dev}")
+    seconds_of = {(r["backend"], r["stage"]): r["seconds"] for r in rows}
+    for stage in ("end to end (file to track)", "end to end, paper's method"):
+        if ("numpy", stage) in seconds_of and ("opencl", stage) in seconds_of:
+            click.echo(f"{stage}: OpenCL {seconds_of[('numpy', stage)] / seconds_of[('opencl', stage)]:.2f}x "
+                       "faster than numpy")

@@ -7,6 +7,7 @@ import re
 
 import h5py
 import numpy as np
+import pytest
 
 from fmcw_cl.track import read_track
 
@@ -81,3 +82,19 @@ def test_quick_start_sample_converts_without_warnings(tmp_path, fmcw):
     assert "warning" not in proc.stdout + proc.stderr
     track = read_track(next(tmp_path.glob("*.h5")))
     assert track.attrs["tuning_matches"] and track.valid.all()
+
+
+def test_bench_rows_for_both_backends(fmcw):
+    """`bench --json`: every stage for each backend, with the device and figures that
+    agree with each other (a benchmark, so no speed is asserted)."""
+    rows = json.loads(fmcw("bench", "--seconds", "0.01", "--json").stdout)
+    stages = {r["stage"] for r in rows}
+    assert {"sync turning points", "resample", "de-chirp + FFT + peak",
+            "end to end (file to track)"} <= stages
+    for backend in ("numpy", "opencl"):
+        mine = [r for r in rows if r["backend"] == backend]
+        assert len(mine) == len(stages)
+        for r in mine:
+            assert r["seconds"] > 0 and r["device"]
+            assert r["real_time_multiple"] == pytest.approx(0.01 / r["seconds"])
+            assert r["half_sweeps_per_s"] == pytest.approx(r["real_time_multiple"] * 40_000, rel=0.01)
