@@ -195,3 +195,22 @@ def test_kernels_build_without_warnings(backend):
 
     for name in backend.programs:
         cl.Program(backend.rt.context, source(name)).build(options=["-cl-std=CL1.2", "-Werror"])
+
+
+def test_transform_too_large_for_local_memory_runs_on_the_host(backend, monkeypatch):
+    """A device whose local memory cannot hold the transform (a GPU's 48 KB and the
+    8192-point range check of --points 2048): that stage falls back to the numpy twin,
+    with the same peaks."""
+    from fmcw_cl.stages import pairing
+
+    rng = np.random.default_rng(2)
+    codes = rng.integers(-2000, 2000, 40_001).astype(np.int16)
+    rows = backend.resample(codes, rng.uniform(2, 30_000, 5), np.full(5, 2500.0),
+                            np.linspace(0, 1, 1000), resample.window(1000))
+    model = pairing.DopplerModel(np.zeros(1000), np.zeros(1000), 0.0, 0.0, 1e-3, 2048)
+    on_device = backend.measure(rows, None, None, model, 20)
+    assert k_spectrum.fits(backend.rt, 2048)
+    monkeypatch.setattr(k_spectrum, "fits", lambda rt, nfft: False)
+    on_host = backend.measure(rows, None, None, model, 20)
+    np.testing.assert_allclose(on_device[0], on_host[0], atol=1e-6)
+    assert k_spectrum.local_bytes(backend.rt, 8192) > 48 * 1024 >= k_spectrum.local_bytes(backend.rt, 4096)

@@ -10,12 +10,12 @@ import functools
 
 import numpy as np
 
-from ..stages import sync
+from ..stages import pairing, sync
 from . import lpf as k_lpf
 from . import resample as k_resample
 from . import spectrum as k_spectrum
 from . import sync as k_sync
-from .buffers import Buffers
+from .buffers import Buffers, DeviceRows
 from .context import runtime
 
 
@@ -59,6 +59,10 @@ class OpenCLBackend:
         return k_resample.resample(self.rt, self.bufs, codes, starts, lengths, u, win)
 
     def measure(self, x, beta, v, model, lo_bin, rows=None):
+        if not k_spectrum.fits(self.rt, model.nfft):
+            # a transform larger than the device's local memory: the numpy twin
+            host = x.get(self.rt.queue) if isinstance(x, DeviceRows) else x
+            return pairing.measure(host, beta, v, model, lo_bin, rows)
         pk, _ = k_spectrum.measure(self.rt, self.bufs, x, beta, v, model.nfft, lo_bin, index=rows)
         return pk.bin * model.metres_per_bin, pk.snr_db
 

@@ -39,6 +39,17 @@ def local_size(rt: Runtime, nfft: int) -> int:
     return min(rt.group_size(16, 256), nfft // 4)
 
 
+def local_bytes(rt: Runtime, nfft: int) -> int:
+    """Local memory one work-group of `spectrum_peak` needs for an nfft-point transform."""
+    return 4 * (2 * nfft + nfft // 2) + 12 * local_size(rt, nfft)
+
+
+def fits(rt: Runtime, nfft: int) -> bool:
+    """Whether an nfft-point transform fits in the device's local memory (a GPU's 48 KB
+    holds 4096 points; 8192, the range check at --points 2048, needs 80 KB)."""
+    return local_bytes(rt, nfft) <= rt.device.local_mem_size
+
+
 def measure(rt: Runtime, bufs: Buffers, rows, beta: np.ndarray | None,
             velocity: np.ndarray | None, nfft: int, lo: int, hi: int | None = None,
             keep_power: bool = False, index: np.ndarray | None = None
