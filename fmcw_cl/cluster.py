@@ -47,7 +47,7 @@ def _backend(name: str, device: str | None):
 
 # Dask starts workers with MALLOC_TRIM_THRESHOLD_=65536, which also turns off glibc's
 # adaptive mmap threshold: every array over 128 KB is then mapped and unmapped afresh, and
-# a conversion (many chunk-sized temporaries) ran 1.7x slower in a worker than alone.
+# a conversion (many chunk-sized temporaries) ran 1.6x slower in a worker than alone.
 # Heap reuse up to 32 MB arrays and trimming beyond 256 MB restore the plain speed.
 WORKER_MALLOC = {"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": 256 << 20,
                  "distributed.nanny.pre-spawn-environ.MALLOC_MMAP_THRESHOLD_": 32 << 20}
