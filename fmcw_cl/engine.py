@@ -39,7 +39,7 @@ class Options:
     min_range_m: float = 0.03     # peaks below are ignored (DC, intensity ramp, lens)
     dechirp: bool = True          # False: the paper's method alone
     iterations: int = 6           # de-chirp passes
-    chunk_periods: int = 1024     # modulation periods per chunk core (peak memory ~0.6 GB)
+    chunk_periods: int = 1024     # modulation periods per chunk core (peak memory ~0.35 GB)
     context_periods: int = 64     # periods of context on each side of a core
     range_check: bool = True      # flag targets beyond the unambiguous range (2N resampling)
     chirp: str | None = None      # a calibration file (fmcw-cl calibrate) instead of G(I)
@@ -85,8 +85,8 @@ class NumpyBackend:
 def make_backend(name: str = "auto", device: str | None = None, warn=None):
     """The stage implementation: "numpy", "opencl", or "auto".
 
-    "auto" takes OpenCL whenever a device is there (on PoCL, the CPU, it measured about
-    3x faster end to end than numpy; see benchmarks/README.md). A failing OpenCL (no
+    "auto" takes OpenCL whenever a device is there (on PoCL, the CPU, it measured 2.4-3x
+    faster end to end than numpy; see benchmarks/README.md). A failing OpenCL (no
     platform, a kernel that does not build) falls back to numpy with a one-line warning
     through `warn`; "opencl" forces it and fails loudly.
     """
@@ -177,7 +177,7 @@ def make_plan(cap: Capture, options: Options, lag: float | None = None, backend=
 
 def fit_chunks(options: Options, info: CaptureInfo, backend=None) -> Options:
     """The options with chunks (core and context) no larger than the backend's device
-    holds; numpy's are bounded by the default itself (about 0.6 GB)."""
+    holds; numpy's are bounded by the default itself (about 0.35 GB)."""
     limit = getattr(backend, "chunk_periods", None)
     if limit is None:
         return options
