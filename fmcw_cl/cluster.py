@@ -70,13 +70,18 @@ def connect(scheduler: str):
     return Client(scheduler)
 
 
+def _written(capture: str, out: str, track) -> dict:
+    """Write `track` to `out`; the result record run_batch yields for it."""
+    write_track(out, track)
+    return {"capture": capture, "track": out, "attrs": track.attrs, "valid": track.valid,
+            "pairs": track.pairs}
+
+
 def _convert(capture: str, out: str, options: Options, backend: str, device: str | None) -> dict:
     """Task: one whole capture to its track file (or the error, as data)."""
     try:
         track = process(capture, options, _backend(backend, device))
-        write_track(out, track)
-        return {"capture": capture, "track": out, "attrs": track.attrs, "valid": track.valid,
-                "pairs": track.pairs}
+        return _written(capture, out, track)
     except FmcwError as exc:
         return {"capture": capture, "error": str(exc)}
 
@@ -176,9 +181,7 @@ def _collect(client, jobs: dict, samples: dict, refused: list, backend: str, dev
             track = assemble(plan, parts, _Made(*got[0][1:]), time.perf_counter() - started)
             with Capture(cap) as c:
                 check_tuning(c, plan, track)
-            write_track(out, track)
-            value = {"capture": str(cap), "track": out, "attrs": track.attrs, "valid": track.valid,
-                     "pairs": track.pairs}
+            value = _written(str(cap), out, track)
         n, fs = samples[str(cap)]
         done += n
         if progress:

@@ -240,8 +240,9 @@ def _chunk_pairs(plan: Plan, chunk, backend) -> _Pairs | None:
     own = (first >= chunk.core_start) & (first < chunk.core_stop)
     sel = pairing.PairResult(*(getattr(res, k)[own] for k in res.__dataclass_fields__))
     r, f = r[own], f[own]
-    clip = (faults.clipped(chunk.beat, hs.start[r], hs.length[r], info.full_scale)
-            | faults.clipped(chunk.beat, hs.start[f], hs.length[f], info.full_scale))
+    # the falling half-sweep starts where the rising one ends: one span per pair
+    clip = faults.clipped(chunk.beat, hs.start[r], hs.start[f] + hs.length[f] - hs.start[r],
+                          info.full_scale)
     alias = np.zeros(r.size, bool)
     if plan.check is not None and r.size:
         alias = _beyond_range(plan, chunk.beat, hs, r, f, backend)

@@ -52,8 +52,7 @@ class OpenCLBackend:
         return k_lpf.intensity(self.rt, self.bufs, codes, sample_rate_hz)
 
     def turning_points(self, codes, half_period):
-        cr = sync.crossings(codes, half_period, means=self._means, sums=self._sums)
-        return sync.turning_points(cr, half_period)
+        return sync.sync_turning_points(codes, half_period, self._means, self._sums)
 
     def resample(self, codes, starts, lengths, u, win):
         return k_resample.resample(self.rt, self.bufs, codes, starts, lengths, u, win)

@@ -82,9 +82,9 @@ def measure(rt: Runtime, bufs: Buffers, rows, beta: np.ndarray | None,
     rt.kernel("spectrum", "spectrum_peak")(
         rt.queue, (groups * lsz,), (lsz,), rows.buffer, np.int32(sweeps), np.int32(points),
         bufs.upload("index", np.asarray(index if index is not None else [0], np.int32)),
-        np.int32(index is not None), d_beta,
-        d_v, np.int32(dechirp), bufs.upload_once("tw_re", twr), bufs.upload_once("tw_im", twi),
-        bufs.upload_once("perm", perm), np.int32(nfft), np.int32(lo), np.int32(hi),
+        np.int32(index is not None), d_beta, d_v, np.int32(dechirp),
+        bufs.upload_once(f"tw_re{nfft}", twr), bufs.upload_once(f"tw_im{nfft}", twi),
+        bufs.upload_once(f"perm{nfft}", perm), np.int32(nfft), np.int32(lo), np.int32(hi),
         np.int32(GUARD_BINS), d_bin, d_snr, d_power, np.int32(keep_power),
         cl.LocalMemory(4 * nfft), cl.LocalMemory(4 * nfft), cl.LocalMemory(4 * half),
         cl.LocalMemory(12 * lsz))

@@ -57,6 +57,13 @@ class Coarse:
     swing: float
 
 
+def _last_true(mask: np.ndarray) -> np.ndarray:
+    """For each position, the index of the last True at or before it (0 if none)."""
+    pos = np.where(mask, np.arange(mask.size), 0)
+    np.maximum.accumulate(pos, out=pos)
+    return pos
+
+
 def coarse_crossings(blocks: np.ndarray, level: float | None = None) -> Coarse:
     """Mid-level crossings of the block means, with a hysteresis of 10 % of the swing.
 
@@ -76,16 +83,12 @@ def coarse_crossings(blocks: np.ndarray, level: float | None = None) -> Coarse:
     b[1:-1] = np.maximum(np.minimum(p, q), np.minimum(np.maximum(p, q), r))   # median of 3
     xs = b - level
     event = np.where(xs > hyst, 1, np.where(xs < -hyst, -1, 0)).astype(np.int8)
-    pos = np.where(event != 0, np.arange(b.size), 0)
-    np.maximum.accumulate(pos, out=pos)
-    state = event[pos]
+    state = event[_last_true(event != 0)]
     flips = np.flatnonzero((state[1:] != state[:-1]) & (state[:-1] != 0)) + 1
     # the hysteresis fires after the crossing: go back to the last change of sign
     # before it and interpolate there
     sign = xs > 0
-    change = np.where(np.r_[False, sign[1:] != sign[:-1]], np.arange(b.size), 0)
-    np.maximum.accumulate(change, out=change)
-    j = np.maximum(change[flips], 1)
+    j = np.maximum(_last_true(np.r_[False, sign[1:] != sign[:-1]])[flips], 1)
     with np.errstate(divide="ignore", invalid="ignore"):
         frac = np.clip(xs[j - 1] / (xs[j - 1] - xs[j]), 0.0, 1.0)
     return Coarse(j - 1 + np.nan_to_num(frac), state[flips], float(level), float(swing))
@@ -229,9 +232,11 @@ def turning_points(cr: Crossings, half_period: float) -> TurningPoints:
     return TurningPoints(fitted, is_max[idx], seg.astype(np.int64))
 
 
-def sync_turning_points(sync: np.ndarray, half_period: float) -> TurningPoints:
-    """Turning points of the sync channel (higher code = higher current)."""
-    return turning_points(crossings(sync, half_period), half_period)
+def sync_turning_points(sync: np.ndarray, half_period: float, means=block_means,
+                        sums=line_fit_sums) -> TurningPoints:
+    """Turning points of the sync channel (higher code = higher current); `means` and
+    `sums` as in `crossings`."""
+    return turning_points(crossings(sync, half_period, means=means, sums=sums), half_period)
 
 
 MAX_DELAY_SAMPLES = 400  # search range of the sync-to-optics delay
