@@ -11,16 +11,42 @@ from fmcw_cl.progress import Progress
 from fmcw_cl.simulate import SCENARIOS, SimulationConfig, simulate_capture
 
 
+def parse_reflector(text: str) -> tuple[float, float]:
+    """DIST:AMPLITUDE (metres, ADC codes) of --reflector."""
+    try:
+        dist, amp = (float(x) for x in text.split(":"))
+    except ValueError:
+        raise click.BadParameter(f"{text!r} is not DIST:AMPLITUDE (e.g. 0.42:800)",
+                                 param_hint="--reflector") from None
+    if dist <= 0 or amp < 0:
+        raise click.BadParameter(f"{text!r}: the distance must be > 0 m and the amplitude >= 0",
+                                 param_hint="--reflector")
+    return dist, amp
+
+
 @click.command("simulate")
 @click.argument("scenario", type=click.Choice(sorted(SCENARIOS)))
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, path_type=Path))
 @click.option("--duration", default=None, type=float,
               help="Seconds of capture [default: static 0.05, rail 0.4, jump 0.3].")
 @click.option("--seed", default=0, show_default=True, help="Seed of every random draw.")
-@click.option("--distance", default=0.3, show_default=True, help="static: target distance (m).")
+@click.option("--distance", default=None, type=float,
+              help="static: target distance (m) [0.3]; jump: the ground's distance (m) [0.07].")
 @click.option("--start", default=0.0, show_default=True,
               help="Scenario time (s) at the capture's first sample (for excerpts).")
 @click.option("--noise", default=None, type=float, help="Beat noise, rms ADC codes [25].")
+@click.option("--snr-db", default=None, type=float,
+              help="The target's per-sample SNR (dB) at 0.3 m, mid-sweep; sets the beat noise "
+                   "instead of --noise (a lab's diffuse target: about 0 dB).")
+@click.option("--reflector", "reflectors", multiple=True, metavar="DIST:AMPLITUDE",
+              help="A static echo (a wall, a window) at DIST metres with a beat amplitude of "
+                   "AMPLITUDE ADC codes at 320 mA (the target's is 500 at 0.3 m); repeatable.")
+@click.option("--speckle-ms", default=0.0, show_default=True,
+              help="Speckle fading of the target's echo: Rayleigh amplitude, correlation time (ms).")
+@click.option("--table-noise-mhz", default=None, type=float,
+              help="rms scatter of the offline G(I) table (MHz) [5; an OSA's: 20].")
+@click.option("--rin-db-hz", default=None, type=float,
+              help="Relative intensity noise of the laser (dB/Hz, e.g. -140) [none].")
 @click.option("--sync-delay", default=None, type=float,
               help="Samples the sync lags the optics [drawn from the seed in +-40].")
 @click.option("--thermal-lag-us", default=0.0, show_default=True,
@@ -28,21 +54,31 @@ from fmcw_cl.simulate import SCENARIOS, SimulationConfig, simulate_capture
                    "keeps the static G(I) table, as a lab would.")
 @click.option("--compress", is_flag=True, help="gzip the ADC channels (small files, slow reads).")
 @click.option("-q", "--quiet", is_flag=True, help="No progress.")
-def command(scenario, output, duration, seed, distance, start, noise, sync_delay, thermal_lag_us, compress,
-            quiet):
+def command(scenario, output, duration, seed, distance, start, noise, snr_db, reflectors, speckle_ms,
+            table_noise_mhz, rin_db_hz, sync_delay, thermal_lag_us, compress, quiet):
     """Simulate SCENARIO (static, rail or jump) into a capture file.
 
     \b
     Example:
       fmcw-cl simulate jump -o jump.h5 --duration 0.3 --seed 1
       fmcw-cl simulate static -o static.h5 --distance 0.25
+      fmcw-cl simulate jump -o wall.h5 --snr-db 0 --reflector 0.42:800 --speckle-ms 3
     """
     duration = duration or {"static": 0.05, "rail": 0.4, "jump": 0.3}[scenario]
-    kwargs = {"distance": distance} if scenario == "static" else {}
+    kwargs = {}
+    if distance is not None:
+        if scenario == "rail":
+            raise click.BadParameter("the rail has no --distance", param_hint="--distance")
+        kwargs = {"distance" if scenario == "static" else "ground_m": distance}
     trajectory = SCENARIOS[scenario](duration + start, **kwargs)
-    cfg = SimulationConfig()
+    cfg = SimulationConfig(reflectors=tuple(parse_reflector(r) for r in reflectors),
+                           speckle_s=speckle_ms * 1e-3, snr_db=snr_db, rin_db_hz=rin_db_hz)
     if noise is not None:
+        if snr_db is not None:
+            raise click.BadParameter("give --noise or --snr-db, not both", param_hint="--snr-db")
         cfg = replace(cfg, noise_codes=noise)
+    if table_noise_mhz is not None:
+        cfg = replace(cfg, table_noise_hz=table_noise_mhz * 1e6)
     if sync_delay is not None:
         cfg = replace(cfg, sync_delay_samples=sync_delay)
     if thermal_lag_us:

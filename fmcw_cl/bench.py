@@ -54,15 +54,15 @@ def _stage_rows(be, path: Path, opts: Options, seconds: float) -> list[dict]:
 
     def kernels():
         y = be.resample(beat, starts, lengths, plan.lut.u_fall, plan.window)
-        be.measure(y, m.beta_fall, None, m, plan.lo_bin)
+        be.measure(y, m.beta_fall, None, m, plan.search)
 
     stages = {
         "read (HDF5)": read,
         "low-pass (sync delay)": lambda: be.intensity(beat, info.sample_rate_hz),
         "sync turning points": lambda: be.turning_points(sy, hp),
         "resample": lambda: be.resample(beat, starts, lengths, plan.lut.u_fall, plan.window),
-        "FFT + peak": lambda: be.measure(x, m.beta_fall, None, m, plan.lo_bin),
-        "de-chirp + FFT + peak": lambda: be.measure(x, m.beta_fall, v, m, plan.lo_bin),
+        "FFT + peak": lambda: be.measure(x, m.beta_fall, None, m, plan.search),
+        "de-chirp + FFT + peak": lambda: be.measure(x, m.beta_fall, v, m, plan.search),
         "resample + FFT + peak": kernels,
         "end to end, paper's method": lambda: process(path, Options(dechirp=False), be),
         "end to end (file to track)": lambda: process(path, opts, be),

@@ -17,11 +17,13 @@ from pathlib import Path
 
 import numpy as np
 
-from . import __version__
+from . import __version__, echoes
 from .capture import Capture, CaptureInfo
 from .errors import CaptureError, FmcwError
-from .stages import faults, kinematics, lpf, pairing, resample, spectrum, sync
+from .stages import cfar, faults, kinematics, lpf, pairing, resample, spectrum, sync
+from .stages.cfar import Detections
 from .stages.lut import Lut, build_lut
+from .stages.spectrum import Search
 from .track import Track
 
 DELAY_STRETCHES = 6           # stretches of the capture used to estimate the sync delay
@@ -37,6 +39,7 @@ class Options:
 
     points: int = 1000            # resampling intervals per half-sweep
     min_range_m: float = 0.03     # peaks below are ignored (DC, intensity ramp, lens)
+    max_range_m: float | None = None   # peaks beyond are ignored (a wall behind the target)
     dechirp: bool = True          # False: the paper's method alone
     iterations: int = 6           # de-chirp passes
     chunk_periods: int = 1024     # modulation periods per chunk core (peak memory ~0.35 GB)
@@ -54,7 +57,7 @@ class Plan:
     lut: Lut
     window: np.ndarray
     model: pairing.DopplerModel
-    lo_bin: int
+    search: Search      # the band and rule of the tracked peak
     lag: float          # samples the sync lags the optics
     lag_periods: int    # periods that voted for it
     lag_misfit: float   # rms misfit of those periods' triangles (clean: < 0.2)
@@ -78,8 +81,8 @@ class NumpyBackend:
     def resample(self, codes, starts, lengths, u, win):
         return resample.resample(codes, starts, lengths, u, win)
 
-    def measure(self, x, beta, v, model, lo_bin, rows=None):
-        return pairing.measure(x, beta, v, model, lo_bin, rows)
+    def measure(self, x, beta, v, model, search, rows=None):
+        return pairing.measure(x, beta, v, model, search, rows)
 
 
 def make_backend(name: str = "auto", device: str | None = None, warn=None):
@@ -150,10 +153,7 @@ def make_plan(cap: Capture, options: Options, lag: float | None = None, backend=
     win = resample.window(options.points)
     nfft = spectrum.fft_length(options.points)
     model = pairing.doppler_model(lut, info.modulation.period_s / 2, nfft, win)
-    if not 0 <= options.min_range_m < 0.9 * lut.unambiguous_range_m:
-        raise FmcwError(f"--min-range {options.min_range_m:g} m is not below the unambiguous range "
-                        f"{lut.unambiguous_range_m:.3f} m of --points {options.points}")
-    lo_bin = max(1, int(np.ceil(options.min_range_m / model.metres_per_bin)))
+    search = make_search(options, lut, model)
     check_sync_period(cap)
     options = fit_chunks(options, info, backend)
     known = lag is not None
@@ -168,11 +168,28 @@ def make_plan(cap: Capture, options: Options, lag: float | None = None, backend=
         win2 = resample.window(2 * options.points)
         check = (lut2, win2, pairing.doppler_model(lut2, info.modulation.period_s / 2,
                                                    spectrum.fft_length(2 * options.points), win2))
-    plan = Plan(info, options, lut, win, model, lo_bin, lag, votes, misfit, check)
+    plan = Plan(info, options, lut, win, model, search, lag, votes, misfit, check)
     if chirp is not None and not known:
         from .refine import refine_lag
         plan = refine_lag(cap, plan)
     return plan
+
+
+def make_search(options: Options, lut: Lut, model: pairing.DopplerModel) -> Search:
+    """The band [--min-range, --max-range) in padded bins (the tracked peak is its
+    strongest); the plain pass lists every echo of the band."""
+    unamb = lut.unambiguous_range_m
+    if not 0 <= options.min_range_m < 0.9 * unamb:
+        raise FmcwError(f"--min-range {options.min_range_m:g} m is not below the unambiguous range "
+                        f"{unamb:.3f} m of --points {options.points}")
+    top = options.max_range_m
+    if top is not None and not options.min_range_m + 0.01 <= top:
+        raise FmcwError(f"--max-range {top:g} m must exceed --min-range {options.min_range_m:g} m "
+                        "by at least 0.01 m")
+    half = model.nfft // 2
+    lo = max(1, int(np.ceil(options.min_range_m / model.metres_per_bin)))
+    hi = half if top is None else min(half, int(np.floor(top / model.metres_per_bin)) + 1)
+    return Search(lo, hi, echoes=True)
 
 
 def fit_chunks(options: Options, info: CaptureInfo, backend=None) -> Options:
@@ -234,11 +251,11 @@ def _chunk_pairs(plan: Plan, chunk, backend) -> _Pairs | None:
     fs = info.sample_rate_hz
     t_r = (chunk.start + hs.centre[r]) / fs
     t_f = (chunk.start + hs.centre[f]) / fs
-    res = pairing.track_pairs(xr, xf, t_r, t_f, plan.model, plan.lo_bin, plan.options.iterations,
+    res = pairing.track_pairs(xr, xf, t_r, t_f, plan.model, plan.search, plan.options.iterations,
                               plan.options.dechirp, backend.measure)
     first = chunk.start + hs.start[r] + plan.lag      # sync time of the pair's first turn
     own = (first >= chunk.core_start) & (first < chunk.core_stop)
-    sel = pairing.PairResult(*(getattr(res, k)[own] for k in res.__dataclass_fields__))
+    sel = res.take(own)
     r, f = r[own], f[own]
     # the falling half-sweep starts where the rising one ends: one span per pair
     clip = faults.clipped(chunk.beat, hs.start[r], hs.start[f] + hs.length[f] - hs.start[r],
@@ -260,7 +277,7 @@ def _beyond_range(plan: Plan, beat: np.ndarray, hs, r: np.ndarray, f: np.ndarray
     beyond = np.zeros(checked.size, bool)
     for idx, u in ((r[checked], lut2.u_rise), (f[checked], lut2.u_fall)):
         x2 = backend.resample(beat, hs.start[idx], hs.length[idx], u, win2)
-        d2, s2 = backend.measure(x2, None, None, model2, plan.lo_bin)
+        d2, s2 = backend.measure(x2, None, None, model2, Search(plan.search.lo, model2.nfft // 2))
         beyond |= faults.beyond_range(d2, s2, plan.lut.unambiguous_range_m, pairing.SNR_MIN_DB)
     right = np.searchsorted(checked, np.arange(r.size))          # first checked pair >= i
     left = np.searchsorted(checked, np.arange(r.size), side="right") - 1
@@ -356,8 +373,7 @@ def assemble(plan: Plan, parts: list[_Pairs], backend, seconds: float) -> Track:
         raise CaptureError(info.path, "no complete modulation period found in the sync channel")
     t_r = np.concatenate([p.t_rise for p in parts])
     t_f = np.concatenate([p.t_fall for p in parts])
-    res = {k: np.concatenate([getattr(p.result, k) for p in parts])
-           for k in pairing.PairResult.__dataclass_fields__}
+    res = vars(pairing.PairResult.concat([p.result for p in parts]))
     t_mid = 0.5 * (t_r + t_f)
     period_s = info.modulation.period_s
     missing = _fill_gaps(t_mid, period_s)
@@ -381,6 +397,13 @@ def assemble(plan: Plan, parts: list[_Pairs], backend, seconds: float) -> Track:
         return np.stack([res[rise], res[fall]], axis=1).ravel()
 
     sweep_t = np.stack([t_r, t_f], axis=1).ravel()
+    sweep_rising = np.tile([True, False], t_r.size)
+    er, ef = res["echoes_rise"], res["echoes_fall"]
+    seen = echoes.table(sweep_t, sweep_rising, interleave("dist_rise", "dist_fall"),
+                        interleave("dechirped_snr_rise", "dechirped_snr_fall"),
+                        Detections(*(np.stack([getattr(er, k), getattr(ef, k)], axis=1).reshape(
+                            -1, *getattr(er, k).shape[1:]) for k in ("bin", "snr_db", "count"))),
+                        plan.model.metres_per_bin)
     lut = plan.lut
     attrs = {
         "points": options.points,
@@ -389,6 +412,10 @@ def assemble(plan: Plan, parts: list[_Pairs], backend, seconds: float) -> Track:
         "dechirp": bool(options.dechirp),
         "dechirp_iterations": options.iterations if options.dechirp else 0,
         "min_range_m": options.min_range_m,
+        "max_range_m": float("nan") if options.max_range_m is None else options.max_range_m,
+        "cfar": f"cell-averaging, guard {cfar.GUARD} and {cfar.TRAIN} training bins a side, "
+                f"false-alarm probability {cfar.PFA:g} per cell",
+        **seen.attrs(),
         "bandwidth_hz": lut.bandwidth_hz,
         "tuning": "chirp calibration" if options.chirp else "static G(I) table",
         "range_resolution_m": lut.range_resolution_m,
@@ -416,7 +443,7 @@ def assemble(plan: Plan, parts: list[_Pairs], backend, seconds: float) -> Track:
     }
     return Track(
         sweep_time_s=sweep_t,
-        sweep_rising=np.tile([True, False], t_r.size),
+        sweep_rising=sweep_rising, echoes=seen,
         sweep_distance_m=interleave("dist_rise", "dist_fall"),
         sweep_snr_db=interleave("snr_rise", "snr_fall"),
         sweep_distance_dechirped_m=interleave("dechirped_rise", "dechirped_fall"),

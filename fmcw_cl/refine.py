@@ -153,7 +153,7 @@ def peak_width_ratio(cap: Capture, plan, t0_s: float, time_s: np.ndarray | None 
             v = np.interp(t, time_s[known], velocity_mps[known])
             beta = plan.model.beta_rise if rising else plan.model.beta_fall
             x = x * np.exp(-2j * np.pi * np.outer(v, beta))
-        widths.append(_widths(spectrum.power_spectra(x, nfft), plan.lo_bin))
+        widths.append(_widths(spectrum.power_spectra(x, nfft), plan.search.lo))
     if not widths:
         return float("nan")
     j = np.arange(plan.lut.points)

@@ -10,6 +10,7 @@ import h5py
 import numpy as np
 
 from .atomic import atomic_hdf5
+from .echoes import Echoes
 
 FORMAT = "track"
 FORMAT_VERSION = 1
@@ -33,6 +34,7 @@ class Track:
     sweep_snr_dechirped_db: np.ndarray | None = None
     reason: np.ndarray | None = None          # per pair, codes of fmcw_cl.stages.faults
     sweep_reason: np.ndarray | None = None    # per half-sweep: its pair's code
+    echoes: Echoes | None = None              # every CFAR echo, and the persistent ones
 
     @property
     def pairs(self) -> int:
@@ -67,7 +69,28 @@ def write_track(path: str | os.PathLike, track: Track) -> Path:
         t.create_dataset("valid", data=np.asarray(track.valid, bool))
         if track.reason is not None:
             t.create_dataset("reason", data=np.asarray(track.reason, np.uint8))
+        if track.echoes is not None:
+            _write_echoes(f.create_group("echoes"), track.echoes)
     return path
+
+
+ECHO_COLUMNS = (("time_s", np.float64), ("distance_m", np.float64), ("snr_db", np.float32),
+                ("current_rising", bool), ("tracked", bool))
+PERSISTENT_COLUMNS = ("time_s", "distance_m", "snr_db", "share", "relative_db")
+
+
+def _write_echoes(g, e: Echoes) -> None:
+    for (name, dtype), x in zip(ECHO_COLUMNS, (e.time_s, e.distance_m, e.snr_db, e.rising, e.tracked),
+                                strict=True):
+        g.create_dataset(name, data=np.asarray(x, dtype))
+    p = g.create_group("persistent")
+    for name in PERSISTENT_COLUMNS:
+        p.create_dataset(name, data=np.asarray(e.persistent[name], np.float64))
+
+
+def _read_echoes(g) -> Echoes:
+    cols = [g[name][()] for name, _ in ECHO_COLUMNS]
+    return Echoes(*cols, {name: g["persistent"][name][()] for name in PERSISTENT_COLUMNS})
 
 
 def read_track(path: str | os.PathLike) -> Track:
@@ -81,6 +104,8 @@ def read_track(path: str | os.PathLike) -> Track:
             ("sweep_distance_dechirped_m", s, "distance_dechirped_m"),
             ("sweep_snr_dechirped_db", s, "snr_dechirped_db"),
             ("sweep_reason", s, "reason"), ("reason", t, "reason")) if key in g}
+        if "echoes" in f:
+            optional["echoes"] = _read_echoes(f["echoes"])
         return Track(s["time_s"][()], s["current_rising"][()], s["distance_m"][()],
                      s["snr_db"][()], t["time_s"][()], t["distance_m"][()],
                      t["velocity_mps"][()], t["acceleration_mps2"][()], t["valid"][()], attrs,

@@ -3,7 +3,7 @@
 from importlib.resources import files
 
 # programs built from more than one file (device functions first)
-PROGRAMS = {"spectrum": ("peak", "fft")}
+PROGRAMS = {"spectrum": ("peak", "cfar", "fft")}
 
 
 def files_of(program: str) -> tuple[str, ...]:

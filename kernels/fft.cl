@@ -1,5 +1,5 @@
 // Stage 5a: de-chirp, zero-pad and FFT each half-sweep in local memory, then its peak
-// (peak.cl, built into the same program). One work-group per half-sweep, thousands
+// (peak.cl) and, on request, every echo (cfar.cl; both built into the same program). One work-group per half-sweep, thousands
 // per launch. The transform is radix-4 decimation in frequency, in place (one
 // complex buffer of nfft: 16 KB at 2048 points, so it fits every GPU's local memory),
 // with a last radix-2 stage when log2(nfft) is odd; its output is in digit-reversed
@@ -123,10 +123,19 @@ __kernel void spectrum_peak(__global const float *x,          // (rows, points)
                             __global float *snr,              // (sweeps,)
                             __global float *power,            // (sweeps, nfft/2) if keep_power
                             const int keep_power,
+                            const int echoes,                 // 1: list every echo (cfar.cl)
+                            const int cfar_guard,
+                            const int train,
+                            __global const float *scale,      // CFAR factor per training count
+                            const int max_echoes,
+                            __global float *echo_bin,         // (sweeps, max_echoes)
+                            __global float *echo_snr,         // (sweeps, max_echoes)
+                            __global int *echo_count,         // (sweeps,)
                             __local float *re,                // nfft
                             __local float *im,                // nfft
                             __local float *pw,                // nfft/2
-                            __local float *scratch)           // 3 per work-item
+                            __local float *scratch,           // 3 per work-item
+                            __local uchar *flag)              // nfft/2 when echoes
 {
     const int g = get_group_id(0);
     const int lid = get_local_id(0);
@@ -167,6 +176,11 @@ __kernel void spectrum_peak(__global const float *x,          // (rows, points)
         barrier(CLK_LOCAL_MEM_FENCE);
         local_peak(pw, half_n, lo, hi, guard, scratch, (__local int *)(scratch + lsz),
                    scratch + 2 * lsz, bin + s + r, snr + s + r);
+        if (echoes) {
+            const size_t e = (size_t)(s + r) * max_echoes;
+            local_cfar(pw, half_n, lo, hi, cfar_guard, train, scale, max_echoes, flag,
+                       echo_bin + e, echo_snr + e, echo_count + s + r);
+        }
         barrier(CLK_LOCAL_MEM_FENCE);
     }
 }

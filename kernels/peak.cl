@@ -4,6 +4,21 @@
 // whole work-group (fft.cl's spectrum_peak); only the peak leaves the device.
 // Twin: fmcw_cl.stages.spectrum.find_peaks.
 
+// Fractional position of the peak at bin kk (clipped to the inner bins): a parabola
+// through the log power of three bins (Gaussian interpolation).
+float peak_position(__local const float *pw, const int half_n, int kk)
+{
+    kk = kk < 1 ? 1 : (kk > half_n - 2 ? half_n - 2 : kk);
+    const float tiny = 1.0e-30f;
+    const float a = log(pw[kk - 1] + tiny);
+    const float b = log(pw[kk] + tiny);
+    const float c = log(pw[kk + 1] + tiny);
+    const float den = a - 2.0f * b + c;
+    float delta = den < 0.0f ? 0.5f * (a - c) / den : 0.0f;
+    delta = delta < -0.5f ? -0.5f : (delta > 0.5f ? 0.5f : delta);
+    return (float)kk + delta;
+}
+
 void local_peak(__local const float *pw,   // power of bins 0 .. half_n - 1
                 const int half_n,
                 const int lo,
@@ -45,12 +60,6 @@ void local_peak(__local const float *pw,   // power of bins 0 .. half_n - 1
         int kk = lidx[0];
         kk = kk < 1 ? 1 : (kk > half_n - 2 ? half_n - 2 : kk);
         const float tiny = 1.0e-30f;
-        const float a = log(pw[kk - 1] + tiny);
-        const float b = log(pw[kk] + tiny);
-        const float c = log(pw[kk + 1] + tiny);
-        const float den = a - 2.0f * b + c;
-        float delta = den < 0.0f ? 0.5f * (a - c) / den : 0.0f;
-        delta = delta < -0.5f ? -0.5f : (delta > 0.5f ? 0.5f : delta);
         const int g0 = kk - guard < lo ? lo : kk - guard;
         const int g1 = kk + guard > hi - 1 ? hi - 1 : kk + guard;
         float inside = 0.0f;
@@ -59,7 +68,7 @@ void local_peak(__local const float *pw,   // power of bins 0 .. half_n - 1
         // a band narrower than the guard has no outside: use the whole band's mean
         const float floor_level = outside > 0 ? (lsum[0] - inside) / (float)outside
                                               : lsum[0] / (float)(hi - lo);
-        *bin = (float)kk + delta;
+        *bin = peak_position(pw, half_n, kk);
         *snr = 10.0f * log10(pw[kk] / (floor_level > tiny ? floor_level : tiny));
     }
 }

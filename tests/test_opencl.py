@@ -9,6 +9,7 @@ from fmcw_cl.engine import Options, make_backend, process
 from fmcw_cl.opencl import spectrum as k_spectrum
 from fmcw_cl.opencl.backend import OpenCLBackend, spectra
 from fmcw_cl.stages import lpf, resample, spectrum, sync
+from fmcw_cl.stages.spectrum import Search
 
 
 @pytest.fixture(scope="module")
@@ -32,7 +33,7 @@ def test_resample_kernel_matches_numpy(backend, sweeps, points):
 
 
 def _measure(backend, rows, beta, v, nfft, lo, hi=None):
-    pk, _ = k_spectrum.measure(backend.rt, backend.bufs, rows, beta, v, nfft, lo, hi)
+    pk, _, _ = k_spectrum.measure(backend.rt, backend.bufs, rows, beta, v, nfft, lo, hi)
     return pk
 
 
@@ -90,7 +91,7 @@ def test_measure_on_device_rows_equals_host_rows(backend):
         np.testing.assert_array_equal(a.bin, b.bin)
     # the tracker's later passes: some rows, in any order, each with its velocity
     pick = np.array([7, 2, 5])
-    got, _ = k_spectrum.measure(backend.rt, backend.bufs, rows, beta, v[pick], 2048, 20, index=pick)
+    got, _, _ = k_spectrum.measure(backend.rt, backend.bufs, rows, beta, v[pick], 2048, 20, index=pick)
     want = _measure(backend, rows.get(backend.rt.queue)[pick], beta, v[pick], 2048, 20)
     np.testing.assert_array_equal(got.bin, want.bin)
     np.testing.assert_array_equal(got.snr_db, want.snr_db)
@@ -208,9 +209,11 @@ def test_transform_too_large_for_local_memory_runs_on_the_host(backend, monkeypa
     rows = backend.resample(codes, rng.uniform(2, 30_000, 5), np.full(5, 2500.0),
                             np.linspace(0, 1, 1000), resample.window(1000))
     model = pairing.DopplerModel(np.zeros(1000), np.zeros(1000), 0.0, 0.0, 1e-3, 2048)
-    on_device = backend.measure(rows, None, None, model, 20)
+    search = Search(20, 1024, echoes=True)
+    on_device = backend.measure(rows, None, None, model, search)
     assert k_spectrum.fits(backend.rt, 2048)
     monkeypatch.setattr(k_spectrum, "fits", lambda rt, nfft: False)
-    on_host = backend.measure(rows, None, None, model, 20)
+    on_host = backend.measure(rows, None, None, model, search)
     np.testing.assert_allclose(on_device[0], on_host[0], atol=1e-6)
+    np.testing.assert_array_equal(on_device[2].count, on_host[2].count)
     assert k_spectrum.local_bytes(backend.rt, 8192) > 48 * 1024 >= k_spectrum.local_bytes(backend.rt, 4096)

@@ -57,16 +57,18 @@ class OpenCLBackend:
     def resample(self, codes, starts, lengths, u, win):
         return k_resample.resample(self.rt, self.bufs, codes, starts, lengths, u, win)
 
-    def measure(self, x, beta, v, model, lo_bin, rows=None):
+    def measure(self, x, beta, v, model, search, rows=None):
         if not k_spectrum.fits(self.rt, model.nfft):
             # a transform larger than the device's local memory: the numpy twin
             host = x.get(self.rt.queue) if isinstance(x, DeviceRows) else x
-            return pairing.measure(host, beta, v, model, lo_bin, rows)
-        pk, _ = k_spectrum.measure(self.rt, self.bufs, x, beta, v, model.nfft, lo_bin, index=rows)
-        return pk.bin * model.metres_per_bin, pk.snr_db
+            return pairing.measure(host, beta, v, model, search, rows)
+        pk, _, det = k_spectrum.measure(self.rt, self.bufs, x, beta, v, model.nfft, search.lo, search.hi,
+                                        index=rows, echoes=search.echoes)
+        got = (pk.bin * model.metres_per_bin, pk.snr_db)
+        return (*got, det) if search.echoes else got
 
 
 def spectra(backend: OpenCLBackend, x, nfft: int) -> np.ndarray:
     """Power spectra (sweeps, nfft/2) of the plain (not de-chirped) rows of x."""
-    _, power = k_spectrum.measure(backend.rt, backend.bufs, x, None, None, nfft, 1, keep_power=True)
+    _, power, _ = k_spectrum.measure(backend.rt, backend.bufs, x, None, None, nfft, 1, keep_power=True)
     return power

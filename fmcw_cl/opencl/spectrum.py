@@ -1,5 +1,5 @@
-"""Launcher of kernels/fft.cl + peak.cl (twins: fmcw_cl.stages.spectrum.power_spectra,
-find_peaks, and fmcw_cl.stages.pairing.measure)."""
+"""Launcher of kernels/fft.cl + peak.cl + cfar.cl (twins: fmcw_cl.stages.spectrum.power_spectra,
+find_peaks, fmcw_cl.stages.cfar.detect and fmcw_cl.stages.pairing.measure)."""
 
 from __future__ import annotations
 
@@ -7,6 +7,7 @@ import functools
 
 import numpy as np
 
+from ..stages import cfar
 from ..stages.spectrum import GUARD_BINS, Peaks
 from .buffers import Buffers, DeviceRows
 from .context import Runtime, cl
@@ -40,23 +41,25 @@ def local_size(rt: Runtime, nfft: int) -> int:
 
 
 def local_bytes(rt: Runtime, nfft: int) -> int:
-    """Local memory one work-group of `spectrum_peak` needs for an nfft-point transform."""
-    return 4 * (2 * nfft + nfft // 2) + 12 * local_size(rt, nfft)
+    """Local memory one work-group of `spectrum_peak` needs for an nfft-point transform
+    (the echoes' flags included)."""
+    return 4 * (2 * nfft + nfft // 2) + 12 * local_size(rt, nfft) + nfft // 2
 
 
 def fits(rt: Runtime, nfft: int) -> bool:
     """Whether an nfft-point transform fits in the device's local memory (a GPU's 48 KB
-    holds 4096 points; 8192, the range check at --points 2048, needs 80 KB)."""
+    holds 4096 points, 46 KB; 8192, the range check at --points 2048, needs 88 KB)."""
     return local_bytes(rt, nfft) <= rt.device.local_mem_size
 
 
 def measure(rt: Runtime, bufs: Buffers, rows, beta: np.ndarray | None,
             velocity: np.ndarray | None, nfft: int, lo: int, hi: int | None = None,
-            keep_power: bool = False, index: np.ndarray | None = None
-            ) -> tuple[Peaks, np.ndarray | None]:
+            keep_power: bool = False, index: np.ndarray | None = None, echoes: bool = False
+            ) -> tuple[Peaks, np.ndarray | None, cfar.Detections | None]:
     """Peaks of the de-chirped (velocity given) or plain spectra of `rows` (DeviceRows
-    or a host array), and the power spectra (sweeps, nfft/2) when `keep_power`.
-    `index` (de-chirp only) picks the rows measured, one velocity each."""
+    or a host array), the power spectra (sweeps, nfft/2) when `keep_power`, and every
+    echo of bins [lo, hi) when `echoes`. `index` (de-chirp only) picks the rows
+    measured, one velocity each."""
     if not isinstance(rows, DeviceRows):
         host = np.ascontiguousarray(rows, np.float32)
         rows = DeviceRows(bufs, *host.shape)
@@ -70,13 +73,18 @@ def measure(rt: Runtime, bufs: Buffers, rows, beta: np.ndarray | None,
     half = nfft // 2
     hi = half if hi is None else hi
     if sweeps == 0:
-        return Peaks(np.zeros(0), np.zeros(0, np.float32)), np.zeros((0, half), np.float32)
+        return (Peaks(np.zeros(0), np.zeros(0, np.float32)), np.zeros((0, half), np.float32),
+                cfar.Detections.empty() if echoes else None)
     twr, twi, perm = tables(nfft)
     dechirp = velocity is not None
     d_beta = bufs.upload("beta", np.asarray(beta if dechirp else np.zeros(points), np.float32))
     d_v = bufs.upload("velocity", np.asarray(velocity if dechirp else np.zeros(1), np.float32))
     d_bin, d_snr = bufs.get("bin", 4 * sweeps), bufs.get("snr", 4 * sweeps)
     d_power = bufs.get("power", 4 * sweeps * half if keep_power else 4)
+    m = cfar.MAX_ECHOES
+    d_ebin = bufs.get("echo_bin", 4 * sweeps * m if echoes else 4)
+    d_esnr = bufs.get("echo_snr", 4 * sweeps * m if echoes else 4)
+    d_ecount = bufs.get("echo_count", 4 * sweeps if echoes else 4)
     lsz = local_size(rt, nfft)
     groups = sweeps if dechirp else (sweeps + 1) // 2    # plain rows: two per transform
     rt.kernel("spectrum", "spectrum_peak")(
@@ -86,8 +94,11 @@ def measure(rt: Runtime, bufs: Buffers, rows, beta: np.ndarray | None,
         bufs.upload_once(f"tw_re{nfft}", twr), bufs.upload_once(f"tw_im{nfft}", twi),
         bufs.upload_once(f"perm{nfft}", perm), np.int32(nfft), np.int32(lo), np.int32(hi),
         np.int32(GUARD_BINS), d_bin, d_snr, d_power, np.int32(keep_power),
+        np.int32(echoes), np.int32(cfar.GUARD), np.int32(cfar.TRAIN),
+        bufs.upload_once("cfar_scale", cfar.scales().astype(np.float32)), np.int32(m),
+        d_ebin, d_esnr, d_ecount,
         cl.LocalMemory(4 * nfft), cl.LocalMemory(4 * nfft), cl.LocalMemory(4 * half),
-        cl.LocalMemory(12 * lsz))
+        cl.LocalMemory(12 * lsz), cl.LocalMemory(half if echoes else 1))
     b = np.empty(sweeps, np.float32)
     s = np.empty(sweeps, np.float32)
     cl.enqueue_copy(rt.queue, b, d_bin)
@@ -96,4 +107,11 @@ def measure(rt: Runtime, bufs: Buffers, rows, beta: np.ndarray | None,
     if keep_power:
         power = np.empty((sweeps, half), np.float32)
         cl.enqueue_copy(rt.queue, power, d_power)
-    return Peaks(b.astype(np.float64), s), power
+    det = None
+    if echoes:
+        det = cfar.Detections(np.empty((sweeps, m), np.float32), np.empty((sweeps, m), np.float32),
+                              np.empty(sweeps, np.int32))
+        for host, dev in ((det.bin, d_ebin), (det.snr_db, d_esnr), (det.count, d_ecount)):
+            cl.enqueue_copy(rt.queue, host, dev)
+        det = cfar.Detections(det.bin.astype(np.float64), det.snr_db, det.count)
+    return Peaks(b.astype(np.float64), s), power, det

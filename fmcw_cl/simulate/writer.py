@@ -3,6 +3,10 @@
 The beat phase comes from the optical phase, phi = 2 pi [nu(t) tau - nu'(t) tau^2 / 2]
 with tau = 2 R(t) n / c, so a moving target gets its Doppler shift from the physics;
 laser phase noise enters as the difference of one random-walk phase at t and t - tau.
+A real scene adds static reflectors (a wall, a window), speckle fading of the
+target's echo (a complex Gaussian field, Rayleigh amplitude), relative intensity
+noise of the laser and white detector noise set by a per-sample SNR
+(docs/pipeline.md, "The simulator").
 """
 
 from __future__ import annotations
@@ -11,6 +15,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.ndimage import gaussian_filter1d
 
 from ..capture import CaptureWriter, Modulation, Truth
 from ..physics import C
@@ -19,7 +24,9 @@ from .scene import Trajectory
 
 CHUNK = 1 << 20
 TRUTH_STEP_S = 10e-6
-HISTORY = 64  # phase-noise history kept across chunks (supports tau < 64 samples)
+HISTORY = 64  # phase-noise history kept across chunks (supports tau < 64 samples: 96 m)
+SNR_REF_M = 0.3      # --snr-db is the target's SNR at this distance
+SPECKLE_GRID = 40    # points per correlation time of the tabulated speckle field
 
 
 @dataclass(frozen=True)
@@ -50,6 +57,23 @@ class SimulationConfig:
     table_noise_hz: float = 5e6     # rms error of the offline wavelength meter (0.04 pm)
     thermal_lag_s: float = 0.0      # first-order lag of the thermal part of the tuning
     thermal_fraction: float = 0.8   # share of the tuning that is thermal (the rest: carriers)
+    snr_db: float | None = None     # target's per-sample SNR at 0.3 m, mid-sweep; sets the noise
+    reflectors: tuple[tuple[float, float], ...] = ()   # static echoes: (distance m, amplitude codes)
+    speckle_s: float = 0.0          # correlation time of the target's speckle fading (0: none)
+    rin_db_hz: float | None = None  # laser relative intensity noise, one-sided (dB/Hz)
+
+    def echo_amplitude(self, distance_m):
+        """Beat amplitude (codes, at 320 mA) of the target at `distance_m`: falls as 1/R
+        beyond `echo_ref_m` (a diffuse target filling less of the beam)."""
+        return self.echo_codes * np.minimum(1.0, self.echo_ref_m / np.maximum(distance_m, 1e-6))
+
+    @property
+    def beat_noise_codes(self) -> float:
+        """rms white noise of the beat channel: `noise_codes`, or the level that gives
+        the target `snr_db` per sample (amplitude A: SNR = A^2 / 2 sigma^2) at 0.3 m."""
+        if self.snr_db is None:
+            return self.noise_codes
+        return float(self.echo_amplitude(SNR_REF_M) / np.sqrt(2 * 10 ** (self.snr_db / 10)))
 
 
 def _triangle(phase):
@@ -79,6 +103,34 @@ def thermal_offset(phase, lag_s: float, period_s: float, span_a: float):
     x = np.where(rising, x_rise, -x_rise)
     slope = np.where(rising, r, -r)
     return x, -x / lag_s - slope
+
+
+def phase_noise(walk: np.ndarray, tau_s, fs: float, sigma: float, rng: np.random.Generator):
+    """phi(t) - phi(t - tau) of the laser's random-walk phase `walk` (HISTORY samples of
+    history, then one per sample), with a Brownian bridge inside a sample."""
+    m = walk.size - HISTORY
+    lag = np.broadcast_to(np.asarray(tau_s, np.float64) * fs, (m,))
+    k = np.floor(lag).astype(np.int64)
+    frac = lag - k
+    idx = HISTORY + np.arange(m)
+    inc = walk[idx - k] - walk[idx - k - 1]
+    bridge = frac * inc + np.sqrt(frac * (1 - frac)) * sigma * rng.standard_normal(m)
+    return walk[idx] - walk[idx - k] + bridge
+
+
+def speckle_field(duration_s: float, corr_s: float, rng: np.random.Generator):
+    """A complex Gaussian field g(t), E|g|^2 = 1, with autocorrelation exp(-(dt/corr)^2):
+    circular white noise smoothed by a Gaussian of std corr/2, tabulated on a grid.
+    |g| is Rayleigh-distributed (fully developed speckle). Returns g(t) as a callable."""
+    step = corr_s / SPECKLE_GRID
+    n = int(np.ceil(duration_s / step)) + 2
+    pad = 4 * SPECKLE_GRID
+    white = rng.standard_normal((2, n + 2 * pad)) / np.sqrt(2)
+    sigma = SPECKLE_GRID / 2
+    # filtered unit-variance white noise has variance 1 / (2 sqrt(pi) sigma)
+    g = gaussian_filter1d(white, sigma, axis=1)[:, pad:-pad] * np.sqrt(2 * np.sqrt(np.pi) * sigma)
+    grid = step * np.arange(n)
+    return lambda t: np.interp(t, grid, g[0]) + 1j * np.interp(t, grid, g[1])
 
 
 def simulate_capture(path, trajectory: Trajectory, duration_s: float, seed: int = 0,
@@ -118,6 +170,10 @@ def simulate_capture(path, trajectory: Trajectory, duration_s: float, seed: int 
     sigma_pn = np.sqrt(2 * np.pi * laser.linewidth_hz / fs)  # rad per sample, random walk
     hist = np.zeros(HISTORY)  # laser phase of the last HISTORY samples
     tau_lens = 2 * cfg.lens_distance_m * n_idx / C
+    noise = cfg.beat_noise_codes
+    speckle = speckle_field(duration_s, cfg.speckle_s, rng) if cfg.speckle_s > 0 else None
+    walls = [(2 * d * n_idx / C, a, rng.uniform(0, 2 * np.pi)) for d, a in cfg.reflectors]
+    rin = 0.0 if cfg.rin_db_hz is None else np.sqrt(10 ** (cfg.rin_db_hz / 10) * fs / 2)
 
     writer = CaptureWriter(path, samples, fs, cfg.bits, mod, table_i, table_f,
                            refractive_index=n_idx, compression=compression,
@@ -135,27 +191,32 @@ def simulate_capture(path, trajectory: Trajectory, duration_s: float, seed: int 
             nu = laser.frequency(tuned)
             dnu = laser.tuning_slope(tuned) * (didt + cfg.thermal_fraction * dxdt)
             power = laser.relative_power(cur)
+            if rin:
+                power = power * (1 + rng.normal(0, rin, m))
 
             dist, _, _ = trajectory.at(t + start_s)
             tau = 2 * dist * n_idx / C
-            cycles = nu * tau - dnu * tau * tau / 2
-            # laser phase noise: phi(t) - phi(t - tau) with a Brownian bridge inside a sample
             walk = np.concatenate([hist, hist[-1] + np.cumsum(rng.normal(0, sigma_pn, m))])
             hist = walk[-HISTORY:]
-            lag = tau * fs
-            k = np.floor(lag).astype(np.int64)
-            frac = lag - k
-            idx = HISTORY + np.arange(m)
-            inc = walk[idx - k] - walk[idx - k - 1]
-            bridge = frac * inc + np.sqrt(frac * (1 - frac)) * sigma_pn * rng.standard_normal(m)
-            pnoise = walk[idx] - walk[idx - k] + bridge
 
-            echo = cfg.echo_codes * np.minimum(1.0, cfg.echo_ref_m / np.maximum(dist, 1e-6))
+            def echo(tau_s, offset, nu=nu, dnu=dnu, walk=walk):
+                # beat phase of a reflector at delay tau_s, laser phase noise included
+                cycles = nu * tau_s - dnu * tau_s * tau_s / 2
+                return 2 * np.pi * (cycles % 1.0) + phase_noise(walk, tau_s, fs, sigma_pn, rng) + offset
+
+            phase = echo(tau, target_phase)
+            amp = cfg.echo_amplitude(dist) * power
+            if speckle is not None:
+                g = speckle(t)
+                amp = amp * np.abs(g)
+                phase = phase + np.angle(g)
             lens = nu * tau_lens - dnu * tau_lens**2 / 2
-            beat = (echo * power * np.cos(2 * np.pi * (cycles % 1.0) + pnoise + target_phase)
+            beat = (amp * np.cos(phase)
                     + cfg.lens_codes * power * np.cos(2 * np.pi * (lens % 1.0))
                     + cfg.leak_codes * (power - 1.0)
-                    + rng.normal(0, cfg.noise_codes, m))
+                    + rng.normal(0, noise, m))
+            for tau_w, a_w, ph_w in walls:
+                beat += a_w * power * np.cos(echo(tau_w, ph_w))
 
             tri_s, _ = _triangle((t - delay / fs) * mod.frequency_hz + phase0)
             sync = cfg.sync_codes * (tri_s - 0.5) + rng.normal(0, cfg.sync_noise_codes, m)

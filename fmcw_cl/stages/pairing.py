@@ -16,14 +16,15 @@ method (plain FFT of each half-sweep).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.ndimage import median_filter
 
 from ..physics import C
+from . import cfar
 from .lut import Lut
-from .spectrum import find_peaks, power_spectra
+from .spectrum import Search, find_peaks, power_spectra
 
 SNR_MIN_DB = 10.0     # a half-sweep's peak must stand this far above the floor
 CONSISTENT_MPS = 0.1  # a velocity this far from its neighbours' median is an outlier
@@ -93,18 +94,37 @@ class PairResult:
     dechirped_snr_rise: np.ndarray
     dechirped_snr_fall: np.ndarray
     heard: np.ndarray           # both final peaks at least SNR_MIN_DB over their floors
+    echoes_rise: cfar.Detections | None = None   # every echo of the plain spectra
+    echoes_fall: cfar.Detections | None = None
+
+    def take(self, rows: np.ndarray) -> PairResult:
+        """The pairs `rows` (a boolean mask or indices)."""
+        return PairResult(*(None if x is None else x.take(rows) if isinstance(x, cfar.Detections) else x[rows]
+                            for x in (getattr(self, k) for k in self.__dataclass_fields__)))
+
+    @classmethod
+    def concat(cls, parts: list[PairResult]) -> PairResult:
+        """The pairs of `parts`, in order."""
+        def join(xs):
+            if xs[0] is None:
+                return None
+            return cfar.Detections.concat(xs) if isinstance(xs[0], cfar.Detections) else np.concatenate(xs)
+        return cls(*(join([getattr(p, k) for p in parts]) for k in cls.__dataclass_fields__))
 
 
 def measure(x: np.ndarray, beta: np.ndarray, v: np.ndarray | None, model: DopplerModel,
-            lo_bin: int, rows: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+            search: Search, rows: np.ndarray | None = None) -> tuple:
     """Apparent distance (m) and SNR (dB) of half-sweeps de-chirped at velocities v
-    (plain spectra when v is None), of the rows `rows` of x only when given."""
+    (plain spectra when v is None), of the rows `rows` of x only when given; with
+    `search.echoes`, every echo of the band (cfar.Detections) as a third item."""
     if rows is not None:
         x = x[rows]
     if v is not None:
         x = x * np.exp(-2j * np.pi * np.outer(v, beta))
-    pk = find_peaks(power_spectra(x, model.nfft), lo_bin)
-    return pk.bin * model.metres_per_bin, pk.snr_db
+    power = power_spectra(x, model.nfft)
+    pk = find_peaks(power, search.lo, search.hi)
+    got = (pk.bin * model.metres_per_bin, pk.snr_db)
+    return (*got, cfar.detect(power, search.lo, search.hi)) if search.echoes else got
 
 
 def solve_pair(d_r, d_f, v0, half_gap, model: DopplerModel):
@@ -127,7 +147,7 @@ def regularise(v: np.ndarray, trusted: np.ndarray, time: np.ndarray) -> np.ndarr
 
 
 def track_pairs(xr: np.ndarray, xf: np.ndarray, t_rise: np.ndarray, t_fall: np.ndarray,
-                model: DopplerModel, lo_bin: int, iterations: int = 6, dechirp: bool = True,
+                model: DopplerModel, search: Search, iterations: int = 6, dechirp: bool = True,
                 measure=measure) -> PairResult:
     """Doppler-free distance and velocity of consecutive rising/falling half-sweeps.
 
@@ -137,7 +157,8 @@ def track_pairs(xr: np.ndarray, xf: np.ndarray, t_rise: np.ndarray, t_fall: np.n
         (or a backend's device-resident equivalent).
     t_rise, t_fall : (P,) centre times of those half-sweeps (s).
     model : the LUT's Doppler model.
-    lo_bin : first FFT bin searched (minimum range).
+    search : the band and rule of the peak search; with `search.echoes` the plain
+        pass also lists every echo.
     iterations : de-chirp passes after the plain first pass, at most. A pass re-measures
         only the pairs whose de-chirp velocity moved by STOP_MPS or more since they were
         last measured (the others would repeat their measurement), and the passes end
@@ -148,8 +169,9 @@ def track_pairs(xr: np.ndarray, xf: np.ndarray, t_rise: np.ndarray, t_fall: np.n
     half_gap = 0.5 * (t_fall - t_rise)
     t_mid = 0.5 * (t_fall + t_rise)
     vd = np.zeros(t_mid.size)          # the velocity each pair was last de-chirped with
-    d_r, s_r = measure(xr, model.beta_rise, None, model, lo_bin)
-    d_f, s_f = measure(xf, model.beta_fall, None, model, lo_bin)
+    d_r, s_r, *e_r = measure(xr, model.beta_rise, None, model, search)
+    d_f, s_f, *e_f = measure(xf, model.beta_fall, None, model, search)
+    search = replace(search, echoes=False)
     plain = (d_r.copy(), d_f.copy(), s_r.copy(), s_f.copy())
     dist, vel, dv = solve_pair(d_r, d_f, vd, half_gap, model)
     heard = (s_r >= SNR_MIN_DB) & (s_f >= SNR_MIN_DB)
@@ -163,12 +185,12 @@ def track_pairs(xr: np.ndarray, xf: np.ndarray, t_rise: np.ndarray, t_fall: np.n
             break
         vd[moved] = v_next[moved]
         every = None if moved.size == vd.size else moved
-        d_r[moved], s_r[moved] = measure(xr, model.beta_rise, vd[moved], model, lo_bin, every)
-        d_f[moved], s_f[moved] = measure(xf, model.beta_fall, vd[moved], model, lo_bin, every)
+        d_r[moved], s_r[moved] = measure(xr, model.beta_rise, vd[moved], model, search, every)
+        d_f[moved], s_f[moved] = measure(xf, model.beta_fall, vd[moved], model, search, every)
         dist, vel, dv = solve_pair(d_r, d_f, vd, half_gap, model)
         heard = (s_r >= SNR_MIN_DB) & (s_f >= SNR_MIN_DB)
     med = median_filter(vel, size=2 * NEIGHBOURS + 1, mode="nearest")
     valid = heard
     if dechirp:
         valid = valid & (np.abs(dv) < CONVERGED_MPS) & (np.abs(vel - med) < CONSISTENT_MPS)
-    return PairResult(dist, vel, valid, *plain, d_r, d_f, s_r, s_f, heard)
+    return PairResult(dist, vel, valid, *plain, d_r, d_f, s_r, s_f, heard, *(e_r or [None]), *(e_f or [None]))

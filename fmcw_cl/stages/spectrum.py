@@ -19,6 +19,22 @@ import scipy.fft
 GUARD_BINS = 32  # padded bins either side of the peak left out of the noise floor
 
 
+@dataclass(frozen=True)
+class Search:
+    """Where and how the tracked peak is searched in a spectrum of nfft/2 bins.
+
+    Attributes
+    ----------
+    lo, hi : the band [lo, hi) of padded bins (--min-range, --max-range); the tracked
+        peak is the band's strongest.
+    echoes : also list every CFAR echo of the band (stages.cfar; the plain first pass).
+    """
+
+    lo: int
+    hi: int
+    echoes: bool = False
+
+
 def fft_length(points: int) -> int:
     """Zero-padded FFT length: the power of two >= 2 * points."""
     return 1 << int(np.ceil(np.log2(2 * points)))
@@ -45,6 +61,20 @@ class Peaks:
     snr_db: np.ndarray
 
 
+def interpolate(power: np.ndarray, rows: np.ndarray, kk: np.ndarray) -> np.ndarray:
+    """Fractional bin of the peaks at bins kk of `rows`: a parabola through the log
+    power of three bins (kk clipped to the spectrum's inner bins)."""
+    kk = np.clip(kk, 1, power.shape[1] - 2)
+    tiny = np.finfo(np.float64).tiny
+    a = np.log(power[rows, kk - 1] + tiny)
+    b = np.log(power[rows, kk] + tiny)
+    c = np.log(power[rows, kk + 1] + tiny)
+    den = a - 2 * b + c
+    with np.errstate(divide="ignore", invalid="ignore"):
+        delta = np.where(den < 0, 0.5 * (a - c) / den, 0.0)
+    return kk + np.clip(delta, -0.5, 0.5)
+
+
 def find_peaks(power: np.ndarray, lo: int, hi: int | None = None) -> Peaks:
     """Largest peak of each row in bins [lo, hi), interpolated, with its SNR.
 
@@ -53,16 +83,9 @@ def find_peaks(power: np.ndarray, lo: int, hi: int | None = None) -> Peaks:
     """
     hi = power.shape[1] if hi is None else hi
     band = power[:, lo:hi]
-    k = np.argmax(band, axis=1)
+    k = np.argmax(band, axis=1) + lo
     rows = np.arange(power.shape[0])
-    kk = np.clip(k + lo, 1, power.shape[1] - 2)
-    tiny = np.finfo(np.float64).tiny
-    a = np.log(power[rows, kk - 1] + tiny)
-    b = np.log(power[rows, kk] + tiny)
-    c = np.log(power[rows, kk + 1] + tiny)
-    den = a - 2 * b + c
-    with np.errstate(divide="ignore", invalid="ignore"):
-        delta = np.where(den < 0, 0.5 * (a - c) / den, 0.0)
+    kk = np.clip(k, 1, power.shape[1] - 2)
     cols = np.arange(lo, hi)
     outside = np.abs(cols[None, :] - kk[:, None]) > GUARD_BINS
     count = outside.sum(axis=1)
@@ -70,5 +93,5 @@ def find_peaks(power: np.ndarray, lo: int, hi: int | None = None) -> Peaks:
     floor = np.where(count > 0, np.sum(band * outside, axis=1) / np.maximum(count, 1),
                      band.mean(axis=1))
     with np.errstate(divide="ignore"):
-        snr = 10 * np.log10(power[rows, kk] / np.maximum(floor, tiny))
-    return Peaks(kk + np.clip(delta, -0.5, 0.5), snr.astype(np.float32))
+        snr = 10 * np.log10(power[rows, kk] / np.maximum(floor, np.finfo(np.float64).tiny))
+    return Peaks(interpolate(power, rows, kk), snr.astype(np.float32))

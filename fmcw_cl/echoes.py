@@ -1,0 +1,121 @@
+"""Every echo the instrument saw, the persistent ones, and the rival of the tracked target.
+
+Each half-sweep's plain spectrum lists its CFAR echoes (stages.cfar): their distance
+carries the half-sweep's Doppler shift, like /sweeps/distance_m. A detection at the
+half-sweep's tracked peak is the tracked target. The others are cut into slices of
+SLICE_S; in each slice, an echo seen at one distance (within HIST_M) in at least
+PRESENT of the slice's half-sweeps is persistent (a wall, a window, a second target
+that stays put for a while). Its level, the median CFAR SNR (peak over local noise),
+is compared with the tracked target's in the same slice: its own CFAR SNR where the
+plain spectra show it in at least SEEN of the slice's half-sweeps, else (a target
+too fast to stay sharp without de-chirp) the median SNR of its final de-chirped
+peaks, whose noise floor another strong echo raises: the comparison then errs
+towards a warning. A persistent echo within RIVAL_DB of the tracked target is the
+user's to judge: `process` names it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .stages.cfar import Detections
+
+SLICE_S = 0.01        # persistent echoes are found in slices of 10 ms (200 periods)
+HIST_M = 0.002        # distance histogram bin; an echo is counted over 3 neighbouring bins
+PRESENT = 0.3         # share of a slice's half-sweeps an echo must be seen in
+TRACKED_M = 0.001     # a detection this close to its half-sweep's tracked peak is the target
+SEEN = 0.2           # share of a slice's half-sweeps the target's plain peak must be an echo in
+RIVAL_DB = 10.0       # a persistent echo this close to the tracked target's level is reported
+
+
+@dataclass
+class Echoes:
+    """Per detection (flat, in time order), and the persistent echoes per slice.
+
+    Attributes
+    ----------
+    time_s, distance_m, snr_db, rising, tracked : per detection: its half-sweep's centre
+        time (s), distance (m, Doppler shift included), CFAR SNR (dB), current direction,
+        and whether it is the tracked peak.
+    persistent : dict of arrays per persistent echo and slice: time_s (slice centre),
+        distance_m (median), snr_db (median), share (of the slice's half-sweeps),
+        relative_db (over the tracked target's median de-chirped SNR in the slice).
+    """
+
+    time_s: np.ndarray
+    distance_m: np.ndarray
+    snr_db: np.ndarray
+    rising: np.ndarray
+    tracked: np.ndarray
+    persistent: dict
+
+    @property
+    def rival(self) -> tuple[float, float] | None:
+        """(distance m, level dB over the target) of the persistent echo closest to or
+        above the tracked target's level, if within RIVAL_DB of it."""
+        rel = self.persistent["relative_db"]
+        if rel.size == 0 or not np.nanmax(rel) >= -RIVAL_DB:
+            return None
+        i = int(np.nanargmax(rel))
+        return float(self.persistent["distance_m"][i]), float(rel[i])
+
+    def attrs(self) -> dict:
+        """Track attributes: the rival echo (NaN when there is none) and counts."""
+        rival = self.rival or (float("nan"), float("nan"))
+        return {"echoes_detected": int(self.time_s.size),
+                "echoes_persistent_slices": int(self.persistent["time_s"].size),
+                "rival_echo_m": rival[0], "rival_echo_db": rival[1],
+                "echo_rival_limit_db": RIVAL_DB}
+
+
+def table(t_sweep: np.ndarray, rising: np.ndarray, tracked_m: np.ndarray, level_db: np.ndarray,
+          det: Detections, metres_per_bin: float) -> Echoes:
+    """The detections of half-sweeps (times t_sweep, directions, tracked plain distances
+    and de-chirped SNRs) as a flat table, with the persistent echoes."""
+    rows, slots = np.nonzero(np.arange(det.bin.shape[1])[None, :] < det.count[:, None])
+    dist = det.bin[rows, slots] * metres_per_bin
+    tracked = np.abs(dist - tracked_m[rows]) < TRACKED_M
+    order = np.argsort(t_sweep[rows], kind="stable")
+    rows, dist, tracked = rows[order], dist[order], tracked[order]
+    snr = det.snr_db[rows, slots[order]]
+    return Echoes(t_sweep[rows], dist, snr.astype(np.float32), rising[rows], tracked,
+                  persistent(t_sweep, level_db, t_sweep[rows], dist, snr, tracked))
+
+
+def persistent(t_sweep: np.ndarray, level_db: np.ndarray, t: np.ndarray, dist: np.ndarray,
+               snr: np.ndarray, tracked: np.ndarray) -> dict:
+    """Persistent echoes other than the tracked target, slice by slice (see the module)."""
+    out: dict[str, list] = {k: [] for k in ("time_s", "distance_m", "snr_db", "share", "relative_db")}
+    if t_sweep.size:
+        edges = np.arange(t_sweep.min(), t_sweep.max() + SLICE_S, SLICE_S)
+        for a in edges:
+            here = (t_sweep >= a) & (t_sweep < a + SLICE_S)
+            sweeps = np.count_nonzero(here)
+            if sweeps < 20:
+                continue
+            inside = (t >= a) & (t < a + SLICE_S)
+            mine = inside & tracked
+            level = float(np.median(snr[mine] if mine.sum() >= SEEN * sweeps else level_db[here]))
+            others = inside & ~tracked
+            for d, s, share in _clusters(dist[others], snr[others], sweeps):
+                for k, x in zip(out, (a + SLICE_S / 2, d, s, share, s - level), strict=True):
+                    out[k].append(x)
+    return {k: np.asarray(v, np.float64) for k, v in out.items()}
+
+
+def _clusters(dist: np.ndarray, snr: np.ndarray, sweeps: int):
+    """(median distance, median SNR, share) of each distance seen in >= PRESENT of
+    `sweeps` half-sweeps: local maxima of the counts over three histogram bins."""
+    if dist.size < PRESENT * sweeps:
+        return
+    idx = np.floor(dist / HIST_M).astype(np.int64)
+    base = idx.min() - 1
+    counts = np.bincount(idx - base, minlength=idx.max() - base + 2).astype(np.int64)
+    window = counts + np.r_[0, counts[:-1]] + np.r_[counts[1:], 0]
+    left = np.r_[-1, window[:-1]]
+    right = np.r_[window[1:], -1]
+    for b in np.flatnonzero((window >= PRESENT * sweeps) & (window > left) & (window >= right)):
+        near = np.abs(idx - base - b) <= 1
+        yield float(np.median(dist[near])), float(np.median(snr[near])), float(near.sum() / sweeps)
