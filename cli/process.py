@@ -28,6 +28,8 @@ def summary(capture, out, attrs: dict, valid: np.ndarray) -> dict:
         "processing_time_s": secs, "real_time_multiple": dur / secs if secs > 0 else None,
         "invalid": {name: int(a[f"invalid_{name}"]) for code, name in faults.REASONS.items()
                     if code and f"invalid_{name}" in a},
+        "rival_echo": ({"distance_m": float(a["rival_echo_m"]), "relative_db": float(a["rival_echo_db"])}
+                       if np.isfinite(a.get("rival_echo_m", np.nan)) else None),
     }
 
 
@@ -46,6 +48,12 @@ def report(s: dict, attrs: dict, quiet: bool, as_json: bool) -> None:
         click.echo(f"warning: {cap}: its peaks are {attrs['tuning_peak_width_ratio']:.1f}x wider than the "
                    f"window's own: the laser's chirp does not match the {source} (fmcw-cl calibrate)",
                    err=True)
+    rival = attrs.get("rival_echo_m")
+    if rival is not None and np.isfinite(rival):
+        db = float(attrs["rival_echo_db"])
+        how = f"{abs(db):.1f} dB {'stronger' if db >= 0 else 'weaker'} than"
+        click.echo(f"warning: {cap}: another echo at {rival:.3f} m is {how} the tracked target "
+                   "(--min-range, --max-range choose the band the target is tracked in)", err=True)
     if quiet or as_json:
         return
     click.echo(f"{cap} -> {s['track']}\n  {s['duration_s']:.3f} s, {s['pairs']} pairs, "
@@ -102,6 +110,9 @@ def run_cluster(captures, outdir, options, backend, device, scheduler, quiet):
                    "else the first GPU, else the first device); see `fmcw-cl devices`.")
 @click.option("--min-range", default=0.03, show_default=True,
               help="Ignore peaks below this distance (m): DC, intensity ramp, lens reflection.")
+@click.option("--max-range", default=None, type=float,
+              help="Ignore peaks beyond this distance (m): a wall or a window behind the target. "
+                   "The track follows the strongest echo of [--min-range, --max-range).")
 @click.option("--no-dechirp", is_flag=True, help="The paper's method alone (no Doppler de-chirp).")
 @click.option("--chirp", default=None, type=click.Path(dir_okay=False),
               help="A chirp calibration (fmcw-cl calibrate) to use instead of the G(I) table.")
@@ -114,17 +125,19 @@ def run_cluster(captures, outdir, options, backend, device, scheduler, quiet):
 @click.option("--json", "as_json", is_flag=True, help="Print the summaries as JSON on stdout.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress, no summary.")
 @click.pass_context
-def command(ctx, captures, outdir, points, backend, device, min_range, no_dechirp, chirp, no_range_check,
-            skip_existing, scheduler, as_json, quiet):
+def command(ctx, captures, outdir, points, backend, device, min_range, max_range, no_dechirp, chirp,
+            no_range_check, skip_existing, scheduler, as_json, quiet):
     """Convert CAPTURE files into tracks (distance, velocity, acceleration).
 
     \b
     Example:
       fmcw-cl process data_samples/static_0p3m.h5 -o tracks/
       fmcw-cl process runs/*.h5 -o tracks/ --scheduler local:2
+      fmcw-cl process wall.h5 -o tracks/ --max-range 0.40
     """
     outdir.mkdir(parents=True, exist_ok=True)
-    options = Options(points=points, min_range_m=min_range, dechirp=not no_dechirp,
+    options = Options(points=points, min_range_m=min_range, max_range_m=max_range,
+                      dechirp=not no_dechirp,
                       range_check=not no_range_check, chirp=str(chirp) if chirp else None)
     todo = [c for c in captures if not (skip_existing and track_path(outdir, c).exists())]
     if scheduler:

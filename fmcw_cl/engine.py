@@ -262,23 +262,25 @@ def _chunk_pairs(plan: Plan, chunk, backend) -> _Pairs | None:
                           info.full_scale)
     alias = np.zeros(r.size, bool)
     if plan.check is not None and r.size:
-        alias = _beyond_range(plan, chunk.beat, hs, r, f, backend)
-    reason = faults.reasons(sel.valid, sel.heard, clip, alias)
+        alias = _beyond_range(plan, chunk.beat, hs, r, f, sel.dist_rise, sel.dist_fall, backend)
+    reason = faults.reasons(sel.valid, sel.heard, clip, alias, sel.continuous)
     sel.valid[:] = reason == faults.OK
     return _Pairs(t_r[own], t_f[own], sel, reason)
 
 
-def _beyond_range(plan: Plan, beat: np.ndarray, hs, r: np.ndarray, f: np.ndarray, backend) -> np.ndarray:
-    """The 2N-point range check of pairs (r, f), run on every CHECK_STRIDE-th pair; a pair
+def _beyond_range(plan: Plan, beat: np.ndarray, hs, r: np.ndarray, f: np.ndarray, d_r: np.ndarray,
+                  d_f: np.ndarray, backend) -> np.ndarray:
+    """The 2N-point range check of pairs (r, f) whose plain N-point distances are
+    (d_r, d_f), run on every CHECK_STRIDE-th pair; a pair
     is flagged when a checked pair on either side of it is (a target crosses the range
     limit within a few pairs, where the N-point distance is ambiguous anyway)."""
     lut2, win2, model2 = plan.check
     checked = np.unique(np.r_[np.arange(0, r.size, CHECK_STRIDE), r.size - 1])
     beyond = np.zeros(checked.size, bool)
-    for idx, u in ((r[checked], lut2.u_rise), (f[checked], lut2.u_fall)):
+    for idx, u, dn in ((r[checked], lut2.u_rise, d_r[checked]), (f[checked], lut2.u_fall, d_f[checked])):
         x2 = backend.resample(beat, hs.start[idx], hs.length[idx], u, win2)
         d2, s2 = backend.measure(x2, None, None, model2, Search(plan.search.lo, model2.nfft // 2))
-        beyond |= faults.beyond_range(d2, s2, plan.lut.unambiguous_range_m, pairing.SNR_MIN_DB)
+        beyond |= faults.beyond_range(d2, s2, plan.lut.unambiguous_range_m, pairing.SNR_MIN_DB, dn)
     right = np.searchsorted(checked, np.arange(r.size))          # first checked pair >= i
     left = np.searchsorted(checked, np.arange(r.size), side="right") - 1
     return beyond[right] | beyond[np.maximum(left, 0)]

@@ -57,3 +57,17 @@ def jump_track(capdir, jump_capture):
     from fmcw_cl.track import track_path, write_track
 
     return write_track(track_path(capdir, jump_capture), process(jump_capture))
+
+
+def realistic(path, ground_m=0.07, seed=31, **cfg):
+    """The jump at a lab's SNR (0 dB per sample at 0.3 m), with `cfg` added."""
+    simulate_capture(path, jump(0.3, ground_m=ground_m), 0.3, seed=seed,
+                     config=SimulationConfig(snr_db=0.0, **cfg))
+    return path
+
+
+@pytest.fixture(scope="session")
+def wall_capture(capdir):
+    """The jump at 0 dB with a static wall at 0.42 m whose echo is stronger than the
+    target's in flight (800 codes against 500 at 0.3 m)."""
+    return realistic(capdir / "wall.h5", reflectors=((0.42, 800.0),))

@@ -16,6 +16,7 @@ from fmcw_cl.errors import FmcwError
 from fmcw_cl.simulate.laser import paper_dfb
 from fmcw_cl.stages import pairing, resample, spectrum, sync
 from fmcw_cl.stages.lut import build_lut
+from fmcw_cl.stages.spectrum import Search
 
 FUZZ = settings(max_examples=int(os.environ.get("FMCW_FUZZ_EXAMPLES", 40)), deadline=None, derandomize=True,
                 suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
@@ -152,7 +153,7 @@ def test_pairing(pairs, kind, bin_, seed, dechirp):
         x = 8191.0 * np.sign(np.cos(2 * np.pi * bin_ / 64 * j) + rng.standard_normal((2, pairs, 1)))
     x = x * WIN
     t = np.arange(pairs) * 50e-6
-    res = pairing.track_pairs(x[0], x[1], t, t + 25e-6, MODEL, 2, 3, dechirp)
+    res = pairing.track_pairs(x[0], x[1], t, t + 25e-6, MODEL, Search(2, MODEL.nfft // 2), 3, dechirp)
     assert res.distance.shape == res.velocity.shape == res.valid.shape == (pairs,)
     assert res.valid.dtype == bool
     assert np.all(np.isfinite(res.distance[res.valid]))

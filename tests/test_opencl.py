@@ -217,3 +217,17 @@ def test_transform_too_large_for_local_memory_runs_on_the_host(backend, monkeypa
     np.testing.assert_allclose(on_device[0], on_host[0], atol=1e-6)
     np.testing.assert_array_equal(on_device[2].count, on_host[2].count)
     assert k_spectrum.local_bytes(backend.rt, 8192) > 48 * 1024 >= k_spectrum.local_bytes(backend.rt, 4096)
+
+
+def test_wall_track_and_echoes_equal_numpy(wall_capture):
+    """Several echoes through the whole pipeline: same track, same echoes."""
+    a = process(wall_capture, Options(), make_backend("numpy"))
+    b = process(wall_capture, Options(), make_backend("opencl"))
+    np.testing.assert_array_equal(a.valid, b.valid)
+    ok = a.valid
+    assert np.abs(a.distance_m[ok] - b.distance_m[ok]).max() < 1e-5
+    assert a.echoes.time_s.size == b.echoes.time_s.size
+    np.testing.assert_allclose(a.echoes.distance_m, b.echoes.distance_m, atol=1e-6)
+    np.testing.assert_allclose(a.echoes.snr_db, b.echoes.snr_db, atol=0.02)
+    np.testing.assert_array_equal(a.echoes.tracked, b.echoes.tracked)
+    assert a.attrs["rival_echo_m"] == pytest.approx(b.attrs["rival_echo_m"], abs=1e-5)

@@ -9,7 +9,7 @@ import pytest
 
 from fmcw_cl.capture import Capture
 from fmcw_cl.physics import C
-from fmcw_cl.simulate import SimulationConfig, Trajectory, jump, paper_dfb, rail, simulate_capture
+from fmcw_cl.simulate import SimulationConfig, Trajectory, jump, paper_dfb, rail, simulate_capture, static
 from fmcw_cl.simulate.laser import DfbLaser
 
 
@@ -96,3 +96,34 @@ def test_capture_is_deterministic_and_valid(tmp_path):
         assert truth.time_s[0] == 0 and truth.distance_m.size == truth.time_s.size
         # the excerpt starts at scenario time 0.07: fast take-off
         assert truth.velocity_mps[0] > 5
+
+
+def test_speckle_field_is_rayleigh_with_its_correlation_time():
+    from fmcw_cl.simulate.writer import speckle_field
+
+    corr = 3e-3
+    g = speckle_field(3.0, corr, np.random.default_rng(4))
+    t = np.arange(0, 3.0, corr / 10)
+    z = g(t)
+    power = np.abs(z) ** 2
+    assert np.mean(power) == pytest.approx(1.0, rel=0.1)
+    # Rayleigh amplitude: |g|^2 exponential, so P(|g|^2 < 0.1) = 1 - exp(-0.1)
+    assert np.mean(power < 0.1) == pytest.approx(1 - np.exp(-0.1), abs=0.02)
+    # field autocorrelation exp(-(dt/corr)^2): 1/e at one correlation time
+    lag = 10
+    rho = np.abs(np.mean(z[lag:] * np.conj(z[:-lag]))) / np.mean(power)
+    assert rho == pytest.approx(np.exp(-1), abs=0.08)
+
+
+def test_snr_db_sets_the_noise_and_reflectors_add_beats(tmp_path):
+    cfg = SimulationConfig(snr_db=0.0, reflectors=((0.35, 300.0),), leak_codes=0.0, lens_codes=0.0)
+    amp = cfg.echo_amplitude(0.3)
+    assert cfg.beat_noise_codes == pytest.approx(amp / np.sqrt(2))        # A^2/2 = sigma^2
+    quiet = SimulationConfig(noise_codes=0.0, reflectors=((0.35, 300.0),), echo_codes=0.0,
+                             leak_codes=0.0, lens_codes=0.0, sync_delay_samples=0.0)
+    path = tmp_path / "wall.h5"
+    simulate_capture(path, static(0.001, 0.2), 0.001, seed=2, config=quiet)
+    with Capture(path) as cap:
+        beat, _ = cap.read(0, cap.info.samples)
+    # the wall alone: its amplitude times the laser's relative power (about 1 mid-sweep)
+    assert 200 < np.sqrt(2) * np.std(beat) < 400

@@ -9,6 +9,7 @@ from fmcw_cl.physics import C
 from fmcw_cl.simulate import paper_dfb
 from fmcw_cl.stages import kinematics, lpf, pairing, resample, spectrum, sync
 from fmcw_cl.stages.lut import build_lut
+from fmcw_cl.stages.spectrum import Search
 
 HP = 2500.0  # half-period, samples
 
@@ -126,13 +127,14 @@ def test_tracker_resolves_folds_and_the_paper_method_does_not():
                                  for i in range(pairs)), strict=False))
     lo = int(0.03 / model.metres_per_bin)
     assert abs(model.k_rise) * 7.0 > 0.12   # the fold really happens
-    res = pairing.track_pairs(xr, xf, t_mid - half_s / 2, t_mid + half_s / 2, model, lo)
+    res = pairing.track_pairs(xr, xf, t_mid - half_s / 2, t_mid + half_s / 2, model,
+                              Search(lo, model.nfft // 2))
     assert res.valid.mean() > 0.98
     ok = res.valid
     assert np.abs(res.distance[ok] - r[ok]).max() < 0.05e-3
     assert np.abs(res.velocity[ok] - v[ok]).max() < 2e-3
-    paper = pairing.track_pairs(xr, xf, t_mid - half_s / 2, t_mid + half_s / 2, model, lo,
-                                dechirp=False)
+    paper = pairing.track_pairs(xr, xf, t_mid - half_s / 2, t_mid + half_s / 2, model,
+                                Search(lo, model.nfft // 2), dechirp=False)
     assert np.percentile(np.abs(paper.distance - r), 95) > 5e-3   # centimetres off
 
 

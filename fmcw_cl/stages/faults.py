@@ -3,7 +3,8 @@
 Written per pair in ``/track/reason`` and per half-sweep in ``/sweeps/reason`` (a
 half-sweep carries its pair's code). When several apply, the first in this order wins:
 a missing sync beats a clipped beat beats a weak echo beats an alias beats an
-unsettled tracker (with no echo, the range check only sees noise).
+unsettled tracker beats a discontinuous distance (with no echo, the range check only
+sees noise).
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ CLIPPED = 2        # the beat reaches the ADC's full scale inside the pair's hal
 NO_ECHO = 3        # a half-sweep's peak is below the SNR threshold (no target, beam blocked)
 BEYOND_RANGE = 4   # the target lies beyond the unambiguous range (its peak is an alias)
 UNSTABLE = 5       # the de-chirp did not settle or the velocity disagrees with its neighbours
+DISCONTINUOUS = 6  # the distance disagrees with its neighbours' (a fade's noise peak, another echo)
 
 REASONS = {
     OK: "ok",
@@ -24,9 +26,11 @@ REASONS = {
     NO_ECHO: "no_echo",
     BEYOND_RANGE: "beyond_range",
     UNSTABLE: "unstable",
+    DISCONTINUOUS: "discontinuous",
 }
 
 RANGE_MARGIN = 1.02   # a 2N-point peak beyond this share of the N-point range is an alias
+ALIAS_M = 0.01        # ... when the N-point peak lies this close to its mirror image
 
 
 def clipped(codes: np.ndarray, starts: np.ndarray, lengths: np.ndarray, full_scale: int) -> np.ndarray:
@@ -45,15 +49,22 @@ def clipped(codes: np.ndarray, starts: np.ndarray, lengths: np.ndarray, full_sca
 
 
 def beyond_range(distance_2n_m: np.ndarray, snr_2n_db: np.ndarray, unambiguous_m: float,
-                 snr_min_db: float) -> np.ndarray:
+                 snr_min_db: float, distance_n_m: np.ndarray) -> np.ndarray:
     """Half-sweeps whose peak, resampled at twice the points (twice the range), lies
-    beyond the unambiguous range of the N-point resampling."""
-    return (snr_2n_db >= snr_min_db) & (distance_2n_m > RANGE_MARGIN * unambiguous_m)
+    beyond the unambiguous range U of the N-point resampling, where the N-point peak
+    (plain, `distance_n_m`) is its alias: a real beat folds a tone at d in (U, 2U) to
+    2U - d. Without that match the 2N-point peak is noise (a half-sweep whose beat
+    folds through 0 Hz has no peak in the band, and the largest of twice the noise
+    bins then passes the SNR threshold now and then)."""
+    alias = np.abs(distance_n_m - (2 * unambiguous_m - distance_2n_m)) < ALIAS_M
+    return (snr_2n_db >= snr_min_db) & (distance_2n_m > RANGE_MARGIN * unambiguous_m) & alias
 
 
-def reasons(valid: np.ndarray, heard: np.ndarray, clip: np.ndarray, alias: np.ndarray) -> np.ndarray:
+def reasons(valid: np.ndarray, heard: np.ndarray, clip: np.ndarray, alias: np.ndarray,
+            continuous: np.ndarray) -> np.ndarray:
     """Per-pair code (uint8) from the tracker's verdict and the fault checks."""
     code = np.full(valid.shape, OK, np.uint8)
-    for mask, value in ((~valid, UNSTABLE), (alias, BEYOND_RANGE), (~heard, NO_ECHO), (clip, CLIPPED)):
+    for mask, value in ((~continuous, DISCONTINUOUS), (~valid, UNSTABLE), (alias, BEYOND_RANGE),
+                        (~heard, NO_ECHO), (clip, CLIPPED)):
         code[mask] = value          # later assignments take precedence
     return code

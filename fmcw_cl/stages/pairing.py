@@ -31,6 +31,9 @@ CONSISTENT_MPS = 0.1  # a velocity this far from its neighbours' median is an ou
 CONVERGED_MPS = 0.05  # final velocity correction must be below this (peak not smeared)
 NEIGHBOURS = 8        # half-width (pairs) of the continuity median
 STOP_MPS = 1e-3       # a pair is re-measured when its de-chirp velocity moves this much
+JUMP_M = 0.25e-3      # a distance this far from its neighbours' prediction is discontinuous
+JUMP_SIGMAS = 6.0     # ... or this many robust standard deviations of the chunk's residuals
+SUPPORT = 2           # trusted neighbours needed to vouch for a pair
 
 
 @dataclass(frozen=True)
@@ -94,6 +97,7 @@ class PairResult:
     dechirped_snr_rise: np.ndarray
     dechirped_snr_fall: np.ndarray
     heard: np.ndarray           # both final peaks at least SNR_MIN_DB over their floors
+    continuous: np.ndarray      # the distance agrees with its neighbours' (see `continuity`)
     echoes_rise: cfar.Detections | None = None   # every echo of the plain spectra
     echoes_fall: cfar.Detections | None = None
 
@@ -136,6 +140,33 @@ def solve_pair(d_r, d_f, v0, half_gap, model: DopplerModel):
     dv = (d_f - d_r - 2 * v0 * half_gap) / (2 * half_gap + model.k_fall - model.k_rise)
     dist = 0.5 * (d_r + d_f) - 0.5 * dv * (model.k_rise + model.k_fall)
     return dist, v0 + dv, dv
+
+
+def continuity(t: np.ndarray, dist: np.ndarray, vel: np.ndarray, trusted: np.ndarray) -> np.ndarray:
+    """Which pairs' distances agree with what their trusted neighbours predict.
+
+    Neighbour j (within NEIGHBOURS pairs) predicts d_j + (t_i - t_j) (v_i + v_j) / 2 for
+    pair i (the velocities are measured to mm/s, so the prediction is as good as d_j).
+    A pair agrees when the median prediction is within JUMP_M, or JUMP_SIGMAS robust
+    standard deviations of all residuals (a noisy capture), of its distance, and at
+    least SUPPORT neighbours vouch for it. A noise peak in a fade, or both half-sweeps
+    on another echo, moves both sweeps' distances alike: the velocity test cannot see
+    it, this one does.
+    """
+    n = dist.size
+    off = np.r_[-NEIGHBOURS:0, 1:NEIGHBOURS + 1]
+    j = np.arange(n)[:, None] + off[None, :]
+    inside = (j >= 0) & (j < n)
+    j = np.clip(j, 0, n - 1)
+    ok = inside & trusted[j]
+    pred = np.where(ok, dist[j] + (t[:, None] - t[j]) * 0.5 * (vel[:, None] + vel[j]), np.nan)
+    enough = ok.sum(axis=1) >= SUPPORT
+    resid = np.full(n, np.inf)
+    if enough.any():
+        resid[enough] = np.abs(dist[enough] - np.nanmedian(pred[enough], axis=1))
+    sure = np.isfinite(resid) & trusted
+    sigma = 1.4826 * float(np.median(resid[sure])) if sure.any() else 0.0
+    return resid <= max(JUMP_M, JUMP_SIGMAS * sigma)
 
 
 def regularise(v: np.ndarray, trusted: np.ndarray, time: np.ndarray) -> np.ndarray:
@@ -193,4 +224,6 @@ def track_pairs(xr: np.ndarray, xf: np.ndarray, t_rise: np.ndarray, t_fall: np.n
     valid = heard
     if dechirp:
         valid = valid & (np.abs(dv) < CONVERGED_MPS) & (np.abs(vel - med) < CONSISTENT_MPS)
-    return PairResult(dist, vel, valid, *plain, d_r, d_f, s_r, s_f, heard, *(e_r or [None]), *(e_f or [None]))
+    continuous = continuity(t_mid, dist, vel, valid) if dechirp else np.ones(valid.size, bool)
+    return PairResult(dist, vel, valid, *plain, d_r, d_f, s_r, s_f, heard, continuous,
+                      *(e_r or [None]), *(e_f or [None]))
