@@ -41,7 +41,8 @@ class Echoes:
         and whether it is the tracked peak.
     persistent : dict of arrays per persistent echo and slice: time_s (slice centre),
         distance_m (median), snr_db (median), share (of the slice's half-sweeps),
-        relative_db (over the tracked target's median de-chirped SNR in the slice).
+        relative_db (over the tracked target's level in the slice), in_band (below
+        --max-range).
     """
 
     time_s: np.ndarray
@@ -55,7 +56,7 @@ class Echoes:
     def rival(self) -> tuple[float, float] | None:
         """(distance m, level dB over the target) of the persistent echo closest to or
         above the tracked target's level, if within RIVAL_DB of it."""
-        rel = self.persistent["relative_db"]
+        rel = np.where(self.persistent["in_band"], self.persistent["relative_db"], -np.inf)
         if rel.size == 0 or not np.nanmax(rel) >= -RIVAL_DB:
             return None
         i = int(np.nanargmax(rel))
@@ -71,7 +72,7 @@ class Echoes:
 
 
 def table(t_sweep: np.ndarray, rising: np.ndarray, tracked_m: np.ndarray, level_db: np.ndarray,
-          det: Detections, metres_per_bin: float) -> Echoes:
+          det: Detections, metres_per_bin: float, max_range_m: float = np.inf) -> Echoes:
     """The detections of half-sweeps (times t_sweep, directions, tracked plain distances
     and de-chirped SNRs) as a flat table, with the persistent echoes."""
     rows, slots = np.nonzero(np.arange(det.bin.shape[1])[None, :] < det.count[:, None])
@@ -80,8 +81,9 @@ def table(t_sweep: np.ndarray, rising: np.ndarray, tracked_m: np.ndarray, level_
     order = np.argsort(t_sweep[rows], kind="stable")
     rows, dist, tracked = rows[order], dist[order], tracked[order]
     snr = det.snr_db[rows, slots[order]]
-    return Echoes(t_sweep[rows], dist, snr.astype(np.float32), rising[rows], tracked,
-                  persistent(t_sweep, level_db, t_sweep[rows], dist, snr, tracked))
+    pers = persistent(t_sweep, level_db, t_sweep[rows], dist, snr, tracked)
+    pers["in_band"] = pers["distance_m"] < max_range_m
+    return Echoes(t_sweep[rows], dist, snr.astype(np.float32), rising[rows], tracked, pers)
 
 
 def persistent(t_sweep: np.ndarray, level_db: np.ndarray, t: np.ndarray, dist: np.ndarray,

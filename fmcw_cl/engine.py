@@ -405,7 +405,8 @@ def assemble(plan: Plan, parts: list[_Pairs], backend, seconds: float) -> Track:
                         interleave("dechirped_snr_rise", "dechirped_snr_fall"),
                         Detections(*(np.stack([getattr(er, k), getattr(ef, k)], axis=1).reshape(
                             -1, *getattr(er, k).shape[1:]) for k in ("bin", "snr_db", "count"))),
-                        plan.model.metres_per_bin)
+                        plan.model.metres_per_bin,
+                        np.inf if options.max_range_m is None else options.max_range_m)
     lut = plan.lut
     attrs = {
         "points": options.points,

@@ -51,8 +51,8 @@ def test_jump_events_match_truth(jump_report, jump_capture, kind, quantity, wind
 def test_jump_report_files(jump_report):
     out, got = jump_report
     names = {p.rsplit("/", 1)[-1] for p in got["written"]}
-    assert names == {"kinematics.png", "spectra.png", "events.md", "events.json"}  # moving: no precision
-    for name in ("kinematics.png", "spectra.png"):
+    assert names == {"kinematics.png", "echoes.png", "spectra.png", "events.md", "events.json"}  # moving
+    for name in ("kinematics.png", "echoes.png", "spectra.png"):
         assert (out / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert not list(out.glob("*.part"))
     table = json.loads((out / "events.json").read_text())
@@ -97,3 +97,14 @@ def test_correction_sharpens_the_spectrum(jump_capture, jump_track):
     assert np.allclose(track.sweep_time_s[k], sp.time_s, atol=1e-7)
     peak = sp.distance_m[i + np.argmax(sp.corrected_db[:, i:], axis=1)]
     assert np.all(np.abs(peak - track.sweep_distance_m[k]) < 0.5e-3)   # a bin is 0.46 mm
+
+
+def test_track_without_echoes_still_reports(tmp_path, static_capture):
+    """A track written before /echoes existed (or by another writer): no echo picture."""
+    from fmcw_cl.engine import process
+    from fmcw_cl.track import write_track
+
+    track = process(static_capture)
+    track.echoes = None
+    got = make_report(write_track(tmp_path / "old.track.h5", track), tmp_path / "rep")
+    assert not any(p.endswith("echoes.png") for p in got["written"])

@@ -41,6 +41,10 @@ def test_wall_is_named_and_max_range_keeps_the_target(wall_capture, tmp_path, fm
     assert acc["distance_p95_m"] <= 0.5e-3
     assert acc["velocity_p95_mps"] <= 0.02
     assert not np.any(track.distance_m[track.valid] > 0.40)
+    # the wall is still listed, never hidden, but no longer rivals the target
+    pers = track.echoes.persistent
+    assert np.any((np.abs(pers["distance_m"] - 0.42) < 2e-3) & ~pers["in_band"])
+    assert np.isnan(track.attrs["rival_echo_m"])
 
 
 def test_two_static_reflectors_listed_at_their_distances(tmp_path):

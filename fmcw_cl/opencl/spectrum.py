@@ -58,7 +58,7 @@ def measure(rt: Runtime, bufs: Buffers, rows, beta: np.ndarray | None,
             ) -> tuple[Peaks, np.ndarray | None, cfar.Detections | None]:
     """Peaks of the de-chirped (velocity given) or plain spectra of `rows` (DeviceRows
     or a host array), the power spectra (sweeps, nfft/2) when `keep_power`, and every
-    echo of bins [lo, hi) when `echoes`. `index` (de-chirp only) picks the rows
+    echo of bins [lo, nfft/2) when `echoes`. `index` (de-chirp only) picks the rows
     measured, one velocity each."""
     if not isinstance(rows, DeviceRows):
         host = np.ascontiguousarray(rows, np.float32)

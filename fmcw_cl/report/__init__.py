@@ -1,8 +1,9 @@
 """A track's report: pictures of the paper's figures and its event table.
 
 `make_report` writes, into one folder (each file atomically):
-kinematics.png, spectra.png (when the source capture is readable), precision.png
-(static targets only), events.md and events.json.
+kinematics.png, echoes.png (every echo over range and time, when the track lists
+them), spectra.png (when the source capture is readable), precision.png (static
+targets only), events.md and events.json.
 """
 
 from __future__ import annotations
@@ -113,6 +114,10 @@ def make_report(track_file: str | os.PathLike, outdir: str | os.PathLike,
     with atomic_path(out / "kinematics.png") as tmp:
         figures.kinematics(track, tmp, truth, ev)
     written.append(out / "kinematics.png")
+    if track.echoes is not None:
+        with atomic_path(out / "echoes.png") as tmp:
+            figures.echoes(track, tmp)
+        written.append(out / "echoes.png")
     if src is not None and track.pairs:
         if at_s is None:
             slow = track.valid & (np.abs(np.nan_to_num(track.velocity_mps, nan=np.inf)) < SLOW_MPS)

@@ -120,3 +120,37 @@ def precision(track: Track, path: Path, true_distance_m: float | None = None) ->
     fig.savefig(path, dpi=120, format="png")
     plt.close(fig)
     return path
+
+
+def echoes(track: Track, path: Path) -> Path:
+    """Range-time picture of every echo of every half-sweep (plain spectra, CFAR), its
+    colour the SNR; the tracked target's valid pairs drawn over it, and the persistent
+    echoes (walls, windows) and the rival of the target named."""
+    e = track.echoes
+    fig, ax = plt.subplots(figsize=(9, 5), constrained_layout=True)
+    sc = ax.scatter(1e3 * e.time_s, e.distance_m, c=e.snr_db, s=2, cmap="viridis", lw=0,
+                    vmin=float(np.percentile(e.snr_db, 2)) if e.snr_db.size else 0, rasterized=True)
+    fig.colorbar(sc, ax=ax, label="echo SNR over local noise (dB)")
+    d = np.where(track.valid, track.distance_m, np.nan)
+    ax.plot(1e3 * track.time_s, d, color="C3", lw=1.0, label="tracked target (valid pairs)")
+    p = e.persistent
+    if p["time_s"].size:
+        ax.plot(1e3 * p["time_s"], p["distance_m"], "s", ms=7, mfc="none", color="k",
+                label="persistent echoes (per 10 ms)")
+    rival = e.rival
+    if rival is not None:
+        ax.axhline(rival[0], color="C1", ls="--", lw=1,
+                   label=f"rival: {rival[0]:.3f} m, {rival[1]:+.1f} dB over the target")
+    for name, ls in (("min_range_m", ":"), ("max_range_m", "-.")):
+        level = float(track.attrs.get(name, np.nan))
+        if np.isfinite(level):
+            ax.axhline(level, color="0.4", ls=ls, lw=0.8, label=f"{name.split('_')[0]} range {level:.3f} m")
+    ax.set_xlabel("time (ms)")
+    ax.set_ylabel("distance (m, Doppler shift included)")
+    ax.set_ylim(0, float(track.attrs.get("unambiguous_range_m", 0.5)))
+    ax.set_title(f"every echo: {e.time_s.size} in {track.sweep_time_s.size} half-sweeps")
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=3, fontsize=8)
+    ax.grid(alpha=0.3)
+    fig.savefig(path, dpi=120, format="png")
+    plt.close(fig)
+    return path

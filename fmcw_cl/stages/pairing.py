@@ -120,7 +120,8 @@ def measure(x: np.ndarray, beta: np.ndarray, v: np.ndarray | None, model: Dopple
             search: Search, rows: np.ndarray | None = None) -> tuple:
     """Apparent distance (m) and SNR (dB) of half-sweeps de-chirped at velocities v
     (plain spectra when v is None), of the rows `rows` of x only when given; with
-    `search.echoes`, every echo of the band (cfar.Detections) as a third item."""
+    `search.echoes`, every echo above the band's start (cfar.Detections; beyond its
+    end too: a wall behind --max-range stays visible) as a third item."""
     if rows is not None:
         x = x[rows]
     if v is not None:
@@ -128,7 +129,7 @@ def measure(x: np.ndarray, beta: np.ndarray, v: np.ndarray | None, model: Dopple
     power = power_spectra(x, model.nfft)
     pk = find_peaks(power, search.lo, search.hi)
     got = (pk.bin * model.metres_per_bin, pk.snr_db)
-    return (*got, cfar.detect(power, search.lo, search.hi)) if search.echoes else got
+    return (*got, cfar.detect(power, search.lo)) if search.echoes else got
 
 
 def solve_pair(d_r, d_f, v0, half_gap, model: DopplerModel):

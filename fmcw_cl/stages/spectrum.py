@@ -27,7 +27,8 @@ class Search:
     ----------
     lo, hi : the band [lo, hi) of padded bins (--min-range, --max-range); the tracked
         peak is the band's strongest.
-    echoes : also list every CFAR echo of the band (stages.cfar; the plain first pass).
+    echoes : also list every CFAR echo from lo to the spectrum's end (stages.cfar; the
+        plain first pass).
     """
 
     lo: int
