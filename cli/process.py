@@ -28,7 +28,8 @@ def summary(capture, out, attrs: dict, valid: np.ndarray) -> dict:
         "processing_time_s": secs, "real_time_multiple": dur / secs if secs > 0 else None,
         "invalid": {name: int(a[f"invalid_{name}"]) for code, name in faults.REASONS.items()
                     if code and f"invalid_{name}" in a},
-        "rival_echo": ({"distance_m": float(a["rival_echo_m"]), "relative_db": float(a["rival_echo_db"])}
+        "rival_echo": ({"distance_m": float(a["rival_echo_m"]), "relative_db": float(a["rival_echo_db"]),
+                        "moving": bool(a.get("rival_echo_diffuse", False))}
                        if np.isfinite(a.get("rival_echo_m", np.nan)) else None),
     }
 
@@ -52,7 +53,9 @@ def report(s: dict, attrs: dict, quiet: bool, as_json: bool) -> None:
     if rival is not None and np.isfinite(rival):
         db = float(attrs["rival_echo_db"])
         how = f"{abs(db):.1f} dB {'stronger' if db >= 0 else 'weaker'} than"
-        click.echo(f"warning: {cap}: another echo at {rival:.3f} m is {how} the tracked target "
+        what = (f"a moving echo (smeared by its Doppler shift) around {rival:.3f} m"
+                if attrs.get("rival_echo_diffuse") else f"another echo at {rival:.3f} m")
+        click.echo(f"warning: {cap}: {what} is {how} the tracked target "
                    "(--min-range, --max-range choose the band the target is tracked in)", err=True)
     if quiet or as_json:
         return

@@ -27,6 +27,9 @@ HIST_M = 0.002        # distance histogram bin; an echo is counted over 3 neighb
 PRESENT = 0.3         # share of a slice's half-sweeps an echo must be seen in
 TRACKED_M = 0.001     # a detection this close to its half-sweep's tracked peak is the target
 SEEN = 0.2           # share of a slice's half-sweeps the target's plain peak must be an echo in
+SURVEY_STRIDE = 16    # every 16th pair's spectra are surveyed for energy no echo explains
+EXPLAIN_BINS = 16     # padded bins either side of a peak counted as its energy
+HIDDEN_SIGMAS = 5.0   # unexplained energy must stand this far above the noise of its sum
 RIVAL_DB = 10.0       # a persistent echo this close to the tracked target's level is reported
 
 
@@ -42,7 +45,8 @@ class Echoes:
     persistent : dict of arrays per persistent echo and slice: time_s (slice centre),
         distance_m (median), snr_db (median), share (of the slice's half-sweeps),
         relative_db (over the tracked target's level in the slice), in_band (below
-        --max-range).
+        --max-range), diffuse (found by its unexplained energy, not as a sharp echo;
+        its snr_db is then the target's level plus relative_db).
     """
 
     time_s: np.ndarray
@@ -53,43 +57,47 @@ class Echoes:
     persistent: dict
 
     @property
-    def rival(self) -> tuple[float, float] | None:
-        """(distance m, level dB over the target) of the persistent echo closest to or
-        above the tracked target's level, if within RIVAL_DB of it."""
-        rel = np.where(self.persistent["in_band"], self.persistent["relative_db"], -np.inf)
+    def rival(self) -> tuple[float, float, bool] | None:
+        """(distance m, level dB over the target, diffuse) of the persistent echo closest
+        to or above the tracked target's level, if within RIVAL_DB of it."""
+        p = self.persistent
+        rel = np.where(p["in_band"], p["relative_db"], -np.inf)
         if rel.size == 0 or not np.nanmax(rel) >= -RIVAL_DB:
             return None
         i = int(np.nanargmax(rel))
-        return float(self.persistent["distance_m"][i]), float(rel[i])
+        return float(p["distance_m"][i]), float(rel[i]), bool(p.get("diffuse", np.zeros(rel.size, bool))[i])
 
     def attrs(self) -> dict:
         """Track attributes: the rival echo (NaN when there is none) and counts."""
-        rival = self.rival or (float("nan"), float("nan"))
+        rival = self.rival or (float("nan"), float("nan"), False)
         return {"echoes_detected": int(self.time_s.size),
                 "echoes_persistent_slices": int(self.persistent["time_s"].size),
-                "rival_echo_m": rival[0], "rival_echo_db": rival[1],
+                "rival_echo_m": rival[0], "rival_echo_db": rival[1], "rival_echo_diffuse": rival[2],
                 "echo_rival_limit_db": RIVAL_DB}
 
 
 def table(t_sweep: np.ndarray, rising: np.ndarray, tracked_m: np.ndarray, level_db: np.ndarray,
-          det: Detections, metres_per_bin: float, max_range_m: float = np.inf) -> Echoes:
+          det: Detections, metres_per_bin: float, max_range_m: float = np.inf,
+          survey: dict | None = None) -> Echoes:
     """The detections of half-sweeps (times t_sweep, directions, tracked plain distances
-    and de-chirped SNRs) as a flat table, with the persistent echoes."""
+    and de-chirped SNRs) as a flat table, with the persistent echoes (sharp, and diffuse
+    from the `survey` of `hidden`: time_s, ratio, distance_m, found)."""
     rows, slots = np.nonzero(np.arange(det.bin.shape[1])[None, :] < det.count[:, None])
     dist = det.bin[rows, slots] * metres_per_bin
     tracked = np.abs(dist - tracked_m[rows]) < TRACKED_M
     order = np.argsort(t_sweep[rows], kind="stable")
     rows, dist, tracked = rows[order], dist[order], tracked[order]
     snr = det.snr_db[rows, slots[order]]
-    pers = persistent(t_sweep, level_db, t_sweep[rows], dist, snr, tracked)
+    pers = persistent(t_sweep, level_db, t_sweep[rows], dist, snr, tracked, survey)
     pers["in_band"] = pers["distance_m"] < max_range_m
     return Echoes(t_sweep[rows], dist, snr.astype(np.float32), rising[rows], tracked, pers)
 
 
 def persistent(t_sweep: np.ndarray, level_db: np.ndarray, t: np.ndarray, dist: np.ndarray,
-               snr: np.ndarray, tracked: np.ndarray) -> dict:
+               snr: np.ndarray, tracked: np.ndarray, survey: dict | None = None) -> dict:
     """Persistent echoes other than the tracked target, slice by slice (see the module)."""
-    out: dict[str, list] = {k: [] for k in ("time_s", "distance_m", "snr_db", "share", "relative_db")}
+    keys = ("time_s", "distance_m", "snr_db", "share", "relative_db", "diffuse")
+    out: dict[str, list] = {k: [] for k in keys}
     if t_sweep.size:
         edges = np.arange(t_sweep.min(), t_sweep.max() + SLICE_S, SLICE_S)
         for a in edges:
@@ -101,10 +109,63 @@ def persistent(t_sweep: np.ndarray, level_db: np.ndarray, t: np.ndarray, dist: n
             mine = inside & tracked
             level = float(np.median(snr[mine] if mine.sum() >= SEEN * sweeps else level_db[here]))
             others = inside & ~tracked
-            for d, s, share in _clusters(dist[others], snr[others], sweeps):
-                for k, x in zip(out, (a + SLICE_S / 2, d, s, share, s - level), strict=True):
+            found = [(d, s, share, s - level, False)
+                     for d, s, share in _clusters(dist[others], snr[others], sweeps)]
+            if survey is not None:
+                here = (survey["time_s"] >= a) & (survey["time_s"] < a + SLICE_S)
+                hit = here & survey["found"]
+                if here.sum() >= 4 and hit.sum() >= PRESENT * here.sum():
+                    rel = 10 * np.log10(float(np.median(survey["ratio"][hit])))
+                    found.append((float(np.median(survey["distance_m"][hit])), level + rel,
+                                  float(hit.sum() / here.sum()), rel, True))
+            for row in found:
+                for k, x in zip(keys, (a + SLICE_S / 2, *row), strict=True):
                     out[k].append(x)
-    return {k: np.asarray(v, np.float64) for k, v in out.items()}
+    got = {k: np.asarray(v, np.float64) for k, v in out.items()}
+    got["diffuse"] = got["diffuse"].astype(bool)
+    return got
+
+
+def hidden(plain: np.ndarray, dechirped: np.ndarray, lo: int, tracked_bin: np.ndarray,
+           plain_bin: np.ndarray, others: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Energy of surveyed half-sweeps that no sharp echo explains (see the module).
+
+    Parameters
+    ----------
+    plain, dechirped : (R, nfft/2) power spectra, plain and de-chirped at the pair's
+        final velocity.
+    lo : first bin of the band (--min-range).
+    tracked_bin, plain_bin : (R,) the tracked peak's bin in each spectrum.
+    others : (R, M) bins of the other echoes (NaN: none).
+
+    Returns
+    -------
+    ratio : (R,) unexplained over the tracked target's energy.
+    centroid : (R,) bin of the unexplained energy's centre (NaN: none).
+    found : (R,) the ratio reaches RIVAL_DB and stands HIDDEN_SIGMAS over the noise.
+    """
+    r, half = plain.shape
+    k = np.arange(lo, half)
+    p = plain[:, lo:]
+    floor = np.median(p, axis=1) / np.log(2)               # exponential noise: mean = median / ln 2
+    excess = p - floor[:, None]
+    floor_d = np.median(dechirped[:, lo:], axis=1) / np.log(2)
+    near_t = np.abs(k[None, :] - np.rint(tracked_bin)[:, None]) <= EXPLAIN_BINS
+    target = np.sum((dechirped[:, lo:] - floor_d[:, None]) * near_t, axis=1)
+    explained = np.zeros(p.shape, bool)
+    for b in others.T:
+        explained |= np.abs(k[None, :] - np.rint(np.nan_to_num(b, nan=-1e9))[:, None]) <= EXPLAIN_BINS
+    unexplained = np.sum(excess * ~explained, axis=1) - target
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = unexplained / target
+    # the noise of a sum of n correlated (2x padded) exponential bins: floor sqrt(2 n)
+    noise = floor * np.sqrt(2.0 * np.sum(~explained, axis=1))
+    found = (target > 0) & (ratio >= 10 ** (-RIVAL_DB / 10)) & (unexplained > HIDDEN_SIGMAS * noise)
+    at_target = np.abs(k[None, :] - np.rint(plain_bin)[:, None]) <= EXPLAIN_BINS
+    w = np.clip(excess, 0, None) * ~explained * ~at_target
+    with np.errstate(divide="ignore", invalid="ignore"):
+        centroid = np.sum(w * k[None, :], axis=1) / np.sum(w, axis=1)
+    return np.nan_to_num(ratio, nan=0.0), centroid, found
 
 
 def _clusters(dist: np.ndarray, snr: np.ndarray, sweeps: int):

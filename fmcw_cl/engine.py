@@ -84,6 +84,9 @@ class NumpyBackend:
     def measure(self, x, beta, v, model, search, rows=None):
         return pairing.measure(x, beta, v, model, search, rows)
 
+    def power(self, x, beta, v, nfft, rows=None):
+        return pairing.power(x, beta, v, nfft, rows)
+
 
 def make_backend(name: str = "auto", device: str | None = None, warn=None):
     """The stage implementation: "numpy", "opencl", or "auto".
@@ -233,6 +236,7 @@ class _Pairs:
     t_fall: np.ndarray
     result: pairing.PairResult
     reason: np.ndarray
+    survey: dict          # echoes.hidden of every SURVEY_STRIDE-th pair's half-sweeps
 
 
 def _chunk_pairs(plan: Plan, chunk, backend) -> _Pairs | None:
@@ -265,7 +269,36 @@ def _chunk_pairs(plan: Plan, chunk, backend) -> _Pairs | None:
         alias = _beyond_range(plan, chunk.beat, hs, r, f, sel.dist_rise, sel.dist_fall, backend)
     reason = faults.reasons(sel.valid, sel.heard, clip, alias, sel.continuous)
     sel.valid[:] = reason == faults.OK
-    return _Pairs(t_r[own], t_f[own], sel, reason)
+    survey = _survey(plan, backend, (xr, xf), (t_r, t_f), res, np.flatnonzero(own))
+    return _Pairs(t_r[own], t_f[own], sel, reason, survey)
+
+
+SURVEY_KEYS = ("time_s", "ratio", "distance_m", "found")
+
+
+def _survey(plan: Plan, backend, rows: tuple, times: tuple, res: pairing.PairResult,
+            own: np.ndarray) -> dict:
+    """The energy no sharp echo explains (echoes.hidden) in both half-sweeps of every
+    SURVEY_STRIDE-th owned pair: their plain spectra and those de-chirped at the pair's
+    velocity."""
+    m = plan.model
+    idx = own[:: echoes.SURVEY_STRIDE]
+    got: dict[str, list] = {k: [] for k in SURVEY_KEYS}
+    per_direction = ((m.beta_rise, res.dist_rise, res.dechirped_rise, res.echoes_rise),
+                     (m.beta_fall, res.dist_fall, res.dechirped_fall, res.echoes_fall))
+    for x, t, (beta, dist, dech, det) in zip(rows, times, per_direction, strict=True):
+        if idx.size == 0 or det is None:
+            break
+        plain = backend.power(x, None, None, m.nfft, idx)
+        dechirped = backend.power(x, beta, res.velocity[idx], m.nfft, idx)
+        others = det.take(idx).bin.copy()
+        others[np.abs(others * m.metres_per_bin - dist[idx, None]) < echoes.TRACKED_M] = np.nan
+        ratio, centroid, found = echoes.hidden(plain, dechirped, plan.search.lo, dech[idx] / m.metres_per_bin,
+                                               dist[idx] / m.metres_per_bin, others)
+        for k, v in zip(SURVEY_KEYS, (t[idx], ratio, centroid * m.metres_per_bin, found), strict=True):
+            got[k].append(v)
+    return {k: np.concatenate(v) if v else np.zeros(0, bool if k == "found" else float)
+            for k, v in got.items()}
 
 
 def _beyond_range(plan: Plan, beat: np.ndarray, hs, r: np.ndarray, f: np.ndarray, d_r: np.ndarray,
@@ -406,7 +439,8 @@ def assemble(plan: Plan, parts: list[_Pairs], backend, seconds: float) -> Track:
                         Detections(*(np.stack([getattr(er, k), getattr(ef, k)], axis=1).reshape(
                             -1, *getattr(er, k).shape[1:]) for k in ("bin", "snr_db", "count"))),
                         plan.model.metres_per_bin,
-                        np.inf if options.max_range_m is None else options.max_range_m)
+                        np.inf if options.max_range_m is None else options.max_range_m,
+                        {k: np.concatenate([p.survey[k] for p in parts]) for k in SURVEY_KEYS})
     lut = plan.lut
     attrs = {
         "points": options.points,

@@ -76,7 +76,7 @@ def write_track(path: str | os.PathLike, track: Track) -> Path:
 
 ECHO_COLUMNS = (("time_s", np.float64), ("distance_m", np.float64), ("snr_db", np.float32),
                 ("current_rising", bool), ("tracked", bool))
-PERSISTENT_COLUMNS = ("time_s", "distance_m", "snr_db", "share", "relative_db", "in_band")
+PERSISTENT_COLUMNS = ("time_s", "distance_m", "snr_db", "share", "relative_db", "in_band", "diffuse")
 
 
 def _write_echoes(g, e: Echoes) -> None:
@@ -85,12 +85,14 @@ def _write_echoes(g, e: Echoes) -> None:
         g.create_dataset(name, data=np.asarray(x, dtype))
     p = g.create_group("persistent")
     for name in PERSISTENT_COLUMNS:
-        p.create_dataset(name, data=np.asarray(e.persistent[name], bool if name == "in_band" else np.float64))
+        flag = name in ("in_band", "diffuse")
+        p.create_dataset(name, data=np.asarray(e.persistent[name], bool if flag else np.float64))
 
 
 def _read_echoes(g) -> Echoes:
     cols = [g[name][()] for name, _ in ECHO_COLUMNS]
-    return Echoes(*cols, {name: g["persistent"][name][()] for name in PERSISTENT_COLUMNS})
+    return Echoes(*cols, {name: g["persistent"][name][()] for name in PERSISTENT_COLUMNS
+                          if name in g["persistent"]})
 
 
 def read_track(path: str | os.PathLike) -> Track:

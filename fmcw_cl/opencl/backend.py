@@ -67,8 +67,13 @@ class OpenCLBackend:
         got = (pk.bin * model.metres_per_bin, pk.snr_db)
         return (*got, det) if search.echoes else got
 
-
-def spectra(backend: OpenCLBackend, x, nfft: int) -> np.ndarray:
-    """Power spectra (sweeps, nfft/2) of the plain (not de-chirped) rows of x."""
-    _, power, _ = k_spectrum.measure(backend.rt, backend.bufs, x, None, None, nfft, 1, keep_power=True)
-    return power
+    def power(self, x, beta, v, nfft, rows=None):
+        """Power spectra of rows of x (plain, or de-chirped at v); twin: pairing.power."""
+        if not k_spectrum.fits(self.rt, nfft):
+            host = x.get(self.rt.queue) if isinstance(x, DeviceRows) else x
+            return pairing.power(host, beta, v, nfft, rows)
+        if rows is not None and v is None:        # picked rows go through the de-chirp path at 0 m/s
+            v = np.zeros(np.size(rows))
+            beta = np.zeros(x.shape[1])
+        _, spec, _ = k_spectrum.measure(self.rt, self.bufs, x, beta, v, nfft, 1, keep_power=True, index=rows)
+        return spec

@@ -134,9 +134,12 @@ def echoes(track: Track, path: Path) -> Path:
     d = np.where(track.valid, track.distance_m, np.nan)
     ax.plot(1e3 * track.time_s, d, color="C3", lw=1.0, label="tracked target (valid pairs)")
     p = e.persistent
-    if p["time_s"].size:
-        ax.plot(1e3 * p["time_s"], p["distance_m"], "s", ms=7, mfc="none", color="k",
-                label="persistent echoes (per 10 ms)")
+    diffuse = p.get("diffuse", np.zeros(p["time_s"].size, bool))
+    for mask, marker, label in ((~diffuse, "s", "persistent echoes (per 10 ms)"),
+                                (diffuse, "D", "moving echo, smeared (energy centre)")):
+        if mask.any():
+            ax.plot(1e3 * p["time_s"][mask], p["distance_m"][mask], marker, ms=7, mfc="none", color="k",
+                    label=label)
     rival = e.rival
     if rival is not None:
         ax.axhline(rival[0], color="C1", ls="--", lw=1,

@@ -116,20 +116,27 @@ class PairResult:
         return cls(*(join([getattr(p, k) for p in parts]) for k in cls.__dataclass_fields__))
 
 
+def power(x: np.ndarray, beta: np.ndarray | None, v: np.ndarray | None, nfft: int,
+          rows: np.ndarray | None = None) -> np.ndarray:
+    """Power spectra (sweeps, nfft/2) of half-sweeps de-chirped at velocities v (plain
+    when v is None), of the rows `rows` of x only when given."""
+    if rows is not None:
+        x = x[rows]
+    if v is not None:
+        x = x * np.exp(-2j * np.pi * np.outer(v, beta))
+    return power_spectra(x, nfft)
+
+
 def measure(x: np.ndarray, beta: np.ndarray, v: np.ndarray | None, model: DopplerModel,
             search: Search, rows: np.ndarray | None = None) -> tuple:
     """Apparent distance (m) and SNR (dB) of half-sweeps de-chirped at velocities v
     (plain spectra when v is None), of the rows `rows` of x only when given; with
     `search.echoes`, every echo above the band's start (cfar.Detections; beyond its
     end too: a wall behind --max-range stays visible) as a third item."""
-    if rows is not None:
-        x = x[rows]
-    if v is not None:
-        x = x * np.exp(-2j * np.pi * np.outer(v, beta))
-    power = power_spectra(x, model.nfft)
-    pk = find_peaks(power, search.lo, search.hi)
+    spec = power(x, beta, v, model.nfft, rows)
+    pk = find_peaks(spec, search.lo, search.hi)
     got = (pk.bin * model.metres_per_bin, pk.snr_db)
-    return (*got, cfar.detect(power, search.lo)) if search.echoes else got
+    return (*got, cfar.detect(spec, search.lo)) if search.echoes else got
 
 
 def solve_pair(d_r, d_f, v0, half_gap, model: DopplerModel):
