@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import tempfile
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -61,9 +62,10 @@ def _stage_rows(be, path: Path, opts: Options, seconds: float) -> list[dict]:
         "low-pass (sync delay)": lambda: be.intensity(beat, info.sample_rate_hz),
         "sync turning points": lambda: be.turning_points(sy, hp),
         "resample": lambda: be.resample(beat, starts, lengths, plan.lut.u_fall, plan.window),
-        "FFT + peak": lambda: be.measure(x, m.beta_fall, None, m, plan.search),
-        "de-chirp + FFT + peak": lambda: be.measure(x, m.beta_fall, v, m, plan.search),
-        "resample + FFT + peak": kernels,
+        "FFT + peak + echoes": lambda: be.measure(x, m.beta_fall, None, m, plan.search),
+        # the plain pass lists every echo (CFAR); the de-chirp passes only measure the peak
+        "de-chirp + FFT + peak": lambda: be.measure(x, m.beta_fall, v, m, replace(plan.search, echoes=False)),
+        "resample + FFT + peak + echoes": kernels,
         "end to end, paper's method": lambda: process(path, Options(dechirp=False), be),
         "end to end (file to track)": lambda: process(path, opts, be),
     }

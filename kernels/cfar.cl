@@ -3,7 +3,10 @@
 // k + guard (ties: the lowest) and stands above scale[n] times the mean of its n
 // training cells (train bins a side beyond the guard, never below lo). Called by the
 // whole work-group (fft.cl's spectrum_peak) on a plain spectrum; writes the first
-// max_echoes echoes in bin order. Twin: fmcw_cl.stages.cfar.detect.
+// max_echoes echoes in bin order: the group flags the bins, each work-item counts the
+// flags of its own contiguous span, an exclusive scan of the counts gives each its
+// first slot, so the list is in bin order without a serial pass over the spectrum.
+// Twin: fmcw_cl.stages.cfar.detect.
 
 // p / (training mean) of bin k when it is an echo, else 0.
 float cfar_ratio(__local const float *pw, const int half_n, const int lo, const int k,
@@ -33,6 +36,7 @@ void local_cfar(__local const float *pw,   // power of bins 0 .. half_n - 1
                 __global const float *scale,   // threshold factor per count of training cells
                 const int max_echoes,
                 __local uchar *flag,           // scratch, half_n
+                __local int *counts,           // scratch, one per work-item
                 __global float *echo_bin,      // out: max_echoes fractional bins
                 __global float *echo_snr,      // out: max_echoes dB over the training mean
                 __global int *echo_count)      // out: echoes written
@@ -41,18 +45,33 @@ void local_cfar(__local const float *pw,   // power of bins 0 .. half_n - 1
     const int lsz = get_local_size(0);
     for (int k = lo + lid; k < hi; k += lsz) flag[k] = cfar_ratio(pw, half_n, lo, k, guard, train, scale) > 0.0f;
     barrier(CLK_LOCAL_MEM_FENCE);
-    if (lid == 0) {    // in bin order, so the kept echoes are the nearest (as the twin)
-        int count = 0;
-        for (int k = lo; k < hi && count < max_echoes; ++k) {
-            if (!flag[k]) continue;
-            echo_bin[count] = peak_position(pw, half_n, k);
-            echo_snr[count] = 10.0f * log10(cfar_ratio(pw, half_n, lo, k, guard, train, scale));
-            ++count;
+    const int span = (hi - lo + lsz - 1) / lsz;
+    const int a = min(lo + lid * span, hi), b = min(a + span, hi);
+    int mine = 0;
+    for (int k = a; k < b; ++k) mine += flag[k];
+    counts[lid] = mine;
+    barrier(CLK_LOCAL_MEM_FENCE);
+    if (lid == 0) {                    // exclusive scan of lsz counts (<= 256)
+        int total = 0;
+        for (int i = 0; i < lsz; ++i) {
+            const int c = counts[i];
+            counts[i] = total;
+            total += c;
         }
-        *echo_count = count;
-        for (int i = count; i < max_echoes; ++i) {
+        const int kept = min(total, max_echoes);
+        *echo_count = kept;
+        for (int i = kept; i < max_echoes; ++i) {
             echo_bin[i] = NAN;
             echo_snr[i] = NAN;
         }
     }
+    barrier(CLK_LOCAL_MEM_FENCE);
+    int slot = counts[lid];
+    for (int k = a; k < b && slot < max_echoes; ++k) {
+        if (!flag[k]) continue;
+        echo_bin[slot] = peak_position(pw, half_n, k);
+        echo_snr[slot] = 10.0f * log10(cfar_ratio(pw, half_n, lo, k, guard, train, scale));
+        ++slot;
+    }
+    barrier(CLK_LOCAL_MEM_FENCE);      // the counts share local_peak's scratch
 }

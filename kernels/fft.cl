@@ -180,7 +180,7 @@ __kernel void spectrum_peak(__global const float *x,          // (rows, points)
             const size_t e = (size_t)(s + r) * max_echoes;
             // every echo above the minimum range, the band's top (--max-range) aside
             local_cfar(pw, half_n, lo, half_n, cfar_guard, train, scale, max_echoes, flag,
-                       echo_bin + e, echo_snr + e, echo_count + s + r);
+                       (__local int *)scratch, echo_bin + e, echo_snr + e, echo_count + s + r);
         }
         barrier(CLK_LOCAL_MEM_FENCE);
     }

@@ -79,30 +79,33 @@ def detect_mask(power: np.ndarray, lo: int, hi: int) -> tuple[np.ndarray, np.nda
     s, half = power.shape
     k = np.arange(lo, hi)
     p = power[:, lo:hi]
-    neg = np.full((s, GUARD), -np.inf)
-    padded = np.concatenate([neg, power, neg], axis=1)
-    peak = np.ones(p.shape, bool)
-    for d in range(1, GUARD + 1):
-        peak &= p > padded[:, GUARD + lo - d:GUARD + hi - d]
-        peak &= p >= padded[:, GUARD + lo + d:GUARD + hi + d]
-    # training sums from a cumulative sum over the cells eligible for training, [lo, half)
-    c = np.zeros((s, half + 1))
-    np.cumsum(power[:, lo:], axis=1, out=c[:, lo + 1:])
-    c[:, : lo + 1] = 0.0
+    # training sums from a cumulative sum over the cells eligible for training, [lo, half),
+    # padded so that every window, clipped to [lo, half), is a contiguous slice
+    reach = GUARD + TRAIN + 1
+    c = np.zeros((s, half + 1 + 2 * reach))
+    np.cumsum(power[:, lo:], axis=1, out=c[:, reach + lo + 1: reach + half + 1])
+    c[:, reach + half + 1:] = c[:, reach + half: reach + half + 1]
 
-    def cells(a, b):                    # sum and count of bins [a, b) within [lo, half)
-        a = np.clip(a, lo, half)
-        b = np.clip(b, lo, half)
-        b = np.maximum(a, b)
-        return c[:, b] - c[:, a], b - a
+    def window(a: int, b: int):          # sums over bins [k + a, k + b) for all k of the band
+        return c[:, reach + lo + b: reach + hi + b] - c[:, reach + lo + a: reach + hi + a]
 
-    ls, ln = cells(k - GUARD - TRAIN, k - GUARD)
-    rs, rn = cells(k + GUARD + 1, k + GUARD + TRAIN + 1)
-    n = ln + rn
-    mean = (ls + rs) / np.maximum(n, 1)
+    def count(a: int, b: int):
+        return np.clip(k + b, lo, half) - np.clip(k + a, lo, half)
+
+    n = count(-GUARD - TRAIN, -GUARD) + count(GUARD + 1, GUARD + TRAIN + 1)
+    mean = (window(-GUARD - TRAIN, -GUARD) + window(GUARD + 1, GUARD + TRAIN + 1)) / np.maximum(n, 1)
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = p / mean
-    mask = peak & (p > scales()[n] * mean)
+    mask = p > scales()[n] * mean
+    # the peak test (largest of +-GUARD, ties: the lowest) on the few bins above threshold
+    rows, cols = np.nonzero(mask)
+    centre = cols + lo
+    peak = np.ones(rows.size, bool)
+    for d in range(1, GUARD + 1):
+        left, right = centre - d, centre + d
+        peak &= (left < 0) | (p[rows, cols] > power[rows, np.maximum(left, 0)])
+        peak &= (right >= half) | (p[rows, cols] >= power[rows, np.minimum(right, half - 1)])
+    mask[rows[~peak], cols[~peak]] = False
     return mask, ratio
 
 
