@@ -30,6 +30,7 @@ SEEN = 0.2           # share of a slice's half-sweeps the target's plain peak mu
 SURVEY_STRIDE = 16    # every 16th pair's spectra are surveyed for energy no echo explains
 EXPLAIN_BINS = 16     # padded bins either side of a peak counted as its energy
 HIDDEN_SIGMAS = 5.0   # unexplained energy must stand this far above the noise of its sum
+SHARP = 0.9           # the target's energy within +-3 bins over +-EXPLAIN_BINS (a lone peak: >= 0.96)
 RIVAL_DB = 10.0       # a persistent echo this close to the tracked target's level is reported
 
 
@@ -142,7 +143,8 @@ def hidden(plain: np.ndarray, dechirped: np.ndarray, lo: int, tracked_bin: np.nd
     -------
     ratio : (R,) unexplained over the tracked target's energy.
     centroid : (R,) bin of the unexplained energy's centre (NaN: none).
-    found : (R,) the ratio reaches RIVAL_DB and stands HIDDEN_SIGMAS over the noise.
+    found : (R,) the target's peak is sharp and the ratio reaches RIVAL_DB, HIDDEN_SIGMAS over
+        the noise.
     """
     r, half = plain.shape
     k = np.arange(lo, half)
@@ -150,8 +152,10 @@ def hidden(plain: np.ndarray, dechirped: np.ndarray, lo: int, tracked_bin: np.nd
     floor = np.median(p, axis=1) / np.log(2)               # exponential noise: mean = median / ln 2
     excess = p - floor[:, None]
     floor_d = np.median(dechirped[:, lo:], axis=1) / np.log(2)
-    near_t = np.abs(k[None, :] - np.rint(tracked_bin)[:, None]) <= EXPLAIN_BINS
-    target = np.sum((dechirped[:, lo:] - floor_d[:, None]) * near_t, axis=1)
+    off_t = np.abs(k[None, :] - np.rint(tracked_bin)[:, None])
+    excess_d = dechirped[:, lo:] - floor_d[:, None]
+    target = np.sum(excess_d * (off_t <= EXPLAIN_BINS), axis=1)
+    sharp = np.sum(excess_d * (off_t <= 3), axis=1) >= SHARP * target
     explained = np.zeros(p.shape, bool)
     for b in others.T:
         explained |= np.abs(k[None, :] - np.rint(np.nan_to_num(b, nan=-1e9))[:, None]) <= EXPLAIN_BINS
@@ -160,7 +164,7 @@ def hidden(plain: np.ndarray, dechirped: np.ndarray, lo: int, tracked_bin: np.nd
         ratio = unexplained / target
     # the noise of a sum of n correlated (2x padded) exponential bins: floor sqrt(2 n)
     noise = floor * np.sqrt(2.0 * np.sum(~explained, axis=1))
-    found = (target > 0) & (ratio >= 10 ** (-RIVAL_DB / 10)) & (unexplained > HIDDEN_SIGMAS * noise)
+    found = (target > 0) & sharp & (ratio >= 10 ** (-RIVAL_DB / 10)) & (unexplained > HIDDEN_SIGMAS * noise)
     at_target = np.abs(k[None, :] - np.rint(plain_bin)[:, None]) <= EXPLAIN_BINS
     w = np.clip(excess, 0, None) * ~explained * ~at_target
     with np.errstate(divide="ignore", invalid="ignore"):

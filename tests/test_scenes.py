@@ -112,3 +112,16 @@ def test_noise_beyond_the_range_is_not_an_alias():
     dn = np.array([2 * u - 0.60, 0.10, 0.30])     # a true alias, a noise peak, in range
     got = faults.beyond_range(d2, np.full(3, 15.0), u, 10.0, dn)
     assert got.tolist() == [True, False, False]
+
+
+def test_a_wide_target_peak_is_not_taken_for_another_echo(tmp_path, jump_capture):
+    """Without de-chirp (the paper's method), or with a chirp that left its G(I) table,
+    the target's own peak is wide; its energy must not pass for a hidden echo."""
+    _, paper = scored(jump_capture, dechirp=False)
+    assert np.isnan(paper.attrs["rival_echo_m"])
+    path = tmp_path / "lag.h5"
+    cfg = SimulationConfig(thermal_lag_s=5e-6)
+    simulate_capture(path, static(0.02, 0.18), 0.02, seed=62, config=cfg)
+    lagged = process(path)
+    assert not lagged.attrs["tuning_matches"]         # the tuning warning says what is wrong
+    assert np.isnan(lagged.attrs["rival_echo_m"])
