@@ -120,3 +120,20 @@ def test_realistic_sample_names_the_hidden_target_and_max_range_finds_it(tmp_pat
         acc = accuracy(track, cap.truth())
     assert acc["valid_share"] >= 0.95
     assert acc["distance_max_m"] <= 0.5e-3
+
+
+def test_simulate_a_scene_and_refuse_bad_options(tmp_path, fmcw):
+    cap = tmp_path / "scene.h5"
+    fmcw("simulate", "static", "-o", cap, "--distance", "0.2", "--duration", "0.005", "--snr-db", "0",
+         "--reflector", "0.33:600", "--speckle-ms", "2", "--table-noise-mhz", "20", "--rin-db-hz", "-140",
+         "-q")
+    res = json.loads(fmcw("process", cap, "-o", tmp_path / "t", "--json", "--max-range", "0.3").stdout)[0]
+    assert res["rival_echo"] is None                   # the reflector lies beyond --max-range
+    track = read_track(tmp_path / "t" / "scene.track.h5")
+    assert np.any(np.abs(track.echoes.persistent["distance_m"] - 0.33) < 2e-3)
+    for bad, word in ((["--reflector", "0.3"], "DIST:AMPLITUDE"), (["--reflector", "-1:5"], "> 0 m"),
+                      (["--noise", "5", "--snr-db", "0"], "not both")):
+        proc = fmcw("simulate", "static", "-o", tmp_path / "x.h5", *bad, check=False)
+        assert proc.returncode != 0 and word in proc.stderr
+    proc = fmcw("process", cap, "-o", tmp_path / "u", "--max-range", "0.02", check=False)
+    assert proc.returncode == 1 and "--max-range" in proc.stderr and proc.stderr.count("\n") == 1
