@@ -18,8 +18,9 @@ from fmcw_cl.progress import Progress
 @click.option("--device", default=None, help="OpenCL device (see `fmcw-cl devices`).")
 @click.option("--json", "as_json", is_flag=True, help="Rows as JSON on stdout.")
 def command(seconds, points, backend, device, as_json):
-    """Half-sweeps per second, MS/s and the multiple of real time (100 MS/s per
-    channel = 40 000 half-sweeps/s), per stage and end to end.
+    """Half-sweeps per second, MS/s and the multiple of real time, per stage and end to end.
+
+    Real time is 100 MS/s per channel = 40 000 half-sweeps/s.
 
     \b
     Example:

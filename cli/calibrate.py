@@ -6,8 +6,7 @@ from pathlib import Path
 
 import click
 
-from fmcw_cl.calibrate import measure_chirp
-from fmcw_cl.chirp import write_chirp
+import fmcw_cl
 
 
 @click.command("calibrate")
@@ -26,8 +25,7 @@ def command(capture, distance, output, periods, quiet):
       fmcw-cl calibrate rail_0p300m.h5 --distance 0.300 -o chirp.h5
       fmcw-cl process run7.h5 -o tracks/ --chirp chirp.h5
     """
-    chirp = measure_chirp(capture, distance, periods)
-    write_chirp(output, chirp)
+    chirp = fmcw_cl.calibrate(capture, distance, output, periods=periods)
     if quiet:
         return
     a = chirp.attrs

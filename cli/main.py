@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import importlib
 import sys
 
 import click
@@ -9,10 +10,44 @@ import click
 from fmcw_cl import __version__
 from fmcw_cl.errors import FmcwError
 
-from . import bench, calibrate, devices, import_dump, info, process, report, simulate
+# name: (module of cli/, one line of help). A command's module (and numpy, scipy,
+# pyopencl, matplotlib, Dask behind it) is imported only when that command runs, so
+# `fmcw-cl --help` answers at once; tests/test_cli.py keeps these lines equal to the
+# commands' own first docstring lines.
+COMMANDS = {
+    "process": ("process", "Convert CAPTURE files into tracks (distance, velocity, acceleration)."),
+    "calibrate": ("calibrate",
+                  "Measure the dynamic chirp from CAPTURE of a static target at --distance."),
+    "simulate": ("simulate", "Simulate SCENARIO (static, rail or jump) into a capture file."),
+    "import": ("import_dump",
+               "Make a capture from DUMP (interleaved int16 binary, or .npy (N, 2) / (2, N))."),
+    "info": ("info", "Describe CAPTURE: duration, periods, sweep bandwidth, ranges, sync delay, levels."),
+    "export": ("export", "Write TRACK files as CSV, Parquet or NetCDF tables."),
+    "report": ("report",
+               "Plot TRACK (distance, velocity, acceleration; spectra; precision) and list its events."),
+    "devices": ("devices", "List OpenCL platforms and devices; mark the one `process` would use."),
+    "bench": ("bench",
+              "Half-sweeps per second, MS/s and the multiple of real time, per stage and end to end."),
+}
 
 
-@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+class LazyGroup(click.Group):
+    """A group that imports a command's module only when the command is used."""
+
+    def list_commands(self, ctx: click.Context) -> list[str]:
+        return list(COMMANDS)
+
+    def get_command(self, ctx: click.Context, name: str) -> click.Command | None:
+        if name not in COMMANDS:
+            return None
+        return importlib.import_module(f"{__package__}.{COMMANDS[name][0]}").command
+
+    def format_commands(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
+        with formatter.section("Commands"):
+            formatter.write_dl([(name, text) for name, (_, text) in COMMANDS.items()])
+
+
+@click.group(cls=LazyGroup, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(__version__, prog_name="fmcw-cl")
 @click.option("--debug", is_flag=True, help="Show tracebacks instead of one-line errors.")
 @click.pass_context
@@ -26,10 +61,6 @@ def cli(ctx: click.Context, debug: bool) -> None:
     """
     ctx.obj = {"debug": debug}
 
-
-for command in (process.command, calibrate.command, simulate.command, import_dump.command, info.command,
-                report.command, devices.command, bench.command):
-    cli.add_command(command)
 
 
 def main(argv: list[str] | None = None) -> None:

@@ -9,7 +9,9 @@ from pathlib import Path
 import click
 import numpy as np
 
-from fmcw_cl.engine import Options, make_backend, process
+from fmcw_cl import options as opts
+from fmcw_cl.api import engine_options
+from fmcw_cl.engine import make_backend, process
 from fmcw_cl.errors import FmcwError
 from fmcw_cl.progress import Progress
 from fmcw_cl.stages import faults
@@ -104,23 +106,7 @@ def run_cluster(captures, outdir, options, backend, device, scheduler, quiet):
 @click.argument("captures", nargs=-1, required=True, type=click.Path(path_type=Path))
 @click.option("-o", "--outdir", required=True, type=click.Path(file_okay=False, path_type=Path),
               help="Folder for the <capture stem>.track.h5 files.")
-@click.option("--points", default=1000, show_default=True,
-              help="Resampling intervals per half-sweep (unambiguous range N c / 4nB).")
-@click.option("--backend", type=click.Choice(["auto", "opencl", "numpy"]), default="auto",
-              show_default=True, help="Stage implementation; auto: OpenCL if a device is there, else numpy.")
-@click.option("--device", default=None,
-              help="OpenCL device: index P or P:D, or a name substring (default: PYOPENCL_CTX, "
-                   "else the first GPU, else the first device); see `fmcw-cl devices`.")
-@click.option("--min-range", default=0.03, show_default=True,
-              help="Ignore peaks below this distance (m): DC, intensity ramp, lens reflection.")
-@click.option("--max-range", default=None, type=float,
-              help="Ignore peaks beyond this distance (m): a wall or a window behind the target. "
-                   "The track follows the strongest echo of [--min-range, --max-range).")
-@click.option("--no-dechirp", is_flag=True, help="The paper's method alone (no Doppler de-chirp).")
-@click.option("--chirp", default=None, type=click.Path(dir_okay=False),
-              help="A chirp calibration (fmcw-cl calibrate) to use instead of the G(I) table.")
-@click.option("--no-range-check", is_flag=True,
-              help="Skip the 2N-point resampling that flags targets beyond the unambiguous range.")
+@opts.click_options(opts.PROCESS)
 @click.option("--skip-existing", is_flag=True, help="Leave captures whose track exists.")
 @click.option("--scheduler", default=None,
               help="Run on a Dask cluster: a scheduler address (tcp://host:8786), or local:N for N "
@@ -128,8 +114,7 @@ def run_cluster(captures, outdir, options, backend, device, scheduler, quiet):
 @click.option("--json", "as_json", is_flag=True, help="Print the summaries as JSON on stdout.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress, no summary.")
 @click.pass_context
-def command(ctx, captures, outdir, points, backend, device, min_range, max_range, no_dechirp, chirp,
-            no_range_check, skip_existing, scheduler, as_json, quiet):
+def command(ctx, captures, outdir, skip_existing, scheduler, as_json, quiet, **options):
     """Convert CAPTURE files into tracks (distance, velocity, acceleration).
 
     \b
@@ -139,9 +124,9 @@ def command(ctx, captures, outdir, points, backend, device, min_range, max_range
       fmcw-cl process wall.h5 -o tracks/ --max-range 0.40
     """
     outdir.mkdir(parents=True, exist_ok=True)
-    options = Options(points=points, min_range_m=min_range, max_range_m=max_range,
-                      dechirp=not no_dechirp,
-                      range_check=not no_range_check, chirp=str(chirp) if chirp else None)
+    values = opts.check(options)
+    backend, device = values["backend"], values["device"]
+    options = engine_options(values)
     todo = [c for c in captures if not (skip_existing and track_path(outdir, c).exists())]
     if scheduler:
         runs = run_cluster(todo, outdir, options, backend, device, scheduler, quiet)

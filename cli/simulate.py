@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
-from dataclasses import replace
 from pathlib import Path
 
 import click
 
+import fmcw_cl
 from fmcw_cl.progress import Progress
-from fmcw_cl.simulate import SCENARIOS, SimulationConfig, simulate_capture
+
+SCENARIOS = ("jump", "rail", "static")
 
 
 def parse_reflector(text: str) -> tuple[float, float]:
@@ -25,7 +26,7 @@ def parse_reflector(text: str) -> tuple[float, float]:
 
 
 @click.command("simulate")
-@click.argument("scenario", type=click.Choice(sorted(SCENARIOS)))
+@click.argument("scenario", type=click.Choice(SCENARIOS))
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, path_type=Path))
 @click.option("--duration", default=None, type=float,
               help="Seconds of capture [default: static 0.05, rail 0.4, jump 0.3].")
@@ -64,29 +65,14 @@ def command(scenario, output, duration, seed, distance, start, noise, snr_db, re
       fmcw-cl simulate static -o static.h5 --distance 0.25
       fmcw-cl simulate jump -o wall.h5 --snr-db 0 --reflector 0.42:800 --speckle-ms 3
     """
+    reflectors = tuple(parse_reflector(r) for r in reflectors)
     duration = duration or {"static": 0.05, "rail": 0.4, "jump": 0.3}[scenario]
-    kwargs = {}
-    if distance is not None:
-        if scenario == "rail":
-            raise click.BadParameter("the rail has no --distance", param_hint="--distance")
-        kwargs = {"distance" if scenario == "static" else "ground_m": distance}
-    trajectory = SCENARIOS[scenario](duration + start, **kwargs)
-    cfg = SimulationConfig(reflectors=tuple(parse_reflector(r) for r in reflectors),
-                           speckle_s=speckle_ms * 1e-3, snr_db=snr_db, rin_db_hz=rin_db_hz)
-    if noise is not None:
-        if snr_db is not None:
-            raise click.BadParameter("give --noise or --snr-db, not both", param_hint="--snr-db")
-        cfg = replace(cfg, noise_codes=noise)
-    if table_noise_mhz is not None:
-        cfg = replace(cfg, table_noise_hz=table_noise_mhz * 1e6)
-    if sync_delay is not None:
-        cfg = replace(cfg, sync_delay_samples=sync_delay)
-    if thermal_lag_us:
-        cfg = replace(cfg, thermal_lag_s=thermal_lag_us * 1e-6)
-    bar = Progress(output.name, int(duration * cfg.sample_rate_hz), cfg.sample_rate_hz,
-                   enabled=False if quiet else None)
-    hidden = simulate_capture(output, trajectory, duration, seed, cfg, start_s=start,
-                              compression="gzip" if compress else None, progress=bar)
+    fs = 100e6                          # the simulator's ADC (SimulationConfig.sample_rate_hz)
+    bar = Progress(output.name, int(duration * fs), fs, enabled=False if quiet else None)
+    hidden = fmcw_cl.simulate(output, scenario, duration=duration, seed=seed, distance=distance, start=start,
+                              noise=noise, snr_db=snr_db, reflectors=reflectors, speckle_ms=speckle_ms,
+                              table_noise_mhz=table_noise_mhz, rin_db_hz=rin_db_hz, sync_delay=sync_delay,
+                              thermal_lag_us=thermal_lag_us, compress=compress, progress=bar)
     bar.close()
     if not quiet:
         click.echo(f"{output}: {scenario}, {duration:g} s, seed {seed}, "

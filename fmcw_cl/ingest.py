@@ -1,4 +1,5 @@
-"""Raw DAQ dumps and an OSA G(I) table to a capture file (`fmcw-cl import`).
+"""Raw DAQ dumps or LabVIEW TDMS recordings, and an OSA G(I) table, to a capture file
+(`fmcw-cl import`).
 
 A dump holds the two ADC channels as int16 codes, either interleaved in a headerless
 binary file (sample 0 of channel A, sample 0 of channel B, ...) or as a ``.npy`` array
@@ -6,6 +7,14 @@ of shape (N, 2) or (2, N). The G(I) table comes as a CSV the way an optical spec
 analyser exports it: injection current in mA and peak wavelength in nm, one row per
 current; header and comment lines are skipped. Wavelengths are taken as vacuum
 wavelengths (nu = c / lambda); say `air=True` for an OSA that reports air wavelengths.
+
+A TDMS recording (LabVIEW's own format, read by npTDMS) names its channels GROUP/CHANNEL;
+by default the first two channels of the first group are the beat and the sync. Its
+sample rate is the waveform property `wf_increment` (1 / rate). Integer channels hold
+ADC codes (DAQmx raw data is read unscaled); float channels hold scaled volts, turned
+back into codes with the ADC's input range (`full_scale_volts`: +-V is +-2^(bits-1)).
+It is read in ranges (npTDMS's streaming mode, either data layout), so a recording
+larger than memory imports in bounded memory.
 """
 
 from __future__ import annotations
@@ -52,6 +61,70 @@ def read_dump(path: str | os.PathLike) -> np.ndarray:
     return np.memmap(path, dtype="<i2", mode="r").reshape(-1, 2)
 
 
+class TdmsChannels:
+    """The beat and sync channels of a TDMS recording as an (N, 2) int16 source:
+    `shape`, `data[a:b]` (read from the file on demand), `sample_rate_hz`."""
+
+    def __init__(self, path: str | os.PathLike, beat: str | None = None, sync: str | None = None,
+                 full_scale_volts: float | None = None, bits: int = 14) -> None:
+        from .tables import optional
+
+        nptdms = optional("nptdms", "TDMS import")
+        self.path = Path(path)
+        if not self.path.is_file():
+            raise CaptureError(self.path, "no such file")
+        try:
+            self.file = nptdms.TdmsFile.open(self.path)
+        except Exception as exc:  # noqa: BLE001 - npTDMS raises several kinds for a bad file
+            raise CaptureError(self.path, f"not a readable TDMS file ({exc})") from None
+        self.channels = [self._channel(name, k) for k, name in enumerate((beat, sync))]
+        lengths = {len(c) for c in self.channels}
+        if len(lengths) != 1:
+            raise CaptureError(self.path, f"the beat and sync channels differ in length ({sorted(lengths)})")
+        self.shape = (lengths.pop(), 2)
+        self.scale = [self._codes_per_unit(c, full_scale_volts, bits) for c in self.channels]
+        rates = {1.0 / float(c.properties["wf_increment"]) for c in self.channels
+                 if "wf_increment" in c.properties}
+        if len(rates) > 1:
+            raise CaptureError(self.path, f"the channels' wf_increment disagree ({sorted(rates)} Hz)")
+        self.sample_rate_hz = rates.pop() if rates else None
+
+    def _channel(self, name: str | None, k: int):
+        groups = self.file.groups()
+        if name is None:
+            chans = groups[0].channels() if groups else []
+            if len(chans) < 2:
+                raise CaptureError(self.path, "the first group holds fewer than two channels: "
+                                              "name them (--beat-channel, --sync-channel GROUP/CHANNEL)")
+            return chans[k]
+        group, _, chan = name.partition("/")
+        try:
+            return self.file[group][chan]
+        except KeyError:
+            have = ", ".join(f"{g.name}/{c.name}" for g in groups for c in g.channels())
+            raise CaptureError(self.path, f"no channel {name!r} (it holds {have})") from None
+
+    def _codes_per_unit(self, channel, full_scale_volts: float | None, bits: int) -> float | None:
+        if np.issubdtype(channel.dtype, np.integer):
+            return None                     # ADC codes already (DAQmx raw data, unscaled)
+        if not full_scale_volts:
+            raise CaptureError(self.path, f"{channel.group_name}/{channel.name} holds scaled values "
+                                          f"({channel.dtype}): give the ADC's input range "
+                                          "(--full-scale-volts)")
+        return 2 ** (bits - 1) / full_scale_volts
+
+    def __getitem__(self, rows: slice) -> np.ndarray:
+        a, b, _ = rows.indices(self.shape[0])
+        out = np.empty((max(0, b - a), 2), np.int16)
+        for k, (c, scale) in enumerate(zip(self.channels, self.scale, strict=True)):
+            x = c.read_data(a, b - a, scaled=scale is not None)
+            out[:, k] = x if scale is None else np.clip(np.rint(x * scale), -32768, 32767)
+        return out
+
+    def close(self) -> None:
+        self.file.close()
+
+
 def read_osa_table(path: str | os.PathLike, air: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """G(I) from an OSA CSV (current mA, wavelength nm) as (current A, frequency Hz),
     sorted by current.
@@ -84,27 +157,47 @@ def read_osa_table(path: str | os.PathLike, air: bool = False) -> tuple[np.ndarr
 
 
 def import_capture(dump: str | os.PathLike, table: str | os.PathLike, output: str | os.PathLike,
-                   sample_rate_hz: float, modulation: Modulation, bits: int = 14,
+                   sample_rate_hz: float | None, modulation: Modulation, bits: int = 14,
                    order: str = "beat,sync", refractive_index: float | None = None,
-                   air: bool = False, progress=None) -> Path:
-    """Write a capture from a dump and an OSA table; the result is validated.
+                   air: bool = False, progress=None, beat_channel: str | None = None,
+                   sync_channel: str | None = None, full_scale_volts: float | None = None) -> Path:
+    """Write a capture from a dump or a TDMS recording and an OSA table; the result is
+    validated.
 
     Parameters
     ----------
-    dump : interleaved int16 binary or .npy (see module notes).
+    dump : interleaved int16 binary, .npy, or .tdms (see module notes).
     table : OSA CSV, current (mA) and wavelength (nm).
     output : the capture to write (atomically).
-    sample_rate_hz : ADC rate (Hz).
+    sample_rate_hz : ADC rate (Hz); None: a TDMS recording's wf_increment.
     modulation : triangle frequency (Hz) and current range (A).
     bits : effective ADC resolution.
     order : which channel comes first, "beat,sync" or "sync,beat".
     refractive_index : of the medium, written to /optics when given.
     air : the OSA reports air wavelengths.
     progress : callable(done, total, sample_rate_hz), optional.
+    beat_channel, sync_channel : TDMS only: GROUP/CHANNEL (default: the first group's
+        first two channels; `order` does not apply).
+    full_scale_volts : TDMS float channels: the ADC's input range (+-V).
     """
     if order not in ("beat,sync", "sync,beat"):
         raise ValueError(f"order must be 'beat,sync' or 'sync,beat', not {order!r}")
-    data = read_dump(dump)
+    tdms = Path(dump).suffix.lower() == ".tdms"
+    data = TdmsChannels(dump, beat_channel, sync_channel, full_scale_volts, bits) if tdms else read_dump(dump)
+    try:
+        return _write_capture(data, dump, table, output, sample_rate_hz, modulation, bits,
+                              "beat,sync" if tdms else order, refractive_index, air, progress)
+    finally:
+        if tdms:
+            data.close()
+
+
+def _write_capture(data, dump, table, output, sample_rate_hz, modulation, bits, order, refractive_index,
+                   air, progress) -> Path:
+    sample_rate_hz = sample_rate_hz or getattr(data, "sample_rate_hz", None)
+    if not sample_rate_hz:
+        raise CaptureError(Path(dump), "no sample rate: give --sample-rate "
+                                       "(the recording has no wf_increment)")
     current_a, frequency_hz = read_osa_table(table, air)
     lo, hi = modulation.current_min_a, modulation.current_max_a
     if current_a[0] > lo or current_a[-1] < hi:

@@ -40,6 +40,21 @@ class Track:
     def pairs(self) -> int:
         return int(self.time_s.size)
 
+    def to_pandas(self, per: str = "pair"):
+        """A pandas DataFrame per "pair" (time_s, distance_m, velocity_mps,
+        acceleration_mps2, valid, reason), per "sweep" (each half-sweep) or per "echo";
+        the attributes in `.attrs`. Needs pandas (`pip install "fmcw-cl[tables]"`)."""
+        from .tables import to_pandas
+
+        return to_pandas(self, per)
+
+    def to_xarray(self):
+        """An xarray Dataset: pairs along time_s, half-sweeps along sweep_time_s, units
+        as attributes, the track's attributes carried over. Needs xarray."""
+        from .tables import to_xarray
+
+        return to_xarray(self)
+
 
 def track_path(outdir: str | os.PathLike, capture: str | os.PathLike) -> Path:
     """OUTDIR/<capture stem>.track.h5"""

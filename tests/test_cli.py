@@ -4,7 +4,11 @@ from __future__ import annotations
 
 import json
 import re
+import subprocess
+import sys
+from pathlib import Path
 
+import click
 import h5py
 import numpy as np
 import pytest
@@ -137,3 +141,32 @@ def test_simulate_a_scene_and_refuse_bad_options(tmp_path, fmcw):
         assert proc.returncode != 0 and word in proc.stderr
     proc = fmcw("process", cap, "-o", tmp_path / "u", "--max-range", "0.02", check=False)
     assert proc.returncode == 1 and "--max-range" in proc.stderr and proc.stderr.count("\n") == 1
+
+
+HEAVY = ("scipy", "matplotlib", "pyopencl", "dask")
+
+
+def _imported_by(*argv: str) -> set[str]:
+    """Top-level packages a fresh interpreter has imported after `fmcw-cl ARGV`."""
+    code = ("import sys\nfrom fmcw_cl.cli.main import main\n"
+            f"try:\n    main({list(argv)!r})\nexcept SystemExit:\n    pass\n"
+            "print(' '.join(sorted({m.split('.')[0] for m in sys.modules})), file=sys.stderr)")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    return set(proc.stderr.split())
+
+
+def test_start_up_imports_only_what_the_command_needs():
+    """`fmcw-cl --help` and `info` answer at once: no scipy (1 s to import here),
+    matplotlib, pyopencl or Dask; --help not even numpy or h5py."""
+    assert not _imported_by("--help") & {*HEAVY, "numpy", "h5py"}
+    sample = str(Path(__file__).parents[1] / "data_samples" / "static_0p3m.h5")
+    got = _imported_by("info", sample)
+    assert "h5py" in got and not got & set(HEAVY)
+
+
+def test_command_table_matches_the_commands():
+    from fmcw_cl.cli.main import COMMANDS, cli
+
+    ctx = click.Context(cli)
+    for name, (_, line) in COMMANDS.items():
+        assert cli.get_command(ctx, name).help.strip().splitlines()[0] == line

@@ -81,3 +81,74 @@ def test_bad_dumps_and_tables(tmp_path, raw, fmcw):
     assert not out.exists() and not list(tmp_path.glob("*.part"))
     proc = fmcw("import", tmp_path / "odd.bin", "--tuning", d / "osa.csv", "-o", out, check=False)
     assert proc.returncode == 1 and proc.stderr.count("\n") == 1 and "odd.bin" in proc.stderr
+
+
+def write_tdms(path, channels: dict, interleaved: bool = False, segments: int = 3, props=None):
+    """A LabVIEW-style TDMS file by npTDMS's writer: channels group "adc", written in
+    `segments` segments; `interleaved` sets the segments' interleaved-data flag and
+    interleaves the values (npTDMS's TdmsSegment with that flag)."""
+    from nptdms import ChannelObject, TdmsWriter, writer
+
+    class Interleaved(writer.TdmsSegment):
+        def write(self, file):
+            meta = self.metadata()
+            flags = ["kTocMetaData", "kTocRawData", "kTocNewObjList", "kTocInterleavedData"]
+            lead = self.leadin(flags, sum(len(v.bytes) for v in meta))
+            file.write(b"".join(v.bytes for v in lead + meta))
+            data = [o.data for o in self.objects if writer._object_has_data(o)]
+            file.write(np.stack(data, axis=1).astype(data[0].dtype.newbyteorder("<")).tobytes())
+
+    original = writer.TdmsSegment
+    writer.TdmsSegment = Interleaved if interleaved else original
+    try:
+        with TdmsWriter(str(path)) as w:
+            n = len(next(iter(channels.values())))
+            for part in np.array_split(np.arange(n), segments):
+                w.write_segment([ChannelObject("adc", name, x[part], properties=props or {})
+                                 for name, x in channels.items()])
+    finally:
+        writer.TdmsSegment = original
+    return path
+
+
+@pytest.mark.parametrize("interleaved", [False, True])
+@pytest.mark.parametrize("scaled", [False, True])
+def test_tdms_recording_imports_and_converts_like_the_original(raw, static_capture, tmp_path, fmcw,
+                                                               interleaved, scaled):
+    """Raw int16 codes or scaled volts (+-2 V full scale), contiguous or interleaved,
+    with a channel that is neither: named channels, the rate from wf_increment."""
+    d, info, beat, sync = raw
+    full_scale = 2.0
+    to_unit = (lambda x: x.astype(np.float64) * full_scale / 8192) if scaled else (lambda x: x)
+    rec = write_tdms(tmp_path / "run.tdms",
+                     {"temperature": to_unit(np.zeros(beat.size, np.int16)),
+                      "sync": to_unit(sync), "beat": to_unit(beat)},
+                     interleaved=interleaved, props={"wf_increment": 1 / info.sample_rate_hz})
+    out = tmp_path / "run.h5"
+    m = info.modulation
+    args = ["import", rec, "--tuning", d / "osa.csv", "-o", out, "--beat-channel", "adc/beat",
+            "--sync-channel", "adc/sync", "--frequency", m.frequency_hz, "--current-min", m.current_min_a,
+            "--current-max", m.current_max_a, "-q"]
+    fmcw(*args, *(["--full-scale-volts", full_scale] if scaled else []))
+    with Capture(out) as cap:
+        assert cap.info.sample_rate_hz == pytest.approx(info.sample_rate_hz)
+        b, s = cap.read(0, cap.info.samples)
+    np.testing.assert_array_equal(b, beat)
+    np.testing.assert_array_equal(s, sync)
+    a, t = process(static_capture), process(out)
+    np.testing.assert_array_equal(a.valid, t.valid)
+    np.testing.assert_allclose(a.distance_m, t.distance_m, atol=1e-9)
+
+
+def test_tdms_refusals(raw, tmp_path, fmcw):
+    d, info, beat, sync = raw
+    m = info.modulation
+    common = ["--tuning", d / "osa.csv", "-o", tmp_path / "x.h5", "--frequency", m.frequency_hz]
+    volts = write_tdms(tmp_path / "v.tdms", {"beat": beat / 4096.0, "sync": sync / 4096.0}, segments=1,
+                       props={"wf_increment": 1e-8})
+    no_rate = write_tdms(tmp_path / "r.tdms", {"beat": beat, "sync": sync}, segments=1)
+    for rec, extra, word in ((volts, [], "--full-scale-volts"),
+                             (volts, ["--beat-channel", "adc/nope"], "adc/beat"), (no_rate, [], "--sample-rate")):
+        proc = fmcw("import", rec, *common, *extra, check=False)
+        assert proc.returncode == 1 and word in proc.stderr and proc.stderr.count("\n") == 1, proc.stderr
+    assert not (tmp_path / "x.h5").exists()

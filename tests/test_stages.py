@@ -147,3 +147,12 @@ def test_acceleration_skips_gaps():
     a = kinematics.acceleration(v, valid, period)
     assert np.all(np.isnan(a[90:95]))
     np.testing.assert_allclose(a[valid], (120.0 + 800.0 * t)[valid], rtol=1e-6)
+
+
+def test_lowpass_taps_are_scipys_firwin():
+    from scipy.signal import firwin
+
+    from fmcw_cl.stages import lpf
+
+    for fs, cut, taps in ((4e6, 200e3, 63), (4e6, 150e3, 31), (1e6, 100e3, 101)):
+        np.testing.assert_allclose(lpf.lowpass_taps(fs, cut, taps), firwin(taps, cut, fs=fs), atol=1e-15)

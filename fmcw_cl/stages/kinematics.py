@@ -8,7 +8,6 @@ fewer than 3 pairs get NaN.
 from __future__ import annotations
 
 import numpy as np
-from scipy.signal import savgol_filter
 
 WINDOW_PAIRS = 21
 POLYORDER = 2
@@ -21,6 +20,8 @@ def acceleration(velocity: np.ndarray, valid: np.ndarray, period_s: float,
     Invalid pairs are skipped: each run of consecutive valid pairs is differentiated
     on its own, so no value is invented across a gap. Invalid pairs get NaN.
     """
+    from scipy.signal import savgol_filter  # a second to import: only where a track is made
+
     acc = np.full(velocity.shape, np.nan)
     edges = np.flatnonzero(np.diff(np.concatenate([[0], valid.astype(np.int8), [0]])))
     for a, b in zip(edges[::2], edges[1::2], strict=False):

@@ -10,7 +10,6 @@ biases the sync delay. Three cascaded boxcars (a CIC decimator, sinc^3) fix that
 from __future__ import annotations
 
 import numpy as np
-from scipy.signal import firwin
 
 DECIMATION = 25      # 100 MS/s -> 4 MS/s
 CIC_ORDER = 3
@@ -37,8 +36,16 @@ def cic_decimate(x: np.ndarray, factor: int = DECIMATION, order: int = CIC_ORDER
 
 
 def lowpass_taps(sample_rate_hz: float, cutoff_hz: float = CUTOFF_HZ, taps: int = TAPS) -> np.ndarray:
-    """Symmetric (linear-phase) FIR taps, unit DC gain, for the decimated stream."""
-    return firwin(taps, cutoff_hz, fs=sample_rate_hz)
+    """Symmetric (linear-phase) FIR taps, unit DC gain, for the decimated stream.
+
+    scipy.signal.firwin's design (a Hamming-windowed sinc scaled to unit DC gain; equal
+    to it, tests/test_stages.py), written out because importing scipy.signal costs a
+    second, which `fmcw-cl info` would pay for 63 numbers.
+    """
+    c = 2 * cutoff_hz / sample_rate_hz               # cutoff over Nyquist
+    m = np.arange(taps) - (taps - 1) / 2
+    h = c * np.sinc(c * m) * (0.54 - 0.46 * np.cos(2 * np.pi * np.arange(taps) / (taps - 1)))
+    return h / h.sum()
 
 
 def lowpass(x: np.ndarray, taps: np.ndarray) -> np.ndarray:

@@ -19,7 +19,6 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 import numpy as np
-from scipy.ndimage import median_filter
 
 from ..physics import C
 from . import cfar
@@ -177,11 +176,18 @@ def continuity(t: np.ndarray, dist: np.ndarray, vel: np.ndarray, trusted: np.nda
     return resid <= max(JUMP_M, JUMP_SIGMAS * sigma)
 
 
+def running_median(v: np.ndarray) -> np.ndarray:
+    """Median of each pair's 2 NEIGHBOURS + 1 pairs (edges: nearest)."""
+    from scipy.ndimage import median_filter  # imported where used: the command line starts fast
+
+    return median_filter(v, size=2 * NEIGHBOURS + 1, mode="nearest")
+
+
 def regularise(v: np.ndarray, trusted: np.ndarray, time: np.ndarray) -> np.ndarray:
     """Continuity prior: running median of trusted velocities, gaps filled linearly."""
     if not np.any(trusted):
         return np.zeros_like(v)
-    smooth = median_filter(v, size=2 * NEIGHBOURS + 1, mode="nearest")
+    smooth = running_median(v)
     return np.interp(time, time[trusted], smooth[trusted])
 
 
@@ -216,7 +222,7 @@ def track_pairs(xr: np.ndarray, xf: np.ndarray, t_rise: np.ndarray, t_fall: np.n
     heard = (s_r >= SNR_MIN_DB) & (s_f >= SNR_MIN_DB)
     for it in range(iterations if dechirp else 0):
         # the plain first pass smears fast targets: allow 20 % there, not later
-        med = median_filter(vel, size=2 * NEIGHBOURS + 1, mode="nearest")
+        med = running_median(vel)
         tol = CONSISTENT_MPS + (0.2 * np.abs(med) if it == 0 else 0.0)
         v_next = regularise(vel, heard & (np.abs(vel - med) < tol), t_mid)
         moved = np.flatnonzero(np.abs(v_next - vd) >= STOP_MPS) if it else np.arange(vd.size)
@@ -228,7 +234,7 @@ def track_pairs(xr: np.ndarray, xf: np.ndarray, t_rise: np.ndarray, t_fall: np.n
         d_f[moved], s_f[moved] = measure(xf, model.beta_fall, vd[moved], model, search, every)
         dist, vel, dv = solve_pair(d_r, d_f, vd, half_gap, model)
         heard = (s_r >= SNR_MIN_DB) & (s_f >= SNR_MIN_DB)
-    med = median_filter(vel, size=2 * NEIGHBOURS + 1, mode="nearest")
+    med = running_median(vel)
     valid = heard
     if dechirp:
         valid = valid & (np.abs(dv) < CONVERGED_MPS) & (np.abs(vel - med) < CONSISTENT_MPS)

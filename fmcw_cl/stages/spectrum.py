@@ -14,7 +14,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.fft
 
 GUARD_BINS = 32  # padded bins either side of the peak left out of the noise floor
 
@@ -47,6 +46,8 @@ def power_spectra(x: np.ndarray, nfft: int) -> np.ndarray:
     Real rows use a real FFT; complex rows (de-chirped) keep only the positive side,
     where the de-chirped range tone lies.
     """
+    import scipy.fft  # imported where used: the command line starts fast
+
     if np.iscomplexobj(x):
         spec = scipy.fft.fft(x, nfft, axis=1, workers=-1)[:, : nfft // 2]
     else:

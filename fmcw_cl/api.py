@@ -1,0 +1,137 @@
+"""The Python API: what `fmcw-cl` does, as plain functions (the command line calls these).
+
+>>> import fmcw_cl
+>>> track = fmcw_cl.process("data_samples/static_0p3m.h5", backend="numpy")
+>>> track.to_pandas().head()                      # doctest: +SKIP
+
+Option names and defaults are the command line's (`fmcw_cl.options`): `--max-range 0.4`
+is `max_range=0.4`, `--no-dechirp` is `dechirp=False`.
+"""
+
+from __future__ import annotations
+
+import os
+import warnings
+from collections.abc import Callable
+from pathlib import Path
+
+from . import options as opts
+from .capture import Capture
+from .track import Track, read_track, write_track
+
+PathLike = str | os.PathLike
+
+__all__ = ["process", "read_track", "write_track", "open_capture", "simulate", "calibrate", "Track"]
+
+
+def engine_options(values: dict):
+    """engine.Options from checked option values (see `fmcw_cl.options.FIELDS`)."""
+    from .engine import Options
+
+    return Options(**{field: values[name] for name, field in opts.FIELDS.items()})
+
+
+def process(path: PathLike, *, progress: Callable[[int, int, float], None] | None = None,
+            warn: Callable[[str], None] | None = None, **options) -> Track:
+    """Convert one capture into a track (not written; see `write_track`).
+
+    Parameters
+    ----------
+    path : the capture file (HDF5, the contract's layout).
+    progress : callable(samples_done, samples_total, sample_rate_hz), optional.
+    warn : callable(message) for a fallback to numpy (default: warnings.warn).
+    **options : those of `fmcw-cl process`, by the same names and defaults:
+        points (1000), min_range (0.03 m), max_range (None, m), dechirp (True),
+        range_check (True), chirp (None: a calibration file), backend ("auto",
+        "opencl", "numpy"), device (None: OpenCL device selector).
+
+    Returns
+    -------
+    Track : per half-sweep and per pair (distance m, velocity m/s, acceleration m/s^2,
+        valid, reason), every echo (`track.echoes`), the parameters (`track.attrs`).
+    """
+    from .engine import make_backend
+    from .engine import process as run
+
+    values = opts.check(options)
+    backend = make_backend(values["backend"], values["device"],
+                           warn=warn or (lambda m: warnings.warn(m, stacklevel=3)))
+    return run(Path(path), engine_options(values), backend, progress)
+
+
+def open_capture(path: PathLike) -> Capture:
+    """The capture file, validated (a context manager; `.info`, `.read(a, b)`, `.truth()`)."""
+    return Capture(path)
+
+
+def simulate(path: PathLike, scenario: str = "jump", *, duration: float | None = None, seed: int = 0,
+             distance: float | None = None, start: float = 0.0, noise: float | None = None,
+             snr_db: float | None = None, reflectors: tuple[tuple[float, float], ...] = (),
+             speckle_ms: float = 0.0, table_noise_mhz: float | None = None, rin_db_hz: float | None = None,
+             sync_delay: float | None = None, thermal_lag_us: float = 0.0, compress: bool = False,
+             progress: Callable[[int, int], None] | None = None) -> dict:
+    """Write a simulated capture with `/truth` (the options of `fmcw-cl simulate`).
+
+    Parameters
+    ----------
+    path : the capture file to write.
+    scenario : "static", "rail" or "jump".
+    duration : seconds of capture (default: static 0.05, rail 0.4, jump 0.3).
+    seed : seed of every random draw.
+    distance : static: the target's distance (m, 0.3); jump: the ground's (m, 0.07).
+    start : scenario time (s) at the first sample.
+    noise, snr_db : beat noise in rms codes (25), or set by the target's per-sample SNR
+        at 0.3 m (dB); not both.
+    reflectors : static echoes, (distance m, amplitude codes) each.
+    speckle_ms : speckle fading of the target's echo, correlation time (ms; 0: none).
+    table_noise_mhz : rms scatter of the G(I) table (MHz, 5).
+    rin_db_hz : the laser's relative intensity noise (dB/Hz; None: none).
+    sync_delay : samples the sync lags the optics (None: drawn from the seed).
+    thermal_lag_us : first-order lag of the thermal part of the tuning (us).
+    compress : gzip the ADC channels.
+
+    Returns
+    -------
+    dict : the hidden draws (sync delay, start phase).
+    """
+    from dataclasses import replace
+
+    from .errors import FmcwError
+    from .simulate import SCENARIOS, SimulationConfig, simulate_capture
+
+    if scenario not in SCENARIOS:
+        raise FmcwError(f"scenario {scenario!r} is not one of {', '.join(sorted(SCENARIOS))}")
+    duration = duration or {"static": 0.05, "rail": 0.4, "jump": 0.3}[scenario]
+    kwargs = {}
+    if distance is not None:
+        if scenario == "rail":
+            raise FmcwError("the rail has no distance option")
+        kwargs = {"distance" if scenario == "static" else "ground_m": distance}
+    for d, a in reflectors:
+        if d <= 0 or a < 0:
+            raise FmcwError(f"reflector {d:g}:{a:g}: the distance must be > 0 m and the amplitude >= 0")
+    if noise is not None and snr_db is not None:
+        raise FmcwError("give noise or snr_db, not both")
+    cfg = SimulationConfig(reflectors=tuple(reflectors), speckle_s=speckle_ms * 1e-3, snr_db=snr_db,
+                           rin_db_hz=rin_db_hz, thermal_lag_s=thermal_lag_us * 1e-6,
+                           sync_delay_samples=sync_delay)
+    if noise is not None:
+        cfg = replace(cfg, noise_codes=noise)
+    if table_noise_mhz is not None:
+        cfg = replace(cfg, table_noise_hz=table_noise_mhz * 1e6)
+    trajectory = SCENARIOS[scenario](duration + start, **kwargs)
+    return simulate_capture(path, trajectory, duration, seed, cfg, start_s=start,
+                            compression="gzip" if compress else None, progress=progress)
+
+
+def calibrate(path: PathLike, distance: float, output: PathLike | None = None, *, periods: int = 2000):
+    """The laser's real (dynamic) chirp from a capture of a static target at `distance`
+    metres (`fmcw-cl calibrate`); written to `output` when given (use it as
+    `process(..., chirp=output)`). Returns the Chirp."""
+    from .calibrate import measure_chirp
+    from .chirp import write_chirp
+
+    chirp = measure_chirp(path, distance, periods)
+    if output is not None:
+        write_chirp(output, chirp)
+    return chirp
