@@ -147,8 +147,9 @@ def test_tdms_refusals(raw, tmp_path, fmcw):
     volts = write_tdms(tmp_path / "v.tdms", {"beat": beat / 4096.0, "sync": sync / 4096.0}, segments=1,
                        props={"wf_increment": 1e-8})
     no_rate = write_tdms(tmp_path / "r.tdms", {"beat": beat, "sync": sync}, segments=1)
-    for rec, extra, word in ((volts, [], "--full-scale-volts"),
-                             (volts, ["--beat-channel", "adc/nope"], "adc/beat"), (no_rate, [], "--sample-rate")):
+    cases = ((volts, [], "--full-scale-volts"), (volts, ["--beat-channel", "adc/nope"], "adc/beat"),
+             (no_rate, [], "--sample-rate"))
+    for rec, extra, word in cases:
         proc = fmcw("import", rec, *common, *extra, check=False)
         assert proc.returncode == 1 and word in proc.stderr and proc.stderr.count("\n") == 1, proc.stderr
     assert not (tmp_path / "x.h5").exists()
