@@ -24,12 +24,12 @@ from pathlib import Path
 
 import numpy as np
 
-from fmcw_cl.calibrate import measure_chirp
+from fmcw_cl.calibration import measure_chirp
 from fmcw_cl.capture import Capture
 from fmcw_cl.chirp import write_chirp
 from fmcw_cl.engine import Options, process
 from fmcw_cl.evaluate import accuracy
-from fmcw_cl.simulate import SimulationConfig, jump, rail, simulate_capture, static
+from fmcw_cl.simulator import SimulationConfig, jump, rail, simulate_capture, static
 
 ROWS = [  # (label, scenario factory, duration s, points, dechirp)
     *[(f"static {d:.2f} m", lambda T, d=d: static(T, d), 0.05, 1000, True)

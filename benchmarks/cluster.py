@@ -16,7 +16,7 @@ from pathlib import Path
 
 from fmcw_cl.cluster import connect, run_batch
 from fmcw_cl.engine import NumpyBackend, Options, process
-from fmcw_cl.simulate import simulate_capture, static
+from fmcw_cl.simulator import simulate_capture, static
 from fmcw_cl.track import track_path, write_track
 
 

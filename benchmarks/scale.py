@@ -21,7 +21,7 @@ from pathlib import Path
 import h5py
 
 from fmcw_cl.capture import Capture, CaptureWriter
-from fmcw_cl.simulate import simulate_capture, static
+from fmcw_cl.simulator import simulate_capture, static
 
 # Peak memory: VmHWM of the process's own address space. ru_maxrss would not do: Linux
 # carries the parent's high-water mark through fork and exec, and the parent holds the

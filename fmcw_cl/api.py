@@ -97,7 +97,7 @@ def simulate(path: PathLike, scenario: str = "jump", *, duration: float | None =
     from dataclasses import replace
 
     from .errors import FmcwError
-    from .simulate import SCENARIOS, SimulationConfig, simulate_capture
+    from .simulator import SCENARIOS, SimulationConfig, simulate_capture
 
     if scenario not in SCENARIOS:
         raise FmcwError(f"scenario {scenario!r} is not one of {', '.join(sorted(SCENARIOS))}")
@@ -128,7 +128,7 @@ def calibrate(path: PathLike, distance: float, output: PathLike | None = None, *
     """The laser's real (dynamic) chirp from a capture of a static target at `distance`
     metres (`fmcw-cl calibrate`); written to `output` when given (use it as
     `process(..., chirp=output)`). Returns the Chirp."""
-    from .calibrate import measure_chirp
+    from .calibration import measure_chirp
     from .chirp import write_chirp
 
     chirp = measure_chirp(path, distance, periods)

@@ -17,7 +17,7 @@ import numpy as np
 
 from .capture import Capture
 from .engine import Options, make_backend, make_plan, process
-from .simulate import rail, simulate_capture
+from .simulator import rail, simulate_capture
 from .stages import resample, sync
 
 

@@ -2,6 +2,11 @@
 
 Shown on stderr only when it is a terminal (and not --quiet), redrawn at most five
 times a second.
+
+Kept rather than tqdm or rich: what a user checks here is two rates of one count, the
+ADC's MS/s and the multiple of real time (samples / sample rate), and a bar of those
+libraries shows one rate unit; the rest (a terminal check, a throttle, time left) is
+these few lines, and the command line takes no dependency for it.
 """
 
 from __future__ import annotations

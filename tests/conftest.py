@@ -12,7 +12,7 @@ import pytest
 # keep PoCL's kernel cache out of the user's home during tests
 os.environ.setdefault("POCL_CACHE_DIR", tempfile.mkdtemp(prefix="pocl-cache-"))
 
-from fmcw_cl.simulate import SimulationConfig, jump, simulate_capture, static  # noqa: E402
+from fmcw_cl.simulator import SimulationConfig, jump, simulate_capture, static  # noqa: E402
 
 
 def run_cli(*args, check=True) -> subprocess.CompletedProcess:

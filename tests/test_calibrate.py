@@ -8,14 +8,14 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from fmcw_cl.calibrate import measure_chirp
+from fmcw_cl.calibration import measure_chirp
 from fmcw_cl.capture import Capture
 from fmcw_cl.chirp import read_chirp, write_chirp
 from fmcw_cl.engine import Options, process
 from fmcw_cl.errors import CaptureError
 from fmcw_cl.evaluate import accuracy
-from fmcw_cl.simulate import SimulationConfig, jump, simulate_capture, static
-from fmcw_cl.simulate.writer import thermal_offset
+from fmcw_cl.simulator import SimulationConfig, jump, simulate_capture, static
+from fmcw_cl.simulator.writer import thermal_offset
 
 LAGS_US = (0.5, 2.0, 5.0)
 

@@ -12,7 +12,7 @@ import pytest
 
 from fmcw_cl.cluster import connect, run_batch
 from fmcw_cl.engine import Options, process
-from fmcw_cl.simulate import simulate_capture, static
+from fmcw_cl.simulator import simulate_capture, static
 from fmcw_cl.track import read_track
 
 OPTIONS = Options(chunk_periods=500, context_periods=16)   # 25 ms chunks: several per capture

@@ -18,7 +18,7 @@ import pytest
 from fmcw_cl.capture import Capture
 from fmcw_cl.engine import Options, process
 from fmcw_cl.errors import CaptureError
-from fmcw_cl.simulate import SimulationConfig, simulate_capture, static
+from fmcw_cl.simulator import SimulationConfig, simulate_capture, static
 from fmcw_cl.stages import faults
 
 R = 0.25            # the static_capture fixture's distance

@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 from fmcw_cl.capture import Capture
 from fmcw_cl.engine import Options, process
 from fmcw_cl.errors import FmcwError
-from fmcw_cl.simulate.laser import paper_dfb
+from fmcw_cl.simulator.laser import paper_dfb
 from fmcw_cl.stages import pairing, resample, spectrum, sync
 from fmcw_cl.stages.lut import build_lut
 from fmcw_cl.stages.spectrum import Search

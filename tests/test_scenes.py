@@ -12,7 +12,7 @@ from conftest import realistic
 from fmcw_cl.capture import Capture
 from fmcw_cl.engine import Options, process
 from fmcw_cl.evaluate import accuracy, truth_at
-from fmcw_cl.simulate import SimulationConfig, simulate_capture, static
+from fmcw_cl.simulator import SimulationConfig, simulate_capture, static
 from fmcw_cl.stages import faults
 from fmcw_cl.track import read_track, track_path
 

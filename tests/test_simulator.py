@@ -9,8 +9,8 @@ import pytest
 
 from fmcw_cl.capture import Capture
 from fmcw_cl.physics import C
-from fmcw_cl.simulate import SimulationConfig, Trajectory, jump, paper_dfb, rail, simulate_capture, static
-from fmcw_cl.simulate.laser import DfbLaser
+from fmcw_cl.simulator import SimulationConfig, Trajectory, jump, paper_dfb, rail, simulate_capture, static
+from fmcw_cl.simulator.laser import DfbLaser
 
 
 def test_dfb_tuning_matches_paper_fig3():
@@ -99,7 +99,7 @@ def test_capture_is_deterministic_and_valid(tmp_path):
 
 
 def test_speckle_field_is_rayleigh_with_its_correlation_time():
-    from fmcw_cl.simulate.writer import speckle_field
+    from fmcw_cl.simulator.writer import speckle_field
 
     corr = 3e-3
     g = speckle_field(3.0, corr, np.random.default_rng(4))

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from fmcw_cl.physics import C
-from fmcw_cl.simulate import paper_dfb
+from fmcw_cl.simulator import paper_dfb
 from fmcw_cl.stages import kinematics, lpf, pairing, resample, spectrum, sync
 from fmcw_cl.stages.lut import build_lut
 from fmcw_cl.stages.spectrum import Search
