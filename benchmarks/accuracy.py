@@ -53,20 +53,30 @@ SCENES = [  # (label, trajectory factory, duration s, SimulationConfig fields, O
 ]
 
 
+CAL_SNRS_DB = (0.0, -10.0)   # calibrations also taken at a lab's SNR (2000 periods each)
+
+
 def lag_rows(tmp: Path, seed: int):
     """(label, capture, options) of the thermal-lag rows; the calibration is made on a
-    static capture at 0.3 m of the same laser, other seed."""
+    static capture at 0.3 m of the same laser, other seed: clean (400 periods), and at
+    0 and -10 dB per sample (2000 periods)."""
     for k, lag in enumerate(LAGS_US):
         cfg = replace(SimulationConfig(), thermal_lag_s=lag * 1e-6)
-        cal = tmp / f"cal{k}.h5"
-        simulate_capture(cal, static(0.02, 0.3), 0.02, seed=seed + 50 + k, config=cfg)
-        chirp = str(write_chirp(tmp / f"chirp{k}.h5", measure_chirp(cal, 0.3)))
+        chirps = {}
+        for j, snr in enumerate((None, *CAL_SNRS_DB)):
+            cal = tmp / f"cal{k}_{j}.h5"
+            duration = 0.02 if snr is None else 0.1
+            simulate_capture(cal, static(duration, 0.3), duration, seed=seed + 50 + 10 * j + k,
+                             config=replace(cfg, snr_db=snr))
+            label = "calibrated chirp" if snr is None else f"chirp calibrated at {snr:g} dB"
+            chirps[label] = str(write_chirp(tmp / f"chirp{k}_{j}.h5", measure_chirp(cal, 0.3)))
         for name, scene, duration in (("static 0.18 m", lambda T: static(T, 0.18), 0.05),
                                       ("jump", jump, 0.3)):
             cap = tmp / f"lag{k}_{name.split()[0]}.h5"
             simulate_capture(cap, scene(duration), duration, seed=seed + 60 + k, config=cfg)
             yield f"{name}, lag {lag:g} us, G(I) table", cap, Options()
-            yield f"{name}, lag {lag:g} us, calibrated chirp", cap, Options(chirp=chirp)
+            for label, chirp in chirps.items():
+                yield f"{name}, lag {lag:g} us, {label}", cap, Options(chirp=chirp)
 
 
 def scene_rows(tmp: Path, seed: int):

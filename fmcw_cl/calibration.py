@@ -4,17 +4,29 @@ A DFB under 20 kHz modulation does not follow its static G(I): the thermal part 
 tuning lags the current, so the sweep is narrower, rising and falling differ, and the
 optical turning points come late. As swept-source OCT does with a reference arm, the
 beat of a known delay tau = 2 R n / c gives the optical frequency: its phase is
-2 pi tau nu(t). Per half-sweep of the sync (the pipeline's own segmentation):
-band-pass the beat around the target's beat frequencies (found from G(I), with room),
-take the analytic signal, unwrap its phase, divide by 2 pi tau; then average over many
-periods on a grid of the half-sweep's time fraction s, each sweep's unknown phase
-constant removed. Where the beat frequency nears 0 Hz (the optical turning points) the
-phase is unusable, so each direction keeps the stretch where the chirp is steep.
+2 pi tau nu(t). The beat is band-passed around the target's beat frequencies (found
+from G(I), with room) as an analytic signal, and each half-sweep of the sync (the
+pipeline's own segmentation) sampled on a grid of its time fraction s.
+
+A lab's calibration target is diffuse: about 0 dB per sample, and noise that makes
+single sweeps' phases slip cycles. So the sweeps of a direction are averaged *before*
+the phase is unwrapped: each is de-chirped by the static G(I) (the target's beat then
+varies slowly along s), its unknown phase constant aligned to the mean, and the
+complex mean taken: K periods gain 10 log10 K dB (33 dB for 2000). In that mean the
+target varies within CUTOFF tau B cycles per half-sweep (a lagging laser's chirp
+departs from G(I) by less); another static echo (a wall) beats (tau' - tau) B cycles
+away and is cut off (`isolate`) before the phase is taken: an echo farther than
+(1 + CUTOFF) R, or nearer than (1 - CUTOFF) R, is isolated. The low-pass also dims the
+sweep's ends, where the real chirp departs most from G(I) (a narrower calibrated band),
+so it is applied only where it removes OTHER_ECHO of the core's energy: another echo.
+The phase of the mean, re-chirped, divided by 2 pi tau, is the optical frequency.
+Where the beat frequency nears 0 Hz (the optical turning points) the phase is
+unusable, so each direction keeps the stretch where the chirp is steep. A capture
+whose mean is still too noisy (phase noise above MAX_PHASE_RAD) is refused, naming
+its measured SNR.
 """
 
 from __future__ import annotations
-
-import warnings
 
 import numpy as np
 import scipy.fft
@@ -26,11 +38,14 @@ from .engine import Options, make_plan
 from .errors import CaptureError
 from .physics import C
 from .stages import sync
+from .stages.lut import fit_tuning
 
 GRID = 2048              # points of the s grid over [S_LO, S_HI]
 S_LO, S_HI = -0.2, 1.2   # the optics may lag the sync: look past the sync's turning points
 STEEP = 0.35             # keep s where the chirp is at least this share of its median slope
-MIN_SHARE = 0.5          # ... and where at least this share of the sweeps was measured
+MAX_PHASE_RAD = 0.05     # rms phase noise of the averaged sweep allowed in the kept stretch
+CUTOFF = 0.3             # isolation low-pass, as a share of the target's tau B (cycles per half-sweep)
+OTHER_ECHO = 0.3         # isolate where the low-pass removes this share of the core's energy (a lag: < 0.2)
 
 
 def _analytic(x: np.ndarray, fs: float, f_lo: float, f_hi: float) -> np.ndarray:
@@ -69,49 +84,76 @@ def measure_chirp(path, distance_m: float, periods: int = 2000) -> Chirp:
     z = _analytic(beat.astype(np.float64), fs, f_lo, f_hi)
     hs = sync.half_sweeps(sync.sync_turning_points(sy, spp / 2), plan.lag)
     grid = np.linspace(S_LO, S_HI, GRID)
-    level = np.median(np.abs(z))
-    curves = {True: [], False: []}
-    for start, length, rising in zip(hs.start, hs.length, hs.rising, strict=True):
-        i0, i1 = int(np.floor(start + S_LO * length)), int(np.ceil(start + S_HI * length))
-        if i0 < 0 or i1 >= z.size:
-            continue
-        zz = z[i0:i1 + 1]
-        phase = np.unwrap(np.angle(zz))
-        freq = np.gradient(phase) * fs / (2 * np.pi)
-        good = (freq > 1.5 * f_lo) & (np.abs(zz) > 0.3 * level)
-        s = (np.arange(i0, i1 + 1) - start) / length
-        nu = phase / (2 * np.pi * tau)           # optical frequency up to sign and a constant
-        row = np.interp(grid, s, np.where(good, nu, np.nan))
-        core = (grid > 0.35) & (grid < 0.65)
-        if np.isnan(row[core]).any():
-            continue
-        curves[bool(rising)].append(row - np.mean(row[core]))
-    if min(len(c) for c in curves.values()) < 10:
-        raise CaptureError(info.path, "too few clean half-sweeps to calibrate (is the target static, "
-                                      "at the given distance, with a clear echo?)")
-    sign = np.sign(plan.lut.u_rise[-1] - plan.lut.u_rise[0])   # +1: frequency rises with the current
-    dirs, residual = [], []
+    g = fit_tuning(info.tuning_current_a, info.tuning_frequency_hz)
+    m = info.modulation
+    in_band = 2 * (f_hi - f_lo) / fs            # share of the noise the analytic band keeps
+    dirs, residual, counts, snrs, isolated = [], [], [], [], False
     for rising in (True, False):
-        rows = np.array(curves[rising])
-        share = np.mean(np.isfinite(rows), axis=0)
-        with warnings.catch_warnings():         # columns never measured stay NaN
-            warnings.simplefilter("ignore", RuntimeWarning)
-            mean = np.nanmean(np.where(share >= MIN_SHARE, rows, np.nan), axis=0)
-        keep = _steep_stretch(grid, mean)
-        residual.append(float(np.sqrt(np.nanmean((rows[:, keep] - mean[keep]) ** 2)) * 2 * np.pi * tau))
-        direction = sign if rising else -sign
-        dirs.append(Direction(grid[keep], direction * mean[keep]))
+        sel = ((hs.rising == rising) & (hs.start + S_LO * hs.length >= 0)
+               & (hs.start + S_HI * hs.length < z.size - 2))
+        if sel.sum() < 10:
+            raise CaptureError(info.path, "too few half-sweeps to calibrate (is the sync a triangle?)")
+        pos = hs.start[sel, None] + grid[None, :] * hs.length[sel, None]
+        i = np.floor(pos).astype(np.int64)
+        rows = z[i] + (z[i + 1] - z[i]) * (pos - i)
+        # the static G(I) along s, the current's ramp continued past the turning points: a
+        # folded reference would put a kink where the lagging optics still sweep
+        x = grid if rising else 1 - grid
+        nu_static = g(m.current_min_a + (m.current_max_a - m.current_min_a) * x)
+        core = (grid > 0.35) & (grid < 0.65)
+        sense = np.sign(np.median(np.gradient(nu_static)[core]))    # the analytic phase rises
+        ref_phase = sense * 2 * np.pi * tau * (nu_static - nu_static[GRID // 2])
+        d = rows * np.exp(-1j * ref_phase)
+        mean = d[0]
+        for _ in range(3):                       # align every sweep's phase constant to the mean
+            turn = np.exp(-1j * np.angle(d[:, core] @ np.conj(mean[core])))
+            mean = np.mean(d * turn[:, None], axis=0)
+        aligned = d * turn[:, None]
+        target = isolate(mean, CUTOFF * tau * plan.lut.bandwidth_hz)
+        removed = 1 - np.sum(np.abs(target[core]) ** 2) / np.sum(np.abs(mean[core]) ** 2)
+        if removed < OTHER_ECHO:
+            target = mean          # no other echo to cut: keep the whole sweep's band
+        isolated = isolated or removed >= OTHER_ECHO
+        noise = np.mean(np.abs(aligned[:, core] - mean[core]) ** 2)
+        snr_sample = float(np.mean(np.abs(target[core]) ** 2) / noise * in_band)
+        snrs.append(10 * np.log10(max(snr_sample, 1e-30)))
+        nu = sense * (np.unwrap(np.angle(target)) + ref_phase) / (2 * np.pi * tau)
+        level = np.abs(target)
+        nu[level < 0.3 * np.median(level[core])] = np.nan
+        keep = _steep_stretch(grid, nu - np.nanmean(nu[core]))
+        phase_noise = float(np.sqrt(noise / (2 * sel.sum() * np.mean(level[keep] ** 2))))
+        if not phase_noise <= MAX_PHASE_RAD:
+            raise CaptureError(info.path, f"too noisy to calibrate: the target's SNR is {snrs[-1]:.1f} dB "
+                                          f"per sample, and {int(sel.sum())} periods leave {phase_noise:.3f} "
+                                          f"rad of phase noise (at most {MAX_PHASE_RAD}): record more "
+                                          "periods (--periods), or a brighter target")
+        residual.append(float(np.sqrt(np.mean(np.angle(aligned[:, keep] * np.conj(target[keep])) ** 2))))
+        counts.append(int(sel.sum()))
+        dirs.append(Direction(grid[keep], nu[keep] - np.mean(nu[keep & core])))   # optical frequency, Hz
     chirp = Chirp(*dirs)
     attrs = {
         "distance_m": float(distance_m), "refractive_index": nidx,
-        "periods_used": int(min(len(c) for c in curves.values())),
+        "periods_used": int(min(counts)),
         "residual_phase_rad": float(max(residual)),
+        "snr_db_per_sample": float(min(snrs)),
+        "other_echo_isolated": bool(isolated),
         "bandwidth_rising_hz": dirs[0].bandwidth_hz, "bandwidth_falling_hz": dirs[1].bandwidth_hz,
         "bandwidth_hz": chirp.bandwidth_hz, "static_bandwidth_hz": plan.lut.bandwidth_hz,
         "sync_delay_samples": float(plan.lag), "modulation_frequency_hz": info.modulation.frequency_hz,
         "sample_rate_hz": fs, "source": str(info.path), "software": f"fmcw-cl {__version__}",
     }
     return Chirp(chirp.rising, chirp.falling, attrs)
+
+
+def isolate(mean: np.ndarray, cutoff_cycles: float) -> np.ndarray:
+    """The target's component of a de-chirped mean sweep: a low-pass along s (super-
+    Gaussian, -3 dB at `cutoff_cycles` per half-sweep). The target's own residual
+    (its real chirp against the static G(I)) stays below it; another static echo's
+    beat is (tau' - tau) B cycles per half-sweep away and is cut."""
+    n = mean.size
+    cycles = np.fft.fftfreq(n, (S_HI - S_LO) / n)       # per half-sweep
+    response = 2.0 ** (-((cycles / cutoff_cycles) ** 8))
+    return np.fft.ifft(np.fft.fft(mean) * response)
 
 
 def _steep_stretch(grid: np.ndarray, nu: np.ndarray) -> np.ndarray:

@@ -119,3 +119,29 @@ def test_report_spectra_use_the_tracks_chirp(setup):
     np.testing.assert_allclose(peak, 0.3, atol=0.5e-3)                  # a bin is ~0.5 mm
     for row in sp.corrected_db[:, i:]:
         assert np.ptp(sp.distance_m[i:][row >= -6]) < 5e-3           # sharp: ~2 resolution cells
+
+
+def test_calibration_at_minus_10_db_and_behind_a_stronger_wall(tmp_path):
+    """A lab's calibration capture: a diffuse end stop at -10 dB per sample, or at 0 dB
+    with a wall behind it stronger than the target; both calibrate a 2 us lagged laser
+    as well as a clean capture does. Far below, it is refused, naming the SNR."""
+    target = lagged(tmp_path / "t.h5", static(0.02, 0.18), 0.02, 7, 2.0)
+    with Capture(target) as cap:
+        truth = cap.truth()
+    scenes = (("noisy", {"snr_db": -10.0}), ("wall", {"snr_db": 0.0, "reflectors": ((0.42, 900.0),)}))
+    for k, (name, extra) in enumerate(scenes):
+        cal = tmp_path / f"{name}.h5"
+        simulate_capture(cal, static(0.1, 0.3), 0.1, seed=70 + k,
+                         config=SimulationConfig(thermal_lag_s=2e-6, **extra))
+        chirp = measure_chirp(cal, 0.3)
+        assert chirp.attrs["other_echo_isolated"] == (name == "wall")
+        acc = accuracy(process(target, Options(chirp=str(write_chirp(tmp_path / f"{name}.chirp.h5", chirp)))),
+                       truth)
+        assert acc["valid_share"] >= 0.99, name
+        assert abs(acc["distance_bias_m"]) <= 0.05e-3, name
+        assert acc["velocity_p95_mps"] <= 0.01, name
+    cal = tmp_path / "dark.h5"
+    dark = SimulationConfig(thermal_lag_s=2e-6, snr_db=-20.0)
+    simulate_capture(cal, static(0.1, 0.3), 0.1, seed=79, config=dark)
+    with pytest.raises(CaptureError, match=r"too noisy to calibrate: the target's SNR is -1\d\.\d dB"):
+        measure_chirp(cal, 0.3)
