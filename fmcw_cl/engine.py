@@ -456,6 +456,13 @@ def assemble(plan: Plan, parts: list[_Pairs], backend, seconds: float) -> Track:
         "bandwidth_hz": lut.bandwidth_hz,
         "tuning": "chirp calibration" if options.chirp else "static G(I) table",
         "range_resolution_m": lut.range_resolution_m,
+        # the distance scale is as good as the bandwidth: its uncertainty from the G(I)
+        # table's scatter (NaN with a chirp calibration: as good as its distance)
+        "tuning_fit_degree": int(lut.fit_degree),
+        "tuning_table_scatter_hz": float(lut.table_scatter_hz),
+        "scale_uncertainty_ppm": float(lut.scale_ppm),
+        "scale_uncertainty_m": float(lut.scale_ppm * 1e-6 * np.median(dist[valid])) if valid.any()
+        else float("nan"),
         "unambiguous_range_m": lut.unambiguous_range_m,
         "near_range_limit_pairs": int(np.sum(dist[valid] > NEAR_LIMIT * lut.unambiguous_range_m)),
         "range_check": bool(options.range_check),

@@ -56,3 +56,19 @@ def test_jump_and_the_gain_over_the_paper_method(jump_capture, jump_track):
     assert track.attrs["sync_delay_reliable"]
     paper, _ = run(jump_capture, dechirp=False)
     assert paper["distance_p95_m"] > 5e-3      # the paper's method errs by centimetres
+
+
+@pytest.mark.parametrize("seed", [200, 201, 202, 203])
+def test_far_end_with_an_osa_table(tmp_path, seed):
+    """The far end of a 2048-point range, 0.7 m, with a G(I) table scattered by 20 MHz
+    rms (an OSA's resolution): within 0.2 mm, and the track states its scale's
+    uncertainty."""
+    from fmcw_cl.simulator import SimulationConfig
+
+    path = tmp_path / "far.h5"
+    simulate_capture(path, static(0.005, 0.7), 0.005, seed=seed, config=SimulationConfig(table_noise_hz=20e6))
+    acc, track = run(path, points=2048, range_check=False)
+    assert abs(acc["distance_bias_m"]) <= 0.2e-3
+    assert 20 < track.attrs["scale_uncertainty_ppm"] < 200
+    assert track.attrs["scale_uncertainty_m"] == pytest.approx(
+        0.7e-6 * track.attrs["scale_uncertainty_ppm"], rel=0.01)
