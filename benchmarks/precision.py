@@ -24,7 +24,7 @@ import numpy as np
 
 from fmcw_cl.capture import Capture
 from fmcw_cl.engine import Options, process
-from fmcw_cl.evaluate import truth_at
+from fmcw_cl.evaluate import crb_pair_m, truth_at
 from fmcw_cl.physics import C
 from fmcw_cl.simulator import SimulationConfig, simulate_capture, static
 
@@ -43,10 +43,7 @@ def bounds(cfg: SimulationConfig, snr_db: float, points: int = 1000) -> tuple[fl
     amp2 = cfg.laser.relative_power(current) ** 2   # (A_n / A_mid)^2
     info_tau = 2 * eta * np.sum(amp2 * (2 * np.pi * (nu - np.average(nu, weights=amp2))) ** 2) / 2
     raw = C / 2 / np.sqrt(info_tau) / np.sqrt(2)
-    bandwidth = abs(nu[-1] - nu[0])
-    metres_per_cycle = C * points / (2 * bandwidth)
-    var_f = 12 / ((2 * np.pi) ** 2 * eta * points * (points**2 - 1))
-    return raw, metres_per_cycle * np.sqrt(var_f) / np.sqrt(2)
+    return raw, crb_pair_m(eta, points, abs(nu[-1] - nu[0]))
 
 
 def measure(tmp: Path, snr_db: float, seconds: float, distance: float, seed: int) -> dict:

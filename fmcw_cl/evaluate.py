@@ -43,3 +43,20 @@ def accuracy(track: Track, truth: Truth) -> dict:
         "velocity_p95_mps": p95(ev), "velocity_max_mps": mx(ev),
         "acceleration_p95_mps2": p95(ea), "acceleration_max_mps2": mx(ea),
     }
+
+
+def crb_pair_m(eta: float, points: int, bandwidth_hz: float, refractive_index: float = 1.0) -> float:
+    """Cramer-Rao bound (m, standard deviation) of one pair's distance from the N resampled
+    points: a tone of per-point SNR eta = A^2 / (2 sigma^2) in white noise has
+    var(f) >= 12 / ((2 pi)^2 eta N (N^2 - 1)) cycles per point; a cycle per point is
+    N c / (2 n B) metres, and a pair averages two half-sweeps."""
+    var_f = 12 / ((2 * np.pi) ** 2 * eta * points * (points**2 - 1))
+    metres_per_cycle = 299_792_458.0 * points / (2 * refractive_index * bandwidth_hz)
+    return float(metres_per_cycle * np.sqrt(var_f) / np.sqrt(2))
+
+
+def eta_from_peak_snr(snr_db, points: int) -> float:
+    """Per-point SNR eta of the resampled half-sweeps from their peaks' SNR (dB, peak
+    over mean noise per bin, Hann window, zero-padded FFT): peak (A N / 4)^2 over
+    sigma^2 3N/8 is eta N / 3."""
+    return float(3 * 10 ** (np.median(np.asarray(snr_db, float)) / 10) / points)

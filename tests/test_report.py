@@ -108,3 +108,13 @@ def test_track_without_echoes_still_reports(tmp_path, static_capture):
     track.echoes = None
     got = make_report(write_track(tmp_path / "old.track.h5", track), tmp_path / "rep")
     assert not any(p.endswith("echoes.png") for p in got["written"])
+
+
+def test_cramer_rao_bound_of_a_pair():
+    """The N-point bound at 0 dB per point, N = 1000, B = 160 GHz: 11.6 um a pair (the
+    precision benchmark's table), and the SNR a Hann-windowed peak shows: eta N / 3."""
+    from fmcw_cl.evaluate import crb_pair_m, eta_from_peak_snr
+
+    assert crb_pair_m(1.0, 1000, 160e9) == pytest.approx(11.6e-6, rel=0.01)
+    assert crb_pair_m(10.0, 1000, 160e9) == pytest.approx(11.6e-6 / np.sqrt(10), rel=0.01)
+    assert eta_from_peak_snr([10 * np.log10(1000 / 3)] * 3, 1000) == pytest.approx(1.0)

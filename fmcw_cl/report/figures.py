@@ -12,7 +12,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from ..capture import Truth  # noqa: E402
-from ..evaluate import truth_at  # noqa: E402
+from ..evaluate import crb_pair_m, eta_from_peak_snr, truth_at  # noqa: E402
 from ..track import Track  # noqa: E402
 from .events import Event  # noqa: E402
 from .spectra import Spectra  # noqa: E402
@@ -112,6 +112,15 @@ def precision(track: Track, path: Path, true_distance_m: float | None = None) ->
     if true_distance_m is not None:
         ax.axvline(1e6 * (true_distance_m - mean), color="C3", ls="--",
                    label=f"truth ({1e6 * (mean - true_distance_m):+.1f} µm bias)")
+    snr = track.sweep_snr_dechirped_db if track.sweep_snr_dechirped_db is not None else track.sweep_snr_db
+    if snr is not None and snr.size and "bandwidth_hz" in track.attrs:
+        points = int(track.attrs["points"])
+        eta = eta_from_peak_snr(snr, points)
+        bound_um = 1e6 * crb_pair_m(eta, points, float(track.attrs["bandwidth_hz"]),
+                                    float(track.attrs.get("refractive_index", 1.0)))
+        ax.plot(g, np.exp(-0.5 * (g / bound_um) ** 2) / (bound_um * np.sqrt(2 * np.pi)), color="C2", ls=":",
+                lw=1.2, label=f"Cramér-Rao ({points} points, {10 * np.log10(eta):.1f} dB per point from the "
+                              f"peaks): σ = {bound_um:.2f} µm, measured {s_um / bound_um:.2f}x")
     ax.set_xlabel(f"distance − {mean * 1e3:.4f} mm (µm)")
     ax.set_ylabel("probability density (1/µm)")
     ax.set_title(f"static target: mean {mean * 1e3:.4f} mm, standard deviation {s_um:.2f} µm")
