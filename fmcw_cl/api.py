@@ -97,11 +97,11 @@ def simulate(path: PathLike, scenario: str = "jump", *, duration: float | None =
     from dataclasses import replace
 
     from .errors import FmcwError
-    from .simulator import SCENARIOS, SimulationConfig, simulate_capture
+    from .simulator import DURATIONS_S, SCENARIOS, SimulationConfig, simulate_capture
 
     if scenario not in SCENARIOS:
         raise FmcwError(f"scenario {scenario!r} is not one of {', '.join(sorted(SCENARIOS))}")
-    duration = duration or {"static": 0.05, "rail": 0.4, "jump": 0.3}[scenario]
+    duration = duration or DURATIONS_S[scenario]
     kwargs = {}
     if distance is not None:
         if scenario == "rail":

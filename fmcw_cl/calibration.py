@@ -110,10 +110,10 @@ def measure_chirp(path, distance_m: float, periods: int = 2000) -> Chirp:
             mean = np.mean(d * turn[:, None], axis=0)
         aligned = d * turn[:, None]
         target = isolate(mean, CUTOFF * tau * plan.lut.bandwidth_hz)
-        removed = 1 - np.sum(np.abs(target[core]) ** 2) / np.sum(np.abs(mean[core]) ** 2)
-        if removed < OTHER_ECHO:
+        other = 1 - np.sum(np.abs(target[core]) ** 2) / np.sum(np.abs(mean[core]) ** 2) >= OTHER_ECHO
+        isolated |= bool(other)
+        if not other:
             target = mean          # no other echo to cut: keep the whole sweep's band
-        isolated = isolated or removed >= OTHER_ECHO
         noise = np.mean(np.abs(aligned[:, core] - mean[core]) ** 2)
         snr_sample = float(np.mean(np.abs(target[core]) ** 2) / noise * in_band)
         snrs.append(10 * np.log10(max(snr_sample, 1e-30)))

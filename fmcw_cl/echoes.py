@@ -77,6 +77,11 @@ class Echoes:
                 "echo_rival_limit_db": RIVAL_DB}
 
 
+def is_tracked(distance_m, tracked_m):
+    """Whether echoes at `distance_m` are the tracked peaks at `tracked_m` (the same bin)."""
+    return np.abs(distance_m - tracked_m) < TRACKED_M
+
+
 def table(t_sweep: np.ndarray, rising: np.ndarray, tracked_m: np.ndarray, level_db: np.ndarray,
           det: Detections, metres_per_bin: float, max_range_m: float = np.inf,
           survey: dict | None = None) -> Echoes:
@@ -85,7 +90,7 @@ def table(t_sweep: np.ndarray, rising: np.ndarray, tracked_m: np.ndarray, level_
     from the `survey` of `hidden`: time_s, ratio, distance_m, found)."""
     rows, slots = np.nonzero(np.arange(det.bin.shape[1])[None, :] < det.count[:, None])
     dist = det.bin[rows, slots] * metres_per_bin
-    tracked = np.abs(dist - tracked_m[rows]) < TRACKED_M
+    tracked = is_tracked(dist, tracked_m[rows])
     order = np.argsort(t_sweep[rows], kind="stable")
     rows, dist, tracked = rows[order], dist[order], tracked[order]
     snr = det.snr_db[rows, slots[order]]
@@ -113,12 +118,12 @@ def persistent(t_sweep: np.ndarray, level_db: np.ndarray, t: np.ndarray, dist: n
             found = [(d, s, share, s - level, False)
                      for d, s, share in _clusters(dist[others], snr[others], sweeps)]
             if survey is not None:
-                here = (survey["time_s"] >= a) & (survey["time_s"] < a + SLICE_S)
-                hit = here & survey["found"]
-                if here.sum() >= 4 and hit.sum() >= PRESENT * here.sum():
+                surveyed = (survey["time_s"] >= a) & (survey["time_s"] < a + SLICE_S)
+                hit = surveyed & survey["found"]
+                if surveyed.sum() >= 4 and hit.sum() >= PRESENT * surveyed.sum():
                     rel = 10 * np.log10(float(np.median(survey["ratio"][hit])))
                     found.append((float(np.median(survey["distance_m"][hit])), level + rel,
-                                  float(hit.sum() / here.sum()), rel, True))
+                                  float(hit.sum() / surveyed.sum()), rel, True))
             for row in found:
                 for k, x in zip(keys, (a + SLICE_S / 2, *row), strict=True):
                     out[k].append(x)

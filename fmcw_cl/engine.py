@@ -292,7 +292,7 @@ def _survey(plan: Plan, backend, rows: tuple, times: tuple, res: pairing.PairRes
         plain = backend.power(x, None, None, m.nfft, idx)
         dechirped = backend.power(x, beta, res.velocity[idx], m.nfft, idx)
         others = det.take(idx).bin.copy()
-        others[np.abs(others * m.metres_per_bin - dist[idx, None]) < echoes.TRACKED_M] = np.nan
+        others[echoes.is_tracked(others * m.metres_per_bin, dist[idx, None])] = np.nan
         ratio, centroid, found = echoes.hidden(plain, dechirped, plan.search.lo, dech[idx] / m.metres_per_bin,
                                                dist[idx] / m.metres_per_bin, others)
         for k, v in zip(SURVEY_KEYS, (t[idx], ratio, centroid * m.metres_per_bin, found), strict=True):
@@ -433,11 +433,9 @@ def assemble(plan: Plan, parts: list[_Pairs], backend, seconds: float) -> Track:
 
     sweep_t = np.stack([t_r, t_f], axis=1).ravel()
     sweep_rising = np.tile([True, False], t_r.size)
-    er, ef = res["echoes_rise"], res["echoes_fall"]
     seen = echoes.table(sweep_t, sweep_rising, interleave("dist_rise", "dist_fall"),
                         interleave("dechirped_snr_rise", "dechirped_snr_fall"),
-                        Detections(*(np.stack([getattr(er, k), getattr(ef, k)], axis=1).reshape(
-                            -1, *getattr(er, k).shape[1:]) for k in ("bin", "snr_db", "count"))),
+                        Detections.interleave(res["echoes_rise"], res["echoes_fall"]),
                         plan.model.metres_per_bin,
                         np.inf if options.max_range_m is None else options.max_range_m,
                         {k: np.concatenate([p.survey[k] for p in parts]) for k in SURVEY_KEYS})

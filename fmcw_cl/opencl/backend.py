@@ -57,11 +57,14 @@ class OpenCLBackend:
     def resample(self, codes, starts, lengths, u, win):
         return k_resample.resample(self.rt, self.bufs, codes, starts, lengths, u, win)
 
+    def _host(self, x):
+        """x on the host, for a transform larger than the device's local memory (the
+        numpy twin runs it)."""
+        return x.get(self.rt.queue) if isinstance(x, DeviceRows) else x
+
     def measure(self, x, beta, v, model, search, rows=None):
         if not k_spectrum.fits(self.rt, model.nfft):
-            # a transform larger than the device's local memory: the numpy twin
-            host = x.get(self.rt.queue) if isinstance(x, DeviceRows) else x
-            return pairing.measure(host, beta, v, model, search, rows)
+            return pairing.measure(self._host(x), beta, v, model, search, rows)
         pk, _, det = k_spectrum.measure(self.rt, self.bufs, x, beta, v, model.nfft, search.lo, search.hi,
                                         index=rows, echoes=search.echoes)
         got = (pk.bin * model.metres_per_bin, pk.snr_db)
@@ -70,8 +73,7 @@ class OpenCLBackend:
     def power(self, x, beta, v, nfft, rows=None):
         """Power spectra of rows of x (plain, or de-chirped at v); twin: pairing.power."""
         if not k_spectrum.fits(self.rt, nfft):
-            host = x.get(self.rt.queue) if isinstance(x, DeviceRows) else x
-            return pairing.power(host, beta, v, nfft, rows)
+            return pairing.power(self._host(x), beta, v, nfft, rows)
         if rows is not None and v is None:        # picked rows go through the de-chirp path at 0 m/s
             v = np.zeros(np.size(rows))
             beta = np.zeros(x.shape[1])

@@ -109,9 +109,9 @@ def measure(rt: Runtime, bufs: Buffers, rows, beta: np.ndarray | None,
         cl.enqueue_copy(rt.queue, power, d_power)
     det = None
     if echoes:
-        det = cfar.Detections(np.empty((sweeps, m), np.float32), np.empty((sweeps, m), np.float32),
-                              np.empty(sweeps, np.int32))
-        for host, dev in ((det.bin, d_ebin), (det.snr_db, d_esnr), (det.count, d_ecount)):
+        got = (np.empty((sweeps, m), np.float32), np.empty((sweeps, m), np.float32),
+               np.empty(sweeps, np.int32))
+        for host, dev in zip(got, (d_ebin, d_esnr, d_ecount), strict=True):
             cl.enqueue_copy(rt.queue, host, dev)
-        det = cfar.Detections(det.bin.astype(np.float64), det.snr_db, det.count)
+        det = cfar.Detections(got[0].astype(np.float64), got[1], got[2])
     return Peaks(b.astype(np.float64), s), power, det

@@ -1,8 +1,8 @@
 """A physical simulator of the FMCW LiDAR: DFB laser, moving target, two-channel ADC."""
 
 from .laser import DfbLaser, paper_dfb
-from .scene import SCENARIOS, Trajectory, jump, rail, static
+from .scene import DURATIONS_S, SCENARIOS, Trajectory, jump, rail, static
 from .writer import SimulationConfig, simulate_capture
 
-__all__ = ["DfbLaser", "paper_dfb", "Trajectory", "static", "rail", "jump", "SCENARIOS",
+__all__ = ["DfbLaser", "paper_dfb", "Trajectory", "static", "rail", "jump", "SCENARIOS", "DURATIONS_S",
            "SimulationConfig", "simulate_capture"]

@@ -142,3 +142,4 @@ def jump(duration: float, ground_m: float = 0.07) -> Trajectory:
 
 
 SCENARIOS: dict[str, Callable[..., Trajectory]] = {"static": static, "rail": rail, "jump": jump}
+DURATIONS_S = {"static": 0.05, "rail": 0.4, "jump": 0.3}   # default capture length of each

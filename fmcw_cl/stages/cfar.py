@@ -65,6 +65,12 @@ class Detections:
         return Detections(self.bin[rows], self.snr_db[rows], self.count[rows])
 
     @classmethod
+    def interleave(cls, a: Detections, b: Detections) -> Detections:
+        """Rows a0, b0, a1, b1, ... (a pair's rising and falling half-sweeps)."""
+        return cls(*(np.stack([getattr(a, k), getattr(b, k)], axis=1).reshape(-1, *getattr(a, k).shape[1:])
+                     for k in ("bin", "snr_db", "count")))
+
+    @classmethod
     def concat(cls, parts: list[Detections]) -> Detections:
         if not parts:
             return cls.empty()
