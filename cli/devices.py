@@ -2,10 +2,23 @@
 
 from __future__ import annotations
 
+import os
+
 import click
 
 from fmcw_cl.errors import FmcwError
-from fmcw_cl.opencl.context import describe, devices, select_device
+from fmcw_cl.opencl.context import (
+    CPU,
+    GPU,
+    SIMULATOR,
+    describe,
+    devices,
+    rank,
+    select_device,
+    unregistered_drivers,
+)
+
+KINDS = {GPU: "GPU", CPU: "CPU", SIMULATOR: "simulator, never chosen automatically"}
 
 
 @click.command("devices")
@@ -27,7 +40,14 @@ def command(device):
     for p, d, _, dev in seen:
         mark = "*" if chosen is not None and dev.int_ptr == chosen.int_ptr else " "
         mem = dev.global_mem_size / 2**30
-        click.echo(f"{mark} {p}:{d}  {describe(dev)}  "
-                   f"({dev.max_compute_units} units, {mem:.1f} GiB, OpenCL {dev.version.strip()})")
+        click.echo(f"{mark} {p}:{d}  {describe(dev)}  ({KINDS.get(rank(dev), 'other')}, "
+                   f"{dev.max_compute_units} units, {mem:.1f} GiB, OpenCL {dev.version.strip()})")
+    if chosen is not None:
+        why = (f"the selector {device!r}" if device else "PYOPENCL_CTX" if os.environ.get("PYOPENCL_CTX")
+               else "the automatic choice: GPUs first, then CPUs, never a simulator")
+        click.echo(f"used: {describe(chosen)} ({why})")
+    for vendor, lib in unregistered_drivers():
+        click.echo(f"note: the {vendor} OpenCL driver {lib} is installed but no ICD file names it, so it is "
+                   f"not seen; to use it: echo {lib} > /etc/OpenCL/vendors/{vendor.lower()}.icd", err=True)
     if not seen:
         raise FmcwError("no OpenCL device found: pip install pocl-binary-distribution")

@@ -46,6 +46,7 @@ class Options:
     context_periods: int = 64     # periods of context on each side of a core
     range_check: bool = True      # flag targets beyond the unambiguous range (2N resampling)
     chirp: str | None = None      # a calibration file (fmcw-cl calibrate) instead of G(I)
+    integrate: int | None = None  # half-sweeps of a direction per measurement; None: from the SNR
 
 
 @dataclass(frozen=True)
@@ -66,7 +67,7 @@ class Plan:
     lag_mismatch_mps: float = float("nan")   # what remains of the inconsistency there
 
 
-class NumpyBackend:
+class NumpyBackend(pairing.SpectrumOps):
     """The reference backend: every stage in numpy/scipy."""
 
     name = "numpy"
@@ -80,12 +81,6 @@ class NumpyBackend:
 
     def resample(self, codes, starts, lengths, u, win):
         return resample.resample(codes, starts, lengths, u, win)
-
-    def measure(self, x, beta, v, model, search, rows=None):
-        return pairing.measure(x, beta, v, model, search, rows)
-
-    def power(self, x, beta, v, nfft, rows=None):
-        return pairing.power(x, beta, v, nfft, rows)
 
 
 def make_backend(name: str = "auto", device: str | None = None, warn=None):
@@ -256,7 +251,7 @@ def _chunk_pairs(plan: Plan, chunk, backend) -> _Pairs | None:
     t_r = (chunk.start + hs.centre[r]) / fs
     t_f = (chunk.start + hs.centre[f]) / fs
     res = pairing.track_pairs(xr, xf, t_r, t_f, plan.model, plan.search, plan.options.iterations,
-                              plan.options.dechirp, backend.measure)
+                              plan.options.dechirp, backend, plan.options.integrate)
     first = chunk.start + hs.start[r] + plan.lag      # sync time of the pair's first turn
     own = (first >= chunk.core_start) & (first < chunk.core_stop)
     sel = res.take(own)
@@ -427,6 +422,8 @@ def assemble(plan: Plan, parts: list[_Pairs], backend, seconds: float) -> Track:
     dist[~valid] = np.nan
     vel[~valid] = np.nan
     acc = kinematics.acceleration(vel, valid, period_s)
+    integrated = with_gaps(res["integrated"], 0)
+    varies = np.unique(integrated[valid]).size > 1
 
     def interleave(rise, fall):
         return np.stack([res[rise], res[fall]], axis=1).ravel()
@@ -464,6 +461,12 @@ def assemble(plan: Plan, parts: list[_Pairs], backend, seconds: float) -> Track:
         "unambiguous_range_m": lut.unambiguous_range_m,
         "near_range_limit_pairs": int(np.sum(dist[valid] > NEAR_LIMIT * lut.unambiguous_range_m)),
         "range_check": bool(options.range_check),
+        # integration of weak echoes (stages.integrate): K half-sweeps of a direction per
+        # output, an output every period all the same; its time resolution is K periods
+        "modulation_period_s": period_s,
+        "integration": "auto" if options.integrate is None else str(options.integrate),
+        "integrated_sweeps_max": int(integrated.max(initial=1)),
+        "time_resolution_s": period_s * float(integrated[valid].max(initial=1)),
         "reason_codes": ", ".join(f"{k} {v}" for k, v in faults.REASONS.items()),
         **{f"invalid_{name}": int(np.sum(reason == code)) for code, name in faults.REASONS.items() if code},
         "refractive_index": info.refractive_index,
@@ -491,4 +494,5 @@ def assemble(plan: Plan, parts: list[_Pairs], backend, seconds: float) -> Track:
         sweep_distance_dechirped_m=interleave("dechirped_rise", "dechirped_fall"),
         sweep_snr_dechirped_db=interleave("dechirped_snr_rise", "dechirped_snr_fall"),
         time_s=times[order], distance_m=dist, velocity_mps=vel, acceleration_mps2=acc,
-        valid=valid, attrs=attrs, reason=reason, sweep_reason=np.repeat(reason_owned, 2))
+        valid=valid, attrs=attrs, reason=reason, sweep_reason=np.repeat(reason_owned, 2),
+        integrated=integrated if varies else None, period_s=period_s)

@@ -68,6 +68,9 @@ PROCESS = (
     Opt("dechirp", True, bool, "Doppler de-chirp tracking; --no-dechirp: the paper's method alone."),
     Opt("range_check", True, bool, "The 2N-point resampling that flags targets beyond the unambiguous range "
         "(--no-range-check skips it)."),
+    Opt("integrate", None, int, "Half-sweeps of a direction whose spectra are summed per output (1: none; "
+        "the time resolution becomes K periods); default: chosen per chunk from the measured SNR, 1 "
+        "unless the single half-sweeps are too weak.", lo=1, hi=32, why=", the most half-sweeps integrated"),
     Opt("chirp", None, str, "A chirp calibration (fmcw-cl calibrate) to use instead of the G(I) table."),
     Opt("backend", "auto", str, "Stage implementation; auto: OpenCL if a device is there, else numpy.",
         choices=("auto", "opencl", "numpy")),
@@ -77,7 +80,7 @@ PROCESS = (
 
 # engine.Options field each processing option sets (backend and device choose where it runs)
 FIELDS = {"points": "points", "min_range": "min_range_m", "max_range": "max_range_m", "dechirp": "dechirp",
-          "range_check": "range_check", "chirp": "chirp"}
+          "range_check": "range_check", "chirp": "chirp", "integrate": "integrate"}
 
 
 def check(options: dict, spec: tuple[Opt, ...] = PROCESS, where: str = "") -> dict:

@@ -46,7 +46,8 @@ def columns(track, per: str = "pair") -> dict[str, np.ndarray]:
     if per == "pair":
         cols = {"time_s": track.time_s, "distance_m": track.distance_m, "velocity_mps": track.velocity_mps,
                 "acceleration_mps2": track.acceleration_mps2, "valid": track.valid,
-                "reason": _reason_names(track.reason)}
+                "reason": _reason_names(track.reason), "integrated_sweeps": track.integrated,
+                "time_resolution_s": track.time_resolution_s}
     elif per == "sweep":
         cols = {"time_s": track.sweep_time_s, "current_rising": track.sweep_rising,
                 "distance_m": track.sweep_distance_m, "snr_db": track.sweep_snr_db,

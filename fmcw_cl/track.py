@@ -35,6 +35,16 @@ class Track:
     reason: np.ndarray | None = None          # per pair, codes of fmcw_cl.stages.faults
     sweep_reason: np.ndarray | None = None    # per half-sweep: its pair's code
     echoes: Echoes | None = None              # every CFAR echo, and the persistent ones
+    integrated: np.ndarray | None = None      # per pair, half-sweeps of a direction summed (when K varies)
+    period_s: float | None = None             # modulation period (s): time resolution of one half-sweep pair
+
+    @property
+    def time_resolution_s(self) -> np.ndarray | None:
+        """Per pair, the time its measurement spans (s): integrated sweeps x period;
+        None when uniform (attribute `time_resolution_s`)."""
+        if self.integrated is None:
+            return None
+        return self.integrated * (np.nan if self.period_s is None else self.period_s)
 
     @property
     def pairs(self) -> int:
@@ -84,6 +94,9 @@ def write_track(path: str | os.PathLike, track: Track) -> Path:
         t.create_dataset("valid", data=np.asarray(track.valid, bool))
         if track.reason is not None:
             t.create_dataset("reason", data=np.asarray(track.reason, np.uint8))
+        if track.integrated is not None:
+            t.create_dataset("integrated_sweeps", data=np.asarray(track.integrated, np.uint16))
+            t.create_dataset("time_resolution_s", data=np.asarray(track.time_resolution_s, np.float64))
         if track.echoes is not None:
             _write_echoes(f.create_group("echoes"), track.echoes)
     return path
@@ -120,7 +133,10 @@ def read_track(path: str | os.PathLike) -> Track:
         optional = {name: g[key][()] for name, g, key in (
             ("sweep_distance_dechirped_m", s, "distance_dechirped_m"),
             ("sweep_snr_dechirped_db", s, "snr_dechirped_db"),
-            ("sweep_reason", s, "reason"), ("reason", t, "reason")) if key in g}
+            ("sweep_reason", s, "reason"), ("reason", t, "reason"),
+            ("integrated", t, "integrated_sweeps")) if key in g}
+        if "modulation_period_s" in attrs:
+            optional["period_s"] = float(attrs["modulation_period_s"])
         if "echoes" in f:
             optional["echoes"] = _read_echoes(f["echoes"])
         return Track(s["time_s"][()], s["current_rising"][()], s["distance_m"][()],

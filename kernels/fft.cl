@@ -4,7 +4,8 @@
 // complex buffer of nfft: 16 KB at 2048 points, so it fits every GPU's local memory),
 // with a last radix-2 stage when log2(nfft) is odd; its output is in digit-reversed
 // order, which `perm` undoes while the power is taken. Only the peaks leave the
-// device, and the power of bins 0 .. nfft/2 - 1 when `keep_power` asks for it.
+// device, and the power of bins 0 .. nfft/2 - 1 when `keep_power` asks for it (in the
+// rows of `index` when `scatter`: integrate.cl's store of spectra kept between passes).
 // De-chirp: x_j * exp(-2 pi i v beta_j), the phase reduced modulo one cycle first so
 // that float32 keeps its precision. Twins: fmcw_cl.stages.pairing.measure and
 // fmcw_cl.stages.spectrum.power_spectra.
@@ -123,6 +124,7 @@ __kernel void spectrum_peak(__global const float *x,          // (rows, points)
                             __global float *snr,              // (sweeps,)
                             __global float *power,            // (sweeps, nfft/2) if keep_power
                             const int keep_power,
+                            const int scatter,                // power of sweep s in row index[s]
                             const int echoes,                 // 1: list every echo (cfar.cl)
                             const int cfar_guard,
                             const int train,
@@ -158,7 +160,7 @@ __kernel void spectrum_peak(__global const float *x,          // (rows, points)
     fft_dif(re, im, nfft, q, tw_re, tw_im);
     const int half_n = nfft >> 1;
     for (int r = 0; r < rows; ++r) {                  // uniform in the group: barriers are safe
-        __global float *out = power + (size_t)(s + r) * half_n;
+        __global float *out = power + (size_t)(scatter ? index[s] : s + r) * half_n;
         for (int k = lid; k < half_n; k += lsz) {
             const int p = perm[k];
             float e;

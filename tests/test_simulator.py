@@ -127,3 +127,23 @@ def test_snr_db_sets_the_noise_and_reflectors_add_beats(tmp_path):
         beat, _ = cap.read(0, cap.info.samples)
     # the wall alone: its amplitude times the laser's relative power (about 1 mid-sweep)
     assert 200 < np.sqrt(2) * np.std(beat) < 400
+
+
+def test_weak_echo_gain_keeps_the_noise_inside_the_adc(tmp_path):
+    """Below about -11 dB the whole beat is scaled as a lab's gain would be: the noise's
+    rms stays 6x below full scale (nothing clips), the SNR stays what was asked."""
+    from fmcw_cl.simulator.writer import HEADROOM
+
+    for snr_db, scaled in ((-8.0, False), (-20.0, True)):
+        cfg = SimulationConfig(snr_db=snr_db, leak_codes=0.0, lens_codes=0.0)
+        path = tmp_path / f"weak{snr_db:+g}.h5"
+        simulate_capture(path, static(0.002, 0.3), 0.002, seed=4, config=cfg)
+        with Capture(path) as cap:
+            beat, _ = cap.read(0, cap.info.samples)
+        rms = np.std(beat.astype(np.float64))
+        full = 2 ** (cap.info.bits - 1)
+        assert np.abs(beat).max() < full - 1                                 # no clipping
+        sigma, amp = cfg.beat_noise_codes, cfg.echo_amplitude(0.3)
+        gain = full / (HEADROOM * sigma) if scaled else 1.0
+        assert (gain < 1) == scaled
+        assert rms == pytest.approx(gain * np.sqrt(sigma**2 + amp**2 / 2), rel=0.05)   # noise + echo

@@ -11,6 +11,7 @@ import functools
 import numpy as np
 
 from ..stages import pairing, sync
+from . import integrate as k_integrate
 from . import lpf as k_lpf
 from . import resample as k_resample
 from . import spectrum as k_spectrum
@@ -19,11 +20,11 @@ from .buffers import Buffers, DeviceRows
 from .context import runtime
 
 
-class OpenCLBackend:
+class OpenCLBackend(pairing.SpectrumOps):
     """Same interface as engine.NumpyBackend."""
 
     name = "opencl"
-    programs = ("lpf", "sync", "resample", "spectrum")
+    programs = ("lpf", "sync", "resample", "spectrum", "integrate")
 
     def __init__(self, selector: str | None = None) -> None:
         self.rt = runtime(selector)
@@ -79,3 +80,21 @@ class OpenCLBackend:
             beta = np.zeros(x.shape[1])
         _, spec, _ = k_spectrum.measure(self.rt, self.bufs, x, beta, v, nfft, 1, keep_power=True, index=rows)
         return spec
+
+    def spectra(self, x, beta, v, nfft, rows=None, store=None):
+        """`store` (DeviceRows of power spectra, new when None) with the rows `rows`
+        replaced by their power spectra; twin: pairing.SpectrumOps.spectra."""
+        if not k_spectrum.fits(self.rt, nfft):
+            host = None if store is None else store.get(self.rt.queue)
+            return super().spectra(self._host(x), beta, v, nfft, rows, host)
+        if store is None:
+            store = DeviceRows(self.bufs, x.shape[0], nfft // 2)
+        if rows is not None and v is None:
+            v, beta = np.zeros(np.size(rows)), np.zeros(x.shape[1])
+        k_spectrum.measure(self.rt, self.bufs, x, beta, v, nfft, 1, index=rows, store=store)
+        return store
+
+    def integrated_peaks(self, store, disp, k, search):
+        if isinstance(store, np.ndarray):       # a transform the device could not hold
+            return super().integrated_peaks(store, disp, k, search)
+        return k_integrate.peaks(self.rt, self.bufs, store, disp, k, search)

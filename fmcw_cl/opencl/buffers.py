@@ -38,11 +38,12 @@ class Buffers:
     def upload_once(self, name: str, array: np.ndarray):
         """Like `upload`, but skipped when this very array was the last one uploaded
         (a chunk's codes serve several launches). On a CPU device the buffer wraps the
-        host array (CL_MEM_USE_HOST_PTR: no copy at all on PoCL)."""
+        host array (CL_MEM_USE_HOST_PTR: no copy at all on PoCL; not on a simulator, which
+        copies it and checks reads as if from device memory)."""
         if self._sources.get(name) is array:
             return self._bufs[name]
         array = np.ascontiguousarray(array)
-        if self.rt.device.type & cl.device_type.CPU and array.nbytes:
+        if self.rt.zero_copy and array.nbytes:
             self._bufs[name] = cl.Buffer(self.rt.context, cl.mem_flags.READ_ONLY
                                          | cl.mem_flags.USE_HOST_PTR, hostbuf=array)
             self._sizes[name] = 0            # never reused for another array

@@ -2,9 +2,10 @@
 
 A platform/device is chosen deliberately (never "whatever comes first"): by index
 "P" or "P:D", by a substring of the platform or device name, or by the standard
-PYOPENCL_CTX; by default the first GPU, else the first device of the first platform
-that has one. Programs are built once per context and cached; a failed build saves
-its log to a file and says where.
+PYOPENCL_CTX; by default the first GPU, else the first CPU, else the first other
+device, never a simulator such as Oclgrind (it claims to be every kind of device).
+Programs are built once per context and cached; a failed build saves its log to a file
+and says where.
 """
 
 from __future__ import annotations
@@ -64,8 +65,30 @@ def select_device(selector: str | None = None):
             if selector.lower() in f"{plat.name} {dev.name}".lower():
                 return dev
         raise FmcwError(f"no OpenCL device matches {selector!r}; `fmcw-cl devices` lists them")
-    gpus = [dev for *_, dev in seen if dev.type & cl.device_type.GPU]
-    return gpus[0] if gpus else seen[0][3]
+    ranked = sorted(seen, key=lambda item: rank(item[3]))
+    if rank(ranked[0][3]) == SIMULATOR:
+        raise FmcwError(f"only a simulator ({describe(ranked[0][3])}) is seen: it checks kernels, "
+                        "it does not run them at speed; select it by name (--device) or install an "
+                        "OpenCL runtime (pip install pocl-binary-distribution)")
+    return ranked[0][3]
+
+
+GPU, CPU, OTHER, SIMULATOR = range(4)
+SIMULATORS = ("oclgrind",)     # kernel checkers: they claim every device type
+
+
+def is_simulator(device) -> bool:
+    return any(name in f"{device.platform.name} {device.name}".lower() for name in SIMULATORS)
+
+
+def rank(device) -> int:
+    """The automatic choice's order: GPUs, then CPUs, then anything else; a simulator
+    (Oclgrind, which runs kernels 1000x slower to check them) never."""
+    if is_simulator(device):
+        return SIMULATOR
+    if device.type & cl.device_type.GPU:
+        return GPU
+    return CPU if device.type & cl.device_type.CPU else OTHER
 
 
 @dataclass
@@ -85,6 +108,11 @@ class Runtime:
     @property
     def name(self) -> str:
         return describe(self.device)
+
+    @property
+    def zero_copy(self) -> bool:
+        """Whether a buffer over host memory is the host memory (a real CPU device)."""
+        return rank(self.device) == CPU
 
     def group_size(self, cpu: int, gpu: int) -> int:
         """A work-group size by device type: PoCL vectorises across work-items and
@@ -126,3 +154,24 @@ def runtime(selector: str | None = None) -> Runtime:
     if key not in _RUNTIMES:
         _RUNTIMES[key] = Runtime(dev)
     return _RUNTIMES[key]
+
+
+DRIVERS = {"NVIDIA": "libnvidia-opencl.so.1", "AMD": "libamdocl64.so", "Intel": "libigdrcl.so"}
+LIBRARY_DIRS = ("/usr/local/nvidia/lib64", "/usr/lib/x86_64-linux-gnu", "/usr/lib64", "/usr/lib",
+                "/opt/rocm/lib", "/usr/local/lib")
+
+
+def unregistered_drivers() -> list[tuple[str, Path]]:
+    """GPU OpenCL drivers installed but named by no ICD file, so that no loader sees
+    them (an NVIDIA container often has the driver and only PoCL's ICD file):
+    (vendor, library path) of each."""
+    vendors = [Path(os.environ.get("OCL_ICD_VENDORS", "/etc/OpenCL/vendors")), Path("/etc/OpenCL/vendors")]
+    named = " ".join(f.read_text(errors="replace") for d in vendors if d.is_dir() for f in d.glob("*.icd"))
+    found = []
+    for vendor, lib in DRIVERS.items():
+        for d in LIBRARY_DIRS:
+            path = Path(d) / lib
+            if path.exists() and lib not in named:
+                found.append((vendor, path))
+                break
+    return found

@@ -54,12 +54,13 @@ def fits(rt: Runtime, nfft: int) -> bool:
 
 def measure(rt: Runtime, bufs: Buffers, rows, beta: np.ndarray | None,
             velocity: np.ndarray | None, nfft: int, lo: int, hi: int | None = None,
-            keep_power: bool = False, index: np.ndarray | None = None, echoes: bool = False
-            ) -> tuple[Peaks, np.ndarray | None, cfar.Detections | None]:
+            keep_power: bool = False, index: np.ndarray | None = None, echoes: bool = False,
+            store: DeviceRows | None = None) -> tuple[Peaks, np.ndarray | None, cfar.Detections | None]:
     """Peaks of the de-chirped (velocity given) or plain spectra of `rows` (DeviceRows
     or a host array), the power spectra (sweeps, nfft/2) when `keep_power`, and every
     echo of bins [lo, nfft/2) when `echoes`. `index` (de-chirp only) picks the rows
-    measured, one velocity each."""
+    measured, one velocity each. A `store` (rows, nfft/2) keeps the power on the device
+    instead, in the rows of `index` (all rows when None)."""
     if not isinstance(rows, DeviceRows):
         host = np.ascontiguousarray(rows, np.float32)
         rows = DeviceRows(bufs, *host.shape)
@@ -80,7 +81,7 @@ def measure(rt: Runtime, bufs: Buffers, rows, beta: np.ndarray | None,
     d_beta = bufs.upload("beta", np.asarray(beta if dechirp else np.zeros(points), np.float32))
     d_v = bufs.upload("velocity", np.asarray(velocity if dechirp else np.zeros(1), np.float32))
     d_bin, d_snr = bufs.get("bin", 4 * sweeps), bufs.get("snr", 4 * sweeps)
-    d_power = bufs.get("power", 4 * sweeps * half if keep_power else 4)
+    d_power = store.buffer if store is not None else bufs.get("power", 4 * sweeps * half if keep_power else 4)
     m = cfar.MAX_ECHOES
     d_ebin = bufs.get("echo_bin", 4 * sweeps * m if echoes else 4)
     d_esnr = bufs.get("echo_snr", 4 * sweeps * m if echoes else 4)
@@ -93,7 +94,8 @@ def measure(rt: Runtime, bufs: Buffers, rows, beta: np.ndarray | None,
         np.int32(index is not None), d_beta, d_v, np.int32(dechirp),
         bufs.upload_once(f"tw_re{nfft}", twr), bufs.upload_once(f"tw_im{nfft}", twi),
         bufs.upload_once(f"perm{nfft}", perm), np.int32(nfft), np.int32(lo), np.int32(hi),
-        np.int32(GUARD_BINS), d_bin, d_snr, d_power, np.int32(keep_power),
+        np.int32(GUARD_BINS), d_bin, d_snr, d_power, np.int32(keep_power or store is not None),
+        np.int32(store is not None and index is not None),
         np.int32(echoes), np.int32(cfar.GUARD), np.int32(cfar.TRAIN),
         bufs.upload_once("cfar_scale", cfar.scales().astype(np.float32)), np.int32(m),
         d_ebin, d_esnr, d_ecount,
@@ -104,7 +106,7 @@ def measure(rt: Runtime, bufs: Buffers, rows, beta: np.ndarray | None,
     cl.enqueue_copy(rt.queue, b, d_bin)
     cl.enqueue_copy(rt.queue, s, d_snr)
     power = None
-    if keep_power:
+    if keep_power and store is None:
         power = np.empty((sweeps, half), np.float32)
         cl.enqueue_copy(rt.queue, power, d_power)
     det = None

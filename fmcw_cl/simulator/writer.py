@@ -27,6 +27,7 @@ TRUTH_STEP_S = 10e-6
 HISTORY = 64  # phase-noise history kept across chunks (supports tau < 64 samples: 96 m)
 SNR_REF_M = 0.3      # --snr-db is the target's SNR at this distance
 SPECKLE_GRID = 40    # points per correlation time of the tabulated speckle field
+HEADROOM = 6.0       # a lab sets the detector gain so that the noise's rms stays this far below full scale
 
 
 @dataclass(frozen=True)
@@ -171,6 +172,9 @@ def simulate_capture(path, trajectory: Trajectory, duration_s: float, seed: int 
     hist = np.zeros(HISTORY)  # laser phase of the last HISTORY samples
     tau_lens = 2 * cfg.lens_distance_m * n_idx / C
     noise = cfg.beat_noise_codes
+    # below about -11 dB at 0.3 m the noise would clip the ADC: the whole beat is scaled
+    # down as a lab's gain setting would (1.0 otherwise: the codes are unchanged)
+    gain = min(1.0, 2 ** (cfg.bits - 1) / (HEADROOM * max(noise, 1e-9)))
     speckle = speckle_field(duration_s, cfg.speckle_s, rng) if cfg.speckle_s > 0 else None
     walls = [(2 * d * n_idx / C, a, rng.uniform(0, 2 * np.pi)) for d, a in cfg.reflectors]
     rin = 0.0 if cfg.rin_db_hz is None else np.sqrt(10 ** (cfg.rin_db_hz / 10) * fs / 2)
@@ -220,7 +224,7 @@ def simulate_capture(path, trajectory: Trajectory, duration_s: float, seed: int 
 
             tri_s, _ = _triangle((t - delay / fs) * mod.frequency_hz + phase0)
             sync = cfg.sync_codes * (tri_s - 0.5) + rng.normal(0, cfg.sync_noise_codes, m)
-            writer.write(start, np.clip(np.rint(beat), lo, hi).astype(np.int16),
+            writer.write(start, np.clip(np.rint(gain * beat), lo, hi).astype(np.int16),
                          np.clip(np.rint(sync), lo, hi).astype(np.int16))
             if progress:
                 progress(start + m, samples)

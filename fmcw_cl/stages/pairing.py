@@ -21,7 +21,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..physics import C
-from . import cfar
+from . import cfar, integrate
 from .lut import Lut
 from .spectrum import Search, find_peaks, power_spectra
 
@@ -97,6 +97,7 @@ class PairResult:
     dechirped_snr_fall: np.ndarray
     heard: np.ndarray           # both final peaks at least SNR_MIN_DB over their floors
     continuous: np.ndarray      # the distance agrees with its neighbours' (see `continuity`)
+    integrated: np.ndarray | None = None          # half-sweeps of a direction summed per pair
     echoes_rise: cfar.Detections | None = None   # every echo of the plain spectra
     echoes_fall: cfar.Detections | None = None
 
@@ -136,6 +137,33 @@ def measure(x: np.ndarray, beta: np.ndarray, v: np.ndarray | None, model: Dopple
     pk = find_peaks(spec, search.lo, search.hi)
     got = (pk.bin * model.metres_per_bin, pk.snr_db)
     return (*got, cfar.detect(spec, search.lo)) if search.echoes else got
+
+
+class SpectrumOps:
+    """The spectrum steps of the tracker in numpy; a backend swaps in its own
+    (opencl.backend.OpenCLBackend), with the same arguments and results."""
+
+    def measure(self, x, beta, v, model: DopplerModel, search: Search, rows=None) -> tuple:
+        return measure(x, beta, v, model, search, rows)
+
+    def power(self, x, beta, v, nfft: int, rows=None) -> np.ndarray:
+        return power(x, beta, v, nfft, rows)
+
+    def spectra(self, x, beta, v, nfft: int, rows=None, store=None):
+        """`store` (a (sweeps, nfft/2) array, new when None) with the rows `rows` (all
+        when None) replaced by their power spectra, de-chirped at v (plain when None)."""
+        spec = power(x, beta, v, nfft, rows)
+        if store is None:
+            return spec
+        store[slice(None) if rows is None else rows] = spec
+        return store
+
+    def integrated_peaks(self, store, disp: np.ndarray, k: int, search: Search) -> tuple:
+        """(bin, SNR dB, count) of the K-window integrated spectra (stages.integrate)."""
+        return integrate.peaks(store, disp, k, search)
+
+
+NUMPY = SpectrumOps()
 
 
 def solve_pair(d_r, d_f, v0, half_gap, model: DopplerModel):
@@ -191,9 +219,35 @@ def regularise(v: np.ndarray, trusted: np.ndarray, time: np.ndarray) -> np.ndarr
     return np.interp(time, time[trusted], smooth[trusted])
 
 
+class _Windows:
+    """Both directions measured on K-window integrated spectra (stages.integrate); the
+    spectra are kept between the tracker's passes, re-made only for the rows whose
+    de-chirp velocity moved."""
+
+    def __init__(self, ops, rows: tuple, model: DopplerModel, search: Search, k: int, t: np.ndarray):
+        self.ops, self.rows, self.model, self.search, self.k, self.t = ops, rows, model, search, k, t
+        self.betas = (model.beta_rise, model.beta_fall)
+        self.stores = [ops.spectra(x, None, None, model.nfft) for x in rows]
+
+    def measure(self, vd: np.ndarray, moved: np.ndarray | None = None) -> tuple:
+        """(d_r, s_r, d_f, s_f, count) of every pair, after re-making the spectra of the
+        rows `moved` (all when None) de-chirped at vd; aligned along vd."""
+        m = self.model
+        if moved is not None:
+            every = None if moved.size == vd.size else moved
+            self.stores = [self.ops.spectra(x, beta, vd[moved], m.nfft, every, store)
+                           for x, beta, store in zip(self.rows, self.betas, self.stores, strict=True)]
+        disp = integrate.displacement(self.t, vd) / m.metres_per_bin
+        out = []
+        for store in self.stores:
+            b, snr, count = self.ops.integrated_peaks(store, disp, self.k, self.search)
+            out += [b * m.metres_per_bin, snr]
+        return (*out, count)
+
+
 def track_pairs(xr: np.ndarray, xf: np.ndarray, t_rise: np.ndarray, t_fall: np.ndarray,
                 model: DopplerModel, search: Search, iterations: int = 6, dechirp: bool = True,
-                measure=measure) -> PairResult:
+                ops: SpectrumOps | None = None, integrate_k: int | None = 1) -> PairResult:
     """Doppler-free distance and velocity of consecutive rising/falling half-sweeps.
 
     Parameters
@@ -209,17 +263,50 @@ def track_pairs(xr: np.ndarray, xf: np.ndarray, t_rise: np.ndarray, t_fall: np.n
         last measured (the others would repeat their measurement), and the passes end
         when none did: a still or slow target needs one.
     dechirp : False gives the paper's method (one plain pass, no fold handling).
-    measure : the de-chirp + spectrum + peak step (numpy here; a backend may swap it).
+    ops : the spectrum steps (numpy's by default; a backend's).
+    integrate_k : half-sweeps of a direction integrated per measurement (1: none; see
+        stages.integrate); None chooses it from the pairs' SNR: 1 when at least
+        integrate.AUTO_SHARE of the single pairs are heard.
     """
+    ops = ops or NUMPY
+    args = (xr, xf, t_rise, t_fall, model, search, iterations, dechirp, ops)
+    if integrate_k is not None:
+        return _track(*args, integrate_k)
+    single = _track(*args, 1)
+    if single.heard.size == 0 or single.heard.mean() >= integrate.AUTO_SHARE:
+        return single
+    probe = _track(*args, integrate.PROBE)
+    k = integrate.choose(measured_snr(probe), SNR_MIN_DB)
+    return probe if k == integrate.PROBE else _track(*args, k)
+
+
+def measured_snr(res: PairResult) -> float:
+    """Per-sweep SNR (linear) of the target from an integrated tracking: the mean
+    spectrum's peak over its floor is 1 + SNR; the median over the heard pairs' sweeps
+    (0 when fewer than half are heard)."""
+    if not res.heard.size or res.heard.mean() < 0.5:
+        return 0.0
+    db = np.concatenate([res.dechirped_snr_rise[res.heard], res.dechirped_snr_fall[res.heard]])
+    return float(np.median(10 ** (db.astype(np.float64) / 10) - 1))
+
+
+def _track(xr, xf, t_rise, t_fall, model: DopplerModel, search: Search, iterations: int, dechirp: bool,
+           ops: SpectrumOps, k: int) -> PairResult:
+    """track_pairs with a fixed integration k."""
     half_gap = 0.5 * (t_fall - t_rise)
     t_mid = 0.5 * (t_fall + t_rise)
     vd = np.zeros(t_mid.size)          # the velocity each pair was last de-chirped with
-    d_r, s_r, *e_r = measure(xr, model.beta_rise, None, model, search)
-    d_f, s_f, *e_f = measure(xf, model.beta_fall, None, model, search)
+    d_r, s_r, *e_r = ops.measure(xr, model.beta_rise, None, model, search)
+    d_f, s_f, *e_f = ops.measure(xf, model.beta_fall, None, model, search)
     search = replace(search, echoes=False)
     plain = (d_r.copy(), d_f.copy(), s_r.copy(), s_f.copy())
+    count = np.ones(t_mid.size, np.int32)
+    windows = _Windows(ops, (xr, xf), model, search, k, t_mid) if k > 1 else None
+    if windows is not None:
+        d_r, s_r, d_f, s_f, count = windows.measure(vd)
+    snr_min = SNR_MIN_DB if windows is None else integrate.threshold_db(count, SNR_MIN_DB)
     dist, vel, dv = solve_pair(d_r, d_f, vd, half_gap, model)
-    heard = (s_r >= SNR_MIN_DB) & (s_f >= SNR_MIN_DB)
+    heard = (s_r >= snr_min) & (s_f >= snr_min)
     for it in range(iterations if dechirp else 0):
         # the plain first pass smears fast targets: allow 20 % there, not later
         med = running_median(vel)
@@ -229,15 +316,18 @@ def track_pairs(xr: np.ndarray, xf: np.ndarray, t_rise: np.ndarray, t_fall: np.n
         if moved.size == 0:
             break
         vd[moved] = v_next[moved]
-        every = None if moved.size == vd.size else moved
-        d_r[moved], s_r[moved] = measure(xr, model.beta_rise, vd[moved], model, search, every)
-        d_f[moved], s_f[moved] = measure(xf, model.beta_fall, vd[moved], model, search, every)
+        if windows is not None:
+            d_r, s_r, d_f, s_f, count = windows.measure(vd, moved)
+        else:
+            every = None if moved.size == vd.size else moved
+            d_r[moved], s_r[moved] = ops.measure(xr, model.beta_rise, vd[moved], model, search, every)
+            d_f[moved], s_f[moved] = ops.measure(xf, model.beta_fall, vd[moved], model, search, every)
         dist, vel, dv = solve_pair(d_r, d_f, vd, half_gap, model)
-        heard = (s_r >= SNR_MIN_DB) & (s_f >= SNR_MIN_DB)
+        heard = (s_r >= snr_min) & (s_f >= snr_min)
     med = running_median(vel)
     valid = heard
     if dechirp:
         valid = valid & (np.abs(dv) < CONVERGED_MPS) & (np.abs(vel - med) < CONSISTENT_MPS)
     continuous = continuity(t_mid, dist, vel, valid) if dechirp else np.ones(valid.size, bool)
-    return PairResult(dist, vel, valid, *plain, d_r, d_f, s_r, s_f, heard, continuous,
+    return PairResult(dist, vel, valid, *plain, d_r, d_f, s_r, s_f, heard, continuous, count,
                       *(e_r or [None]), *(e_f or [None]))

@@ -1,0 +1,49 @@
+// Stage 5d: incoherent integration of the power spectra of K consecutive half-sweeps of
+// one direction, aligned along the track, then the peak of the sum (peak.cl, built into
+// the same program). One work-group per output row: for each bin b of row i, the mean
+// over rows j = i - before .. i + after (cut at the array's ends) of row j read at
+// b + disp[j] - disp[i] by linear interpolation (ends held), then local_peak on it.
+// The spectra stay on the device from spectrum_peak (fft.cl, keep_power); only the
+// peaks come back. Twin: fmcw_cl.stages.integrate.peaks.
+
+__kernel void integrate_peak(__global const float *power,   // (rows, half_n)
+                             const int rows,
+                             const int half_n,
+                             __global const float *disp,    // (rows,) target displacement, bins
+                             const int before,
+                             const int after,
+                             const int lo,
+                             const int hi,
+                             const int guard,
+                             __global float *bin,           // (rows,)
+                             __global float *snr,           // (rows,)
+                             __global int *count,           // (rows,)
+                             __local float *pw,             // half_n
+                             __local float *scratch)        // 3 per work-item
+{
+    const int i = get_group_id(0);
+    const int lid = get_local_id(0);
+    const int lsz = get_local_size(0);
+    const int j0 = i - before < 0 ? 0 : i - before;
+    const int j1 = i + after > rows - 1 ? rows - 1 : i + after;
+    const float inv = 1.0f / (float)(j1 - j0 + 1);
+    const float d0 = disp[i];
+    for (int b = lid; b < half_n; b += lsz) {
+        float acc = 0.0f;
+        for (int j = j0; j <= j1; ++j) {
+            const float y = (float)b + (disp[j] - d0);
+            const float fl = floor(y);
+            int k = (int)fl;
+            float f = y - fl;
+            if (k < 0) { k = 0; f = 0.0f; }
+            if (k > half_n - 2) { k = half_n - 2; f = 1.0f; }
+            __global const float *row = power + (size_t)j * half_n;
+            acc += row[k] + f * (row[k + 1] - row[k]);
+        }
+        pw[b] = acc * inv;
+    }
+    barrier(CLK_LOCAL_MEM_FENCE);
+    local_peak(pw, half_n, lo, hi, guard, scratch, (__local int *)(scratch + lsz), scratch + 2 * lsz,
+               bin + i, snr + i);
+    if (lid == 0) count[i] = j1 - j0 + 1;
+}

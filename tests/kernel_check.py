@@ -1,0 +1,103 @@
+"""Every OpenCL backend method on small inputs, against its numpy twin, on the device
+named by argv[1], one group of stages (argv[2]: stream, spectrum, integrate) a process
+(tests/test_oclgrind.py runs it on Oclgrind with its checks on, where a GPU's
+work-group sizes are used: Oclgrind claims to be every kind of device).
+
+Prints one line per method and exits non-zero on a mismatch; Oclgrind's diagnostics go
+to its own log (OCLGRIND_LOG), which the test reads.
+"""
+
+from __future__ import annotations
+
+import sys
+
+import numpy as np
+
+from fmcw_cl.opencl.backend import OpenCLBackend
+from fmcw_cl.opencl.buffers import DeviceRows
+from fmcw_cl.opencl.context import cl
+from fmcw_cl.stages import integrate, lpf, pairing, resample, sync
+from fmcw_cl.stages.spectrum import Search
+
+
+def close(name: str, got, want, tol: float) -> None:
+    got, want = np.asarray(got, np.float64), np.asarray(want, np.float64)
+    err = float(np.max(np.abs(got - want), initial=0.0))
+    scale = float(np.max(np.abs(want), initial=1.0))
+    print(f"{name}: max error {err:.3g} of {scale:.3g}", flush=True)
+    if got.shape != want.shape or err > tol * scale:
+        raise SystemExit(f"{name}: kernel and numpy twin differ")
+
+
+def main(selector: str, group: str) -> None:
+    be = OpenCLBackend(selector)
+    print(f"device: {be.device}, GPU work-groups: {be.rt.group_size(0, 1) == 1}", flush=True)
+    rng = np.random.default_rng(0)
+    fs, hp = 100e6, 2500.0
+    n = 13_337                                               # odd, partial periods
+    t = np.arange(n)
+    tri = np.abs(((t + 1234) / (2 * hp)) % 1.0 - 0.5) * 2
+    sync_codes = (6000 * (tri - 0.5) + rng.normal(0, 4, n)).astype(np.int16)
+    beat = (800 * tri + 300 * np.cos(0.21 * t) + rng.normal(0, 50, n)).astype(np.int16)
+
+    if group == "stream":
+        stream(be, beat, sync_codes, fs, hp, rng)
+    else:
+        spectra(be, rng, group)
+    print("all kernels match their twins", flush=True)
+
+
+def stream(be, beat, sync_codes, fs, hp, rng) -> None:
+    """The per-sample stages: low-pass, sync crossings, resampling."""
+    y, _, _ = be.intensity(beat, fs)
+    close("low-pass (cic_decimate, fir_same)", y, lpf.intensity(beat, fs)[0], 1e-5)
+    got = be.turning_points(sync_codes, hp)
+    want = sync.sync_turning_points(sync_codes, hp)
+    close("sync (block_sum, line_fit)", got.time, want.time, 1e-9)
+
+    points, sweeps = 61, 5                                   # small: the simulator is slow
+    u = np.sort(rng.uniform(0, 1, points))
+    win = resample.window(points)
+    starts = rng.uniform(2, beat.size - 2600, sweeps)
+    lengths = np.full(sweeps, 2499.5)
+    rows = be.resample(beat, starts, lengths, u, win)
+    host = resample.resample(beat, starts, lengths, u, win)
+    close("resample", rows.get(be.rt.queue), host, 1e-5)
+
+
+def spectra(be, rng, group: str) -> None:
+    """The spectrum stages ("spectrum": plain with echoes, de-chirped picked rows, power
+    spectra) or the integration ("integrate": kept spectra, scattered rows, windows)."""
+    points, nfft, sweeps = 61, 128, 5
+    x = rng.normal(0, 100, (sweeps, points))
+    x[:, :] += 400 * np.cos(2 * np.pi * 0.2 * np.arange(points))
+    d_x = DeviceRows(be.bufs, sweeps, points)
+    cl.enqueue_copy(be.rt.queue, d_x.buffer, x.astype(np.float32))
+    beta = rng.uniform(-3, 3, points)
+    v = rng.uniform(-2, 2, sweeps)
+    pick = np.array([4, 1, 2])
+    if group == "integrate":
+        store = be.spectra(d_x, None, None, nfft)
+        store = be.spectra(d_x, beta, v[pick], nfft, pick, store)
+        want = pairing.NUMPY.spectra(x, None, None, nfft)
+        want = pairing.NUMPY.spectra(x, beta, v[pick], nfft, pick, want)
+        close("kept spectra (scattered rows)", store.get(be.rt.queue), want, 1e-4)
+        disp = np.array([0.0, 1.3, -2.7, 70.0, 3.1])
+        got = be.integrated_peaks(store, disp, 3, Search(3, nfft // 2))
+        want = integrate.peaks(want, disp, 3, Search(3, nfft // 2))
+        close("integration (integrate_peak)", got[0], want[0], 1e-4)
+        return
+    model = pairing.DopplerModel(beta, beta, 0.0, 0.0, 1.0, nfft)
+    search = Search(3, nfft // 2 - 5, echoes=True)
+    got = be.measure(d_x, beta, None, model, search)
+    want = pairing.measure(x, beta, None, model, search)
+    close("FFT + peak + echoes (spectrum_peak), bins", got[0], want[0], 1e-4)
+    close("FFT + peak + echoes, echo counts", got[2].count, want[2].count, 0)
+    got = be.measure(d_x, beta, v[pick], model, Search(3, nfft // 2), pick)
+    want = pairing.measure(x, beta, v[pick], model, Search(3, nfft // 2), pick)
+    close("de-chirp + FFT + peak, picked rows", got[0], want[0], 1e-4)
+    close("power spectra", be.power(d_x, None, None, nfft), pairing.power(x, None, None, nfft), 1e-5)
+
+
+if __name__ == "__main__":
+    main(sys.argv[1], sys.argv[2])
