@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from .capture import Capture
-from .engine import Options, make_backend, make_plan, process
+from .engine import Options, core_samples, make_backend, make_plan, process
 from .simulator import rail, simulate_capture
 from .stages import resample, sync
 
@@ -70,12 +70,36 @@ def _stage_rows(be, path: Path, opts: Options, seconds: float) -> list[dict]:
         "end to end (file to track)": lambda: process(path, opts, be),
     }
     rows = []
+    chunks = -(-info.samples // core_samples(info, opts))
     for stage, fn in stages.items():
-        secs = _timed(fn, finish, repeat=1 if stage.startswith("end") else 3)
+        end = stage.startswith("end")
+        secs = _timed(fn, finish, repeat=1 if end else 3)
         rows.append({"backend": be.name, "device": be.device, "stage": stage, "seconds": secs,
                      "half_sweeps_per_s": sweeps / secs, "msamples_per_s": info.samples / secs / 1e6,
-                     "real_time_multiple": seconds / secs})
+                     "real_time_multiple": seconds / secs,
+                     **(_where_time_goes(be, fn, finish, seconds, chunks) if end else {})})
+    whole = rows[-1]["seconds"]
+    for r in rows:
+        r["share_of_end_to_end"] = r["seconds"] / whole
     return rows
+
+
+def _where_time_goes(be, fn, finish, seconds: float, chunks: int) -> dict:
+    """One more run of an end-to-end row, instrumented: the calling thread's CPU time
+    per second of capture (on PoCL a wait sleeps, so this is the host work that bounds
+    a GPU's end to end), its share of the wall time (the rest the host waits for the
+    device or the reads), and per chunk the kernel launches and the copies each way."""
+    rt = getattr(be, "rt", None)
+    before = dict(vars(rt.traffic)) if rt is not None else {}
+    wall, cpu = time.perf_counter(), time.thread_time()
+    fn()
+    finish()
+    wall, cpu = time.perf_counter() - wall, time.thread_time() - cpu
+    got = {"host_cpu_ms_per_s": 1e3 * cpu / seconds, "host_share_of_wall": cpu / wall, "chunks": chunks}
+    if rt is not None:
+        for key, value in vars(rt.traffic).items():
+            got[f"{key}_per_chunk"] = (value - before[key]) / chunks
+    return got
 
 
 def run(seconds: float = 0.2, points: int = 1000, backends=("numpy", "opencl"),

@@ -28,7 +28,9 @@ from .track import Track
 
 DELAY_STRETCHES = 6           # stretches of the capture used to estimate the sync delay
 DELAY_STRETCH_PERIODS = 200
-CHECK_STRIDE = 4             # the 2N-point range check runs on every 4th pair
+CHECK_STRIDE = 4             # the 2N-point range check runs on every 4th pair near the limit,
+CHECK_STRIDE_FAR = 16        # ... every 16th where every distance of the chunk is below
+CHECK_NEAR = 0.75            # this share of the unambiguous range
 PERIOD_TOLERANCE = 0.03      # sync period against /modulation frequency_hz
 NEAR_LIMIT = 0.95             # distances beyond this share of the unambiguous range may be aliased
 
@@ -261,7 +263,7 @@ def _chunk_pairs(plan: Plan, chunk, backend) -> _Pairs | None:
                           info.full_scale)
     alias = np.zeros(r.size, bool)
     if plan.check is not None and r.size:
-        alias = _beyond_range(plan, chunk.beat, hs, r, f, sel.dist_rise, sel.dist_fall, backend)
+        alias = _beyond_range(plan, chunk.beat, hs, r, f, sel, backend)
     reason = faults.reasons(sel.valid, sel.heard, clip, alias, sel.continuous)
     sel.valid[:] = reason == faults.OK
     survey = _survey(plan, backend, (xr, xf), (t_r, t_f), res, np.flatnonzero(own))
@@ -296,16 +298,25 @@ def _survey(plan: Plan, backend, rows: tuple, times: tuple, res: pairing.PairRes
             for k, v in got.items()}
 
 
-def _beyond_range(plan: Plan, beat: np.ndarray, hs, r: np.ndarray, f: np.ndarray, d_r: np.ndarray,
-                  d_f: np.ndarray, backend) -> np.ndarray:
-    """The 2N-point range check of pairs (r, f) whose plain N-point distances are
-    (d_r, d_f), run on every CHECK_STRIDE-th pair; a pair
-    is flagged when a checked pair on either side of it is (a target crosses the range
-    limit within a few pairs, where the N-point distance is ambiguous anyway)."""
+def _beyond_range(plan: Plan, beat: np.ndarray, hs, r: np.ndarray, f: np.ndarray,
+                  res: pairing.PairResult, backend) -> np.ndarray:
+    """The 2N-point range check of pairs (r, f) with the tracker's results `res`, on
+    the plain spectra (a target whose Doppler-shifted plain peak folds is flagged too:
+    the plain pass that starts the tracker cannot measure it), run on every
+    CHECK_STRIDE-th pair; a pair is flagged when a checked pair on either side of it
+    is (a target crosses the range limit within a few pairs, where the N-point
+    distance is ambiguous anyway). A target only crosses the limit through N-point
+    distances near it: in a chunk whose plain and Doppler-free distances all stay below
+    CHECK_NEAR of it, every CHECK_STRIDE_FAR-th pair is checked (a target beyond the
+    range from the start is still found)."""
     lut2, win2, model2 = plan.check
-    checked = np.unique(np.r_[np.arange(0, r.size, CHECK_STRIDE), r.size - 1])
+    seen = np.concatenate([res.dist_rise, res.dist_fall, res.dechirped_rise, res.dechirped_fall,
+                           res.distance])
+    stride = CHECK_STRIDE if np.any(seen > CHECK_NEAR * plan.lut.unambiguous_range_m) else CHECK_STRIDE_FAR
+    checked = np.unique(np.r_[np.arange(0, r.size, stride), r.size - 1])
     beyond = np.zeros(checked.size, bool)
-    for idx, u, dn in ((r[checked], lut2.u_rise, d_r[checked]), (f[checked], lut2.u_fall, d_f[checked])):
+    for idx, u, dn in ((r[checked], lut2.u_rise, res.dist_rise[checked]),
+                       (f[checked], lut2.u_fall, res.dist_fall[checked])):
         x2 = backend.resample(beat, hs.start[idx], hs.length[idx], u, win2)
         d2, s2 = backend.measure(x2, None, None, model2, Search(plan.search.lo, model2.nfft // 2))
         beyond |= faults.beyond_range(d2, s2, plan.lut.unambiguous_range_m, pairing.SNR_MIN_DB, dn)

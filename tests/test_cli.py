@@ -104,6 +104,15 @@ def test_bench_rows_for_both_backends(fmcw):
             assert r["seconds"] > 0 and r["device"]
             assert r["real_time_multiple"] == pytest.approx(0.01 / r["seconds"])
             assert r["half_sweeps_per_s"] == pytest.approx(r["real_time_multiple"] * 40_000, rel=0.01)
+            assert 0 < r["share_of_end_to_end"] and (r["share_of_end_to_end"] == 1) == (r is mine[-1])
+        ends = [r for r in mine if r["stage"].startswith("end to end")]
+        for r in ends:       # where the time goes: host CPU, and the device's traffic per chunk
+            assert r["host_cpu_ms_per_s"] > 0 and 0 < r["host_share_of_wall"] <= 1.05
+            assert r["chunks"] >= 1
+            if backend == "opencl":
+                assert r["launches_per_chunk"] >= 3 and r["downloads_per_chunk"] >= 1
+            else:
+                assert "launches_per_chunk" not in r
 
 
 def test_realistic_sample_names_the_hidden_target_and_max_range_finds_it(tmp_path, fmcw):

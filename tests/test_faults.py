@@ -167,3 +167,22 @@ def test_ctrl_c_stops_cleanly(tmp_path, jump_capture):
     assert 1 <= len(left) < len(caps) and all(p.suffix == ".h5" for p in left)
     for p in left:
         assert read_track(p).pairs > 0
+
+
+def test_target_crossing_the_unambiguous_range_is_flagged(tmp_path):
+    """A target receding at 1 m/s from 0.42 m crosses the 0.468 m limit after 48 ms:
+    pairs well inside are valid and accurate, none beyond the limit is reported valid
+    (the check runs on every 4th pair near the limit, every 16th far from it)."""
+    from fmcw_cl.simulator.scene import Trajectory
+
+    path = tmp_path / "crossing.h5"
+    trajectory = Trajectory.from_velocity(0.0, 0.07, lambda t: np.full_like(t, 1.0), np.zeros_like, 0.42)
+    simulate_capture(path, trajectory, 0.06, seed=23)
+    track = process(path, Options(points=1000))
+    limit = track.attrs["unambiguous_range_m"]
+    true = 0.42 + 1.0 * track.time_s
+    inside = true < limit - 0.03
+    assert track.valid[inside].mean() > 0.97
+    assert np.abs(track.distance_m - true)[track.valid].max() < 0.3e-3
+    assert not np.any(track.valid[true > limit])
+    assert np.all(track.reason[true > limit + 0.002] == faults.BEYOND_RANGE)

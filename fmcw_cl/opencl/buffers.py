@@ -32,7 +32,7 @@ class Buffers:
         buf = self.get(name, array.nbytes)
         self._sources.pop(name, None)
         if array.nbytes:
-            cl.enqueue_copy(self.rt.queue, buf, np.ascontiguousarray(array))
+            self.rt.copy(buf, np.ascontiguousarray(array))
         return buf
 
     def upload_once(self, name: str, array: np.ndarray):
@@ -70,13 +70,14 @@ class DeviceRows:
 
     def __init__(self, bufs: Buffers, rows: int, points: int) -> None:
         self.shape = (rows, points)
+        self._rt = bufs.rt
         leased = bufs.lease(4 * rows * points)
         self.buffer = leased[1]
         self._finalizer = weakref.finalize(self, bufs.release, leased)
 
-    def get(self, queue) -> np.ndarray:
-        """A host copy."""
+    def get(self, queue=None) -> np.ndarray:
+        """A host copy (through the runtime's own queue, which `queue` may name)."""
         out = np.empty(self.shape, np.float32)
         if out.size:
-            cl.enqueue_copy(queue, out, self.buffer)
+            self._rt.copy(out, self.buffer)
         return out

@@ -15,6 +15,8 @@ import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
+
 from ..errors import FmcwError
 
 try:  # pyopencl is a dependency, but a broken OpenCL install must not break numpy use
@@ -92,6 +94,30 @@ def rank(device) -> int:
 
 
 @dataclass
+class Traffic:
+    """What crossed between host and device since the counts were last cleared:
+    kernel launches, copies each way and their bytes (a zero-copy wrap of host memory,
+    PoCL's, is no copy)."""
+
+    launches: int = 0
+    uploads: int = 0
+    downloads: int = 0
+    upload_bytes: int = 0
+    download_bytes: int = 0
+
+
+class _Counted:
+    """A kernel whose launches are counted."""
+
+    def __init__(self, kernel, traffic: Traffic) -> None:
+        self.kernel, self.traffic = kernel, traffic
+
+    def __call__(self, *args, **kwargs):
+        self.traffic.launches += 1
+        return self.kernel(*args, **kwargs)
+
+
+@dataclass
 class Runtime:
     """A context and queue on one device, with its built programs."""
 
@@ -100,6 +126,7 @@ class Runtime:
     queue: object = None
     programs: dict = field(default_factory=dict)
     kernels: dict = field(default_factory=dict)
+    traffic: Traffic = field(default_factory=Traffic)
 
     def __post_init__(self) -> None:
         self.context = cl.Context([self.device])
@@ -123,8 +150,19 @@ class Runtime:
         """Kernel `name` of kernels/<program>.cl (built and retrieved once)."""
         key = (program, name)
         if key not in self.kernels:
-            self.kernels[key] = cl.Kernel(self.program(program), name)
+            self.kernels[key] = _Counted(cl.Kernel(self.program(program), name), self.traffic)
         return self.kernels[key]
+
+    def copy(self, dest, src) -> None:
+        """One copy between a host array and a device buffer (direction by type),
+        counted in `traffic`; a download waits for it, an upload of a host array too."""
+        if isinstance(dest, np.ndarray):
+            self.traffic.downloads += 1
+            self.traffic.download_bytes += dest.nbytes
+        else:
+            self.traffic.uploads += 1
+            self.traffic.upload_bytes += src.nbytes
+        cl.enqueue_copy(self.queue, dest, src)
 
     def program(self, name: str):
         """kernels/<name>.cl built for this context (cached)."""

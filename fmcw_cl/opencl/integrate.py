@@ -29,5 +29,5 @@ def peaks(rt: Runtime, bufs: Buffers, store: DeviceRows, disp: np.ndarray, k: in
         d_bin, d_snr, d_count, cl.LocalMemory(4 * half), cl.LocalMemory(12 * lsz))
     got = np.empty(rows, np.float32), np.empty(rows, np.float32), np.empty(rows, np.int32)
     for host, dev in zip(got, (d_bin, d_snr, d_count), strict=True):
-        cl.enqueue_copy(rt.queue, host, dev)
+        rt.copy(host, dev)
     return got[0].astype(np.float64), got[1], got[2]

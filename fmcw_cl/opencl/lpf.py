@@ -8,7 +8,7 @@ import numpy as np
 
 from ..stages import lpf
 from .buffers import Buffers
-from .context import Runtime, cl
+from .context import Runtime
 
 
 @functools.lru_cache(maxsize=4)
@@ -37,5 +37,5 @@ def intensity(rt: Runtime, bufs: Buffers, x: np.ndarray, sample_rate_hz: float,
                                          np.int32(factor), d_dec)
         rt.kernel("lpf", "fir_same")(rt.queue, (m,), None, d_dec, np.int32(m),
                                      bufs.upload("lpf_taps", taps), np.int32(taps.size // 2), d_out)
-        cl.enqueue_copy(rt.queue, out, d_out)
+        rt.copy(out, d_out)
     return out.astype(np.float64), lpf.CIC_ORDER * (factor - 1) / 2.0, float(factor)

@@ -65,7 +65,7 @@ def measure(rt: Runtime, bufs: Buffers, rows, beta: np.ndarray | None,
         host = np.ascontiguousarray(rows, np.float32)
         rows = DeviceRows(bufs, *host.shape)
         if host.size:
-            cl.enqueue_copy(rt.queue, rows.buffer, host)
+            rt.copy(rows.buffer, host)
     sweeps, points = rows.shape
     if index is not None:
         if velocity is None:
@@ -103,17 +103,17 @@ def measure(rt: Runtime, bufs: Buffers, rows, beta: np.ndarray | None,
         cl.LocalMemory(12 * lsz), cl.LocalMemory(half if echoes else 1))
     b = np.empty(sweeps, np.float32)
     s = np.empty(sweeps, np.float32)
-    cl.enqueue_copy(rt.queue, b, d_bin)
-    cl.enqueue_copy(rt.queue, s, d_snr)
+    rt.copy(b, d_bin)
+    rt.copy(s, d_snr)
     power = None
     if keep_power and store is None:
         power = np.empty((sweeps, half), np.float32)
-        cl.enqueue_copy(rt.queue, power, d_power)
+        rt.copy(power, d_power)
     det = None
     if echoes:
         got = (np.empty((sweeps, m), np.float32), np.empty((sweeps, m), np.float32),
                np.empty(sweeps, np.int32))
         for host, dev in zip(got, (d_ebin, d_esnr, d_ecount), strict=True):
-            cl.enqueue_copy(rt.queue, host, dev)
+            rt.copy(host, dev)
         det = cfar.Detections(got[0].astype(np.float64), got[1], got[2])
     return Peaks(b.astype(np.float64), s), power, det

@@ -21,7 +21,7 @@ def block_means(rt: Runtime, bufs: Buffers, x: np.ndarray, factor: int) -> np.nd
     if m:
         d_out = bufs.get("block_means", out.nbytes)
         rt.kernel("sync", "block_sum")(rt.queue, (m,), None, _codes(bufs, x), np.int32(factor), d_out)
-        cl.enqueue_copy(rt.queue, out, d_out)
+        rt.copy(out, d_out)
     return out.astype(np.float64) / factor
 
 
@@ -40,6 +40,6 @@ def line_fit_sums(rt: Runtime, bufs: Buffers, x: np.ndarray, centre: np.ndarray,
             bufs.upload("fit_centre", centre.astype(np.int32)), np.int32(half), np.int32(np.floor(spike)),
             np.int32(max(1, (2**31 - 1) // (max(half, 1) * 32768 + 32768))),
             d0, d1, cl.LocalMemory(8 * lsz), cl.LocalMemory(8 * lsz))
-        cl.enqueue_copy(rt.queue, s0, d0)
-        cl.enqueue_copy(rt.queue, s1, d1)
+        rt.copy(s0, d0)
+        rt.copy(s1, d1)
     return s0.astype(np.float64), s1.astype(np.float64)

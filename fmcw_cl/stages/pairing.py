@@ -312,7 +312,8 @@ def _track(xr, xf, t_rise, t_fall, model: DopplerModel, search: Search, iteratio
         med = running_median(vel)
         tol = CONSISTENT_MPS + (0.2 * np.abs(med) if it == 0 else 0.0)
         v_next = regularise(vel, heard & (np.abs(vel - med) < tol), t_mid)
-        moved = np.flatnonzero(np.abs(v_next - vd) >= STOP_MPS) if it else np.arange(vd.size)
+        # the plain pass is the de-chirp at 0 m/s: a still pair is not measured again
+        moved = np.flatnonzero(np.abs(v_next - vd) >= STOP_MPS)
         if moved.size == 0:
             break
         vd[moved] = v_next[moved]
