@@ -23,13 +23,16 @@ KINDS = {GPU: "GPU", CPU: "CPU", SIMULATOR: "simulator, never chosen automatical
 
 @click.command("devices")
 @click.option("--device", default=None, help="Selector to resolve (index P[:D] or name substring).")
-def command(device):
+@click.option("--check", is_flag=True, help="Run every kernel of the pipeline on the used device against "
+              "its numpy twin (small inputs, seconds).")
+def command(device, check):
     """List OpenCL platforms and devices; mark the one `process` would use.
 
     \b
     Example:
       fmcw-cl devices
       PYOPENCL_CTX=0:0 fmcw-cl devices
+      fmcw-cl devices --device nvidia --check
     """
     seen = devices()
     try:
@@ -51,3 +54,7 @@ def command(device):
                    f"not seen; to use it: echo {lib} > /etc/OpenCL/vendors/{vendor.lower()}.icd", err=True)
     if not seen:
         raise FmcwError("no OpenCL device found: pip install pocl-binary-distribution")
+    if check and chosen is not None:
+        from fmcw_cl.opencl.selftest import check as run_check
+
+        run_check(device)

@@ -29,7 +29,7 @@ __kernel void resample(__global const short *codes,
     float acc = 0.0f;
     for (int j = lid; j < points; j += lsz) {
         const float p = off + lut_frac[j] + u[j] * dl;
-        const int i = (int)floor(p);
+        const int i = (int)(p + 16.0f) - 16;    // floor for p > -16 (PoCL's floor() is slow)
         const float f = p - (float)i;
         const int k = b + lut_int[j] + i;
         const float f2 = f * f;

@@ -8,7 +8,6 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
-from pathlib import Path
 
 import pytest
 
@@ -30,9 +29,8 @@ def test_kernels_pass_oclgrind_checks(tmp_path, group):
     log = tmp_path / "oclgrind.log"
     env = {**os.environ, **CHECKS, "OCLGRIND_LOG": str(log)}
     env.pop("PYOPENCL_CTX", None)
-    script = Path(__file__).with_name("kernel_check.py")
-    proc = subprocess.run([sys.executable, str(script), "oclgrind", group], capture_output=True, text=True,
-                          env=env, timeout=600)
+    proc = subprocess.run([sys.executable, "-m", "fmcw_cl.opencl.selftest", "oclgrind", group],
+                          capture_output=True, text=True, env=env, timeout=600)
     assert proc.returncode == 0, proc.stdout + proc.stderr
     assert "Oclgrind Simulator" in proc.stdout and "GPU work-groups: True" in proc.stdout
     assert "all kernels match their twins" in proc.stdout
@@ -61,3 +59,24 @@ def test_a_driver_no_icd_file_names_is_reported(tmp_path, monkeypatch):
     assert context.unregistered_drivers() == [("NVIDIA", lib / "libnvidia-opencl.so.1")]
     (vendors / "nvidia.icd").write_text(f"{lib / 'libnvidia-opencl.so.1'}\n")
     assert context.unregistered_drivers() == []
+
+
+def test_devices_check_runs_every_kernel_on_the_used_device(fmcw):
+    out = fmcw("devices", "--check").stdout
+    for stage in ("low-pass", "sync", "resample", "FFT + peak + echoes", "kept spectra", "integration"):
+        assert stage in out
+    assert "all kernels match their twins" in out
+
+
+def test_gpu_benchmark_batch_runs_anywhere(tmp_path):
+    """benchmarks/gpu.py's batch on the default device (PoCL here): what a GPU session runs."""
+    import importlib.util
+    from pathlib import Path
+
+    spec = importlib.util.spec_from_file_location("gpu", Path(__file__).parents[1] / "benchmarks" / "gpu.py")
+    gpu = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(gpu)
+    got = gpu.batch(None, 0.01, 2, tmp_path)
+    assert got["captures"] == 2 and got["capture_seconds"] == 0.02
+    assert got["real_time_multiple"] == pytest.approx(0.02 / got["wall_s"])
+    assert got["host_cpu_ms_per_s"] > 0 and "Oclgrind" not in got["device"]

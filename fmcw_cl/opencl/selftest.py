@@ -1,10 +1,11 @@
-"""Every OpenCL backend method on small inputs, against its numpy twin, on the device
-named by argv[1], one group of stages (argv[2]: stream, spectrum, integrate) a process
-(tests/test_oclgrind.py runs it on Oclgrind with its checks on, where a GPU's
-work-group sizes are used: Oclgrind claims to be every kind of device).
+"""Every OpenCL backend method on small inputs against its numpy twin, on any device:
+`python -m fmcw_cl.opencl.selftest DEVICE [GROUP...]` (groups: stream, spectrum,
+integrate; all by default), `fmcw-cl devices --check`, benchmarks/gpu.py, and
+tests/test_oclgrind.py, which runs one group a process on Oclgrind with its checks on
+(where a GPU's work-group sizes are used: Oclgrind claims to be every kind of device).
 
-Prints one line per method and exits non-zero on a mismatch; Oclgrind's diagnostics go
-to its own log (OCLGRIND_LOG), which the test reads.
+Prints one line per method; a mismatch raises SystemExit naming it. Oclgrind's
+diagnostics go to its own log (OCLGRIND_LOG), which the test reads.
 """
 
 from __future__ import annotations
@@ -29,9 +30,19 @@ def close(name: str, got, want, tol: float) -> None:
         raise SystemExit(f"{name}: kernel and numpy twin differ")
 
 
-def main(selector: str, group: str) -> None:
+GROUPS = ("stream", "spectrum", "integrate")
+
+
+def check(selector: str | None, groups: tuple[str, ...] = GROUPS) -> None:
+    """Run the groups of stages on the device `selector` against their twins."""
     be = OpenCLBackend(selector)
     print(f"device: {be.device}, GPU work-groups: {be.rt.group_size(0, 1) == 1}", flush=True)
+    for group in groups:
+        _group(be, group)
+    print("all kernels match their twins", flush=True)
+
+
+def _group(be: OpenCLBackend, group: str) -> None:
     rng = np.random.default_rng(0)
     fs, hp = 100e6, 2500.0
     n = 13_337                                               # odd, partial periods
@@ -44,7 +55,6 @@ def main(selector: str, group: str) -> None:
         stream(be, beat, sync_codes, fs, hp, rng)
     else:
         spectra(be, rng, group)
-    print("all kernels match their twins", flush=True)
 
 
 def stream(be, beat, sync_codes, fs, hp, rng) -> None:
@@ -100,4 +110,4 @@ def spectra(be, rng, group: str) -> None:
 
 
 if __name__ == "__main__":
-    main(sys.argv[1], sys.argv[2])
+    check(sys.argv[1], tuple(sys.argv[2:]) or GROUPS)

@@ -1,0 +1,73 @@
+"""What a GPU user runs (docs/gpu.md), and what a session lent a GPU reports in
+benchmarks/README.md: on one device,
+
+    python benchmarks/gpu.py [--device nvidia] [--seconds 1] [--batch 8] [--json FILE]
+
+1. every kernel against its numpy twin on the device (fmcw_cl.opencl.selftest);
+2. `fmcw-cl bench`'s table for numpy and the device (per stage, end to end, host CPU
+   per second of capture, launches and copies per chunk);
+3. a batch: `--batch` captures of the guide rail, `--seconds` each, converted one after
+   the other by one warm backend, as `fmcw-cl process` does: the aggregate multiple of
+   real time, file to track (page cache).
+
+Runs on any OpenCL device (PoCL too); the figures are ratios within one run.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import tempfile
+import time
+from pathlib import Path
+
+from fmcw_cl.bench import run
+from fmcw_cl.engine import Options, make_backend, process
+from fmcw_cl.opencl.selftest import check
+from fmcw_cl.simulator import rail, simulate_capture
+
+
+def batch(device: str | None, seconds: float, count: int, tmp: Path) -> dict:
+    """Aggregate throughput of `count` captures of `seconds` converted in a row."""
+    paths = []
+    for k in range(count):
+        path = tmp / f"rail{k}.h5"
+        simulate_capture(path, rail(seconds + 0.1), seconds, seed=100 + k, start_s=0.1)
+        paths.append(path)
+    be = make_backend("opencl", device)
+    process(paths[0], Options(), be)                 # warm: programs built, buffers sized
+    wall, cpu = time.perf_counter(), time.thread_time()
+    for path in paths:
+        process(path, Options(), be)
+    wall, cpu = time.perf_counter() - wall, time.thread_time() - cpu
+    total = seconds * count
+    return {"device": be.device, "captures": count, "capture_seconds": total, "wall_s": wall,
+            "real_time_multiple": total / wall, "host_cpu_ms_per_s": 1e3 * cpu / total}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--device", default=None, help="OpenCL device (see `fmcw-cl devices`)")
+    ap.add_argument("--seconds", type=float, default=1.0)
+    ap.add_argument("--batch", type=int, default=8)
+    ap.add_argument("--json", type=Path)
+    args = ap.parse_args()
+    check(args.device)
+    rows = run(args.seconds, 1000, ("numpy", "opencl"), args.device)
+    print("\n| backend | stage | s | x real time | of end to end | host CPU ms per s |")
+    print("|---|---|---|---|---|---|")
+    for r in rows:
+        host = f"{r['host_cpu_ms_per_s']:.0f}" if "host_cpu_ms_per_s" in r else ""
+        print(f"| {r['backend']} | {r['stage']} | {r['seconds']:.4f} | {r['real_time_multiple']:.2f} | "
+              f"{r['share_of_end_to_end']:.0%} | {host} |")
+    with tempfile.TemporaryDirectory() as tmp:
+        got = batch(args.device, args.seconds, args.batch, Path(tmp))
+    print(f"\nbatch: {got['captures']} captures of {args.seconds:g} s on {got['device']}: "
+          f"{got['wall_s']:.2f} s, {got['real_time_multiple']:.2f}x real time, "
+          f"host CPU {got['host_cpu_ms_per_s']:.0f} ms per s")
+    if args.json:
+        args.json.write_text(json.dumps({"bench": rows, "batch": got}, indent=2))
+
+
+if __name__ == "__main__":
+    main()
