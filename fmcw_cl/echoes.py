@@ -166,7 +166,7 @@ def hidden(plain: np.ndarray, dechirped: np.ndarray, lo: int, tracked_bin: np.nd
         explained |= np.abs(k[None, :] - np.rint(np.nan_to_num(b, nan=-1e9))[:, None]) <= EXPLAIN_BINS
     unexplained = np.sum(excess * ~explained, axis=1) - target
     with np.errstate(divide="ignore", invalid="ignore"):
-        ratio = unexplained / target
+        ratio = np.where(target != 0, unexplained / target, 0.0)
     # the noise of a sum of n correlated (2x padded) exponential bins: floor sqrt(2 n)
     noise = floor * np.sqrt(2.0 * np.sum(~explained, axis=1))
     found = (target > 0) & sharp & (ratio >= 10 ** (-RIVAL_DB / 10)) & (unexplained > HIDDEN_SIGMAS * noise)
@@ -174,7 +174,7 @@ def hidden(plain: np.ndarray, dechirped: np.ndarray, lo: int, tracked_bin: np.nd
     w = np.clip(excess, 0, None) * ~explained * ~at_target
     with np.errstate(divide="ignore", invalid="ignore"):
         centroid = np.sum(w * k[None, :], axis=1) / np.sum(w, axis=1)
-    return np.nan_to_num(ratio, nan=0.0), centroid, found
+    return ratio, centroid, found
 
 
 def _clusters(dist: np.ndarray, snr: np.ndarray, sweeps: int):

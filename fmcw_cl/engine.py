@@ -286,12 +286,11 @@ def _survey(plan: Plan, backend, rows: tuple, times: tuple, res: pairing.PairRes
     for x, t, (beta, dist, dech, det) in zip(rows, times, per_direction, strict=True):
         if idx.size == 0 or det is None:
             break
-        plain = backend.power(x, None, None, m.nfft, idx)
-        dechirped = backend.power(x, beta, res.velocity[idx], m.nfft, idx)
         others = det.take(idx).bin.copy()
         others[echoes.is_tracked(others * m.metres_per_bin, dist[idx, None])] = np.nan
-        ratio, centroid, found = echoes.hidden(plain, dechirped, plan.search.lo, dech[idx] / m.metres_per_bin,
-                                               dist[idx] / m.metres_per_bin, others)
+        ratio, centroid, found = backend.survey(x, beta, res.velocity[idx], m.nfft, idx, plan.search.lo,
+                                                dech[idx] / m.metres_per_bin, dist[idx] / m.metres_per_bin,
+                                                others)
         for k, v in zip(SURVEY_KEYS, (t[idx], ratio, centroid * m.metres_per_bin, found), strict=True):
             got[k].append(v)
     return {k: np.concatenate(v) if v else np.zeros(0, bool if k == "found" else float)

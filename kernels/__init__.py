@@ -3,7 +3,7 @@
 from importlib.resources import files
 
 # programs built from more than one file (device functions first)
-PROGRAMS = {"spectrum": ("peak", "cfar", "fft"), "integrate": ("peak", "integrate")}
+PROGRAMS = {"spectrum": ("peak", "cfar", "fft"), "integrate": ("peak", "integrate")}   # survey.cl: alone
 
 
 def files_of(program: str) -> tuple[str, ...]:

@@ -234,3 +234,33 @@ def test_wall_track_and_echoes_equal_numpy(wall_capture):
     np.testing.assert_allclose(a.echoes.snr_db, b.echoes.snr_db, atol=0.02)
     np.testing.assert_array_equal(a.echoes.tracked, b.echoes.tracked)
     assert a.attrs["rival_echo_m"] == pytest.approx(b.attrs["rival_echo_m"], abs=1e-5)
+
+
+@pytest.mark.parametrize("rows,nfft,lo", [(1, 2048, 64), (37, 2048, 20), (9, 4096, 100), (5, 128, 3)])
+def test_survey_kernel_matches_numpy(backend, rows, nfft, lo):
+    """The echo survey (kernels/survey.cl against echoes.hidden): a target, sometimes a
+    rival the other echoes explain or not, noise; medians of odd and even band sizes."""
+    from fmcw_cl.stages import pairing
+
+    rng = np.random.default_rng(rows + nfft)
+    points = nfft // 2 - 7
+    j = np.arange(points)
+    x = rng.normal(0, 30, (2 * rows + 3, points))
+    tone = lambda b: np.cos(2 * np.pi * b / nfft * j)  # noqa: E731
+    target, rival = lo + 0.3 * (nfft // 2 - lo), lo + 0.7 * (nfft // 2 - lo)
+    x += 400 * tone(target)
+    x[::2] += 300 * tone(rival)
+    x *= np.hanning(points)
+    pick = np.sort(rng.choice(x.shape[0], rows, replace=False))
+    beta = rng.uniform(-3, 3, points)
+    v = rng.uniform(-0.1, 0.1, rows)
+    others = np.full((rows, 3), np.nan)
+    others[::3, 1] = rival                          # explained in every third row
+    args = (beta, v, nfft, pick, lo, np.full(rows, target), np.full(rows, target), others)
+    got = backend.survey(x.astype(np.float32), *args)
+    want = pairing.NUMPY.survey(x, *args)
+    np.testing.assert_array_equal(got[2], want[2])
+    np.testing.assert_allclose(got[0], want[0], rtol=1e-3, atol=1e-4)
+    np.testing.assert_allclose(got[1], want[1], rtol=1e-4)
+    if rows >= 9:
+        assert want[2].any() and not want[2].all()  # the rival is found where nothing explains it

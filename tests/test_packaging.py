@@ -26,4 +26,4 @@ def test_kernels_are_package_data():
     text = (ROOT / "pyproject.toml").read_text()
     assert '"fmcw_cl.kernels" = ["*.cl"]' in text
     stages = sorted(p.stem for p in (ROOT / "kernels").glob("*.cl"))
-    assert stages == ["cfar", "fft", "integrate", "lpf", "peak", "resample", "sync"]
+    assert stages == ["cfar", "fft", "integrate", "lpf", "peak", "resample", "survey", "sync"]

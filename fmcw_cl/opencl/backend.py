@@ -15,6 +15,7 @@ from . import integrate as k_integrate
 from . import lpf as k_lpf
 from . import resample as k_resample
 from . import spectrum as k_spectrum
+from . import survey as k_survey
 from . import sync as k_sync
 from .buffers import Buffers, DeviceRows
 from .context import runtime
@@ -24,7 +25,7 @@ class OpenCLBackend(pairing.SpectrumOps):
     """Same interface as engine.NumpyBackend."""
 
     name = "opencl"
-    programs = ("lpf", "sync", "resample", "spectrum", "integrate")
+    programs = ("lpf", "sync", "resample", "spectrum", "integrate", "survey")
 
     def __init__(self, selector: str | None = None) -> None:
         self.rt = runtime(selector)
@@ -93,6 +94,17 @@ class OpenCLBackend(pairing.SpectrumOps):
             v, beta = np.zeros(np.size(rows)), np.zeros(x.shape[1])
         k_spectrum.measure(self.rt, self.bufs, x, beta, v, nfft, 1, index=rows, store=store)
         return store
+
+    def survey(self, x, beta, v, nfft, rows, lo, tracked_bin, plain_bin, others):
+        """Twin: pairing.SpectrumOps.survey; the spectra stay on the device."""
+        if not k_spectrum.fits(self.rt, nfft):
+            return super().survey(self._host(x), beta, v, nfft, rows, lo, tracked_bin, plain_bin, others)
+        spectra = []
+        for b, vel in ((np.zeros(x.shape[1]), np.zeros(np.size(rows))), (beta, v)):   # plain: at 0 m/s
+            store = DeviceRows(self.bufs, np.size(rows), nfft // 2)
+            k_spectrum.measure(self.rt, self.bufs, x, b, vel, nfft, 1, index=rows, store=store, scatter=False)
+            spectra.append(store)
+        return k_survey.hidden(self.rt, self.bufs, *spectra, lo, tracked_bin, plain_bin, others)
 
     def integrated_peaks(self, store, disp, k, search):
         if isinstance(store, np.ndarray):       # a transform the device could not hold

@@ -1,6 +1,6 @@
 """Every OpenCL backend method on small inputs against its numpy twin, on any device:
 `python -m fmcw_cl.opencl.selftest DEVICE [GROUP...]` (groups: stream, spectrum,
-integrate; all by default), `fmcw-cl devices --check`, benchmarks/gpu.py, and
+integrate, survey; all by default), `fmcw-cl devices --check`, benchmarks/gpu.py, and
 tests/test_oclgrind.py, which runs one group a process on Oclgrind with its checks on
 (where a GPU's work-group sizes are used: Oclgrind claims to be every kind of device).
 
@@ -30,7 +30,7 @@ def close(name: str, got, want, tol: float) -> None:
         raise SystemExit(f"{name}: kernel and numpy twin differ")
 
 
-GROUPS = ("stream", "spectrum", "integrate")
+GROUPS = ("stream", "spectrum", "integrate", "survey")
 
 
 def check(selector: str | None, groups: tuple[str, ...] = GROUPS) -> None:
@@ -77,7 +77,8 @@ def stream(be, beat, sync_codes, fs, hp, rng) -> None:
 
 def spectra(be, rng, group: str) -> None:
     """The spectrum stages ("spectrum": plain with echoes, de-chirped picked rows, power
-    spectra) or the integration ("integrate": kept spectra, scattered rows, windows)."""
+    spectra), the integration ("integrate": kept spectra, scattered rows, windows) or
+    the echo survey ("survey")."""
     points, nfft, sweeps = 61, 128, 5
     x = rng.normal(0, 100, (sweeps, points))
     x[:, :] += 400 * np.cos(2 * np.pi * 0.2 * np.arange(points))
@@ -96,6 +97,17 @@ def spectra(be, rng, group: str) -> None:
         got = be.integrated_peaks(store, disp, 3, Search(3, nfft // 2))
         want = integrate.peaks(want, disp, 3, Search(3, nfft // 2))
         close("integration (integrate_peak)", got[0], want[0], 1e-4)
+        return
+    if group == "survey":
+        others = np.full((pick.size, 2), np.nan)
+        others[0, 0] = 40.0
+        tracked, plain_bin = np.array([25.7, 26.1, 30.0]), np.array([25.2, 27.0, 29.0])
+        args = (beta, v[pick], nfft, pick, 3, tracked, plain_bin, others)
+        got, want = be.survey(d_x, *args), pairing.NUMPY.survey(x, *args)
+        close("survey (hidden): found", got[2], want[2], 0)
+        close("survey (hidden): centroid", got[1], want[1], 1e-4)
+        # the ratio divides by the target's energy, a difference of float32 sums: 1e-2
+        close("survey (hidden): ratio", got[0], want[0], 1e-2)
         return
     model = pairing.DopplerModel(beta, beta, 0.0, 0.0, 1.0, nfft)
     search = Search(3, nfft // 2 - 5, echoes=True)

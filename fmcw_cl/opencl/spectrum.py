@@ -55,12 +55,14 @@ def fits(rt: Runtime, nfft: int) -> bool:
 def measure(rt: Runtime, bufs: Buffers, rows, beta: np.ndarray | None,
             velocity: np.ndarray | None, nfft: int, lo: int, hi: int | None = None,
             keep_power: bool = False, index: np.ndarray | None = None, echoes: bool = False,
-            store: DeviceRows | None = None) -> tuple[Peaks, np.ndarray | None, cfar.Detections | None]:
+            store: DeviceRows | None = None, scatter: bool = True
+            ) -> tuple[Peaks, np.ndarray | None, cfar.Detections | None]:
     """Peaks of the de-chirped (velocity given) or plain spectra of `rows` (DeviceRows
     or a host array), the power spectra (sweeps, nfft/2) when `keep_power`, and every
     echo of bins [lo, nfft/2) when `echoes`. `index` (de-chirp only) picks the rows
-    measured, one velocity each. A `store` (rows, nfft/2) keeps the power on the device
-    instead, in the rows of `index` (all rows when None)."""
+    measured, one velocity each. A `store` keeps the power on the device instead: in
+    the rows of `index` when `scatter` (all rows when None), else one row per measured
+    sweep."""
     if not isinstance(rows, DeviceRows):
         host = np.ascontiguousarray(rows, np.float32)
         rows = DeviceRows(bufs, *host.shape)
@@ -95,7 +97,7 @@ def measure(rt: Runtime, bufs: Buffers, rows, beta: np.ndarray | None,
         bufs.upload_once(f"tw_re{nfft}", twr), bufs.upload_once(f"tw_im{nfft}", twi),
         bufs.upload_once(f"perm{nfft}", perm), np.int32(nfft), np.int32(lo), np.int32(hi),
         np.int32(GUARD_BINS), d_bin, d_snr, d_power, np.int32(keep_power or store is not None),
-        np.int32(store is not None and index is not None),
+        np.int32(store is not None and index is not None and scatter),
         np.int32(echoes), np.int32(cfar.GUARD), np.int32(cfar.TRAIN),
         bufs.upload_once("cfar_scale", cfar.scales().astype(np.float32)), np.int32(m),
         d_ebin, d_esnr, d_ecount,

@@ -162,6 +162,14 @@ class SpectrumOps:
         """(bin, SNR dB, count) of the K-window integrated spectra (stages.integrate)."""
         return integrate.peaks(store, disp, k, search)
 
+    def survey(self, x, beta, v, nfft: int, rows, lo: int, tracked_bin, plain_bin, others) -> tuple:
+        """echoes.hidden of the rows `rows` of x: (ratio, centroid, found) from their plain
+        spectra and those de-chirped at v."""
+        from ..echoes import hidden
+
+        return hidden(power(x, None, None, nfft, rows), power(x, beta, v, nfft, rows), lo, tracked_bin,
+                      plain_bin, others)
+
 
 NUMPY = SpectrumOps()
 

@@ -1,0 +1,129 @@
+// Stage 5e: the energy of a surveyed half-sweep that no sharp echo explains, on the
+// spectra where fft.cl left them (plain, and de-chirped at the pair's velocity): one
+// work-group per half-sweep, only three numbers come back. The noise floors are the
+// spectra's medians over ln 2 (the band copied to local memory, selected by one
+// work-item), the rest masked sums (partial sums per work-item, added by one). Only
+// straight-line barriers: PoCL compiles it in a moment. Twin: fmcw_cl.echoes.hidden
+// (its docstring has the quantities).
+
+// The k-th smallest of s[0 .. n) (Hoare's selection, serial: one work-item, no barrier
+// in a loop; a bitonic sort's barriers inside nested loops took PoCL two minutes to
+// compile). Afterwards every s[i], i > k, is >= s[k].
+float select_kth(__local float *s, const int n, const int k)
+{
+    int lo = 0, hi = n - 1;
+    while (lo < hi) {
+        const float pivot = s[(lo + hi) >> 1];
+        int i = lo, j = hi;
+        while (i <= j) {
+            while (s[i] < pivot) ++i;
+            while (s[j] > pivot) --j;
+            if (i <= j) {
+                const float t = s[i];
+                s[i] = s[j];
+                s[j] = t;
+                ++i;
+                --j;
+            }
+        }
+        if (k <= j) hi = j;
+        else if (k >= i) lo = i;
+        else break;
+    }
+    return s[k];
+}
+
+// numpy's median of s[0 .. n) (the mean of the two middle values when n is even).
+float serial_median(__local float *s, const int n)
+{
+    const int k = (n - 1) / 2;
+    const float a = select_kth(s, n, k);
+    if (n & 1) return a;
+    float b = s[k + 1];
+    for (int i = k + 2; i < n; ++i) b = s[i] < b ? s[i] : b;
+    return 0.5f * (a + b);
+}
+
+__kernel void hidden(__global const float *plain,      // (rows, half_n)
+                     __global const float *dechirped,  // (rows, half_n)
+                     const int half_n,
+                     const int lo,                     // first bin of the band
+                     __global const float *tracked,    // (rows,) tracked peak's bin, de-chirped
+                     __global const float *plain_bin,  // (rows,) its bin in the plain spectrum
+                     __global const float *others,     // (rows, m) other echoes' bins, NaN: none
+                     const int m,
+                     const int explain,                // EXPLAIN_BINS
+                     const float sharp,                // SHARP
+                     const float rival,                // 10^(-RIVAL_DB / 10)
+                     const float sigmas,               // HIDDEN_SIGMAS
+                     __global float *ratio,            // (rows,) out
+                     __global float *centroid,         // (rows,) out, NaN: none
+                     __global int *found,              // (rows,) out
+                     __local float *s,                 // half_n - lo: the band, for the medians
+                     __local float *red,               // 6 per work-item
+                     __local float *floors)            // 2
+{
+    const int r = get_group_id(0);
+    const int lid = get_local_id(0);
+    const int lsz = get_local_size(0);
+    const int n = half_n - lo;
+    __global const float *p = plain + (size_t)r * half_n + lo;
+    __global const float *d = dechirped + (size_t)r * half_n + lo;
+    for (int i = lid; i < n; i += lsz) s[i] = p[i];
+    barrier(CLK_LOCAL_MEM_FENCE);
+    if (lid == 0) floors[0] = serial_median(s, n) / 0.69314718f;   // exponential noise: mean = median / ln 2
+    barrier(CLK_LOCAL_MEM_FENCE);
+    for (int i = lid; i < n; i += lsz) s[i] = d[i];
+    barrier(CLK_LOCAL_MEM_FENCE);
+    if (lid == 0) floors[1] = serial_median(s, n) / 0.69314718f;
+    barrier(CLK_LOCAL_MEM_FENCE);
+    const float floor_p = floors[0], floor_d = floors[1];
+    const float kt = rint(tracked[r]);
+    const float kp = rint(plain_bin[r]);
+    float target = 0.0f, near = 0.0f, excess_sum = 0.0f, free_bins = 0.0f, w_sum = 0.0f, wk_sum = 0.0f;
+    for (int i = lid; i < n; i += lsz) {
+        const float k = (float)(lo + i);
+        const float ed = d[i] - floor_d;
+        const float off = fabs(k - kt);
+        target += off <= explain ? ed : 0.0f;
+        near += off <= 3.0f ? ed : 0.0f;
+        int explained = 0;
+        for (int j = 0; j < m; ++j) {
+            const float b = others[(size_t)r * m + j];
+            explained |= !isnan(b) && fabs(k - rint(b)) <= explain;
+        }
+        const float e = p[i] - floor_p;
+        if (!explained) {
+            excess_sum += e;
+            free_bins += 1.0f;
+            if (fabs(k - kp) > explain && e > 0.0f) {
+                w_sum += e;
+                wk_sum += e * k;
+            }
+        }
+    }
+    __local float *mine = red + 6 * lid;
+    mine[0] = target;
+    mine[1] = near;
+    mine[2] = excess_sum;
+    mine[3] = free_bins;
+    mine[4] = w_sum;
+    mine[5] = wk_sum;
+    barrier(CLK_LOCAL_MEM_FENCE);
+    if (lid == 0) {
+        for (int w = 1; w < lsz; ++w) {
+            target += red[6 * w];
+            near += red[6 * w + 1];
+            excess_sum += red[6 * w + 2];
+            free_bins += red[6 * w + 3];
+            w_sum += red[6 * w + 4];
+            wk_sum += red[6 * w + 5];
+        }
+        const float unexplained = excess_sum - target;
+        const float q = target != 0.0f ? unexplained / target : 0.0f;
+        const float noise = floor_p * sqrt(2.0f * free_bins);
+        ratio[r] = q;
+        centroid[r] = w_sum > 0.0f ? wk_sum / w_sum : NAN;
+        found[r] = target > 0.0f && near >= sharp * target && q >= rival && unexplained > sigmas * noise;
+    }
+}
