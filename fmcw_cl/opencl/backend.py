@@ -78,7 +78,7 @@ class OpenCLBackend(pairing.SpectrumOps):
             return pairing.power(self._host(x), beta, v, nfft, rows)
         if rows is not None and v is None:        # picked rows go through the de-chirp path at 0 m/s
             v = np.zeros(np.size(rows))
-            beta = np.zeros(x.shape[1])
+            beta = k_spectrum.zeros(x.shape[1])
         _, spec, _ = k_spectrum.measure(self.rt, self.bufs, x, beta, v, nfft, 1, keep_power=True, index=rows)
         return spec
 
@@ -91,7 +91,7 @@ class OpenCLBackend(pairing.SpectrumOps):
         if store is None:
             store = DeviceRows(self.bufs, x.shape[0], nfft // 2)
         if rows is not None and v is None:
-            v, beta = np.zeros(np.size(rows)), np.zeros(x.shape[1])
+            v, beta = np.zeros(np.size(rows)), k_spectrum.zeros(x.shape[1])
         k_spectrum.measure(self.rt, self.bufs, x, beta, v, nfft, 1, index=rows, store=store)
         return store
 
@@ -100,7 +100,8 @@ class OpenCLBackend(pairing.SpectrumOps):
         if not k_spectrum.fits(self.rt, nfft):
             return super().survey(self._host(x), beta, v, nfft, rows, lo, tracked_bin, plain_bin, others)
         spectra = []
-        for b, vel in ((np.zeros(x.shape[1]), np.zeros(np.size(rows))), (beta, v)):   # plain: at 0 m/s
+        plain = (k_spectrum.zeros(x.shape[1]), np.zeros(np.size(rows)))      # the de-chirp at 0 m/s
+        for b, vel in (plain, (beta, v)):
             store = DeviceRows(self.bufs, np.size(rows), nfft // 2)
             k_spectrum.measure(self.rt, self.bufs, x, b, vel, nfft, 1, index=rows, store=store, scatter=False)
             spectra.append(store)

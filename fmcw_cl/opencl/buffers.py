@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import weakref
+from collections import OrderedDict
 
 import numpy as np
 
@@ -19,6 +20,7 @@ class Buffers:
         self._sizes: dict[str, int] = {}
         self._sources: dict[str, np.ndarray] = {}
         self._free: list[tuple[int, object]] = []
+        self._constants: OrderedDict[tuple[str, int], tuple[np.ndarray, object]] = OrderedDict()
 
     def get(self, name: str, nbytes: int):
         nbytes = max(int(nbytes), 4)
@@ -37,9 +39,10 @@ class Buffers:
 
     def upload_once(self, name: str, array: np.ndarray):
         """Like `upload`, but skipped when this very array was the last one uploaded
-        (a chunk's codes serve several launches). On a CPU device the buffer wraps the
-        host array (CL_MEM_USE_HOST_PTR: no copy at all on PoCL; not on a simulator, which
-        copies it and checks reads as if from device memory)."""
+        (a chunk's codes serve several launches; values that never change: `constant`).
+        On a CPU device the buffer wraps the host array (CL_MEM_USE_HOST_PTR: no copy at
+        all on PoCL; not on a simulator, which copies it and checks reads as if from
+        device memory)."""
         if self._sources.get(name) is array:
             return self._bufs[name]
         array = np.ascontiguousarray(array)
@@ -51,6 +54,27 @@ class Buffers:
             self.upload(name, array)
         self._sources[name] = array          # held: the buffer may point into it
         return self._bufs[name]
+
+    CONSTANTS = 32      # device copies of constants kept (a few per plan: LUTs, windows, bases)
+
+    def constant(self, name: str, array: np.ndarray, dtype=np.float32):
+        """A device copy of a value that stays the same from launch to launch (a LUT, a
+        window, a Doppler basis, a placeholder), uploaded once per host object: the
+        object is held, so that its identity keeps meaning the same values. Pass the
+        same object (the plan's, or a cached one), not a fresh conversion."""
+        key = (name, id(array))
+        hit = self._constants.get(key)
+        if hit is not None and hit[0] is array:
+            self._constants.move_to_end(key)
+            return hit[1]
+        host = np.ascontiguousarray(array, dtype)
+        buf = cl.Buffer(self.rt.context, cl.mem_flags.READ_ONLY, max(host.nbytes, 4))
+        if host.nbytes:
+            self.rt.copy(buf, host)
+        self._constants[key] = (array, buf)
+        if len(self._constants) > self.CONSTANTS:
+            self._constants.popitem(last=False)
+        return buf
 
     def lease(self, nbytes: int):
         """A buffer of at least `nbytes` from the pool; give it back with `release`."""

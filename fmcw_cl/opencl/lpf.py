@@ -20,6 +20,12 @@ def cic_taps(factor: int, order: int = lpf.CIC_ORDER) -> np.ndarray:
     return h.astype(np.float32)
 
 
+@functools.lru_cache(maxsize=4)
+def fir_taps(sample_rate_hz: float) -> np.ndarray:
+    """The low-pass FIR at the decimated rate (float32), the same object each time."""
+    return lpf.lowpass_taps(sample_rate_hz).astype(np.float32)
+
+
 def intensity(rt: Runtime, bufs: Buffers, x: np.ndarray, sample_rate_hz: float,
               factor: int = lpf.DECIMATION) -> tuple[np.ndarray, float, float]:
     """Low-passed int16 codes at the decimated rate (see the numpy twin)."""
@@ -29,13 +35,13 @@ def intensity(rt: Runtime, bufs: Buffers, x: np.ndarray, sample_rate_hz: float,
     m = max(0, (x.size - (lpf.CIC_ORDER - 1) * (factor - 1)) // factor)
     out = np.empty(m, np.float32)
     if m:
-        taps = lpf.lowpass_taps(sample_rate_hz / factor).astype(np.float32)
+        taps = fir_taps(sample_rate_hz / factor)
         d_dec = bufs.get("lpf_decimated", 4 * m)
         d_out = bufs.get("lpf_out", 4 * m)
         rt.kernel("lpf", "cic_decimate")(rt.queue, (m,), None, bufs.upload("lpf_in", x),
-                                         bufs.upload_once("lpf_cic", h), np.int32(h.size),
+                                         bufs.constant("lpf_cic", h), np.int32(h.size),
                                          np.int32(factor), d_dec)
         rt.kernel("lpf", "fir_same")(rt.queue, (m,), None, d_dec, np.int32(m),
-                                     bufs.upload("lpf_taps", taps), np.int32(taps.size // 2), d_out)
+                                     bufs.constant("lpf_taps", taps), np.int32(taps.size // 2), d_out)
         rt.copy(out, d_out)
     return out.astype(np.float64), lpf.CIC_ORDER * (factor - 1) / 2.0, float(factor)

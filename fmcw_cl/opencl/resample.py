@@ -26,8 +26,8 @@ def resample(rt: Runtime, bufs: Buffers, codes: np.ndarray, starts: np.ndarray,
     d_dlen = bufs.upload("dlen", (np.asarray(lengths) - nominal).astype(np.float32))
     d_int = bufs.upload("lut_int", lut_int.astype(np.int32))
     d_frac = bufs.upload("lut_frac", (whole - lut_int).astype(np.float32))
-    d_u = bufs.upload("u", np.asarray(u, np.float32))
-    d_win = bufs.upload("win", np.asarray(win, np.float32))
+    d_u = bufs.constant("u", u)
+    d_win = bufs.constant("win", win)
     out = DeviceRows(bufs, sweeps, points)
     if sweeps == 0:
         return out

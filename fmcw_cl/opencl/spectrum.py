@@ -13,6 +13,20 @@ from .buffers import Buffers, DeviceRows
 from .context import Runtime, cl
 
 
+@functools.lru_cache(maxsize=1)
+def cfar_scales() -> np.ndarray:
+    """stages.cfar.scales(), the same object each time."""
+    return cfar.scales()
+
+
+@functools.lru_cache(maxsize=8)
+def zeros(n: int) -> np.ndarray:
+    """A zero array of n, the same object each time (a placeholder uploaded once)."""
+    out = np.zeros(n)
+    out.flags.writeable = False
+    return out
+
+
 @functools.lru_cache(maxsize=8)
 def tables(nfft: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Twiddles exp(-2 pi i m / nfft), m < nfft, and where the radix-4 decimation-in-
@@ -80,8 +94,9 @@ def measure(rt: Runtime, bufs: Buffers, rows, beta: np.ndarray | None,
                 cfar.Detections.empty() if echoes else None)
     twr, twi, perm = tables(nfft)
     dechirp = velocity is not None
-    d_beta = bufs.upload("beta", np.asarray(beta if dechirp else np.zeros(points), np.float32))
-    d_v = bufs.upload("velocity", np.asarray(velocity if dechirp else np.zeros(1), np.float32))
+    d_beta = bufs.constant("beta", beta if dechirp else zeros(points))
+    d_v = (bufs.upload("velocity", np.asarray(velocity, np.float32)) if dechirp
+           else bufs.constant("v0", zeros(1)))
     d_bin, d_snr = bufs.get("bin", 4 * sweeps), bufs.get("snr", 4 * sweeps)
     d_power = store.buffer if store is not None else bufs.get("power", 4 * sweeps * half if keep_power else 4)
     m = cfar.MAX_ECHOES
@@ -92,14 +107,15 @@ def measure(rt: Runtime, bufs: Buffers, rows, beta: np.ndarray | None,
     groups = sweeps if dechirp else (sweeps + 1) // 2    # plain rows: two per transform
     rt.kernel("spectrum", "spectrum_peak")(
         rt.queue, (groups * lsz,), (lsz,), rows.buffer, np.int32(sweeps), np.int32(points),
-        bufs.upload("index", np.asarray(index if index is not None else [0], np.int32)),
+        bufs.upload("index", np.asarray(index, np.int32)) if index is not None
+        else bufs.constant("index0", zeros(1), np.int32),
         np.int32(index is not None), d_beta, d_v, np.int32(dechirp),
-        bufs.upload_once(f"tw_re{nfft}", twr), bufs.upload_once(f"tw_im{nfft}", twi),
-        bufs.upload_once(f"perm{nfft}", perm), np.int32(nfft), np.int32(lo), np.int32(hi),
+        bufs.constant("tw_re", twr), bufs.constant("tw_im", twi),
+        bufs.constant("perm", perm, np.int32), np.int32(nfft), np.int32(lo), np.int32(hi),
         np.int32(GUARD_BINS), d_bin, d_snr, d_power, np.int32(keep_power or store is not None),
         np.int32(store is not None and index is not None and scatter),
         np.int32(echoes), np.int32(cfar.GUARD), np.int32(cfar.TRAIN),
-        bufs.upload_once("cfar_scale", cfar.scales().astype(np.float32)), np.int32(m),
+        bufs.constant("cfar_scale", cfar_scales()), np.int32(m),
         d_ebin, d_esnr, d_ecount,
         cl.LocalMemory(4 * nfft), cl.LocalMemory(4 * nfft), cl.LocalMemory(4 * half),
         cl.LocalMemory(12 * lsz), cl.LocalMemory(half if echoes else 1))
