@@ -76,9 +76,6 @@ class OpenCLBackend(pairing.SpectrumOps):
         """Power spectra of rows of x (plain, or de-chirped at v); twin: pairing.power."""
         if not k_spectrum.fits(self.rt, nfft):
             return pairing.power(self._host(x), beta, v, nfft, rows)
-        if rows is not None and v is None:        # picked rows go through the de-chirp path at 0 m/s
-            v = np.zeros(np.size(rows))
-            beta = k_spectrum.zeros(x.shape[1])
         _, spec, _ = k_spectrum.measure(self.rt, self.bufs, x, beta, v, nfft, 1, keep_power=True, index=rows)
         return spec
 
@@ -86,12 +83,9 @@ class OpenCLBackend(pairing.SpectrumOps):
         """`store` (DeviceRows of power spectra, new when None) with the rows `rows`
         replaced by their power spectra; twin: pairing.SpectrumOps.spectra."""
         if not k_spectrum.fits(self.rt, nfft):
-            host = None if store is None else store.get(self.rt.queue)
-            return super().spectra(self._host(x), beta, v, nfft, rows, host)
+            return super().spectra(self._host(x), beta, v, nfft, rows, self._host(store))
         if store is None:
             store = DeviceRows(self.bufs, x.shape[0], nfft // 2)
-        if rows is not None and v is None:
-            v, beta = np.zeros(np.size(rows)), k_spectrum.zeros(x.shape[1])
         k_spectrum.measure(self.rt, self.bufs, x, beta, v, nfft, 1, index=rows, store=store)
         return store
 
@@ -100,8 +94,7 @@ class OpenCLBackend(pairing.SpectrumOps):
         if not k_spectrum.fits(self.rt, nfft):
             return super().survey(self._host(x), beta, v, nfft, rows, lo, tracked_bin, plain_bin, others)
         spectra = []
-        plain = (k_spectrum.zeros(x.shape[1]), np.zeros(np.size(rows)))      # the de-chirp at 0 m/s
-        for b, vel in (plain, (beta, v)):
+        for b, vel in ((None, None), (beta, v)):          # plain, then de-chirped at v
             store = DeviceRows(self.bufs, np.size(rows), nfft // 2)
             k_spectrum.measure(self.rt, self.bufs, x, b, vel, nfft, 1, index=rows, store=store, scatter=False)
             spectra.append(store)

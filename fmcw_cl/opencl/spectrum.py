@@ -73,10 +73,10 @@ def measure(rt: Runtime, bufs: Buffers, rows, beta: np.ndarray | None,
             ) -> tuple[Peaks, np.ndarray | None, cfar.Detections | None]:
     """Peaks of the de-chirped (velocity given) or plain spectra of `rows` (DeviceRows
     or a host array), the power spectra (sweeps, nfft/2) when `keep_power`, and every
-    echo of bins [lo, nfft/2) when `echoes`. `index` (de-chirp only) picks the rows
-    measured, one velocity each. A `store` keeps the power on the device instead: in
-    the rows of `index` when `scatter` (all rows when None), else one row per measured
-    sweep."""
+    echo of bins [lo, nfft/2) when `echoes`. `index` picks the rows measured, one
+    velocity each (none: picked plain rows go through the de-chirp at 0 m/s). A `store`
+    keeps the power on the device instead: in the rows of `index` when `scatter` (all
+    rows when None), else one row per measured sweep."""
     if not isinstance(rows, DeviceRows):
         host = np.ascontiguousarray(rows, np.float32)
         rows = DeviceRows(bufs, *host.shape)
@@ -84,9 +84,9 @@ def measure(rt: Runtime, bufs: Buffers, rows, beta: np.ndarray | None,
             rt.copy(rows.buffer, host)
     sweeps, points = rows.shape
     if index is not None:
-        if velocity is None:
-            raise ValueError("an index selects de-chirped rows only")
         sweeps = int(np.size(index))
+        if velocity is None:
+            beta, velocity = zeros(points), zeros(sweeps)
     half = nfft // 2
     hi = half if hi is None else hi
     if sweeps == 0:

@@ -277,7 +277,10 @@ def track_pairs(xr: np.ndarray, xf: np.ndarray, t_rise: np.ndarray, t_fall: np.n
         integrate.AUTO_SHARE of the single pairs are heard.
     """
     ops = ops or NUMPY
-    args = (xr, xf, t_rise, t_fall, model, search, iterations, dechirp, ops)
+    # the plain pass (with every echo) does not depend on the integration: made once
+    first = (ops.measure(xr, model.beta_rise, None, model, search),
+             ops.measure(xf, model.beta_fall, None, model, search))
+    args = (xr, xf, t_rise, t_fall, model, replace(search, echoes=False), iterations, dechirp, ops, first)
     if integrate_k is not None:
         return _track(*args, integrate_k)
     single = _track(*args, 1)
@@ -299,15 +302,15 @@ def measured_snr(res: PairResult) -> float:
 
 
 def _track(xr, xf, t_rise, t_fall, model: DopplerModel, search: Search, iterations: int, dechirp: bool,
-           ops: SpectrumOps, k: int) -> PairResult:
-    """track_pairs with a fixed integration k."""
+           ops: SpectrumOps, first: tuple, k: int) -> PairResult:
+    """track_pairs with a fixed integration k, from the plain pass `first` (the
+    measurements of both directions)."""
     half_gap = 0.5 * (t_fall - t_rise)
     t_mid = 0.5 * (t_fall + t_rise)
     vd = np.zeros(t_mid.size)          # the velocity each pair was last de-chirped with
-    d_r, s_r, *e_r = ops.measure(xr, model.beta_rise, None, model, search)
-    d_f, s_f, *e_f = ops.measure(xf, model.beta_fall, None, model, search)
-    search = replace(search, echoes=False)
+    (d_r, s_r, *e_r), (d_f, s_f, *e_f) = first
     plain = (d_r.copy(), d_f.copy(), s_r.copy(), s_f.copy())
+    d_r, d_f, s_r, s_f = (a.copy() for a in plain)          # updated in place by the passes
     count = np.ones(t_mid.size, np.int32)
     windows = _Windows(ops, (xr, xf), model, search, k, t_mid) if k > 1 else None
     if windows is not None:
