@@ -3,7 +3,8 @@
 from importlib.resources import files
 
 # programs built from more than one file (device functions first)
-PROGRAMS = {"spectrum": ("peak", "cfar", "fft"), "integrate": ("peak", "integrate")}   # survey.cl: alone
+# (survey.cl: alone)
+PROGRAMS = {"spectrum": ("peak", "cfar", "fft", "fft_lanes"), "integrate": ("peak", "integrate")}
 
 
 def files_of(program: str) -> tuple[str, ...]:

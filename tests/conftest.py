@@ -24,6 +24,17 @@ def run_cli(*args, check=True) -> subprocess.CompletedProcess:
     return proc
 
 
+@pytest.fixture(params=["groups", "lanes"])
+def spectrum_variant(request, backend):
+    """Both spectrum kernels on the test's device: `spectrum_peak` (a work-group a
+    transform, GPUs) and `spectrum_lanes` (eight transforms in float8 lanes, CPUs)."""
+    rt = backend.rt
+    chosen = rt.lanes
+    rt.lanes = request.param == "lanes"
+    yield request.param
+    rt.lanes = chosen
+
+
 @pytest.fixture(scope="session")
 def fmcw():
     return run_cli

@@ -68,7 +68,7 @@ def backend():
 
 @pytest.mark.parametrize("rows,nfft,lo,hi", [(41, 2048, LO, None), (40, 2048, 200, 900), (7, 4096, 130, None),
                                              (1, 2048, LO, None)])
-def test_kernel_matches_numpy(backend, rows, nfft, lo, hi):
+def test_kernel_matches_numpy(backend, spectrum_variant, rows, nfft, lo, hi):
     """Several echoes (one at the band's top bins), noise-only rows, odd row counts
     (plain rows go two to a transform), both FFT shapes."""
     points = nfft // 2 - 24
@@ -85,3 +85,18 @@ def test_kernel_matches_numpy(backend, rows, nfft, lo, hi):
     assert want.count[::2].min() >= 1      # the tone rows have echoes in every band tried
     np.testing.assert_allclose(got.bin, want.bin, atol=2e-3)
     np.testing.assert_allclose(got.snr_db, want.snr_db, atol=0.02)
+
+
+def test_kernel_with_other_widths_matches_numpy(backend, spectrum_variant, monkeypatch):
+    """Guard and training widths other than the tables' (8 and 16) take the kernels'
+    direct sums everywhere."""
+    monkeypatch.setattr(cfar, "GUARD", 5)
+    monkeypatch.setattr(cfar, "TRAIN", 11)
+    monkeypatch.setattr(k_spectrum, "cfar_scales", cfar.scales)
+    x = tones([(150.3, 40.0), (170.6, 4.0), (700.6, 2.2), (1020.0, 8.0)], rows=9, seed=4)
+    want = cfar.detect(spectrum.power_spectra(x, NFFT), LO)
+    _, _, got = k_spectrum.measure(backend.rt, backend.bufs, x.astype(np.float32), None, None, NFFT, LO,
+                                   echoes=True)
+    assert want.count.min() >= 3
+    np.testing.assert_array_equal(got.count, want.count)
+    np.testing.assert_allclose(got.bin, want.bin, atol=2e-3)

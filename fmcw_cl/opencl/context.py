@@ -128,9 +128,14 @@ class Runtime:
     kernels: dict = field(default_factory=dict)
     traffic: Traffic = field(default_factory=Traffic)
 
+    lanes: bool = False   # kernels with explicit float8 lanes where there are two variants
+
     def __post_init__(self) -> None:
         self.context = cl.Context([self.device])
         self.queue = cl.CommandQueue(self.context)
+        # a CPU runs a work-group's work-items as a loop, which PoCL vectorises only where
+        # the kernel has no loop of its own (kernels/fft_lanes.cl); GPUs want work-groups
+        self.lanes = rank(self.device) == CPU
 
     @property
     def name(self) -> str:

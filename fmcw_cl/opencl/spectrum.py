@@ -1,5 +1,6 @@
-"""Launcher of kernels/fft.cl + peak.cl + cfar.cl (twins: fmcw_cl.stages.spectrum.power_spectra,
-find_peaks, fmcw_cl.stages.cfar.detect and fmcw_cl.stages.pairing.measure)."""
+"""Launcher of kernels/fft.cl + peak.cl + cfar.cl, or of fft_lanes.cl on CPU devices (twins:
+fmcw_cl.stages.spectrum.power_spectra, find_peaks, fmcw_cl.stages.cfar.detect and
+fmcw_cl.stages.pairing.measure)."""
 
 from __future__ import annotations
 
@@ -60,10 +61,25 @@ def local_bytes(rt: Runtime, nfft: int) -> int:
     return 4 * (2 * nfft + nfft // 2) + 12 * local_size(rt, nfft) + nfft // 2
 
 
+LANES = 8   # transforms per work-item of spectrum_lanes (a float8)
+
+
+def lanes_bytes(nfft: int) -> int:
+    """Local memory of one work-group of `spectrum_lanes`: the transform and the power
+    of its two rows, eight lanes each."""
+    return 3 * nfft * 4 * LANES
+
+
+def uses_lanes(rt: Runtime, nfft: int) -> bool:
+    """Whether `spectrum_lanes` (fft_lanes.cl) runs an nfft-point transform: on a CPU
+    device (`Runtime.lanes`), when its local memory holds it; else `spectrum_peak`."""
+    return rt.lanes and lanes_bytes(nfft) <= rt.device.local_mem_size
+
+
 def fits(rt: Runtime, nfft: int) -> bool:
     """Whether an nfft-point transform fits in the device's local memory (a GPU's 48 KB
     holds 4096 points, 46 KB; 8192, the range check at --points 2048, needs 88 KB)."""
-    return local_bytes(rt, nfft) <= rt.device.local_mem_size
+    return uses_lanes(rt, nfft) or local_bytes(rt, nfft) <= rt.device.local_mem_size
 
 
 def measure(rt: Runtime, bufs: Buffers, rows, beta: np.ndarray | None,
@@ -103,22 +119,28 @@ def measure(rt: Runtime, bufs: Buffers, rows, beta: np.ndarray | None,
     d_ebin = bufs.get("echo_bin", 4 * sweeps * m if echoes else 4)
     d_esnr = bufs.get("echo_snr", 4 * sweeps * m if echoes else 4)
     d_ecount = bufs.get("echo_count", 4 * sweeps if echoes else 4)
-    lsz = local_size(rt, nfft)
-    groups = sweeps if dechirp else (sweeps + 1) // 2    # plain rows: two per transform
-    rt.kernel("spectrum", "spectrum_peak")(
-        rt.queue, (groups * lsz,), (lsz,), rows.buffer, np.int32(sweeps), np.int32(points),
-        bufs.upload("index", np.asarray(index, np.int32)) if index is not None
-        else bufs.constant("index0", zeros(1), np.int32),
-        np.int32(index is not None), d_beta, d_v, np.int32(dechirp),
-        bufs.constant("tw_re", twr), bufs.constant("tw_im", twi),
-        bufs.constant("perm", perm, np.int32), np.int32(nfft), np.int32(lo), np.int32(hi),
-        np.int32(GUARD_BINS), d_bin, d_snr, d_power, np.int32(keep_power or store is not None),
-        np.int32(store is not None and index is not None and scatter),
-        np.int32(echoes), np.int32(cfar.GUARD), np.int32(cfar.TRAIN),
-        bufs.constant("cfar_scale", cfar_scales()), np.int32(m),
-        d_ebin, d_esnr, d_ecount,
-        cl.LocalMemory(4 * nfft), cl.LocalMemory(4 * nfft), cl.LocalMemory(4 * half),
-        cl.LocalMemory(12 * lsz), cl.LocalMemory(half if echoes else 1))
+    transforms = sweeps if dechirp else (sweeps + 1) // 2    # plain rows: two per transform
+    args = (rows.buffer, np.int32(sweeps), np.int32(points),
+            bufs.upload("index", np.asarray(index, np.int32)) if index is not None
+            else bufs.constant("index0", zeros(1), np.int32),
+            np.int32(index is not None), d_beta, d_v, np.int32(dechirp),
+            bufs.constant("tw_re", twr), bufs.constant("tw_im", twi),
+            bufs.constant("perm", perm, np.int32), np.int32(nfft), np.int32(lo), np.int32(hi),
+            np.int32(GUARD_BINS), d_bin, d_snr, d_power, np.int32(keep_power or store is not None),
+            np.int32(store is not None and index is not None and scatter),
+            np.int32(echoes), np.int32(cfar.GUARD), np.int32(cfar.TRAIN),
+            bufs.constant("cfar_scale", cfar_scales()), np.int32(m),
+            d_ebin, d_esnr, d_ecount)
+    if uses_lanes(rt, nfft):
+        groups = -(-transforms // LANES)
+        rt.kernel("spectrum", "spectrum_lanes")(rt.queue, (groups,), (1,), *args,
+                                                *(cl.LocalMemory(4 * LANES * nfft),) * 3)
+    else:
+        lsz = local_size(rt, nfft)
+        rt.kernel("spectrum", "spectrum_peak")(
+            rt.queue, (transforms * lsz,), (lsz,), *args,
+            cl.LocalMemory(4 * nfft), cl.LocalMemory(4 * nfft), cl.LocalMemory(4 * half),
+            cl.LocalMemory(12 * lsz), cl.LocalMemory(half if echoes else 1))
     b = np.empty(sweeps, np.float32)
     s = np.empty(sweeps, np.float32)
     rt.copy(b, d_bin)

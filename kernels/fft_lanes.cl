@@ -1,0 +1,304 @@
+// Stage 5a on CPU devices: what fft.cl's spectrum_peak computes (the de-chirp, the
+// zero-padded FFT, the power, the peak and, on request, every CFAR echo and the power
+// itself), eight transforms per work-item, one in each lane of a float8. PoCL turns a
+// work-group's work-items into a loop that it vectorises only when the kernel body has
+// no loop of its own, which an FFT has: spectrum_peak runs as scalar code there. Here
+// the lanes are explicit, every load and store of the transform is a whole float8 and
+// every twiddle is one value for all lanes (PoCL, 2-core EPYC: a 2048-point transform
+// 2.5 us a row against 11-14 us). One work-item a group, its transforms in local memory.
+// Twins: fmcw_cl.stages.pairing.measure, stages.spectrum.power_spectra and find_peaks,
+// stages.cfar.detect.
+
+// Integer bounds without PoCL's min/max builtins, which are calls (shared notes: its
+// clamp and select were slow; vector conditionals are used for select here too).
+#define IMAX(a, b) ((a) > (b) ? (a) : (b))
+#define IMIN(a, b) ((a) < (b) ? (a) : (b))
+
+// sincos_cycles (fft.cl) per lane
+void sincos_cycles8(const float8 p, float8 *s, float8 *c)
+{
+    const float8 r = p - floor(p + 0.5f);
+    const float8 h = 3.14159265358979f * r;
+    const float8 h2 = h * h;
+    const float8 sh = h * (1.0f + h2 * (-1.6666667e-1f + h2 * (8.3333333e-3f + h2 * (-1.9841270e-4f
+                    + h2 * (2.7557319e-6f + h2 * -2.5052108e-8f)))));
+    const float8 ch = 1.0f + h2 * (-0.5f + h2 * (4.1666667e-2f + h2 * (-1.3888889e-3f
+                    + h2 * (2.4801587e-5f + h2 * (-2.7557319e-7f + h2 * 2.0876757e-9f)))));
+    *s = 2.0f * sh * ch;
+    *c = ch * ch - sh * sh;
+}
+
+// radix4 (fft.cl) per lane
+void radix4_8(__local float8 *re, __local float8 *im, const int b, const int q, const int e,
+              const float8 a0r, const float8 a0i, const float8 a1r, const float8 a1i,
+              const float8 a2r, const float8 a2i, const float8 a3r, const float8 a3i,
+              __global const float *tw_re, __global const float *tw_im)
+{
+    const float8 s02r = a0r + a2r, s02i = a0i + a2i;
+    const float8 d02r = a0r - a2r, d02i = a0i - a2i;
+    const float8 s13r = a1r + a3r, s13i = a1i + a3i;
+    const float8 d13r = a1r - a3r, d13i = a1i - a3i;
+    const float8 y1r = d02r + d13i, y1i = d02i - d13r;
+    const float8 y2r = s02r - s13r, y2i = s02i - s13i;
+    const float8 y3r = d02r - d13i, y3i = d02i + d13r;
+    const float w1r = tw_re[e], w1i = tw_im[e];
+    const float w2r = tw_re[2 * e], w2i = tw_im[2 * e];
+    const float w3r = tw_re[3 * e], w3i = tw_im[3 * e];
+    re[b] = s02r + s13r;
+    im[b] = s02i + s13i;
+    re[b + q] = y1r * w1r - y1i * w1i;
+    im[b + q] = y1r * w1i + y1i * w1r;
+    re[b + 2 * q] = y2r * w2r - y2i * w2i;
+    im[b + 2 * q] = y2r * w2i + y2i * w2r;
+    re[b + 3 * q] = y3r * w3r - y3i * w3i;
+    im[b + 3 * q] = y3r * w3i + y3i * w3r;
+}
+
+// Sample j of each lane's transform input (load in fft.cl), zero past the points.
+void load8(__global const float *const *ra, __global const float *const *rb,
+           __global const float *beta, const float8 v, const int dechirp, const int points,
+           const int j, float8 *re, float8 *im)
+{
+    float a[8], b[8];
+    for (int l = 0; l < 8; ++l) {
+        a[l] = j < points ? ra[l][j] : 0.0f;
+        b[l] = j < points && rb[l] ? rb[l][j] : 0.0f;
+    }
+    const float8 xa = vload8(0, a);
+    if (dechirp) {
+        float8 c, s;
+        sincos_cycles8(v * (j < points ? beta[j] : 0.0f), &s, &c);
+        *re = xa * c;
+        *im = -xa * s;
+    } else {
+        *re = xa;
+        *im = vload8(0, b);
+    }
+}
+
+// Lane l's value of bin k of a float8 array in local memory.
+float lane(__local const float8 *a, const int k, const int l)
+{
+    return ((__local const float *)a)[8 * k + l];
+}
+
+// peak_position (peak.cl) of lane l
+float peak_position_lane(__local const float8 *pw, const int half_n, int kk, const int l)
+{
+    kk = kk < 1 ? 1 : (kk > half_n - 2 ? half_n - 2 : kk);
+    const float tiny = 1.0e-30f;
+    const float a = log(lane(pw, kk - 1, l) + tiny);
+    const float b = log(lane(pw, kk, l) + tiny);
+    const float c = log(lane(pw, kk + 1, l) + tiny);
+    const float den = a - 2.0f * b + c;
+    float delta = den < 0.0f ? 0.5f * (a - c) / den : 0.0f;
+    delta = delta < -0.5f ? -0.5f : (delta > 0.5f ? 0.5f : delta);
+    return (float)kk + delta;
+}
+
+// local_peak (peak.cl) of every lane: the band's arg-max (ties: the lowest bin), then
+// the floor as the mean of the band outside +-guard of it, summed apart (no
+// difference of two large sums).
+void lanes_peak(__local const float8 *pw, const int half_n, const int lo, const int hi, const int guard,
+                const int *sweep, __global float *bin, __global float *snr)
+{
+    float8 best = -1.0f, total = 0.0f;
+    int8 arg = (int8)lo;
+    for (int k = lo; k < hi; ++k) {
+        const float8 p = pw[k];
+        const int8 gt = p > best;
+        best = gt ? p : best;
+        arg = gt ? (int8)k : arg;
+        total += p;
+    }
+    int8 kk = arg < 1 ? (int8)1 : arg;
+    kk = kk > half_n - 2 ? (int8)(half_n - 2) : kk;
+    const int8 g0 = kk - guard, g1 = kk + guard;
+    float8 outside = 0.0f;
+    for (int k = lo; k < hi; ++k) outside += (((int8)k < g0) | ((int8)k > g1)) ? pw[k] : (float8)0.0f;
+    float o[8], t[8];
+    int c[8];
+    vstore8(outside, 0, o);
+    vstore8(total, 0, t);
+    vstore8(kk, 0, c);
+    for (int l = 0; l < 8; ++l) {
+        if (sweep[l] < 0) continue;
+        const int a = IMAX(c[l] - guard, lo), b = IMIN(c[l] + guard, hi - 1);
+        const int n_out = (hi - lo) - (b - a + 1);
+        const float floor_level = n_out > 0 ? o[l] / (float)n_out : t[l] / (float)(hi - lo);
+        bin[sweep[l]] = peak_position_lane(pw, half_n, c[l], l);
+        snr[sweep[l]] = 10.0f * log10(lane(pw, c[l], l) / (floor_level > 1.0e-30f ? floor_level : 1.0e-30f));
+    }
+}
+
+// local_cfar (cfar.cl) of every lane, bins [lo, half_n). Each bin's guard maxima and
+// training sums come from tables of running maxima of 8 bins (mx) and sums of 16
+// (sm) where the windows are whole (guard 8 and train 16, stages.cfar's), taken
+// directly near the band's ends or for other widths.
+void lanes_cfar(__local const float8 *pw, const int half_n, const int lo, const int guard, const int train,
+                __global const float *scale, const int max_echoes, __local float8 *mx, __local float8 *sm,
+                const int *sweep, __global float *echo_bin, __global float *echo_snr, __global int *echo_count)
+{
+    const int tables = guard == 8 && train == 16;
+    for (int i = 0; i + 1 < half_n; ++i) {
+        mx[i] = fmax(pw[i], pw[i + 1]);
+        sm[i] = pw[i] + pw[i + 1];
+    }
+    for (int i = 0; i + 3 < half_n; ++i) {
+        mx[i] = fmax(mx[i], mx[i + 2]);
+        sm[i] += sm[i + 2];
+    }
+    for (int i = 0; i + 7 < half_n; ++i) {
+        mx[i] = fmax(mx[i], mx[i + 4]);
+        sm[i] += sm[i + 4];
+    }
+    for (int i = 0; i + 15 < half_n; ++i) sm[i] += sm[i + 8];
+    int count[8] = {0, 0, 0, 0, 0, 0, 0, 0};
+    for (int k = lo; k < half_n; ++k) {
+        const float8 p = pw[k];
+        float8 left = -1.0f, right = -1.0f;        // powers are >= 0: an empty side passes
+        if (tables && k - guard >= 0) {
+            left = mx[k - guard];
+        } else {
+            for (int j = IMAX(k - guard, 0); j < k; ++j) left = fmax(left, pw[j]);
+        }
+        if (tables && k + guard < half_n) {
+            right = mx[k + 1];
+        } else {
+            for (int j = k + 1; j < IMIN(k + guard + 1, half_n); ++j) right = fmax(right, pw[j]);
+        }
+        const int a0 = IMAX(k - guard - train, lo), a1 = IMAX(k - guard, lo);
+        const int b0 = IMIN(k + guard + 1, half_n), b1 = IMIN(k + guard + train + 1, half_n);
+        float8 sum = 0.0f;
+        if (tables && a1 - a0 == train) {
+            sum = sm[a0];
+        } else {
+            for (int j = a0; j < a1; ++j) sum += pw[j];
+        }
+        if (tables && b1 - b0 == train) {
+            sum += sm[b0];
+        } else {
+            for (int j = b0; j < b1; ++j) sum += pw[j];
+        }
+        const int n = (a1 - a0) + (b1 - b0);
+        // p > scale[n] * sum / n, without a division per bin (n = 0: scale is infinite)
+        const int8 echo = (p > left) & (p >= right) & (p * (float)n > scale[n] * sum);
+        if (!any(echo)) continue;
+        int hit[8];
+        float pv[8], mv[8];
+        vstore8(echo, 0, hit);
+        vstore8(p, 0, pv);
+        vstore8(sum / (float)n, 0, mv);
+        for (int l = 0; l < 8; ++l) {
+            if (sweep[l] < 0 || !hit[l] || count[l] >= max_echoes) continue;
+            const size_t e = (size_t)sweep[l] * max_echoes + count[l];
+            echo_bin[e] = peak_position_lane(pw, half_n, k, l);
+            echo_snr[e] = 10.0f * log10(pv[l] / mv[l]);
+            ++count[l];
+        }
+    }
+    for (int l = 0; l < 8; ++l) {
+        if (sweep[l] < 0) continue;
+        echo_count[sweep[l]] = count[l];
+        for (int i = count[l]; i < max_echoes; ++i) {
+            echo_bin[(size_t)sweep[l] * max_echoes + i] = NAN;
+            echo_snr[(size_t)sweep[l] * max_echoes + i] = NAN;
+        }
+    }
+}
+
+// The arguments of spectrum_peak but its local buffers: one work-group of one
+// work-item per eight transforms (plain rows two to a transform, as there).
+__kernel void spectrum_lanes(__global const float *x, const int sweeps, const int points,
+                             __global const int *index, const int indexed,
+                             __global const float *beta, __global const float *velocity, const int dechirp,
+                             __global const float *tw_re, __global const float *tw_im,
+                             __global const int *perm, const int nfft, const int lo, const int hi,
+                             const int guard, __global float *bin, __global float *snr,
+                             __global float *power, const int keep_power, const int scatter,
+                             const int echoes, const int cfar_guard, const int train,
+                             __global const float *scale, const int max_echoes,
+                             __global float *echo_bin, __global float *echo_snr, __global int *echo_count,
+                             __local float8 *re,       // nfft
+                             __local float8 *im,       // nfft
+                             __local float8 *pw)       // nfft: the power of a transform's two rows
+{
+    const int w = get_group_id(0);
+    const int transforms = dechirp ? sweeps : (sweeps + 1) / 2;
+    __global const float *ra[8];
+    __global const float *rb[8];
+    int first[8];                                      // first sweep of each lane, -1: idle lane
+    float vl[8];
+    for (int l = 0; l < 8; ++l) {
+        const int g = 8 * w + l;
+        const int s = dechirp ? g : 2 * g;
+        const int active = g < transforms;
+        first[l] = active ? s : -1;
+        const int row = active ? (indexed ? index[s] : s) : 0;
+        ra[l] = x + (size_t)row * points;
+        rb[l] = !dechirp && active && s + 1 < sweeps ? ra[l] + points : 0;
+        vl[l] = dechirp && active ? velocity[s] : 0.0f;
+    }
+    const float8 v = vload8(0, vl);
+    const int q = nfft >> 2;
+    for (int j = 0; j < q; ++j) {     // the first stage straight from the input (see fft.cl)
+        float8 a0r, a0i, a1r, a1i;
+        load8(ra, rb, beta, v, dechirp, points, j, &a0r, &a0i);
+        load8(ra, rb, beta, v, dechirp, points, j + q, &a1r, &a1i);
+        radix4_8(re, im, j, q, j, a0r, a0i, a1r, a1i, 0.0f, 0.0f, 0.0f, 0.0f, tw_re, tw_im);
+    }
+    int lb = q;
+    for (; lb >= 4; lb >>= 2) {
+        const int qq = lb >> 2;
+        const int step = nfft / lb;
+        for (int t = 0; t < (nfft >> 2); ++t) {
+            const int j = t & (qq - 1);
+            const int b = ((t - j) << 2) + j;
+            radix4_8(re, im, b, qq, j * step, re[b], im[b], re[b + qq], im[b + qq],
+                     re[b + 2 * qq], im[b + 2 * qq], re[b + 3 * qq], im[b + 3 * qq], tw_re, tw_im);
+        }
+    }
+    if (lb == 2) {
+        for (int b = 0; b < nfft; b += 2) {
+            const float8 a0r = re[b], a0i = im[b], a1r = re[b + 1], a1i = im[b + 1];
+            re[b] = a0r + a1r;
+            im[b] = a0i + a1i;
+            re[b + 1] = a0r - a1r;
+            im[b + 1] = a0i - a1i;
+        }
+    }
+    const int half_n = nfft >> 1;
+    const int rows = dechirp ? 1 : 2;
+    for (int r = 0; r < rows; ++r) {
+        __local float8 *p_r = pw + r * half_n;
+        for (int k = 0; k < half_n; ++k) {
+            const int p = perm[k];
+            if (dechirp) {
+                p_r[k] = re[p] * re[p] + im[p] * im[p];
+            } else {
+                const int m = perm[(nfft - k) & (nfft - 1)];
+                const float8 cr = r == 0 ? re[p] + re[m] : im[p] + im[m];
+                const float8 ci = r == 0 ? im[p] - im[m] : re[p] - re[m];
+                p_r[k] = 0.25f * (cr * cr + ci * ci);
+            }
+        }
+    }
+    // the transform is no longer needed: re and im hold the CFAR's tables
+    for (int r = 0; r < rows; ++r) {
+        __local const float8 *p_r = pw + r * half_n;
+        int sweep[8];
+        for (int l = 0; l < 8; ++l) sweep[l] = first[l] >= 0 && (r == 0 || rb[l]) ? first[l] + r : -1;
+        if (keep_power) {
+            for (int l = 0; l < 8; ++l) {
+                if (sweep[l] < 0) continue;
+                __global float *out = power + (size_t)(scatter ? index[sweep[l]] : sweep[l]) * half_n;
+                for (int k = 0; k < half_n; ++k) out[k] = lane(p_r, k, l);
+            }
+        }
+        lanes_peak(p_r, half_n, lo, hi, guard, sweep, bin, snr);
+        if (echoes) {
+            lanes_cfar(p_r, half_n, lo, cfar_guard, train, scale, max_echoes, re, im, sweep,
+                       echo_bin, echo_snr, echo_count);
+        }
+    }
+}
