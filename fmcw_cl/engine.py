@@ -84,6 +84,9 @@ class NumpyBackend(pairing.SpectrumOps):
     def resample(self, codes, starts, lengths, u, win):
         return resample.resample(codes, starts, lengths, u, win)
 
+    def clip_flags(self, codes, block, full_scale):
+        return faults.clip_flags(codes, block, full_scale)
+
 
 def make_backend(name: str = "auto", device: str | None = None, warn=None):
     """The stage implementation: "numpy", "opencl", or "auto".
@@ -259,8 +262,8 @@ def _chunk_pairs(plan: Plan, chunk, backend) -> _Pairs | None:
     sel = res.take(own)
     r, f = r[own], f[own]
     # the falling half-sweep starts where the rising one ends: one span per pair
-    clip = faults.clipped(chunk.beat, hs.start[r], hs.start[f] + hs.length[f] - hs.start[r],
-                          info.full_scale)
+    clip = faults.clipped(chunk.beat, hs.start[r], hs.start[f] + hs.length[f] - hs.start[r], info.full_scale,
+                          backend.clip_flags(chunk.beat, faults.CLIP_BLOCK, info.full_scale))
     alias = np.zeros(r.size, bool)
     if plan.check is not None and r.size:
         alias = _beyond_range(plan, chunk.beat, hs, r, f, sel, backend)

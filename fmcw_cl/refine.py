@@ -87,20 +87,20 @@ STILL_MPS = 0.05          # a stretch this slow is measured from plain peaks
 
 def _widths(power: np.ndarray, lo: int) -> np.ndarray:
     """Width (bins) of each row's highest peak beyond `lo` at half its power, the
-    crossings interpolated linearly between bins."""
+    crossings interpolated linearly between bins (NaN where a side never falls below)."""
     band = power[:, lo:]
+    rows, cols = np.arange(band.shape[0]), np.arange(band.shape[1])
+    k = np.argmax(band, axis=1)
+    half = 0.5 * band[rows, k]
+    below = band < half[:, None]
+    a = np.where(below & (cols < k[:, None]), cols, -1).max(axis=1, initial=-1)    # last below, left
+    b = np.where(below & (cols > k[:, None]), cols, cols.size).min(axis=1, initial=cols.size)
+    ok = (a >= 0) & (b < cols.size)
     out = np.full(band.shape[0], np.nan)
-    for i, row in enumerate(band):
-        k = int(np.argmax(row))
-        half = 0.5 * row[k]
-        below = np.flatnonzero(row < half)
-        left, right = below[below < k], below[below > k]
-        if left.size == 0 or right.size == 0:
-            continue
-        a, b = left[-1], right[0]          # last bin below half on each side
-        xa = a + (half - row[a]) / (row[a + 1] - row[a])
-        xb = b - (half - row[b]) / (row[b - 1] - row[b])
-        out[i] = xb - xa
+    a, b, r, h = a[ok], b[ok], rows[ok], half[ok]
+    xa = a + (h - band[r, a]) / (band[r, a + 1] - band[r, a])
+    xb = b - (h - band[r, b]) / (band[r, b - 1] - band[r, b])
+    out[ok] = xb - xa
     return out
 
 

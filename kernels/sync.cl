@@ -1,18 +1,83 @@
-// Stage 2: the sync channel's crossings. Two kernels; the hysteresis on the short
-// stream of block means and the turning-point grid stay on the host (cheap).
-// Twins: fmcw_cl.stages.sync.block_means and line_fit_sums.
+// Stage 2: the sync channel's crossings, three kernels. The coarse search: block sums
+// (and an evenly spaced sample of them, from which the host takes the level and the
+// swing), then where their 3-block median changes its band or its side of the level:
+// a few entries a half-period, which the host turns into crossings. The crossings are
+// then timed by line fits on the full-rate codes. Twins: fmcw_cl.stages.sync.block_sums,
+// changes and line_fit_sums.
 
-// Sums of whole blocks of `factor` int16 codes (exact in float32: |sum| < 2^24 for
-// factor <= 512); the host divides in float64.
+// Integer sums of whole blocks of `factor` int16 codes, and every `stride`-th of them;
+// work-item 0 also zeroes crossing_changes' two counters (this kernel always runs first).
 __kernel void block_sum(__global const short *x,
                         const int factor,
-                        __global float *out)
+                        const int stride,
+                        __global int *out,
+                        __global int *sampled,
+                        __global int *counters)
 {
     const int j = get_global_id(0);
     __global const short *p = x + (size_t)j * factor;
-    float s = 0.0f;
-    for (int k = 0; k < factor; ++k) s += (float)p[k];
+    int s = 0;
+    for (int k = 0; k < factor; ++k) s += p[k];
     out[j] = s;
+    const int q = j / stride;       // (not j % stride: Oclgrind cannot follow the code made of it)
+    if (q * stride == j) sampled[q] = s;
+    if (j == 0) {
+        counters[0] = 0;
+        counters[1] = 0;
+    }
+}
+
+int median3(const int p, const int q, const int r)
+{
+    const int lo = p < q ? p : q, hi = p < q ? q : p;
+    return hi < r ? hi : (lo > r ? lo : r);
+}
+
+// The filtered sum of block i (ends unfiltered).
+int filtered(__global const int *sums, const int m, const int i)
+{
+    return i == 0 || i == m - 1 ? sums[i] : median3(sums[i - 1], sums[i], sums[i + 1]);
+}
+
+int band(const int b, const int high, const int low)
+{
+    return b >= high ? 1 : (b < low ? -1 : 0);
+}
+
+// Where the filtered sums change band (+1 at or above `high`, -1 below `low`; block 0
+// always) and side of the level (`mid`), appended in any order through counters that
+// block_sum zeroed: out = [events, sides, (block, band) x cap_events, (block, before,
+// after) x cap_sides]; past a capacity only the count grows (the host then redoes it).
+__kernel void crossing_changes(__global const int *sums,
+                               const int m,
+                               const int high,
+                               const int low,
+                               const int mid,
+                               const int cap_events,
+                               const int cap_sides,
+                               __global int *out)
+{
+    const int i = get_global_id(0);
+    if (i >= m) return;
+    const int b = filtered(sums, m, i);
+    const int e = band(b, high, low);
+    const int a = i > 0 ? filtered(sums, m, i - 1) : b;
+    if (i == 0 || e != band(a, high, low)) {
+        const int k = atomic_inc(out);
+        if (k < cap_events) {
+            out[2 + 2 * k] = i;
+            out[3 + 2 * k] = e;
+        }
+    }
+    if (i > 0 && (b >= mid) != (a >= mid)) {
+        const int k = atomic_inc(out + 1);
+        if (k < cap_sides) {
+            __global int *o = out + 2 + 2 * cap_events + 3 * k;
+            o[0] = i;
+            o[1] = a;
+            o[2] = b;
+        }
+    }
 }
 
 // Integer sums of x and (i - c) x over x[c - hw .. c + hw], one work-group per
@@ -29,8 +94,7 @@ __kernel void line_fit(__global const short *x,
                        const int hw,             // half-width of the window
                        const int spike,          // codes
                        const int flush,          // samples per int32 partial sum
-                       __global long *sum0,      // sum x
-                       __global long *sum1,      // sum (i - c) x
+                       __global long *sums,      // (sum x, sum (i - c) x) per centre
                        __local long *l0,
                        __local long *l1)
 {
@@ -88,7 +152,7 @@ __kernel void line_fit(__global const short *x,
         barrier(CLK_LOCAL_MEM_FENCE);
     }
     if (lid == 0) {
-        sum0[g] = l0[0];
-        sum1[g] = l1[0];
+        sums[2 * g] = l0[0];
+        sums[2 * g + 1] = l1[0];
     }
 }

@@ -14,7 +14,7 @@ from fmcw_cl.capture import Capture
 from fmcw_cl.engine import Options, process
 from fmcw_cl.errors import FmcwError
 from fmcw_cl.simulator.laser import paper_dfb
-from fmcw_cl.stages import pairing, resample, spectrum, sync
+from fmcw_cl.stages import faults, pairing, resample, spectrum, sync
 from fmcw_cl.stages.lut import build_lut
 from fmcw_cl.stages.spectrum import Search
 
@@ -157,3 +157,23 @@ def test_pairing(pairs, kind, bin_, seed, dechirp):
     assert res.distance.shape == res.velocity.shape == res.valid.shape == (pairs,)
     assert res.valid.dtype == bool
     assert np.all(np.isfinite(res.distance[res.valid]))
+
+
+@FUZZ
+@given(n=st.integers(0, 3000), block=st.sampled_from([1, 3, 16, 64, 256]),
+       clips=st.lists(st.tuples(st.integers(0, 2999), st.sampled_from([-8192, -8191, 8190, 8191])),
+                      max_size=6),
+       spans=st.lists(st.tuples(st.floats(-100, 3100), st.floats(0, 900)), min_size=1, max_size=30))
+def test_clipping_from_block_flags(n, block, clips, spans):
+    """The clipping check through block flags (what a device computes) is exactly the
+    plain definition: a clipped code anywhere in [floor(start), ceil(start + length)]."""
+    codes = np.zeros(n, np.int16)
+    for at, value in clips:
+        if at < n:
+            codes[at] = value
+    starts, lengths = np.array(spans).T
+    hit = np.flatnonzero((codes <= -8192) | (codes >= 8191))      # 8190, -8191: near misses
+    a = np.clip(np.floor(starts).astype(np.int64), 0, n)
+    b = np.clip(np.ceil(starts + lengths).astype(np.int64) + 1, 0, n)
+    want = np.searchsorted(hit, b) > np.searchsorted(hit, a)
+    assert np.array_equal(faults.clipped(codes, starts, lengths, 8192, block=block), want)

@@ -127,11 +127,18 @@ def sync_codes(n, half, t0, noise, seed, spikes=0):
 @pytest.mark.parametrize("n,half,spikes", [(200_001, 2500.0, 0), (123_457, 2500.0, 40),
                                            (50_003, 1234.5, 7), (9_999, 300.0, 3)])
 def test_sync_kernels_match_numpy(backend, n, half, spikes):
-    """Block means and the despiked line-fit sums are exact integers on both sides, so
-    the turning points are bitwise equal; odd lengths and partial periods at both ends."""
+    """Block sums, their band and side changes and the despiked line-fit sums are exact
+    integers on both sides, so the coarse crossings and the turning points are bitwise
+    equal; odd lengths and partial periods at both ends."""
+    from fmcw_cl.opencl import sync as k_sync
+
     x = sync_codes(n, half, t0=0.37 * half, noise=5.0, seed=n, spikes=spikes)
     f = sync.block_length(half)
-    np.testing.assert_array_equal(backend._means(x, f), sync.block_means(x, f))
+    got, want = backend._coarse(x, f), sync.coarse_from_codes(x, f)
+    assert want.block.size > 2
+    np.testing.assert_array_equal(got.block, want.block)
+    np.testing.assert_array_equal(got.direction, want.direction)
+    assert (got.level, got.swing) == (want.level, want.swing)
     hw = sync.fit_half_width(half)
     centre = np.random.default_rng(1).integers(hw + 2, n - hw - 2, 33)
     got = backend._sums(x, centre, hw, 300.0)
@@ -142,6 +149,60 @@ def test_sync_kernels_match_numpy(backend, n, half, spikes):
     assert ref.time.size > 2
     np.testing.assert_array_equal(got.time, ref.time)
     np.testing.assert_array_equal(got.segment, ref.segment)
+    assert k_sync.capacities(n // f)[0] > 4 * ref.time.size     # the lists were not cut
+
+
+def test_sync_changes_beyond_capacity_are_redone_on_the_host(backend, monkeypatch):
+    """More band or side changes than the kernel's lists hold (a sync that is no
+    triangle): the host redoes the changes from the sums, with the same crossings."""
+    from fmcw_cl.opencl import sync as k_sync
+
+    x = sync_codes(60_001, 2500.0, t0=100.0, noise=5.0, seed=7)
+    f = sync.block_length(2500.0)
+    want = sync.coarse_from_codes(x, f)
+    redone = []
+    monkeypatch.setattr(k_sync, "capacities", lambda blocks: (8, 4))
+    monkeypatch.setattr(sync, "changes", lambda *a, real=sync.changes: redone.append(1) or real(*a))
+    got = backend._coarse(x, f)
+    assert redone and want.block.size > 8
+    np.testing.assert_array_equal(got.block, want.block)
+    np.testing.assert_array_equal(got.direction, want.direction)
+
+
+def test_coarse_crossings_of_a_triangle():
+    """The hysteresis on the block sums: one crossing per level crossing of a noisy
+    triangle, alternating in direction, at the right block; none in a flat stretch."""
+    half = 2500.0
+    x = sync_codes(100_001, half, t0=300.0, noise=5.0, seed=3)
+    x[60_000:75_000] = x[60_000]                                  # the sync stops
+    f = sync.block_length(half)
+    co = sync.coarse_from_codes(x, f)
+    t = co.block * f + 0.5 * (f - 1)
+    # crossings of the middle: a quarter period after each minimum (t0 + k * 2 half)
+    expect = 300.0 + half / 2 + half * np.arange(-1, 41)
+    expect = expect[(expect > 0) & (expect < 100_000) & ~((expect > 60_000) & (expect < 75_000))]
+    near = np.abs(t[:, None] - expect[None, :]).min(axis=0)
+    assert (near < f).sum() >= expect.size - 1
+    assert np.all(co.direction[1:] != co.direction[:-1]) or np.sum(co.direction[1:] == co.direction[:-1]) <= 1
+    assert not np.any((t > 60_000 + f) & (t < 75_000 - f))
+
+
+@pytest.mark.parametrize("n,block", [(100_003, 256), (255, 256), (4097, 16), (1, 256), (0, 256)])
+def test_clip_kernel_matches_numpy(backend, n, block):
+    """Clipped codes of both signs and both full-scale codes, at block edges, in a last
+    partial block; lengths that are no multiple of the vector loads."""
+    from fmcw_cl.stages import faults
+
+    rng = np.random.default_rng(n)
+    codes = rng.integers(-8000, 8000, n).astype(np.int16)
+    for at in rng.integers(0, max(n, 1), 6) if n else []:
+        codes[at] = rng.choice([-8192, 8190, 8191])
+    if n > 300:
+        codes[[block - 1, block, n - 1]] = -8192
+    want = faults.clip_flags(codes, block, 8192)
+    got = backend.clip_flags(codes, block, 8192)
+    assert want.any() == (n > 0)
+    np.testing.assert_array_equal(got, want)
 
 
 @pytest.mark.parametrize("name", ["static_capture", "jump_capture"])

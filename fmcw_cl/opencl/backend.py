@@ -11,6 +11,7 @@ import functools
 import numpy as np
 
 from ..stages import pairing, sync
+from . import faults as k_faults
 from . import integrate as k_integrate
 from . import lpf as k_lpf
 from . import resample as k_resample
@@ -25,7 +26,7 @@ class OpenCLBackend(pairing.SpectrumOps):
     """Same interface as engine.NumpyBackend."""
 
     name = "opencl"
-    programs = ("lpf", "sync", "resample", "spectrum", "integrate", "survey")
+    programs = ("lpf", "sync", "resample", "spectrum", "integrate", "survey", "faults")
 
     def __init__(self, selector: str | None = None) -> None:
         self.rt = runtime(selector)
@@ -33,7 +34,7 @@ class OpenCLBackend(pairing.SpectrumOps):
             self.rt.program(program)
         self.bufs = Buffers(self.rt)
         self.device = self.rt.name
-        self._means = functools.partial(k_sync.block_means, self.rt, self.bufs)
+        self._coarse = functools.partial(k_sync.coarse, self.rt, self.bufs)
         self._sums = functools.partial(k_sync.line_fit_sums, self.rt, self.bufs)
 
     def chunk_periods(self, samples_per_period: float, points: int) -> int:
@@ -54,10 +55,13 @@ class OpenCLBackend(pairing.SpectrumOps):
         return k_lpf.intensity(self.rt, self.bufs, codes, sample_rate_hz)
 
     def turning_points(self, codes, half_period):
-        return sync.sync_turning_points(codes, half_period, self._means, self._sums)
+        return sync.sync_turning_points(codes, half_period, self._coarse, self._sums)
 
     def resample(self, codes, starts, lengths, u, win):
         return k_resample.resample(self.rt, self.bufs, codes, starts, lengths, u, win)
+
+    def clip_flags(self, codes, block, full_scale):
+        return k_faults.clip_flags(self.rt, self.bufs, codes, block, full_scale)
 
     def _host(self, x):
         """x on the host, for a transform larger than the device's local memory (the

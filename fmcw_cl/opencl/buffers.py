@@ -105,3 +105,37 @@ class DeviceRows:
         if out.size:
             self._rt.copy(out, self.buffer)
         return out
+
+
+class Packed:
+    """Small arrays that cross together: one device buffer, each array an aligned
+    sub-buffer of it (what a kernel argument takes), moved by a single copy each way.
+
+    `parts` are (dtype, count) in order; `views` are the host arrays after `download`
+    (or to fill before `upload`), all in one host block.
+    """
+
+    def __init__(self, bufs: Buffers, name: str, parts: list[tuple[type, int]]) -> None:
+        self._rt = bufs.rt
+        align = max(bufs.rt.device.mem_base_addr_align // 8, 16)
+        spans, size = [], 0                                  # (offset, dtype, bytes) of each part
+        for dtype, count in parts:
+            nbytes = np.dtype(dtype).itemsize * int(count)
+            spans.append((size, np.dtype(dtype), nbytes))
+            size += -(-max(nbytes, 4) // align) * align
+        self._host = np.empty(size, np.uint8)
+        self._parent = bufs.get(name, size)
+        self.views = [self._host[o: o + n].view(d) for o, d, n in spans]
+        self.buffers = [self._parent.get_sub_region(o, max(n, 4)) for o, _, n in spans]
+
+    def download(self) -> list[np.ndarray]:
+        """Every part, by one copy (waits for the kernels that wrote them)."""
+        self._rt.copy(self._host, self._parent)
+        return self.views
+
+    def upload(self, *arrays: np.ndarray) -> list:
+        """`arrays` into the parts, by one copy; their sub-buffers."""
+        for view, a in zip(self.views, arrays, strict=True):
+            view[...] = a
+        self._rt.copy(self._parent, self._host)
+        return self.buffers

@@ -17,7 +17,7 @@ import numpy as np
 from fmcw_cl.opencl.backend import OpenCLBackend
 from fmcw_cl.opencl.buffers import DeviceRows
 from fmcw_cl.opencl.context import cl
-from fmcw_cl.stages import integrate, lpf, pairing, resample, sync
+from fmcw_cl.stages import faults, integrate, lpf, pairing, resample, sync
 from fmcw_cl.stages.spectrum import Search
 
 
@@ -69,6 +69,11 @@ def stream(be, beat, sync_codes, fs, hp, rng) -> None:
     got = be.turning_points(sync_codes, hp)
     want = sync.sync_turning_points(sync_codes, hp)
     close("sync (block_sum, line_fit)", got.time, want.time, 1e-9)
+
+    clipped = beat.copy()
+    clipped[[5, 700, beat.size - 1]] = [-8192, 8191, 8190]
+    close("clipping flags (clip_blocks)", be.clip_flags(clipped, 256, 8192),
+          faults.clip_flags(clipped, 256, 8192), 0)
 
     points, sweeps = 61, 5                                   # small: the simulator is slow
     u = np.sort(rng.uniform(0, 1, points))

@@ -10,7 +10,7 @@ import numpy as np
 
 from ..stages import cfar
 from ..stages.spectrum import GUARD_BINS, Peaks
-from .buffers import Buffers, DeviceRows
+from .buffers import Buffers, DeviceRows, Packed
 from .context import Runtime, cl
 
 
@@ -111,18 +111,24 @@ def measure(rt: Runtime, bufs: Buffers, rows, beta: np.ndarray | None,
     twr, twi, perm = tables(nfft)
     dechirp = velocity is not None
     d_beta = bufs.constant("beta", beta if dechirp else zeros(points))
-    d_v = (bufs.upload("velocity", np.asarray(velocity, np.float32)) if dechirp
-           else bufs.constant("v0", zeros(1)))
-    d_bin, d_snr = bufs.get("bin", 4 * sweeps), bufs.get("snr", 4 * sweeps)
-    d_power = store.buffer if store is not None else bufs.get("power", 4 * sweeps * half if keep_power else 4)
+    if index is not None:          # the rows picked and their velocities: one upload
+        picked = Packed(bufs, "picked", [(np.int32, sweeps), (np.float32, sweeps)])
+        d_index, d_v = picked.upload(index, velocity)
+    else:
+        d_index = bufs.constant("index0", zeros(1), np.int32)
+        d_v = (bufs.upload("velocity", np.asarray(velocity, np.float32)) if dechirp
+               else bufs.constant("v0", zeros(1)))
     m = cfar.MAX_ECHOES
-    d_ebin = bufs.get("echo_bin", 4 * sweeps * m if echoes else 4)
-    d_esnr = bufs.get("echo_snr", 4 * sweeps * m if echoes else 4)
-    d_ecount = bufs.get("echo_count", 4 * sweeps if echoes else 4)
+    own_power = keep_power and store is None
+    # what comes back, in one download: peaks, echoes, the power when kept here
+    listed = sweeps if echoes else 0
+    out = Packed(bufs, "measured", [(np.float32, sweeps), (np.float32, sweeps), (np.float32, listed * m),
+                                    (np.float32, listed * m), (np.int32, listed),
+                                    (np.float32, sweeps * half if own_power else 1)])
+    d_bin, d_snr, d_ebin, d_esnr, d_ecount, d_own = out.buffers
+    d_power = store.buffer if store is not None else d_own
     transforms = sweeps if dechirp else (sweeps + 1) // 2    # plain rows: two per transform
-    args = (rows.buffer, np.int32(sweeps), np.int32(points),
-            bufs.upload("index", np.asarray(index, np.int32)) if index is not None
-            else bufs.constant("index0", zeros(1), np.int32),
+    args = (rows.buffer, np.int32(sweeps), np.int32(points), d_index,
             np.int32(index is not None), d_beta, d_v, np.int32(dechirp),
             bufs.constant("tw_re", twr), bufs.constant("tw_im", twi),
             bufs.constant("perm", perm, np.int32), np.int32(nfft), np.int32(lo), np.int32(hi),
@@ -141,19 +147,10 @@ def measure(rt: Runtime, bufs: Buffers, rows, beta: np.ndarray | None,
             rt.queue, (transforms * lsz,), (lsz,), *args,
             cl.LocalMemory(4 * nfft), cl.LocalMemory(4 * nfft), cl.LocalMemory(4 * half),
             cl.LocalMemory(12 * lsz), cl.LocalMemory(half if echoes else 1))
-    b = np.empty(sweeps, np.float32)
-    s = np.empty(sweeps, np.float32)
-    rt.copy(b, d_bin)
-    rt.copy(s, d_snr)
-    power = None
-    if keep_power and store is None:
-        power = np.empty((sweeps, half), np.float32)
-        rt.copy(power, d_power)
+    b, s, ebin, esnr, ecount, own = out.download()
+    power = own.reshape(sweeps, half).copy() if own_power else None
     det = None
     if echoes:
-        got = (np.empty((sweeps, m), np.float32), np.empty((sweeps, m), np.float32),
-               np.empty(sweeps, np.int32))
-        for host, dev in zip(got, (d_ebin, d_esnr, d_ecount), strict=True):
-            rt.copy(host, dev)
-        det = cfar.Detections(got[0].astype(np.float64), got[1], got[2])
-    return Peaks(b.astype(np.float64), s), power, det
+        det = cfar.Detections(ebin.reshape(sweeps, m).astype(np.float64), esnr.reshape(sweeps, m).copy(),
+                              ecount.copy())
+    return Peaks(b.astype(np.float64), s.copy()), power, det

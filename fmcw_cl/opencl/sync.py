@@ -1,9 +1,11 @@
-"""Launchers of kernels/sync.cl (twins: fmcw_cl.stages.sync.block_means, line_fit_sums)."""
+"""Launchers of kernels/sync.cl (twins: fmcw_cl.stages.sync.block_sums, changes,
+coarse_from_codes and line_fit_sums)."""
 
 from __future__ import annotations
 
 import numpy as np
 
+from ..stages import sync
 from .buffers import Buffers
 from .context import Runtime, cl
 
@@ -14,15 +16,44 @@ def _codes(bufs: Buffers, x: np.ndarray):
     return bufs.upload_once("sync_codes", x)
 
 
-def block_means(rt: Runtime, bufs: Buffers, x: np.ndarray, factor: int) -> np.ndarray:
-    """Means of the whole blocks of `factor` codes, float64 (exact)."""
+def capacities(blocks: int) -> tuple[int, int]:
+    """Entries kept of the band and side changes: a triangle of at least 40 blocks a
+    half-period changes band twice and side once per crossing, well within these."""
+    return blocks // 8 + 64, blocks // 16 + 64
+
+
+def coarse(rt: Runtime, bufs: Buffers, x: np.ndarray, factor: int, level: float | None = None) -> sync.Coarse:
+    """sync.coarse_from_codes with the block sums and their changes on the device: what
+    comes back is a sample of the sums (the level) and the sparse changes."""
     m = x.size // factor
-    out = np.empty(m, np.float32)
-    if m:
-        d_out = bufs.get("block_means", out.nbytes)
-        rt.kernel("sync", "block_sum")(rt.queue, (m,), None, _codes(bufs, x), np.int32(factor), d_out)
-        rt.copy(out, d_out)
-    return out.astype(np.float64) / factor
+    if m == 0:
+        return sync.coarse_from_sums(np.zeros(0), factor, level)
+    stride = sync.level_stride(m)
+    sampled = np.empty(-(-m // stride), np.int32)
+    cap_e, cap_s = capacities(m)
+    out = np.empty(2 + 2 * cap_e + 3 * cap_s, np.int32)
+    d_sums, d_sampled = bufs.get("block_sums", 4 * m), bufs.get("block_sampled", sampled.nbytes)
+    d_out = bufs.get("crossing_changes", out.nbytes)        # its counters zeroed by block_sum
+    rt.kernel("sync", "block_sum")(rt.queue, (m,), None, _codes(bufs, x), np.int32(factor), np.int32(stride),
+                                   d_sums, d_sampled, d_out)
+    rt.copy(sampled, d_sampled)
+    lv = sync.levels(sampled.astype(np.float64), factor, level)
+    rt.kernel("sync", "crossing_changes")(rt.queue, (m,), None, d_sums, np.int32(m), np.int32(lv.high),
+                                          np.int32(lv.low), np.int32(lv.mid), np.int32(cap_e),
+                                          np.int32(cap_s), d_out)
+    rt.copy(out, d_out)
+    n_e, n_s = int(out[0]), int(out[1])
+    if n_e > cap_e or n_s > cap_s:      # not a triangle's changes: the host redoes them
+        sums = np.empty(m, np.int32)
+        rt.copy(sums, d_sums)
+        return sync.coarse_crossings(sync.changes(sums.astype(np.float64), lv), lv, factor)
+    events = out[2: 2 + 2 * n_e].reshape(n_e, 2)
+    sides = out[2 + 2 * cap_e: 2 + 2 * cap_e + 3 * n_s].reshape(n_s, 3)
+    events = events[np.argsort(events[:, 0])]               # appended in any order
+    sides = sides[np.argsort(sides[:, 0])].astype(np.float64)
+    ch = sync.Changes(events[:, 0].astype(np.int64), events[:, 1].astype(np.int8),
+                      sides[:, 0].astype(np.int64), sides[:, 1], sides[:, 2])
+    return sync.coarse_crossings(ch, lv, factor)
 
 
 def line_fit_sums(rt: Runtime, bufs: Buffers, x: np.ndarray, centre: np.ndarray, half: int,
@@ -30,16 +61,14 @@ def line_fit_sums(rt: Runtime, bufs: Buffers, x: np.ndarray, centre: np.ndarray,
     """Sums of x and (i - c) x around each centre, spikes replaced (see the twin; codes
     are integers, so `|d| > spike` is `|d| > floor(spike)`)."""
     n = centre.size
-    s0 = np.empty(n, np.int64)
-    s1 = np.empty(n, np.int64)
+    s = np.empty((n, 2), np.int64)
     if n:
         lsz = rt.group_size(16, 128)
-        d0, d1 = bufs.get("fit_sum0", s0.nbytes), bufs.get("fit_sum1", s1.nbytes)
+        d = bufs.get("fit_sums", s.nbytes)
         rt.kernel("sync", "line_fit")(
             rt.queue, (n * lsz,), (lsz,), _codes(bufs, x),
             bufs.upload("fit_centre", centre.astype(np.int32)), np.int32(half), np.int32(np.floor(spike)),
             np.int32(max(1, (2**31 - 1) // (max(half, 1) * 32768 + 32768))),
-            d0, d1, cl.LocalMemory(8 * lsz), cl.LocalMemory(8 * lsz))
-        rt.copy(s0, d0)
-        rt.copy(s1, d1)
-    return s0.astype(np.float64), s1.astype(np.float64)
+            d, cl.LocalMemory(8 * lsz), cl.LocalMemory(8 * lsz))
+        rt.copy(s, d)
+    return s[:, 0].astype(np.float64), s[:, 1].astype(np.float64)

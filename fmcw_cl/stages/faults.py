@@ -33,7 +33,20 @@ RANGE_MARGIN = 1.02   # a 2N-point peak beyond this share of the N-point range i
 ALIAS_M = 0.01        # ... when the N-point peak lies this close to its mirror image
 
 
-def clipped(codes: np.ndarray, starts: np.ndarray, lengths: np.ndarray, full_scale: int) -> np.ndarray:
+CLIP_BLOCK = 256      # codes per block of the clipping flags
+
+
+def clip_flags(codes: np.ndarray, block: int, full_scale: int) -> np.ndarray:
+    """Whether each block of `block` codes (the last one partial) holds a clipped code:
+    at -full_scale or at full_scale - 1 and beyond. The numpy twin of the `clip_blocks`
+    kernel (kernels/faults.cl)."""
+    hit = (codes <= -full_scale) | (codes >= full_scale - 1)
+    pad = -hit.size % block
+    return np.concatenate([hit, np.zeros(pad, bool)]).reshape(-1, block).any(axis=1)
+
+
+def clipped(codes: np.ndarray, starts: np.ndarray, lengths: np.ndarray, full_scale: int,
+            flags: np.ndarray | None = None, block: int = CLIP_BLOCK) -> np.ndarray:
     """Whether any sample of each half-sweep [start, start + length] reaches full scale.
 
     Parameters
@@ -41,11 +54,25 @@ def clipped(codes: np.ndarray, starts: np.ndarray, lengths: np.ndarray, full_sca
     codes : (n,) int16 beat codes of the chunk.
     starts, lengths : (S,) half-sweeps in samples of `codes`.
     full_scale : 2^(bits-1); codes at -full_scale or full_scale - 1 are clipped.
+    flags : `clip_flags(codes, block, full_scale)` (a backend's), made here when None:
+        the codes themselves are read only in the flagged blocks at a span's ends.
     """
-    hit = np.flatnonzero((codes <= -full_scale) | (codes >= full_scale - 1))
+    if codes.size == 0:
+        return np.zeros(np.size(starts), bool)
+    if flags is None:
+        flags = clip_flags(codes, block, full_scale)
     a = np.clip(np.floor(starts).astype(np.int64), 0, codes.size)
-    b = np.clip(np.ceil(starts + lengths).astype(np.int64) + 1, 0, codes.size)
-    return np.searchsorted(hit, b) > np.searchsorted(hit, a)   # a clipped sample in [a, b)
+    b = np.clip(np.ceil(starts + lengths).astype(np.int64) + 1, 0, codes.size)     # samples [a, b)
+    count = np.r_[0, np.cumsum(flags)]
+    first, last = -(-a // block), b // block                 # whole blocks [first, last)
+    out = count[np.maximum(last, first)] > count[first]
+    # the partial blocks at a span's ends: read where they are flagged
+    ends = flags[np.minimum(a // block, flags.size - 1)] | flags[np.minimum(last, flags.size - 1)]
+    for i in np.flatnonzero(~out & (b > a) & ends):
+        for lo, hi in ((a[i], min(b[i], first[i] * block)), (max(a[i], last[i] * block), b[i])):
+            if hi > lo:
+                out[i] |= bool(np.any((codes[lo:hi] <= -full_scale) | (codes[lo:hi] >= full_scale - 1)))
+    return out
 
 
 def beyond_range(distance_2n_m: np.ndarray, snr_2n_db: np.ndarray, unambiguous_m: float,

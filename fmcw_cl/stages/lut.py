@@ -9,6 +9,7 @@ sweep (frequency falling in time) is read backwards, u_rise = 1 - u_fall.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -53,8 +54,19 @@ class TuningFit:
         return float(np.sqrt(max(d @ self.cov @ d, 0.0)))
 
 
+def _frozen(*arrays: np.ndarray) -> tuple[bytes, ...]:
+    """Hashable keys of float arrays (the cache of fits and LUTs below)."""
+    return tuple(np.ascontiguousarray(a, float).tobytes() for a in arrays)
+
+
+def _read_only(a: np.ndarray) -> np.ndarray:
+    a.flags.writeable = False         # shared by every capture with the same table
+    return a
+
+
 def fit_tuning(current_a: np.ndarray, frequency_hz: np.ndarray) -> TuningFit:
-    """Least-squares polynomial fit of the offline G(I) table.
+    """Least-squares polynomial fit of the offline G(I) table (one fit per table: the
+    N- and 2N-point LUTs and a batch of captures with one table share it).
 
     The degree (2 to 7, at most M - 3) minimises the Bayesian information criterion,
     M ln(RSS / M) + (degree + 1) ln M. Leave-one-out error, used before, picks higher
@@ -65,8 +77,13 @@ def fit_tuning(current_a: np.ndarray, frequency_hz: np.ndarray) -> TuningFit:
     quadratic errs by 1000 ppm. A smoothing spline was rejected because its curvature
     penalty shrinks a DFB's (real) curvature and biases the bandwidth.
     """
-    x = np.asarray(current_a, float)
-    y = np.asarray(frequency_hz, float)
+    return _fit_tuning(*_frozen(current_a, frequency_hz))
+
+
+@functools.lru_cache(maxsize=16)
+def _fit_tuning(current: bytes, frequency: bytes) -> TuningFit:
+    x = np.frombuffer(current)
+    y = np.frombuffer(frequency)
     ref = float(np.mean(y))
     best, best_bic = None, np.inf
     for deg in range(2, min(MAX_DEGREE, x.size - 3) + 1):
@@ -80,7 +97,7 @@ def fit_tuning(current_a: np.ndarray, frequency_hz: np.ndarray) -> TuningFit:
     off, scl = best.mapparms()
     design = polyvander(off + scl * x, deg)
     cov = scatter**2 * np.linalg.pinv(design.T @ design)
-    return TuningFit(best, ref, deg, scatter, cov)
+    return TuningFit(best, ref, deg, scatter, _read_only(cov))
 
 
 @dataclass(frozen=True)
@@ -149,7 +166,14 @@ def build_lut(current_a: np.ndarray, frequency_hz: np.ndarray, current_min_a: fl
     """
     if points < 16:
         raise FmcwError(f"--points {points} is too small (at least 16)")
-    g = fit_tuning(np.asarray(current_a, float), np.asarray(frequency_hz, float))
+    return _build_lut(*_frozen(current_a, frequency_hz), float(current_min_a), float(current_max_a),
+                      int(points), float(refractive_index))
+
+
+@functools.lru_cache(maxsize=16)
+def _build_lut(current: bytes, frequency: bytes, current_min_a: float, current_max_a: float, points: int,
+               refractive_index: float) -> Lut:
+    g = _fit_tuning(current, frequency)
     dense_i = np.linspace(current_min_a, current_max_a, 64 * points + 1)
     dense_nu = g(dense_i)
     slope = np.diff(dense_nu)
@@ -166,5 +190,5 @@ def build_lut(current_a: np.ndarray, frequency_hz: np.ndarray, current_min_a: fl
         d = (g(cur + h) - g(cur - h)) / (2 * h)
         cur = cur - (g(cur) - nu) / d
     u_rise = (cur - current_min_a) / (current_max_a - current_min_a)
-    return Lut(points, u_rise, 1.0 - u_rise, nu, float(bandwidth), float(refractive_index),
-               g.span_std_hz(current_min_a, current_max_a), g.degree, g.scatter_hz)
+    return Lut(points, _read_only(u_rise), _read_only(1.0 - u_rise), _read_only(nu), float(bandwidth),
+               refractive_index, g.span_std_hz(current_min_a, current_max_a), g.degree, g.scatter_hz)

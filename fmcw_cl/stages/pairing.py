@@ -206,10 +206,19 @@ def continuity(t: np.ndarray, dist: np.ndarray, vel: np.ndarray, trusted: np.nda
     enough = ok.sum(axis=1) >= SUPPORT
     resid = np.full(n, np.inf)
     if enough.any():
-        resid[enough] = np.abs(dist[enough] - np.nanmedian(pred[enough], axis=1))
+        resid[enough] = np.abs(dist[enough] - row_nanmedian(pred[enough]))
     sure = np.isfinite(resid) & trusted
     sigma = 1.4826 * float(np.median(resid[sure])) if sure.any() else 0.0
     return resid <= max(JUMP_M, JUMP_SIGMAS * sigma)
+
+
+def row_nanmedian(a: np.ndarray) -> np.ndarray:
+    """np.nanmedian(a, axis=1) for rows with at least one number, without its masked
+    arrays (10x faster on the tracker's (pairs, 16) predictions): NaNs sort last."""
+    s = np.sort(a, axis=1)
+    n = np.sum(~np.isnan(a), axis=1)
+    rows = np.arange(a.shape[0])
+    return 0.5 * (s[rows, (n - 1) // 2] + s[rows, n // 2])
 
 
 def running_median(v: np.ndarray) -> np.ndarray:

@@ -40,16 +40,101 @@ def block_length(half_period: float) -> int:
     return int(np.clip(half_period // 40, 1, MAX_BLOCK))
 
 
-def block_means(x: np.ndarray, factor: int) -> np.ndarray:
-    """Means of the whole blocks of `factor` samples (float64): the coarse stream in
-    which crossings are found."""
+def block_sums(x: np.ndarray, factor: int) -> np.ndarray:
+    """Sums of the whole blocks of `factor` samples (float64; integers for ADC codes):
+    the coarse stream in which crossings are found. The numpy twin of the `block_sum`
+    kernel (kernels/sync.cl)."""
     m = x.size // factor
-    return np.asarray(x[: m * factor]).reshape(m, factor).mean(axis=1, dtype=np.float64)
+    return np.asarray(x[: m * factor]).reshape(m, factor).sum(axis=1, dtype=np.float64)
+
+
+LEVEL_SAMPLES = 4096   # block sums (at most, evenly spaced) that the level and swing come from
+
+
+def level_stride(blocks: int) -> int:
+    """Every how many blocks one is kept for the level's percentiles."""
+    return max(1, blocks // LEVEL_SAMPLES)
+
+
+@dataclass(frozen=True)
+class Levels:
+    """The crossing level and the swing (codes), and the integer thresholds on a block
+    sum S of `factor` codes that decide the band: S >= high is above the hysteresis
+    band, S < low below it, S >= mid above the level. Integers, so that a kernel's
+    comparisons of integer sums are exactly numpy's."""
+
+    level: float
+    swing: float
+    high: int
+    low: int
+    mid: int
+
+
+def levels(sampled: np.ndarray, factor: int, level: float | None = None) -> Levels:
+    """Level (the middle of the swing unless given) and swing from a sample of block
+    sums, with a hysteresis of 10 % of the swing.
+
+    A triangle's values are uniform between its extremes: the 5 and 95 percentiles give
+    its middle and swing, and unlike the extremes they are not rounded off by the block
+    averaging at the corners; a few thousand evenly spaced blocks estimate them to a
+    fraction of a percent (the turning points, midpoints of two crossings, do not depend
+    on the level).
+    """
+    if sampled.size == 0:
+        return Levels(0.0, 0.0, 1, 0, 1)
+    lo, hi = np.percentile(sampled / factor, [5.0, 95.0])
+    level = 0.5 * (lo + hi) if level is None else level
+    swing = (hi - lo) / 0.9
+    hyst = 0.1 * swing
+    big = 2.0**30                     # any sum of int16 blocks is far inside
+
+    def above(value: float) -> int:   # the least integer S with S > value
+        return int(np.floor(np.clip(value, -big, big))) + 1
+
+    def below(value: float) -> int:   # the least integer S with S >= value: S < value iff S < it
+        return int(np.ceil(np.clip(value, -big, big)))
+
+    return Levels(float(level), float(swing), above(factor * (level + hyst)), below(factor * (level - hyst)),
+                  above(factor * level))
+
+
+@dataclass(frozen=True)
+class Changes:
+    """Where the 3-block median of the block sums changes its band (event: +1 above the
+    hysteresis band, -1 below, 0 inside; the first block always listed) and where it
+    crosses the level (the block j whose side differs from block j - 1's, with both
+    filtered sums). Sparse: a few per half-period."""
+
+    event_at: np.ndarray
+    event: np.ndarray
+    sign_at: np.ndarray
+    before: np.ndarray
+    after: np.ndarray
+
+
+def median3(sums: np.ndarray) -> np.ndarray:
+    """3-block median (the ends unfiltered): removes what averaging left of a glitch."""
+    b = np.array(sums, dtype=np.float64)
+    if b.size >= 3:
+        p, q, r = sums[:-2], sums[1:-1], sums[2:]
+        b[1:-1] = np.maximum(np.minimum(p, q), np.minimum(np.maximum(p, q), r))
+    return b
+
+
+def changes(sums: np.ndarray, lv: Levels) -> Changes:
+    """The band and level changes of block sums. The numpy twin of the
+    `crossing_changes` kernel (kernels/sync.cl)."""
+    b = median3(sums)
+    event = np.where(b >= lv.high, 1, np.where(b < lv.low, -1, 0)).astype(np.int8)
+    i = np.flatnonzero(np.r_[b.size > 0, event[1:] != event[:-1]])
+    side = b >= lv.mid
+    j = np.flatnonzero(side[1:] != side[:-1]) + 1
+    return Changes(i, event[i], j, b[j - 1], b[j])
 
 
 @dataclass(frozen=True)
 class Coarse:
-    """Crossings found in the block means: where each crossed the level (blocks,
+    """Crossings found in the block sums: where each crossed the level (blocks,
     interpolated), the direction, the crossing level and the swing (peak to peak),
     in codes."""
 
@@ -59,41 +144,36 @@ class Coarse:
     swing: float
 
 
-def _last_true(mask: np.ndarray) -> np.ndarray:
-    """For each position, the index of the last True at or before it (0 if none)."""
-    pos = np.where(mask, np.arange(mask.size), 0)
-    np.maximum.accumulate(pos, out=pos)
-    return pos
-
-
-def coarse_crossings(blocks: np.ndarray, level: float | None = None) -> Coarse:
-    """Mid-level crossings of the block means, with a hysteresis of 10 % of the swing.
-
-    A 3-block median first removes what averaging left of a glitch.
-    """
-    if blocks.size < 3:
-        return Coarse(np.zeros(0), np.zeros(0, np.int8), 0.0, 0.0)
-    # a triangle's values are uniform between its extremes: the 5 and 95 percentiles
-    # give its middle and swing, and unlike the extremes they are not rounded off by
-    # the block averaging at the corners
-    lo, hi = np.percentile(blocks, [5.0, 95.0])
-    level = 0.5 * (lo + hi) if level is None else level
-    swing = (hi - lo) / 0.9
-    hyst = 0.1 * swing
-    b = blocks.copy()
-    p, q, r = blocks[:-2], blocks[1:-1], blocks[2:]
-    b[1:-1] = np.maximum(np.minimum(p, q), np.minimum(np.maximum(p, q), r))   # median of 3
-    xs = b - level
-    event = np.where(xs > hyst, 1, np.where(xs < -hyst, -1, 0)).astype(np.int8)
-    state = event[_last_true(event != 0)]
-    flips = np.flatnonzero((state[1:] != state[:-1]) & (state[:-1] != 0)) + 1
-    # the hysteresis fires after the crossing: go back to the last change of sign
-    # before it and interpolate there
-    sign = xs > 0
-    j = np.maximum(_last_true(np.r_[False, sign[1:] != sign[:-1]])[flips], 1)
+def coarse_crossings(ch: Changes, lv: Levels, factor: int) -> Coarse:
+    """Crossings of the level with a hysteresis: the band's state (the last event
+    outside it) flips when the filtered stream leaves the band on the side opposite to
+    the one it last left; the crossing is the last change of side at or before the
+    flip, interpolated between the two blocks around it."""
+    nz = ch.event != 0
+    at, val = ch.event_at[nz], ch.event[nz]
+    flip = np.flatnonzero(val[1:] != val[:-1]) + 1
+    flips, state = at[flip], val[flip]
+    # from one side of the band to the other, the stream changed sides: at the last
+    # change at or before the flip
+    k = np.searchsorted(ch.sign_at, flips, side="right") - 1
+    ok = k >= 0
+    k, state = k[ok], state[ok]
+    xa = ch.before[k] / factor - lv.level
+    xb = ch.after[k] / factor - lv.level
     with np.errstate(divide="ignore", invalid="ignore"):
-        frac = np.clip(xs[j - 1] / (xs[j - 1] - xs[j]), 0.0, 1.0)
-    return Coarse(j - 1 + np.nan_to_num(frac), state[flips], float(level), float(swing))
+        frac = np.clip(xa / (xa - xb), 0.0, 1.0)
+    return Coarse(ch.sign_at[k] - 1 + np.nan_to_num(frac), state, lv.level, lv.swing)
+
+
+def coarse_from_sums(sums: np.ndarray, factor: int, level: float | None = None) -> Coarse:
+    """coarse_crossings of block sums, all in numpy: the reference of the device's steps."""
+    lv = levels(sums[:: level_stride(sums.size)], factor, level)
+    return coarse_crossings(changes(sums, lv), lv, factor)
+
+
+def coarse_from_codes(x: np.ndarray, factor: int, level: float | None = None) -> Coarse:
+    """coarse_from_sums of the blocks of `factor` samples of x."""
+    return coarse_from_sums(block_sums(x, factor), factor, level)
 
 
 def fit_half_width(half_period: float) -> int:
@@ -136,12 +216,12 @@ def line_fit_crossing(s0: np.ndarray, s1: np.ndarray, centre: np.ndarray, half: 
 
 
 def crossings(x: np.ndarray, half_period: float, level: float | None = None,
-              means=block_means, sums=line_fit_sums) -> Crossings:
+              coarse=coarse_from_codes, sums=line_fit_sums) -> Crossings:
     """Mid-level crossings of a triangle-like signal.
 
-    Found in block means (`block_length`), then each timed by a straight-line fit
-    to the full-rate samples within FIT_FRACTION of a half-period around it, twice
-    (the second fit centred on the first one's crossing).
+    Found in block sums (`block_length`, `coarse_from_sums`), then each timed by a
+    straight-line fit to the full-rate samples within FIT_FRACTION of a half-period
+    around it, twice (the second fit centred on the first one's crossing).
 
     Parameters
     ----------
@@ -151,8 +231,8 @@ def crossings(x: np.ndarray, half_period: float, level: float | None = None,
         Nominal half-period in samples of `x`.
     level : float, optional
         Crossing level; default the middle of the swing.
-    means, sums : the block-mean and line-fit steps (the OpenCL backend swaps in its
-        kernels).
+    coarse, sums : the coarse crossings of `x` in blocks of a length (`coarse_from_codes`)
+        and the line-fit step (the OpenCL backend swaps in its kernels).
 
     Returns
     -------
@@ -164,7 +244,7 @@ def crossings(x: np.ndarray, half_period: float, level: float | None = None,
     if x.size < 2 * half + 6:          # too short for a single crossing fit
         return none
     factor = block_length(half_period)
-    co = coarse_crossings(means(x, factor), level)
+    co = coarse(x, factor, level)
     guess = co.block * factor + 0.5 * (factor - 1)
     fitted = np.full(guess.size, -1)        # centre of each crossing's last fit
     for _ in range(2):
@@ -234,11 +314,11 @@ def turning_points(cr: Crossings, half_period: float) -> TurningPoints:
     return TurningPoints(fitted, is_max[idx], seg.astype(np.int64))
 
 
-def sync_turning_points(sync: np.ndarray, half_period: float, means=block_means,
+def sync_turning_points(sync: np.ndarray, half_period: float, coarse=coarse_from_codes,
                         sums=line_fit_sums) -> TurningPoints:
-    """Turning points of the sync channel (higher code = higher current); `means` and
+    """Turning points of the sync channel (higher code = higher current); `coarse` and
     `sums` as in `crossings`."""
-    return turning_points(crossings(sync, half_period, means=means, sums=sums), half_period)
+    return turning_points(crossings(sync, half_period, coarse=coarse, sums=sums), half_period)
 
 
 MAX_DELAY_SAMPLES = 400  # search range of the sync-to-optics delay
@@ -272,26 +352,32 @@ def period_delays(beat: np.ndarray, sync: np.ndarray, sample_rate_hz: float,
     if y.size < 2 * span + 2 * period:
         return np.zeros(0), np.zeros(0)
     # coarse: integer lag (decimated samples) of the largest |cross-correlation|
-    core = slice(span, y.size - span)
-    corr = [np.dot(y[core], z[span + k: y.size - span + k]) for k in range(-span, span + 1)]
+    corr = np.correlate(z, y[span: y.size - span], "valid")     # lags -span .. span
     shift = np.full(1, float(np.argmax(np.abs(corr)) - span))
     j = np.arange(y.size, dtype=np.float64)
     starts = np.arange(span, y.size - span - period, period)
     windows = starts[:, None] + np.arange(period)
     yw = y[windows]
+    def dot(a, b):                    # per period
+        return np.einsum("pk,pk->p", a, b)
+
+    ones = np.ones(period)
     for _ in range(3):
         # shift the template period by period (one shift for all in the first pass)
         zs = np.interp(j[windows] + shift[:, None], j, z)
         dz = np.gradient(zs, axis=1)
-        design = np.stack([np.ones_like(zs), zs, dz], axis=2)
-        # batched least squares through the 3x3 normal equations of each period
-        gram = np.einsum("pki,pkj->pij", design, design)
-        rhs = np.einsum("pki,pk->pi", design, yw)
+        # batched least squares on (1, zs, dz): the 3x3 normal equations of each period
+        s_z, s_d = zs @ ones, dz @ ones
+        s_zd = dot(zs, dz)
+        gram = np.stack([np.stack([np.full(s_z.shape, float(period)), s_z, s_d], 1),
+                         np.stack([s_z, dot(zs, zs), s_zd], 1),
+                         np.stack([s_d, s_zd, dot(dz, dz)], 1)], 1)
+        rhs = np.stack([yw @ ones, dot(zs, yw), dot(dz, yw)], 1)
         coef = np.linalg.solve(gram + 1e-12 * np.eye(3), rhs[..., None])[..., 0]
         with np.errstate(divide="ignore", invalid="ignore"):
             step_lag = np.where(np.abs(coef[:, 1]) > 0, coef[:, 2] / coef[:, 1], np.nan)
         shift = shift + np.nan_to_num(step_lag)
-    resid = yw - np.einsum("pkc,pc->pk", design, coef)
+    resid = yw - (coef[:, :1] + coef[:, 1:2] * zs + coef[:, 2:] * dz)
     with np.errstate(divide="ignore", invalid="ignore"):
         misfit = np.sqrt(np.mean(resid**2, axis=1) / np.mean((coef[:, 1:2] * zs) ** 2, axis=1))
     lags = np.where(np.isfinite(step_lag), shift * step, np.nan)
