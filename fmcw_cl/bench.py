@@ -37,7 +37,7 @@ def _stage_rows(be, path: Path, opts: Options, seconds: float) -> list[dict]:
     """Time each stage of one backend on the capture at `path`."""
     with Capture(path) as cap:
         info = cap.info
-        plan = make_plan(cap, opts)
+        plan = make_plan(cap, opts, backend=be)
         beat, sy = cap.read(0, info.samples)
     hp = info.samples_per_period / 2
     hs = sync.half_sweeps(sync.sync_turning_points(sy, hp), plan.lag)
@@ -70,7 +70,7 @@ def _stage_rows(be, path: Path, opts: Options, seconds: float) -> list[dict]:
         "end to end (file to track)": lambda: process(path, opts, be),
     }
     rows = []
-    chunks = -(-info.samples // core_samples(info, opts))
+    chunks = -(-info.samples // core_samples(info, plan.options))
     for stage, fn in stages.items():
         end = stage.startswith("end")
         secs = _timed(fn, finish, repeat=1 if end else 3)

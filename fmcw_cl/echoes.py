@@ -101,29 +101,36 @@ def table(t_sweep: np.ndarray, rising: np.ndarray, tracked_m: np.ndarray, level_
 
 def persistent(t_sweep: np.ndarray, level_db: np.ndarray, t: np.ndarray, dist: np.ndarray,
                snr: np.ndarray, tracked: np.ndarray, survey: dict | None = None) -> dict:
-    """Persistent echoes other than the tracked target, slice by slice (see the module)."""
+    """Persistent echoes other than the tracked target, slice by slice (see the module);
+    `t_sweep` and the detections' times `t` in increasing order."""
     keys = ("time_s", "distance_m", "snr_db", "share", "relative_db", "diffuse")
     out: dict[str, list] = {k: [] for k in keys}
+    if survey is not None:                      # by time (chunks list their directions apart)
+        order = np.argsort(survey["time_s"], kind="stable")
+        survey = {k: np.asarray(v)[order] for k, v in survey.items()}
     if t_sweep.size:
         edges = np.arange(t_sweep.min(), t_sweep.max() + SLICE_S, SLICE_S)
-        for a in edges:
-            here = (t_sweep >= a) & (t_sweep < a + SLICE_S)
-            sweeps = np.count_nonzero(here)
+
+        def ranges(times):                      # [start, stop) of each slice in sorted times
+            return zip(np.searchsorted(times, edges), np.searchsorted(times, edges + SLICE_S), strict=True)
+
+        slices = zip(edges, ranges(t_sweep), ranges(t),
+                     ranges(survey["time_s"]) if survey is not None else [(0, 0)] * edges.size, strict=True)
+        for a, (s0, s1), (d0, d1), (v0, v1) in slices:
+            sweeps = s1 - s0
             if sweeps < 20:
                 continue
-            inside = (t >= a) & (t < a + SLICE_S)
-            mine = inside & tracked
-            level = float(np.median(snr[mine] if mine.sum() >= SEEN * sweeps else level_db[here]))
-            others = inside & ~tracked
-            found = [(d, s, share, s - level, False)
-                     for d, s, share in _clusters(dist[others], snr[others], sweeps)]
-            if survey is not None:
-                surveyed = (survey["time_s"] >= a) & (survey["time_s"] < a + SLICE_S)
-                hit = surveyed & survey["found"]
-                if surveyed.sum() >= 4 and hit.sum() >= PRESENT * surveyed.sum():
-                    rel = 10 * np.log10(float(np.median(survey["ratio"][hit])))
-                    found.append((float(np.median(survey["distance_m"][hit])), level + rel,
-                                  float(hit.sum() / surveyed.sum()), rel, True))
+            mine = tracked[d0:d1]
+            level = float(np.median(snr[d0:d1][mine] if mine.sum() >= SEEN * sweeps else level_db[s0:s1]))
+            others = ~mine
+            found = [(d, x, share, x - level, False)
+                     for d, x, share in _clusters(dist[d0:d1][others], snr[d0:d1][others], sweeps)]
+            if survey is not None and v1 - v0 >= 4:
+                hit = survey["found"][v0:v1]
+                if hit.sum() >= PRESENT * (v1 - v0):
+                    rel = 10 * np.log10(float(np.median(survey["ratio"][v0:v1][hit])))
+                    found.append((float(np.median(survey["distance_m"][v0:v1][hit])), level + rel,
+                                  float(hit.sum() / (v1 - v0)), rel, True))
             for row in found:
                 for k, x in zip(keys, (a + SLICE_S / 2, *row), strict=True):
                     out[k].append(x)

@@ -44,7 +44,7 @@ class Options:
     max_range_m: float | None = None   # peaks beyond are ignored (a wall behind the target)
     dechirp: bool = True          # False: the paper's method alone
     iterations: int = 6           # de-chirp passes
-    chunk_periods: int = 1024     # modulation periods per chunk core (peak memory ~0.35 GB)
+    chunk_periods: int | None = None   # modulation periods per chunk core; None: the backend's
     context_periods: int = 64     # periods of context on each side of a core
     range_check: bool = True      # flag targets beyond the unambiguous range (2N resampling)
     chirp: str | None = None      # a calibration file (fmcw-cl calibrate) instead of G(I)
@@ -74,6 +74,7 @@ class NumpyBackend(pairing.SpectrumOps):
 
     name = "numpy"
     device = "numpy (CPU)"
+    chunk_default = 1024       # periods a chunk: peak memory about 0.35 GB
 
     def intensity(self, codes, sample_rate_hz):
         return lpf.intensity(codes, sample_rate_hz)
@@ -174,7 +175,7 @@ def make_plan(cap: Capture, options: Options, lag: float | None = None, backend=
     plan = Plan(info, options, lut, win, model, search, lag, votes, misfit, check)
     if chirp is not None and not known:
         from .refine import refine_lag
-        plan = refine_lag(cap, plan)
+        plan = refine_lag(cap, plan, backend)
     return plan
 
 
@@ -196,15 +197,15 @@ def make_search(options: Options, lut: Lut, model: pairing.DopplerModel) -> Sear
 
 
 def fit_chunks(options: Options, info: CaptureInfo, backend=None) -> Options:
-    """The options with chunks (core and context) no larger than the backend's device
-    holds; numpy's are bounded by the default itself (about 0.35 GB)."""
+    """The options with chunks of the backend's size unless given (`chunk_default`:
+    per-chunk costs are fixed, so a device wants large ones), no larger than the
+    backend's device holds (cores and contexts)."""
+    wanted = options.chunk_periods or getattr(backend, "chunk_default", NumpyBackend.chunk_default)
     limit = getattr(backend, "chunk_periods", None)
-    if limit is None:
-        return options
-    fits = limit(info.samples_per_period, options.points) - 2 * options.context_periods - 2
-    if fits >= options.chunk_periods:
-        return options
-    return replace(options, chunk_periods=max(16, fits))
+    if limit is not None:
+        fits = limit(info.samples_per_period, options.points) - 2 * options.context_periods - 2
+        wanted = min(wanted, max(16, fits))
+    return replace(options, chunk_periods=wanted)
 
 
 def check_sync_period(cap: Capture, periods: int = 40) -> None:
@@ -392,18 +393,18 @@ def process(path, options: Options | None = None, backend=None,
         plan = make_plan(cap, options, backend=backend)
         parts = capture_parts(cap, plan, backend, progress=progress)
         track = assemble(plan, parts, backend, time.perf_counter() - started)
-        check_tuning(cap, plan, track)
+        check_tuning(cap, plan, track, backend)
     return track
 
 
-def check_tuning(cap: Capture, plan: Plan, track: Track) -> None:
+def check_tuning(cap: Capture, plan: Plan, track: Track, backend=None) -> None:
     """Record how much wider than the window's own the peaks of the stillest stretch
     are (`tuning_peak_width_ratio`; `tuning_matches` is false beyond WIDTH_LIMIT): the
     sign that the laser's real chirp has left its G(I) table or its calibration."""
     from .refine import WIDTH_LIMIT, peak_width_ratio, stillest
 
     ratio = peak_width_ratio(cap, plan, stillest(track.time_s, track.velocity_mps),
-                             track.time_s, track.velocity_mps)
+                             track.time_s, track.velocity_mps, backend)
     track.attrs["tuning_peak_width_ratio"] = ratio
     track.attrs["tuning_matches"] = bool(not ratio > WIDTH_LIMIT)
 
@@ -474,6 +475,7 @@ def assemble(plan: Plan, parts: list[_Pairs], backend, seconds: float) -> Track:
         "unambiguous_range_m": lut.unambiguous_range_m,
         "near_range_limit_pairs": int(np.sum(dist[valid] > NEAR_LIMIT * lut.unambiguous_range_m)),
         "range_check": bool(options.range_check),
+        "chunk_periods": int(options.chunk_periods),
         # integration of weak echoes (stages.integrate): K half-sweeps of a direction per
         # output, an output every period all the same; its time resolution is K periods
         "modulation_period_s": period_s,

@@ -28,18 +28,19 @@ MAX_EVALUATIONS = 6
 MIN_RUN = 60              # pairs of a valid run used
 
 
-def mismatch(cap: Capture, plan, lag: float) -> float:
+def mismatch(cap: Capture, plan, lag: float, backend=None) -> float:
     """Mean over stretches of (integral of velocity - change of distance) / duration (m/s);
-    NaN when no stretch has a long valid run."""
+    NaN when no stretch has a long valid run. `backend`: the stages' (default numpy)."""
     from .engine import NumpyBackend, capture_parts
 
+    backend = backend or NumpyBackend()
     info = cap.info
     p = replace(plan, lag=lag, check=None)
     length = int(STRETCH_PERIODS * info.samples_per_period)
     starts = np.linspace(0, max(0, info.samples - length), STRETCHES).astype(np.int64)
     out = []
     for a in np.unique(starts):
-        parts = capture_parts(cap, p, NumpyBackend(), int(a), int(a) + length)
+        parts = capture_parts(cap, p, backend, int(a), int(a) + length)
         if not parts:
             continue
         t = np.concatenate([0.5 * (q.t_rise + q.t_fall) for q in parts])
@@ -55,14 +56,15 @@ def mismatch(cap: Capture, plan, lag: float) -> float:
     return float(np.mean(out)) if out else float("nan")
 
 
-def refine_lag(cap: Capture, plan):
-    """The plan with its lag moved to where the track is kinematically consistent.
+def refine_lag(cap: Capture, plan, backend=None):
+    """The plan with its lag moved to where the track is kinematically consistent
+    (trial stretches converted by `backend`, default numpy).
 
     Keeps the estimate (and marks it unreliable through lag_misfit = inf) when no
     stretch can be measured."""
     lag0 = plan.lag
     xs = [lag0, lag0 + STEP_SAMPLES]
-    ms = [mismatch(cap, plan, x) for x in xs]
+    ms = [mismatch(cap, plan, x, backend) for x in xs]
     while len(xs) < MAX_EVALUATIONS and np.isfinite(ms[-1]) and np.isfinite(ms[-2]):
         slope = (ms[-1] - ms[-2]) / (xs[-1] - xs[-2])
         if slope == 0:
@@ -70,7 +72,7 @@ def refine_lag(cap: Capture, plan):
         nxt = float(np.clip(xs[-1] - ms[-1] / slope, lag0 - MAX_SHIFT_SAMPLES, lag0 + MAX_SHIFT_SAMPLES))
         done = abs(nxt - xs[-1]) < TOLERANCE_SAMPLES
         xs.append(nxt)
-        ms.append(mismatch(cap, plan, nxt))
+        ms.append(mismatch(cap, plan, nxt, backend))
         if done:
             break
     good = [k for k, m in enumerate(ms) if np.isfinite(m)]
@@ -116,7 +118,7 @@ def stillest(time_s: np.ndarray, velocity_mps: np.ndarray, pairs: int = WIDTH_PE
 
 
 def peak_width_ratio(cap: Capture, plan, t0_s: float, time_s: np.ndarray | None = None,
-                     velocity_mps: np.ndarray | None = None) -> float:
+                     velocity_mps: np.ndarray | None = None, backend=None) -> float:
     """Median half-power width of the peaks of WIDTH_PERIODS periods from `t0_s`, over
     that of the window's own peak: about 1 when the LUT matches the laser's real chirp,
     more when the tuning has moved away from the table or calibration.
@@ -126,14 +128,17 @@ def peak_width_ratio(cap: Capture, plan, t0_s: float, time_s: np.ndarray | None 
     `velocity_mps`: a capture of a take-off alone), each half-sweep is de-chirped at its
     pair's velocity first, so that the Doppler term does not widen its peak; a tuning
     error still does, a little less where it has biased the velocity itself.
+    `backend`: the stages' (default numpy).
     """
+    from .engine import NumpyBackend
     from .stages import resample, spectrum, sync
 
+    backend = backend or NumpyBackend()
     info = cap.info
     spp = info.samples_per_period
     a = max(0, int(t0_s * info.sample_rate_hz - spp))
     beat, sy = cap.read(a, a + int((WIDTH_PERIODS + 2) * spp))
-    hs = sync.half_sweeps(sync.sync_turning_points(sy, spp / 2), plan.lag)
+    hs = sync.half_sweeps(backend.turning_points(sy, spp / 2), plan.lag)
     fits = resample.inside(hs.start, hs.length, plan.lut, beat.size)
     known = None
     if time_s is not None and velocity_mps is not None:
@@ -147,13 +152,13 @@ def peak_width_ratio(cap: Capture, plan, t0_s: float, time_s: np.ndarray | None 
         sel = fits & (hs.rising == rising)
         if not sel.any():
             continue
-        x = resample.resample(beat, hs.start[sel], hs.length[sel], plan.lut.u(rising), plan.window)
+        x = backend.resample(beat, hs.start[sel], hs.length[sel], plan.lut.u(rising), plan.window)
+        beta = v = None
         if known is not None and known.any():
             t = (a + hs.centre[sel]) / info.sample_rate_hz
             v = np.interp(t, time_s[known], velocity_mps[known])
             beta = plan.model.beta_rise if rising else plan.model.beta_fall
-            x = x * np.exp(-2j * np.pi * np.outer(v, beta))
-        widths.append(_widths(spectrum.power_spectra(x, nfft), plan.search.lo))
+        widths.append(_widths(backend.power(x, beta, v, nfft), plan.search.lo))
     if not widths:
         return float("nan")
     j = np.arange(plan.lut.points)

@@ -41,6 +41,13 @@ def test_chunks_fit_the_device_memory(static_capture):
         assert fit_chunks(Options(), cap.info, Small()).chunk_periods == 300 - 128 - 2
         assert fit_chunks(Options(), cap.info, NumpyBackend()).chunk_periods == 1024
 
+        class Device(NumpyBackend):       # a device's own chunk size, unless one is asked for
+            chunk_default = 8192
+
+        assert fit_chunks(Options(), cap.info, Device()).chunk_periods == 8192
+        assert fit_chunks(Options(chunk_periods=500), cap.info, Device()).chunk_periods == 500
+        assert fit_chunks(Options(chunk_periods=5000), cap.info, Small()).chunk_periods == 300 - 128 - 2
+
 
 def test_dropped_samples_split_the_stream(tmp_path, static_capture):
     """Lose 1234 samples in the middle: the periods around the jump are invalid,

@@ -7,7 +7,7 @@ import numpy as np
 from .buffers import Buffers, DeviceRows
 from .context import Runtime, cl
 
-LOCAL = (32, 128)   # work-group size on CPUs, GPUs
+LOCAL = (4, 128)    # work-group size on CPUs (one scalar loop a work-item: small groups keep it local), GPUs
 
 
 def resample(rt: Runtime, bufs: Buffers, codes: np.ndarray, starts: np.ndarray,
