@@ -270,8 +270,24 @@ class Capture:
             raise CaptureError(self.path, f"cannot read samples {start}-{stop} ({exc})") from None
         return beat.astype(np.int16, copy=False), sync.astype(np.int16, copy=False)
 
-    def chunks(self, periods: int, margin: int = 0, start: int = 0, stop: int | None = None
-               ) -> Iterator[Chunk]:
+    def read_into(self, start: int, stop: int, beat: np.ndarray, sync: np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray]:
+        """`read` into the given int16 arrays (long enough): their first stop - start
+        samples, as views. Reading into arrays that exist costs a fifth of the CPU of
+        new ones (no pages to fault in and free: 85 against 470 ms per 333 MB here)."""
+        start = max(0, int(start))
+        stop = min(self.info.samples, int(stop))
+        n = max(0, stop - start)
+        try:
+            if n:
+                self._beat.read_direct(beat, np.s_[start:stop], np.s_[0:n])
+                self._sync.read_direct(sync, np.s_[start:stop], np.s_[0:n])
+        except (OSError, ValueError, TypeError) as exc:
+            raise CaptureError(self.path, f"cannot read samples {start}-{stop} ({exc})") from None
+        return beat[:n], sync[:n]
+
+    def chunks(self, periods: int, margin: int = 0, start: int = 0, stop: int | None = None,
+               slots: int = 0) -> Iterator[Chunk]:
         """Iterate over the capture in chunks of whole modulation periods.
 
         Parameters
@@ -283,16 +299,27 @@ class Capture:
             Extra samples read on each side of the core (clipped at the file ends).
         start, stop : int
             Sample range to cover (default: the whole capture).
+        slots : int
+            0: every chunk in new arrays. k > 0: the chunks take turns in k pairs of
+            arrays made once (`read_into`), so chunk i's samples are overwritten by
+            chunk i + k's: for a consumer that is done with a chunk k - 1 chunks later.
         """
         if periods < 1:
             raise ValueError("periods must be >= 1")
         stop = self.info.samples if stop is None else min(stop, self.info.samples)
         core = max(1, round(periods * self.info.samples_per_period))
-        for core_start in range(int(start), stop, core):
+        ring: list[tuple[np.ndarray, np.ndarray]] = []
+        for i, core_start in enumerate(range(int(start), stop, core)):
             core_stop = min(core_start + core, stop)
             lo = max(0, core_start - margin)
             hi = min(self.info.samples, core_stop + margin)
-            beat, sync = self.read(lo, hi)
+            if not slots:
+                beat, sync = self.read(lo, hi)
+            else:
+                if len(ring) < slots:
+                    size = min(core + 2 * margin, self.info.samples)
+                    ring.append((np.empty(size, np.int16), np.empty(size, np.int16)))
+                beat, sync = self.read_into(lo, hi, *ring[i % slots])
             yield Chunk(lo, beat, sync, core_start, core_stop)
 
     def truth(self) -> Truth | None:

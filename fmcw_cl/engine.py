@@ -366,7 +366,9 @@ def capture_parts(cap: Capture, plan: Plan, backend, start: int = 0, stop: int |
     info, options = cap.info, plan.options
     margin = int((options.context_periods + 1) * info.samples_per_period + sync.MAX_DELAY_SAMPLES + 8)
     parts: list[_Pairs] = []
-    for chunk in read_ahead(cap.chunks(options.chunk_periods, margin, start, stop)):
+    # two slots: one chunk processed while the next is read (`read_ahead`); a chunk's
+    # results keep none of its samples, and its kernels are done when the next one starts
+    for chunk in read_ahead(cap.chunks(options.chunk_periods, margin, start, stop, slots=2)):
         got = _chunk_pairs(plan, chunk, backend)
         if got is not None:
             parts.append(got)

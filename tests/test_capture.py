@@ -128,3 +128,19 @@ def test_not_hdf5_and_too_short(tmp_path):
     write(short, samples=9_000)  # fewer than two 5000-sample periods
     with pytest.raises(CaptureError, match="too short"):
         Capture(short)
+
+
+def test_chunks_in_reused_slots_hold_the_same_samples(static_capture):
+    """Chunks read into a ring of two slots: every chunk's samples as a fresh read, the
+    last (partial) one too, and chunk i + 2 in chunk i's memory."""
+    with Capture(static_capture) as cap:
+        fresh = list(cap.chunks(150, margin=777))
+        seen = []
+        for i, chunk in enumerate(cap.chunks(150, margin=777, slots=2)):
+            want = fresh[i]
+            assert (chunk.start, chunk.core_start, chunk.core_stop) == (want.start, want.core_start, want.core_stop)
+            np.testing.assert_array_equal(chunk.beat, want.beat)
+            np.testing.assert_array_equal(chunk.sync, want.sync)
+            seen.append(chunk.beat.base if chunk.beat.base is not None else chunk.beat)
+        assert len(fresh) >= 3 and fresh[-1].beat.size < fresh[0].beat.size
+        assert seen[2] is seen[0] and seen[1] is not seen[0]
