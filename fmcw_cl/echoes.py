@@ -20,6 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .numeric import median
 from .stages.cfar import Detections
 
 SLICE_S = 0.01        # persistent echoes are found in slices of 10 ms (200 periods)
@@ -121,15 +122,15 @@ def persistent(t_sweep: np.ndarray, level_db: np.ndarray, t: np.ndarray, dist: n
             if sweeps < 20:
                 continue
             mine = tracked[d0:d1]
-            level = float(np.median(snr[d0:d1][mine] if mine.sum() >= SEEN * sweeps else level_db[s0:s1]))
+            level = median(snr[d0:d1][mine] if mine.sum() >= SEEN * sweeps else level_db[s0:s1])
             others = ~mine
             found = [(d, x, share, x - level, False)
                      for d, x, share in _clusters(dist[d0:d1][others], snr[d0:d1][others], sweeps)]
             if survey is not None and v1 - v0 >= 4:
                 hit = survey["found"][v0:v1]
                 if hit.sum() >= PRESENT * (v1 - v0):
-                    rel = 10 * np.log10(float(np.median(survey["ratio"][v0:v1][hit])))
-                    found.append((float(np.median(survey["distance_m"][v0:v1][hit])), level + rel,
+                    rel = 10 * np.log10(median(survey["ratio"][v0:v1][hit]))
+                    found.append((median(survey["distance_m"][v0:v1][hit]), level + rel,
                                   float(hit.sum() / (v1 - v0)), rel, True))
             for row in found:
                 for k, x in zip(keys, (a + SLICE_S / 2, *row), strict=True):
@@ -197,4 +198,4 @@ def _clusters(dist: np.ndarray, snr: np.ndarray, sweeps: int):
     right = np.r_[window[1:], -1]
     for b in np.flatnonzero((window >= PRESENT * sweeps) & (window > left) & (window >= right)):
         near = np.abs(idx - base - b) <= 1
-        yield float(np.median(dist[near])), float(np.median(snr[near])), float(near.sum() / sweeps)
+        yield median(dist[near]), median(snr[near]), float(near.sum() / sweeps)

@@ -122,8 +122,9 @@ def estimate_capture_delay(cap: Capture, intensity=lpf.intensity) -> tuple[float
     length = int(DELAY_STRETCH_PERIODS * info.samples_per_period)
     starts = np.linspace(0, max(0, info.samples - length), DELAY_STRETCHES).astype(np.int64)
     lags, misfits = [], []
+    slot = np.empty(length, np.int16), np.empty(length, np.int16)      # each stretch read into it
     for a in np.unique(starts):
-        beat, sy = cap.read(a, a + length)
+        beat, sy = cap.read_into(a, a + length, *slot)
         lg, mf = sync.period_delays(beat, sy, info.sample_rate_hz, hp, intensity)
         lags.append(lg)
         misfits.append(mf)
@@ -331,8 +332,8 @@ def _beyond_range(plan: Plan, beat: np.ndarray, hs, r: np.ndarray, f: np.ndarray
 def _fill_gaps(t_mid: np.ndarray, period: float) -> np.ndarray:
     """Times of whole periods missing between consecutive pairs (dropped sync)."""
     gaps = np.diff(t_mid)
-    fill = [t_mid[i] + period * np.arange(1, int(round(g / period)))
-            for i, g in enumerate(gaps) if g > 1.5 * period]
+    fill = [t_mid[i] + period * np.arange(1, int(round(gaps[i] / period)))
+            for i in np.flatnonzero(gaps > 1.5 * period)]
     return np.concatenate(fill) if fill else np.zeros(0)
 
 

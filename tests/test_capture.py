@@ -138,7 +138,8 @@ def test_chunks_in_reused_slots_hold_the_same_samples(static_capture):
         seen = []
         for i, chunk in enumerate(cap.chunks(150, margin=777, slots=2)):
             want = fresh[i]
-            assert (chunk.start, chunk.core_start, chunk.core_stop) == (want.start, want.core_start, want.core_stop)
+            where = (chunk.start, chunk.core_start, chunk.core_stop)
+            assert where == (want.start, want.core_start, want.core_stop)
             np.testing.assert_array_equal(chunk.beat, want.beat)
             np.testing.assert_array_equal(chunk.sync, want.sync)
             seen.append(chunk.beat.base if chunk.beat.base is not None else chunk.beat)

@@ -178,3 +178,18 @@ def test_tuning_fit_states_its_own_scale_uncertainty():
     assert 0.7 < np.median(stated) / rms < 1.4
     assert np.mean(np.abs(err) < 2 * np.array(stated)) > 0.9
     assert np.percentile(np.abs(err), 99) < 250            # 0.18 mm at 0.7 m
+
+
+def test_small_array_medians_equal_numpys():
+    from fmcw_cl.numeric import median, row_nanmedian
+
+    rng = np.random.default_rng(8)
+    for n in (1, 2, 3, 16, 17, 401):
+        x = rng.normal(size=n)
+        assert median(x) == np.median(x)
+    x[5] = np.nan
+    assert np.isnan(median(x)) and np.isnan(median(np.zeros(0)))
+    a = rng.normal(size=(50, 16))
+    a[rng.random(a.shape) < 0.4] = np.nan
+    a[:, 0] = 1.0                                   # every row holds a number
+    np.testing.assert_array_equal(row_nanmedian(a), np.nanmedian(a, axis=1))

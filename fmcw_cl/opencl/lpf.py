@@ -38,7 +38,7 @@ def intensity(rt: Runtime, bufs: Buffers, x: np.ndarray, sample_rate_hz: float,
         taps = fir_taps(sample_rate_hz / factor)
         d_dec = bufs.get("lpf_decimated", 4 * m)
         d_out = bufs.get("lpf_out", 4 * m)
-        rt.kernel("lpf", "cic_decimate")(rt.queue, (m,), None, bufs.upload("lpf_in", x),
+        rt.kernel("lpf", "cic_decimate")(rt.queue, (m,), None, bufs.upload_once("lpf_in", x),
                                          bufs.constant("lpf_cic", h), np.int32(h.size),
                                          np.int32(factor), d_dec)
         rt.kernel("lpf", "fir_same")(rt.queue, (m,), None, d_dec, np.int32(m),

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .buffers import Buffers, DeviceRows
+from ..numeric import median
+from .buffers import Buffers, DeviceRows, Packed
 from .context import Runtime, cl
 
 LOCAL = (4, 128)    # work-group size on CPUs (one scalar loop a work-item: small groups keep it local), GPUs
@@ -17,15 +18,15 @@ def resample(rt: Runtime, bufs: Buffers, codes: np.ndarray, starts: np.ndarray,
     sweeps, points = starts.size, u.size
     base = np.floor(starts).astype(np.int32)
     offset = (starts - base).astype(np.float32)
-    nominal = float(np.median(lengths)) if sweeps else 0.0
+    nominal = median(lengths) if sweeps else 0.0
     whole = u * nominal
     lut_int = np.floor(whole)
     d_codes = bufs.upload_once("codes", codes if codes.dtype == np.int16 else codes.astype(np.int16))
-    d_base = bufs.upload("base", base)
-    d_off = bufs.upload("offset", offset)
-    d_dlen = bufs.upload("dlen", (np.asarray(lengths) - nominal).astype(np.float32))
-    d_int = bufs.upload("lut_int", lut_int.astype(np.int32))
-    d_frac = bufs.upload("lut_frac", (whole - lut_int).astype(np.float32))
+    # the sweeps' positions and the LUT split at this nominal length: one upload
+    positions = Packed(bufs, "positions", [(np.int32, sweeps), (np.float32, sweeps), (np.float32, sweeps),
+                                           (np.int32, points), (np.float32, points)])
+    d_base, d_off, d_dlen, d_int, d_frac = positions.upload(base, offset, np.asarray(lengths) - nominal,
+                                                            lut_int, whole - lut_int)
     d_u = bufs.constant("u", u)
     d_win = bufs.constant("win", win)
     out = DeviceRows(bufs, sweeps, points)

@@ -86,13 +86,14 @@ def measure(rt: Runtime, bufs: Buffers, rows, beta: np.ndarray | None,
             velocity: np.ndarray | None, nfft: int, lo: int, hi: int | None = None,
             keep_power: bool = False, index: np.ndarray | None = None, echoes: bool = False,
             store: DeviceRows | None = None, scatter: bool = True
-            ) -> tuple[Peaks, np.ndarray | None, cfar.Detections | None]:
+            ) -> tuple[Peaks | None, np.ndarray | None, cfar.Detections | None]:
     """Peaks of the de-chirped (velocity given) or plain spectra of `rows` (DeviceRows
     or a host array), the power spectra (sweeps, nfft/2) when `keep_power`, and every
     echo of bins [lo, nfft/2) when `echoes`. `index` picks the rows measured, one
     velocity each (none: picked plain rows go through the de-chirp at 0 m/s). A `store`
-    keeps the power on the device instead: in the rows of `index` when `scatter` (all
-    rows when None), else one row per measured sweep."""
+    keeps the power on the device instead, and nothing comes back (None, None, None):
+    in the rows of `index` when `scatter` (all rows when None), else one row per
+    measured sweep."""
     if not isinstance(rows, DeviceRows):
         host = np.ascontiguousarray(rows, np.float32)
         rows = DeviceRows(bufs, *host.shape)
@@ -147,6 +148,8 @@ def measure(rt: Runtime, bufs: Buffers, rows, beta: np.ndarray | None,
             rt.queue, (transforms * lsz,), (lsz,), *args,
             cl.LocalMemory(4 * nfft), cl.LocalMemory(4 * nfft), cl.LocalMemory(4 * half),
             cl.LocalMemory(12 * lsz), cl.LocalMemory(half if echoes else 1))
+    if store is not None:           # the spectra stay where they are for the next kernel
+        return None, None, None
     b, s, ebin, esnr, ecount, own = out.download()
     power = own.reshape(sweeps, half).copy() if own_power else None
     det = None

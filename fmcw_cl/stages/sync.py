@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
+from ..numeric import median
 from . import lpf
 
 FIT_FRACTION = 0.10   # half-width of the crossing line fit, as a share of the half-period (a
@@ -292,9 +293,9 @@ def turning_points(cr: Crossings, half_period: float) -> TurningPoints:
     typical = np.zeros(gap.size)
     for side in (up, ~up):
         if np.any(near & side):
-            typical[side] = np.median(gap[near & side])
+            typical[side] = median(gap[near & side])
     dev = gap - typical
-    spread = 1.4826 * np.median(np.abs(dev[near]))
+    spread = 1.4826 * median(np.abs(dev[near]))
     good = near & (np.abs(dev) < max(JUMP_SAMPLES, 6.0 * spread))
     # turning point i sits between crossings i and i+1; it is trusted when both
     # of its neighbouring spacings are good (a jump spoils the points on both sides)
