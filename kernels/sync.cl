@@ -89,6 +89,27 @@ __kernel void crossing_changes(__global const int *sums,
 // equal to the numpy twin's.
 #define CSWAP(a, b) { const int lo_ = a < b ? a : b; b = a < b ? b : a; a = lo_; }
 
+// The spikes' corrections to the sums, over samples c + k, k = first, first + step, ..
+// <= hw: a sample more than `spike` off the median of its 5-sample neighbourhood is
+// replaced by that median.
+void despike(__global const short *x, const int c, const int first, const int hw, const int step,
+             const int spike, long *a0, long *a1)
+{
+    for (int k = first; k <= hw; k += step) {
+        const int i = c + k;
+        const int v = x[i];
+        int m0 = x[i - 2], m1 = x[i - 1], m2 = v, m3 = x[i + 1], m4 = x[i + 2];
+        if (abs(v - m1) > spike || abs(v - m3) > spike) {
+            CSWAP(m0, m1); CSWAP(m3, m4); CSWAP(m2, m4); CSWAP(m2, m3); CSWAP(m1, m4);
+            CSWAP(m0, m3); CSWAP(m0, m2); CSWAP(m1, m3); CSWAP(m1, m2);
+            if (abs(v - m2) > spike) {
+                *a0 += m2 - v;
+                *a1 += (long)k * (m2 - v);
+            }
+        }
+    }
+}
+
 __kernel void line_fit(__global const short *x,
                        __global const int *centre,
                        const int hw,             // half-width of the window
@@ -126,21 +147,7 @@ __kernel void line_fit(__global const short *x,
     }
     a0 += b0;
     a1 += b1;
-    if (candidates) {
-        for (int k = lid - hw; k <= hw; k += lsz) {
-            const int i = c + k;
-            const int v = x[i];
-            int m0 = x[i - 2], m1 = x[i - 1], m2 = v, m3 = x[i + 1], m4 = x[i + 2];
-            if (abs(v - m1) > spike || abs(v - m3) > spike) {
-                CSWAP(m0, m1); CSWAP(m3, m4); CSWAP(m2, m4); CSWAP(m2, m3); CSWAP(m1, m4);
-                CSWAP(m0, m3); CSWAP(m0, m2); CSWAP(m1, m3); CSWAP(m1, m2);
-                if (abs(v - m2) > spike) {
-                    a0 += m2 - v;
-                    a1 += (long)k * (m2 - v);
-                }
-            }
-        }
-    }
+    if (candidates) despike(x, c, lid - hw, hw, lsz, spike, &a0, &a1);
     l0[lid] = a0;
     l1[lid] = a1;
     barrier(CLK_LOCAL_MEM_FENCE);
@@ -155,4 +162,54 @@ __kernel void line_fit(__global const short *x,
         sums[2 * g] = l0[0];
         sums[2 * g + 1] = l1[0];
     }
+}
+
+long hsum8(const int8 v)
+{
+    return (long)v.s0 + v.s1 + v.s2 + v.s3 + v.s4 + v.s5 + v.s6 + v.s7;
+}
+
+// line_fit on CPU devices: one work-item a centre, eight codes a step in the lanes of an
+// int8 (PoCL vectorises no work-item loop that holds a loop, see fft_lanes.cl; wider
+// vectors than AVX2's change its builtins' ABI); the same sums, flushed every `flush`
+// steps (each lane takes one code a step).
+__kernel void line_fit_lanes(__global const short *x,
+                             __global const int *centre,
+                             const int hw,
+                             const int spike,
+                             const int flush,
+                             __global long *sums)
+{
+    const int g = get_global_id(0);
+    const int c = centre[g];
+    const int8 lane = (int8)(0, 1, 2, 3, 4, 5, 6, 7);
+    long a0 = 0;
+    long a1 = 0;
+    int8 seen = 0;
+    int k = -hw;
+    while (k + 8 <= hw + 1) {
+        int8 b0 = 0, b1 = 0;
+        for (int n = 0; n < flush && k + 8 <= hw + 1; ++n, k += 8) {
+            __global const short *p = x + c + k;
+            const int8 v = convert_int8(vload8(0, p));
+            const int8 dl = v - convert_int8(vload8(0, p - 1));
+            const int8 dr = v - convert_int8(vload8(0, p + 1));
+            b0 += v;
+            b1 += (k + lane) * v;
+            seen |= (dl > spike) | (dl < -spike) | (dr > spike) | (dr < -spike);
+        }
+        a0 += hsum8(b0);
+        a1 += hsum8(b1);
+    }
+    int candidates = any(seen);
+    for (; k <= hw; ++k) {
+        const int i = c + k;
+        const int v = x[i];
+        a0 += v;
+        a1 += (long)k * v;
+        candidates |= (abs(v - x[i - 1]) > spike) | (abs(v - x[i + 1]) > spike);
+    }
+    if (candidates) despike(x, c, -hw, hw, 1, spike, &a0, &a1);
+    sums[2 * g] = a0;
+    sums[2 * g + 1] = a1;
 }

@@ -25,9 +25,10 @@ def run_cli(*args, check=True) -> subprocess.CompletedProcess:
 
 
 @pytest.fixture(params=["groups", "lanes"])
-def spectrum_variant(request, backend):
-    """Both spectrum kernels on the test's device: `spectrum_peak` (a work-group a
-    transform, GPUs) and `spectrum_lanes` (eight transforms in float8 lanes, CPUs)."""
+def kernel_variant(request, backend):
+    """Both variants of the kernels that have two, on the test's device: work-groups
+    (GPUs: `spectrum_peak`, `line_fit`) and explicit float8/int8 lanes (CPUs:
+    `spectrum_lanes`, `line_fit_lanes`)."""
     rt = backend.rt
     chosen = rt.lanes
     rt.lanes = request.param == "lanes"

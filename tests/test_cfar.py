@@ -68,7 +68,7 @@ def backend():
 
 @pytest.mark.parametrize("rows,nfft,lo,hi", [(41, 2048, LO, None), (40, 2048, 200, 900), (7, 4096, 130, None),
                                              (1, 2048, LO, None)])
-def test_kernel_matches_numpy(backend, spectrum_variant, rows, nfft, lo, hi):
+def test_kernel_matches_numpy(backend, kernel_variant, rows, nfft, lo, hi):
     """Several echoes (one at the band's top bins), noise-only rows, odd row counts
     (plain rows go two to a transform), both FFT shapes."""
     points = nfft // 2 - 24
@@ -87,7 +87,7 @@ def test_kernel_matches_numpy(backend, spectrum_variant, rows, nfft, lo, hi):
     np.testing.assert_allclose(got.snr_db, want.snr_db, atol=0.02)
 
 
-def test_kernel_with_other_widths_matches_numpy(backend, spectrum_variant, monkeypatch):
+def test_kernel_with_other_widths_matches_numpy(backend, kernel_variant, monkeypatch):
     """Guard and training widths other than the tables' (8 and 16) take the kernels'
     direct sums everywhere."""
     monkeypatch.setattr(cfar, "GUARD", 5)

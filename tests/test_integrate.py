@@ -90,7 +90,7 @@ def test_integrate_kernel_matches_numpy(backend, rows, nfft, k):
     np.testing.assert_allclose(got[1], want[1], atol=2e-3)
 
 
-def test_kept_spectra_match_numpy(backend, spectrum_variant):
+def test_kept_spectra_match_numpy(backend, kernel_variant):
     """The store of spectra kept between passes: plain rows, then picked rows
     re-made de-chirped in place (the kernel's scattered write)."""
     rng = np.random.default_rng(5)

@@ -38,7 +38,7 @@ def _measure(backend, rows, beta, v, nfft, lo, hi=None):
 
 
 @pytest.mark.parametrize("sweeps,nfft", [(1, 2048), (301, 2048), (17, 4096), (3, 64), (6, 128)])
-def test_fft_kernel_matches_numpy(backend, spectrum_variant, sweeps, nfft):
+def test_fft_kernel_matches_numpy(backend, kernel_variant, sweeps, nfft):
     """Both transform shapes (log2 nfft odd: a radix-2 stage; even: radix-4 only),
     plain and de-chirped with folds of several cycles."""
     rng = np.random.default_rng(nfft + sweeps)
@@ -60,7 +60,7 @@ def test_fft_kernel_matches_numpy(backend, spectrum_variant, sweeps, nfft):
 
 
 @pytest.mark.parametrize("sweeps,points,nfft", [(3, 20, 128), (10, 300, 2048), (17, 1000, 2048)])
-def test_short_rows_and_idle_lanes(backend, spectrum_variant, sweeps, points, nfft):
+def test_short_rows_and_idle_lanes(backend, kernel_variant, sweeps, points, nfft):
     """Rows far shorter than the transform (the padding reaches into the first stage's
     inputs), and row counts that leave lanes of the last group idle."""
     x = np.random.default_rng(points).normal(0, 10, (sweeps, points)) + 50 * np.cos(0.3 * np.arange(points))
@@ -79,7 +79,7 @@ def test_fft_tables_undo_the_digit_reversal():
         assert np.array_equal(np.sort(perm), np.arange(nfft))
 
 
-def test_peak_kernel_on_tones_and_band_edges(backend, spectrum_variant):
+def test_peak_kernel_on_tones_and_band_edges(backend, kernel_variant):
     nfft, points = 2048, 1000
     true_bins = np.array([40.3, 100.0, 511.75, 1000.2, 1022.6])
     j = np.arange(points)
@@ -92,7 +92,7 @@ def test_peak_kernel_on_tones_and_band_edges(backend, spectrum_variant):
         np.testing.assert_allclose(got.snr_db, want.snr_db, atol=0.02)
 
 
-def test_measure_on_device_rows_equals_host_rows(backend, spectrum_variant):
+def test_measure_on_device_rows_equals_host_rows(backend, kernel_variant):
     """The resampled rows stay on the device across passes: same peaks as uploading."""
     rng = np.random.default_rng(5)
     codes = rng.integers(-2000, 2000, 40_001).astype(np.int16)
@@ -126,7 +126,7 @@ def sync_codes(n, half, t0, noise, seed, spikes=0):
 
 @pytest.mark.parametrize("n,half,spikes", [(200_001, 2500.0, 0), (123_457, 2500.0, 40),
                                            (50_003, 1234.5, 7), (9_999, 300.0, 3)])
-def test_sync_kernels_match_numpy(backend, n, half, spikes):
+def test_sync_kernels_match_numpy(backend, kernel_variant, n, half, spikes):
     """Block sums, their band and side changes and the despiked line-fit sums are exact
     integers on both sides, so the coarse crossings and the turning points are bitwise
     equal; odd lengths and partial periods at both ends."""
@@ -278,7 +278,7 @@ def test_kernels_build_without_warnings(backend):
         cl.Program(backend.rt.context, source(name)).build(options=["-cl-std=CL1.2", "-Werror"])
 
 
-def test_transform_too_large_for_local_memory_runs_on_the_host(backend, spectrum_variant, monkeypatch):
+def test_transform_too_large_for_local_memory_runs_on_the_host(backend, kernel_variant, monkeypatch):
     """A device whose local memory cannot hold the transform (a GPU's 48 KB and the
     8192-point range check of --points 2048): that stage falls back to the numpy twin,
     with the same peaks."""
@@ -315,7 +315,7 @@ def test_wall_track_and_echoes_equal_numpy(wall_capture):
 
 
 @pytest.mark.parametrize("rows,nfft,lo", [(1, 2048, 64), (37, 2048, 20), (9, 4096, 100), (5, 128, 3)])
-def test_survey_kernel_matches_numpy(backend, spectrum_variant, rows, nfft, lo):
+def test_survey_kernel_matches_numpy(backend, kernel_variant, rows, nfft, lo):
     """The echo survey (kernels/survey.cl against echoes.hidden): a target, sometimes a
     rival the other echoes explain or not, noise; medians of odd and even band sizes."""
     from fmcw_cl.stages import pairing

@@ -51,14 +51,14 @@ def _group(be: OpenCLBackend, group: str) -> None:
     sync_codes = (6000 * (tri - 0.5) + rng.normal(0, 4, n)).astype(np.int16)
     beat = (800 * tri + 300 * np.cos(0.21 * t) + rng.normal(0, 50, n)).astype(np.int16)
 
-    if group == "stream":
-        stream(be, beat, sync_codes, fs, hp, rng)
-        return
     chosen = be.rt.lanes
-    for lanes in (False, True):     # both spectrum kernels, whichever this device uses
+    for lanes in (False, True):     # both variants of two-variant kernels, whichever this device uses
         be.rt.lanes = lanes
-        print(f"spectrum kernel: {'spectrum_lanes' if lanes else 'spectrum_peak'}", flush=True)
-        spectra(be, np.random.default_rng(1), group)
+        print(f"kernel variant: {'lanes' if lanes else 'work-groups'}", flush=True)
+        if group == "stream":
+            stream(be, beat, sync_codes, fs, hp, np.random.default_rng(1))
+        else:
+            spectra(be, np.random.default_rng(1), group)
     be.rt.lanes = chosen
 
 

@@ -63,12 +63,14 @@ def line_fit_sums(rt: Runtime, bufs: Buffers, x: np.ndarray, centre: np.ndarray,
     n = centre.size
     s = np.empty((n, 2), np.int64)
     if n:
-        lsz = rt.group_size(16, 128)
         d = bufs.get("fit_sums", s.nbytes)
-        rt.kernel("sync", "line_fit")(
-            rt.queue, (n * lsz,), (lsz,), _codes(bufs, x),
-            bufs.upload("fit_centre", centre.astype(np.int32)), np.int32(half), np.int32(np.floor(spike)),
-            np.int32(max(1, (2**31 - 1) // (max(half, 1) * 32768 + 32768))),
-            d, cl.LocalMemory(8 * lsz), cl.LocalMemory(8 * lsz))
+        args = (_codes(bufs, x), bufs.upload("fit_centre", centre.astype(np.int32)), np.int32(half),
+                np.int32(np.floor(spike)), np.int32(max(1, (2**31 - 1) // (max(half, 1) * 32768 + 32768))), d)
+        if rt.lanes:
+            rt.kernel("sync", "line_fit_lanes")(rt.queue, (n,), None, *args)
+        else:
+            lsz = rt.group_size(16, 128)
+            rt.kernel("sync", "line_fit")(rt.queue, (n * lsz,), (lsz,), *args, cl.LocalMemory(8 * lsz),
+                                          cl.LocalMemory(8 * lsz))
         rt.copy(s, d)
     return s[:, 0].astype(np.float64), s[:, 1].astype(np.float64)
