@@ -58,8 +58,9 @@ def main() -> None:
     print("|---|---|---|---|---|---|")
     for r in rows:
         host = f"{r['host_cpu_ms_per_s']:.0f}" if "host_cpu_ms_per_s" in r else ""
+        share = r["share_of_end_to_end"]          # NaN: a scene's row, apart from the shares
         print(f"| {r['backend']} | {r['stage']} | {r['seconds']:.4f} | {r['real_time_multiple']:.2f} | "
-              f"{r['share_of_end_to_end']:.0%} | {host} |")
+              f"{f'{share:.0%}' if share == share else ''} | {host} |")
     with tempfile.TemporaryDirectory() as tmp:
         got = batch(args.device, args.seconds, args.batch, Path(tmp))
     print(f"\nbatch: {got['captures']} captures of {args.seconds:g} s on {got['device']}: "

@@ -36,9 +36,10 @@ def command(seconds, points, backend, device, as_json):
     click.echo(f"{'backend':8} {'stage':30} {'s':>8} {'half-sweeps/s':>14} {'MS/s':>8} {'x real time':>12} "
                f"{'of end to end':>14}")
     for r in rows:
+        share = r["share_of_end_to_end"]
         click.echo(f"{r['backend']:8} {r['stage']:30} {r['seconds']:8.4f} {r['half_sweeps_per_s']:14.0f} "
                    f"{r['msamples_per_s']:8.1f} {r['real_time_multiple']:12.3f} "
-                   f"{r['share_of_end_to_end']:13.0%}")
+                   + (f"{share:13.0%}" if share == share else f"{'':>13}"))
     click.echo("end to end, where the time goes (one more run each):")
     for r in rows:
         if "host_cpu_ms_per_s" not in r:
@@ -47,14 +48,15 @@ def command(seconds, points, backend, device, as_json):
                 f"capture ({r['host_share_of_wall']:.0%} of the wall)")
         if "launches_per_chunk" in r:
             mib_up, mib_down = r["upload_bytes_per_chunk"] / 2**20, r["download_bytes_per_chunk"] / 2**20
-            line += (f"; per chunk ({r['chunks']}): {r['launches_per_chunk']:.0f} launches, "
+            line += (f"; device busy {r['device_busy_share']:.0%}; per chunk ({r['chunks']}): "
+                     f"{r['launches_per_chunk']:.0f} launches, "
                      f"{r['uploads_per_chunk']:.0f} uploads ({mib_up:.1f} MiB), "
                      f"{r['downloads_per_chunk']:.0f} downloads ({mib_down:.1f} MiB)")
         click.echo(line)
     for dev in dict.fromkeys(r["device"] for r in rows):
         click.echo(f"device: {dev}")
     seconds_of = {(r["backend"], r["stage"]): r["seconds"] for r in rows}
-    for stage in ("end to end (file to track)", "end to end, paper's method"):
+    for stage in dict.fromkeys(r["stage"] for r in rows if r["stage"].startswith("end to end")):
         if ("numpy", stage) in seconds_of and ("opencl", stage) in seconds_of:
             click.echo(f"{stage}: OpenCL {seconds_of[('numpy', stage)] / seconds_of[('opencl', stage)]:.2f}x "
                        "faster than numpy")

@@ -8,6 +8,7 @@ machine is doing.
 
 from __future__ import annotations
 
+import functools
 import tempfile
 import time
 from dataclasses import replace
@@ -17,8 +18,10 @@ import numpy as np
 
 from .capture import Capture
 from .engine import Options, core_samples, make_backend, make_plan, process
-from .simulator import rail, simulate_capture
+from .simulator import jump, rail, simulate_capture, static
 from .stages import resample, sync
+
+JUMP_S = 0.3      # the jump scenario's length (take-off to landing)
 
 
 def _timed(fn, finish, repeat: int = 3) -> float:
@@ -33,8 +36,10 @@ def _timed(fn, finish, repeat: int = 3) -> float:
     return best
 
 
-def _stage_rows(be, path: Path, opts: Options, seconds: float) -> list[dict]:
-    """Time each stage of one backend on the capture at `path`."""
+def _stage_rows(be, path: Path, opts: Options, seconds: float, scenes: dict[str, tuple[Path, float]]
+                ) -> list[dict]:
+    """Time each stage of one backend on the capture at `path`, and end to end on it and
+    on the `scenes` (name: (path, seconds))."""
     with Capture(path) as cap:
         info = cap.info
         plan = make_plan(cap, opts, backend=be)
@@ -81,6 +86,16 @@ def _stage_rows(be, path: Path, opts: Options, seconds: float) -> list[dict]:
     whole = rows[-1]["seconds"]
     for r in rows:
         r["share_of_end_to_end"] = r["seconds"] / whole
+    for name, (scene, length) in scenes.items():       # other scenes, end to end (not in the shares)
+        with Capture(scene) as cap:
+            n = cap.info.samples
+            count = -(-n // core_samples(cap.info, make_plan(cap, opts, backend=be).options))
+        fn = functools.partial(process, scene, opts, be)
+        secs = _timed(fn, finish, repeat=1)
+        rows.append({"backend": be.name, "device": be.device, "stage": f"end to end, {name}", "seconds": secs,
+                     "half_sweeps_per_s": 2 * length / 50e-6 / secs, "msamples_per_s": n / secs / 1e6,
+                     "real_time_multiple": length / secs, "share_of_end_to_end": float("nan"),
+                     **_where_time_goes(be, fn, finish, length, count)})
     return rows
 
 
@@ -90,15 +105,20 @@ def _where_time_goes(be, fn, finish, seconds: float, chunks: int) -> dict:
     a GPU's end to end), its share of the wall time (the rest the host waits for the
     device or the reads), and per chunk the kernel launches and the copies each way."""
     rt = getattr(be, "rt", None)
-    before = dict(vars(rt.traffic)) if rt is not None else {}
+    counts = ("launches", "uploads", "downloads", "upload_bytes", "download_bytes")
+    before = {k: getattr(rt.traffic, k) for k in counts} if rt is not None else {}
+    if rt is not None:
+        rt.traffic.events = []
     wall, cpu = time.perf_counter(), time.thread_time()
     fn()
     finish()
     wall, cpu = time.perf_counter() - wall, time.thread_time() - cpu
     got = {"host_cpu_ms_per_s": 1e3 * cpu / seconds, "host_share_of_wall": cpu / wall, "chunks": chunks}
     if rt is not None:
-        for key, value in vars(rt.traffic).items():
-            got[f"{key}_per_chunk"] = (value - before[key]) / chunks
+        for key in counts:
+            got[f"{key}_per_chunk"] = (getattr(rt.traffic, key) - before[key]) / chunks
+        got["device_busy_share"] = rt.traffic.busy_seconds() / wall
+        rt.traffic.events = None
     return got
 
 
@@ -113,6 +133,10 @@ def run(seconds: float = 0.2, points: int = 1000, backends=("numpy", "opencl"),
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "bench.h5"
         simulate_capture(path, rail(seconds + 0.1), seconds, seed=1, start_s=0.1, progress=progress)
+        scenes = {"static target": (Path(tmp) / "static.h5", seconds),
+                  f"jump ({min(seconds, JUMP_S):g} s)": (Path(tmp) / "jump.h5", min(seconds, JUMP_S))}
+        simulate_capture(scenes["static target"][0], static(seconds, 0.3), seconds, seed=2, progress=progress)
+        simulate_capture(Path(tmp) / "jump.h5", jump(JUMP_S), min(seconds, JUMP_S), seed=3, progress=progress)
         for name in backends:
-            rows += _stage_rows(make_backend(name, device), path, Options(points=points), seconds)
+            rows += _stage_rows(make_backend(name, device), path, Options(points=points), seconds, scenes)
     return rows

@@ -95,8 +95,9 @@ def test_bench_rows_for_both_backends(fmcw):
     agree with each other (a benchmark, so no speed is asserted)."""
     rows = json.loads(fmcw("bench", "--seconds", "0.01", "--json").stdout)
     stages = {r["stage"] for r in rows}
+    scenes = {"end to end, static target", "end to end, jump (0.01 s)"}       # apart from the shares
     assert {"sync turning points", "resample", "de-chirp + FFT + peak",
-            "end to end (file to track)"} <= stages
+            "end to end (file to track)"} | scenes <= stages
     for backend in ("numpy", "opencl"):
         mine = [r for r in rows if r["backend"] == backend]
         assert len(mine) == len(stages)
@@ -104,13 +105,19 @@ def test_bench_rows_for_both_backends(fmcw):
             assert r["seconds"] > 0 and r["device"]
             assert r["real_time_multiple"] == pytest.approx(0.01 / r["seconds"])
             assert r["half_sweeps_per_s"] == pytest.approx(r["real_time_multiple"] * 40_000, rel=0.01)
-            assert 0 < r["share_of_end_to_end"] and (r["share_of_end_to_end"] == 1) == (r is mine[-1])
+            share = r["share_of_end_to_end"]
+            if r["stage"] in scenes:
+                assert share != share
+            else:
+                assert 0 < share and (share == 1) == (r["stage"] == "end to end (file to track)")
         ends = [r for r in mine if r["stage"].startswith("end to end")]
+        assert len(ends) == 4
         for r in ends:       # where the time goes: host CPU, and the device's traffic per chunk
             assert r["host_cpu_ms_per_s"] > 0 and 0 < r["host_share_of_wall"] <= 1.05
             assert r["chunks"] >= 1
             if backend == "opencl":
                 assert r["launches_per_chunk"] >= 3 and r["downloads_per_chunk"] >= 1
+                assert 0 < r["device_busy_share"] <= 1.05
             else:
                 assert "launches_per_chunk" not in r
 

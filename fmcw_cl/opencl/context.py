@@ -97,13 +97,20 @@ def rank(device) -> int:
 class Traffic:
     """What crossed between host and device since the counts were last cleared:
     kernel launches, copies each way and their bytes (a zero-copy wrap of host memory,
-    PoCL's, is no copy)."""
+    PoCL's, is no copy); `events`, when a list, collects each launch's event (the
+    queue profiles them: `busy_seconds`)."""
 
     launches: int = 0
     uploads: int = 0
     downloads: int = 0
     upload_bytes: int = 0
     download_bytes: int = 0
+    events: list | None = None
+
+    def busy_seconds(self) -> float:
+        """Seconds the device spent in the collected launches (they do not overlap on
+        one in-order queue)."""
+        return sum(e.profile.end - e.profile.start for e in self.events or ()) * 1e-9
 
 
 def _same(a, b) -> bool:
@@ -133,7 +140,10 @@ class _Counted:
             if i >= len(last) or not _same(last[i], a):
                 self.kernel.set_arg(i, a)
         self.args = list(args)
-        return cl.enqueue_nd_range_kernel(queue, self.kernel, global_size, local_size)
+        event = cl.enqueue_nd_range_kernel(queue, self.kernel, global_size, local_size)
+        if self.traffic.events is not None:
+            self.traffic.events.append(event)
+        return event
 
 
 @dataclass
@@ -151,7 +161,9 @@ class Runtime:
 
     def __post_init__(self) -> None:
         self.context = cl.Context([self.device])
-        self.queue = cl.CommandQueue(self.context)
+        # profiled: `fmcw-cl bench` reports the device's busy share (timestamps cost nothing
+        # measurable)
+        self.queue = cl.CommandQueue(self.context, properties=cl.command_queue_properties.PROFILING_ENABLE)
         # a CPU runs a work-group's work-items as a loop, which PoCL vectorises only where
         # the kernel has no loop of its own (kernels/fft_lanes.cl); GPUs want work-groups
         self.lanes = rank(self.device) == CPU
