@@ -10,48 +10,57 @@
 // that float32 keeps its precision. Twins: fmcw_cl.stages.pairing.measure and
 // fmcw_cl.stages.spectrum.power_spectra.
 
+// The two device functions of the transform, written once for a scalar type T: float
+// here, float8 in fft_lanes.cl (eight transforms in lanes; the files share a program).
+
 // sin and cos of 2 pi p (p in cycles): reduced to half an angle in [-pi/2, pi/2],
 // Taylor polynomials there (error < 1e-7), then the double-angle formulas. PoCL's
 // sin/cos builtins cost more than the whole transform.
-void sincos_cycles(const float p, float *s, float *c)
-{
-    const float r = p - floor(p + 0.5f);               // [-0.5, 0.5) cycles
-    const float h = 3.14159265358979f * r;             // half the angle
-    const float h2 = h * h;
-    const float sh = h * (1.0f + h2 * (-1.6666667e-1f + h2 * (8.3333333e-3f + h2 * (-1.9841270e-4f
-                   + h2 * (2.7557319e-6f + h2 * -2.5052108e-8f)))));
-    const float ch = 1.0f + h2 * (-0.5f + h2 * (4.1666667e-2f + h2 * (-1.3888889e-3f
-                   + h2 * (2.4801587e-5f + h2 * (-2.7557319e-7f + h2 * 2.0876757e-9f)))));
-    *s = 2.0f * sh * ch;
-    *c = ch * ch - sh * sh;
+#define SINCOS_CYCLES(NAME, T)                                                                   \
+void NAME(const T p, T *s, T *c)                                                                 \
+{                                                                                                \
+    const T r = p - floor(p + 0.5f);               /* [-0.5, 0.5) cycles */                      \
+    const T h = 3.14159265358979f * r;             /* half the angle */                          \
+    const T h2 = h * h;                                                                          \
+    const T sh = h * (1.0f + h2 * (-1.6666667e-1f + h2 * (8.3333333e-3f + h2 * (-1.9841270e-4f   \
+               + h2 * (2.7557319e-6f + h2 * -2.5052108e-8f)))));                                 \
+    const T ch = 1.0f + h2 * (-0.5f + h2 * (4.1666667e-2f + h2 * (-1.3888889e-3f                 \
+               + h2 * (2.4801587e-5f + h2 * (-2.7557319e-7f + h2 * 2.0876757e-9f)))));           \
+    *s = 2.0f * sh * ch;                                                                         \
+    *c = ch * ch - sh * sh;                                                                      \
 }
 
 // One radix-4 decimation-in-frequency butterfly: the 4-point DFT of a0..a3, outputs
-// 1..3 turned by the twiddles w^e, w^2e, w^3e, written to b, b + q, b + 2q, b + 3q.
-void radix4(__local float *re, __local float *im, const int b, const int q, const int e,
-            const float a0r, const float a0i, const float a1r, const float a1i,
-            const float a2r, const float a2i, const float a3r, const float a3i,
-            __global const float *tw_re, __global const float *tw_im)
-{
-    const float s02r = a0r + a2r, s02i = a0i + a2i;
-    const float d02r = a0r - a2r, d02i = a0i - a2i;
-    const float s13r = a1r + a3r, s13i = a1i + a3i;
-    const float d13r = a1r - a3r, d13i = a1i - a3i;
-    const float y1r = d02r + d13i, y1i = d02i - d13r;    // d02 - i d13
-    const float y2r = s02r - s13r, y2i = s02i - s13i;
-    const float y3r = d02r - d13i, y3i = d02i + d13r;    // d02 + i d13
-    const float w1r = tw_re[e], w1i = tw_im[e];
-    const float w2r = tw_re[2 * e], w2i = tw_im[2 * e];
-    const float w3r = tw_re[3 * e], w3i = tw_im[3 * e];
-    re[b] = s02r + s13r;
-    im[b] = s02i + s13i;
-    re[b + q] = y1r * w1r - y1i * w1i;
-    im[b + q] = y1r * w1i + y1i * w1r;
-    re[b + 2 * q] = y2r * w2r - y2i * w2i;
-    im[b + 2 * q] = y2r * w2i + y2i * w2r;
-    re[b + 3 * q] = y3r * w3r - y3i * w3i;
-    im[b + 3 * q] = y3r * w3i + y3i * w3r;
+// 1..3 turned by the twiddles w^e, w^2e, w^3e (one for all lanes), written to b, b + q,
+// b + 2q, b + 3q.
+#define RADIX4(NAME, T)                                                                          \
+void NAME(__local T *re, __local T *im, const int b, const int q, const int e,                   \
+          const T a0r, const T a0i, const T a1r, const T a1i,                                    \
+          const T a2r, const T a2i, const T a3r, const T a3i,                                    \
+          __global const float *tw_re, __global const float *tw_im)                              \
+{                                                                                                \
+    const T s02r = a0r + a2r, s02i = a0i + a2i;                                                  \
+    const T d02r = a0r - a2r, d02i = a0i - a2i;                                                  \
+    const T s13r = a1r + a3r, s13i = a1i + a3i;                                                  \
+    const T d13r = a1r - a3r, d13i = a1i - a3i;                                                  \
+    const T y1r = d02r + d13i, y1i = d02i - d13r;    /* d02 - i d13 */                           \
+    const T y2r = s02r - s13r, y2i = s02i - s13i;                                                \
+    const T y3r = d02r - d13i, y3i = d02i + d13r;    /* d02 + i d13 */                           \
+    const float w1r = tw_re[e], w1i = tw_im[e];                                                  \
+    const float w2r = tw_re[2 * e], w2i = tw_im[2 * e];                                          \
+    const float w3r = tw_re[3 * e], w3i = tw_im[3 * e];                                          \
+    re[b] = s02r + s13r;                                                                         \
+    im[b] = s02i + s13i;                                                                         \
+    re[b + q] = y1r * w1r - y1i * w1i;                                                           \
+    im[b + q] = y1r * w1i + y1i * w1r;                                                           \
+    re[b + 2 * q] = y2r * w2r - y2i * w2i;                                                       \
+    im[b + 2 * q] = y2r * w2i + y2i * w2r;                                                       \
+    re[b + 3 * q] = y3r * w3r - y3i * w3i;                                                       \
+    im[b + 3 * q] = y3r * w3i + y3i * w3r;                                                       \
 }
+
+SINCOS_CYCLES(sincos_cycles, float)
+RADIX4(radix4, float)
 
 // The stages of blocks of lb points and smaller (lb = n: the whole transform), in place.
 void fft_dif(__local float *re, __local float *im, const int n, int lb,

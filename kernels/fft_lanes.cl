@@ -14,45 +14,8 @@
 #define IMAX(a, b) ((a) > (b) ? (a) : (b))
 #define IMIN(a, b) ((a) < (b) ? (a) : (b))
 
-// sincos_cycles (fft.cl) per lane
-void sincos_cycles8(const float8 p, float8 *s, float8 *c)
-{
-    const float8 r = p - floor(p + 0.5f);
-    const float8 h = 3.14159265358979f * r;
-    const float8 h2 = h * h;
-    const float8 sh = h * (1.0f + h2 * (-1.6666667e-1f + h2 * (8.3333333e-3f + h2 * (-1.9841270e-4f
-                    + h2 * (2.7557319e-6f + h2 * -2.5052108e-8f)))));
-    const float8 ch = 1.0f + h2 * (-0.5f + h2 * (4.1666667e-2f + h2 * (-1.3888889e-3f
-                    + h2 * (2.4801587e-5f + h2 * (-2.7557319e-7f + h2 * 2.0876757e-9f)))));
-    *s = 2.0f * sh * ch;
-    *c = ch * ch - sh * sh;
-}
-
-// radix4 (fft.cl) per lane
-void radix4_8(__local float8 *re, __local float8 *im, const int b, const int q, const int e,
-              const float8 a0r, const float8 a0i, const float8 a1r, const float8 a1i,
-              const float8 a2r, const float8 a2i, const float8 a3r, const float8 a3i,
-              __global const float *tw_re, __global const float *tw_im)
-{
-    const float8 s02r = a0r + a2r, s02i = a0i + a2i;
-    const float8 d02r = a0r - a2r, d02i = a0i - a2i;
-    const float8 s13r = a1r + a3r, s13i = a1i + a3i;
-    const float8 d13r = a1r - a3r, d13i = a1i - a3i;
-    const float8 y1r = d02r + d13i, y1i = d02i - d13r;
-    const float8 y2r = s02r - s13r, y2i = s02i - s13i;
-    const float8 y3r = d02r - d13i, y3i = d02i + d13r;
-    const float w1r = tw_re[e], w1i = tw_im[e];
-    const float w2r = tw_re[2 * e], w2i = tw_im[2 * e];
-    const float w3r = tw_re[3 * e], w3i = tw_im[3 * e];
-    re[b] = s02r + s13r;
-    im[b] = s02i + s13i;
-    re[b + q] = y1r * w1r - y1i * w1i;
-    im[b + q] = y1r * w1i + y1i * w1r;
-    re[b + 2 * q] = y2r * w2r - y2i * w2i;
-    im[b + 2 * q] = y2r * w2i + y2i * w2r;
-    re[b + 3 * q] = y3r * w3r - y3i * w3i;
-    im[b + 3 * q] = y3r * w3i + y3i * w3r;
-}
+SINCOS_CYCLES(sincos_cycles8, float8)
+RADIX4(radix4_8, float8)
 
 // Sample j of each lane's transform input (load in fft.cl), zero past the points.
 void load8(__global const float *const *ra, __global const float *const *rb,

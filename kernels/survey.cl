@@ -6,6 +6,26 @@
 // straight-line barriers: PoCL compiles it in a moment. Twin: fmcw_cl.echoes.hidden
 // (its docstring has the quantities).
 
+#define ABS(v) ((v) < 0.0f ? -(v) : (v))
+
+// One bin's share of the sums, for T float (`hidden`: a work-item's bins of one row) or
+// float8 (`hidden_lanes`: eight rows): k the bin, ed and e the de-chirped and plain
+// power over their floors, kt and kp the tracked peak's bins (de-chirped, plain),
+// explained: another echo's bins cover k. The target's energy (and its core), the
+// energy nothing explains (and its bins), and the weights of its centroid away from the
+// plain peak. Conditionals only: see hidden_lanes.
+#define SURVEY_BIN(T, k, ed, e, kt, kp, explained)                                           \
+    {                                                                                        \
+        const T off_ = ABS(k - kt);                                                          \
+        const T w_ = (explained) ? 0.0f : (((ABS(k - kp) > explain) & (e > 0.0f)) ? e : 0.0f); \
+        target += off_ <= explain ? ed : 0.0f;                                               \
+        near += off_ <= 3.0f ? ed : 0.0f;                                                    \
+        excess_sum += (explained) ? 0.0f : e;                                                \
+        free_bins += (explained) ? 0.0f : 1.0f;                                              \
+        w_sum += w_;                                                                         \
+        wk_sum += w_ * k;                                                                    \
+    }
+
 // The k-th smallest of s[0 .. n) (Hoare's selection, serial: one work-item, no barrier
 // in a loop; a bitonic sort's barriers inside nested loops took PoCL two minutes to
 // compile). Afterwards every s[i], i > k, is >= s[k].
@@ -83,24 +103,12 @@ __kernel void hidden(__global const float *plain,      // (rows, half_n)
     float target = 0.0f, near = 0.0f, excess_sum = 0.0f, free_bins = 0.0f, w_sum = 0.0f, wk_sum = 0.0f;
     for (int i = lid; i < n; i += lsz) {
         const float k = (float)(lo + i);
-        const float ed = d[i] - floor_d;
-        const float off = fabs(k - kt);
-        target += off <= explain ? ed : 0.0f;
-        near += off <= 3.0f ? ed : 0.0f;
         int explained = 0;
         for (int j = 0; j < m; ++j) {
             const float b = others[(size_t)r * m + j];
             explained |= !isnan(b) && fabs(k - rint(b)) <= explain;
         }
-        const float e = p[i] - floor_p;
-        if (!explained) {
-            excess_sum += e;
-            free_bins += 1.0f;
-            if (fabs(k - kp) > explain && e > 0.0f) {
-                w_sum += e;
-                wk_sum += e * k;
-            }
-        }
+        SURVEY_BIN(float, k, d[i] - floor_d, p[i] - floor_p, kt, kp, explained)
     }
     __local float *mine = red + 6 * lid;
     mine[0] = target;
@@ -136,8 +144,6 @@ __kernel void hidden(__global const float *plain,      // (rows, half_n)
 // smallest value. Counts are float8 and comparisons only feed float conditionals, & and
 // |: Oclgrind evaluates !v, arithmetic on a vector comparison and integer vector
 // conditionals against the specification (!-1 is -2, a true 1 ? 1 : 0 is 255).
-
-#define ABS8(v) ((v) < 0.0f ? -(v) : (v))
 
 // numpy's median of each lane of s[0 .. n)
 float8 lanes_median(__local const float8 *s, const int n)
@@ -202,21 +208,12 @@ __kernel void hidden_lanes(__global const float *plain, __global const float *de
     float8 target = 0.0f, near = 0.0f, excess_sum = 0.0f, free_bins = 0.0f, w_sum = 0.0f, wk_sum = 0.0f;
     for (int i = 0; i < n; ++i) {
         const float k = (float)(lo + i);
-        const float8 ed = sd[i] - floor_d;
-        const float8 off = ABS8(k - kt);
-        target += off <= explain ? ed : 0.0f;
-        near += off <= 3.0f ? ed : 0.0f;
         int8 explained = 0;
         for (int j = 0; j < m; ++j) {
             const float8 b = nearest[j];
-            explained |= (b == b) & (ABS8(k - b) <= explain);     // b == b: not NaN
+            explained |= (b == b) & (ABS(k - b) <= explain);      // b == b: not NaN
         }
-        const float8 e = sp[i] - floor_p;
-        excess_sum += explained ? 0.0f : e;
-        free_bins += explained ? 0.0f : 1.0f;
-        const float8 w = explained ? 0.0f : (((ABS8(k - kp) > explain) & (e > 0.0f)) ? e : 0.0f);
-        w_sum += w;
-        wk_sum += w * k;
+        SURVEY_BIN(float8, k, sd[i] - floor_d, sp[i] - floor_p, kt, kp, explained)
     }
     const float8 unexplained = excess_sum - target;
     const float8 qr = target != 0.0f ? unexplained / target : 0.0f;
