@@ -9,6 +9,7 @@ import click
 
 from fmcw_cl import __version__
 from fmcw_cl.errors import FmcwError
+from fmcw_cl.progress import latch_interrupts
 
 # name: (module of cli/, one line of help). A command's module (and numpy, scipy,
 # pyopencl, matplotlib, Dask behind it) is imported only when that command runs, so
@@ -66,6 +67,7 @@ def cli(ctx: click.Context, debug: bool) -> None:
 def main(argv: list[str] | None = None) -> None:
     """Run the CLI; a project error becomes one line on stderr and exit status 1."""
     debug = "--debug" in (sys.argv[1:] if argv is None else argv)
+    latch_interrupts()
     try:
         cli.main(args=argv, prog_name="fmcw-cl", standalone_mode=False)
     except click.exceptions.Abort:

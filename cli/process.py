@@ -13,7 +13,7 @@ from fmcw_cl import options as opts
 from fmcw_cl.api import engine_options
 from fmcw_cl.engine import make_backend, process
 from fmcw_cl.errors import FmcwError
-from fmcw_cl.progress import Progress
+from fmcw_cl.progress import Progress, check_interrupted
 from fmcw_cl.stages import faults
 from fmcw_cl.track import track_path, write_track
 
@@ -73,6 +73,7 @@ def report(s: dict, attrs: dict, quiet: bool, as_json: bool) -> None:
 def run_local(captures, outdir, options, stages, quiet, debug):
     """Yield (capture, out, attrs, valid) or (capture, error) per capture, in order."""
     for number, cap in enumerate(captures, 1):
+        check_interrupted()
         out = track_path(outdir, cap)
         bar = Progress(f"[{number}/{len(captures)}] {cap.name}", enabled=False if quiet else None)
         try:

@@ -11,8 +11,41 @@ these few lines, and the command line takes no dependency for it.
 
 from __future__ import annotations
 
+import signal
 import sys
 import time
+
+_interrupted = False
+
+
+def _on_sigint(signum, frame) -> None:
+    global _interrupted
+    _interrupted = True
+    raise KeyboardInterrupt
+
+
+def _unraisable(hook):
+    def quiet(unraisable) -> None:
+        if not (_interrupted and isinstance(unraisable.exc_value, KeyboardInterrupt)):
+            hook(unraisable)
+    return quiet
+
+
+def latch_interrupts() -> None:
+    """Make Ctrl-C stick (the command line's main thread). Python raises the
+    KeyboardInterrupt at its next bytecode check, and one that lands inside a finalizer
+    or a weak reference's callback (device buffers return to their pool that way, right
+    after the blocking waits where a conversion spends its time) is printed as ignored
+    and lost: the batch ran on (2 Ctrl-C of 6 in a test). The latch raises it again at
+    the next safe point (`check_interrupted`) and keeps the lost one from being printed."""
+    signal.signal(signal.SIGINT, _on_sigint)
+    sys.unraisablehook = _unraisable(sys.unraisablehook)
+
+
+def check_interrupted() -> None:
+    """Raise KeyboardInterrupt if Ctrl-C came since `latch_interrupts`."""
+    if _interrupted:
+        raise KeyboardInterrupt
 
 
 class Progress:
@@ -34,6 +67,7 @@ class Progress:
 
     def __call__(self, done: int, total: int | None = None,
                  sample_rate_hz: float | None = None) -> None:
+        check_interrupted()                      # each chunk: a safe point to stop at
         self.total = max(1, total) if total else self.total
         self.fs = sample_rate_hz or self.fs
         if not self.enabled:

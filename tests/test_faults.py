@@ -169,6 +169,40 @@ def test_ctrl_c_stops_cleanly(tmp_path, jump_capture):
         assert read_track(p).pairs > 0
 
 
+def test_ctrl_c_lost_in_a_finalizer_is_raised_again():
+    """A KeyboardInterrupt raised inside a finalizer (device buffers return to their pool
+    that way) is printed as ignored and lost; with the command line's latch the next
+    progress report raises it again."""
+    import gc
+    import os
+    import weakref
+
+    from fmcw_cl import progress
+
+    previous, hook = signal.getsignal(signal.SIGINT), sys.unraisablehook
+    try:
+        progress.latch_interrupts()
+
+        class Rows:
+            pass
+
+        def back_to_the_pool():
+            os.kill(os.getpid(), signal.SIGINT)     # Ctrl-C arrives while the finalizer runs
+            sum(range(1000))                        # its KeyboardInterrupt is raised here
+
+        rows = Rows()
+        weakref.finalize(rows, back_to_the_pool)
+        del rows
+        gc.collect()
+        time.sleep(0.01)                            # no KeyboardInterrupt got out
+        with pytest.raises(KeyboardInterrupt):
+            progress.Progress("job", enabled=False)(1)
+    finally:
+        signal.signal(signal.SIGINT, previous)
+        sys.unraisablehook = hook
+        progress._interrupted = False
+
+
 def test_target_crossing_the_unambiguous_range_is_flagged(tmp_path):
     """A target receding at 1 m/s from 0.42 m crosses the 0.468 m limit after 48 ms:
     pairs well inside are valid and accurate, none beyond the limit is reported valid
