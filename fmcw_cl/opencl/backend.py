@@ -1,7 +1,9 @@
-"""The OpenCL backend: the low-pass, sync crossings, resampling and the de-chirp/FFT/
-peak stage on a device. The resampled half-sweeps stay on the device across the tracker's passes;
-only turning points' sums and peaks come back. The hysteresis on the short stream of
-block means, the turning-point grid and pairing stay on the host (docs/pipeline.md).
+"""The OpenCL backend: the low-pass, the sync's block sums, their band changes and line
+fits, the clipping flags, resampling, and the de-chirp/FFT/peak/echo stage on a device.
+The resampled half-sweeps stay on the device across the tracker's passes; only the sync's
+sparse changes and sums, clipping flags and peaks come back. The band-state flips, the
+turning-point grid, pairing and the tracker's regularisation stay on the host
+(docs/pipeline.md). CPU devices get the lanes variants of the kernels that have two.
 """
 
 from __future__ import annotations

@@ -4,8 +4,10 @@ integrate, survey; all by default), `fmcw-cl devices --check`, benchmarks/gpu.py
 tests/test_oclgrind.py, which runs one group a process on Oclgrind with its checks on
 (where a GPU's work-group sizes are used: Oclgrind claims to be every kind of device).
 
-Prints one line per method; a mismatch raises SystemExit naming it. Oclgrind's
-diagnostics go to its own log (OCLGRIND_LOG), which the test reads.
+Every group runs twice, once with each variant of the kernels that have two
+(work-groups, a GPU's; float8/int8 lanes, a CPU's: `Runtime.lanes`), whichever the
+device uses. Prints one line per method; a mismatch raises SystemExit naming it.
+Oclgrind's diagnostics go to its own log (OCLGRIND_LOG), which the test reads.
 """
 
 from __future__ import annotations
