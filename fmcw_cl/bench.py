@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from .capture import Capture
-from .engine import Options, core_samples, make_backend, make_plan, process
+from .engine import Options, core_samples, fit_chunks, make_backend, make_plan, process
 from .simulator import jump, rail, simulate_capture, static
 from .stages import resample, sync
 
@@ -88,12 +88,12 @@ def _stage_rows(be, path: Path, opts: Options, seconds: float, scenes: dict[str,
         r["share_of_end_to_end"] = r["seconds"] / whole
     for name, (scene, length) in scenes.items():       # other scenes, end to end (not in the shares)
         with Capture(scene) as cap:
-            n = cap.info.samples
-            count = -(-n // core_samples(cap.info, make_plan(cap, opts, backend=be).options))
+            n, periods = cap.info.samples, cap.info.periods
+            count = -(-n // core_samples(cap.info, fit_chunks(opts, cap.info, be)))
         fn = functools.partial(process, scene, opts, be)
         secs = _timed(fn, finish, repeat=1)
         rows.append({"backend": be.name, "device": be.device, "stage": f"end to end, {name}", "seconds": secs,
-                     "half_sweeps_per_s": 2 * length / 50e-6 / secs, "msamples_per_s": n / secs / 1e6,
+                     "half_sweeps_per_s": 2 * periods / secs, "msamples_per_s": n / secs / 1e6,
                      "real_time_multiple": length / secs, "share_of_end_to_end": float("nan"),
                      **_where_time_goes(be, fn, finish, length, count)})
     return rows
@@ -105,8 +105,7 @@ def _where_time_goes(be, fn, finish, seconds: float, chunks: int) -> dict:
     a GPU's end to end), its share of the wall time (the rest the host waits for the
     device or the reads), and per chunk the kernel launches and the copies each way."""
     rt = getattr(be, "rt", None)
-    counts = ("launches", "uploads", "downloads", "upload_bytes", "download_bytes")
-    before = {k: getattr(rt.traffic, k) for k in counts} if rt is not None else {}
+    before = {k: v for k, v in vars(rt.traffic).items() if isinstance(v, int)} if rt is not None else {}
     if rt is not None:
         rt.traffic.events = []
     wall, cpu = time.perf_counter(), time.thread_time()
@@ -115,8 +114,8 @@ def _where_time_goes(be, fn, finish, seconds: float, chunks: int) -> dict:
     wall, cpu = time.perf_counter() - wall, time.thread_time() - cpu
     got = {"host_cpu_ms_per_s": 1e3 * cpu / seconds, "host_share_of_wall": cpu / wall, "chunks": chunks}
     if rt is not None:
-        for key in counts:
-            got[f"{key}_per_chunk"] = (getattr(rt.traffic, key) - before[key]) / chunks
+        for key, value in before.items():
+            got[f"{key}_per_chunk"] = (getattr(rt.traffic, key) - value) / chunks
         got["device_busy_share"] = rt.traffic.busy_seconds() / wall
         rt.traffic.events = None
     return got

@@ -257,18 +257,10 @@ class Capture:
         self._file.close()
 
     def read(self, start: int, stop: int) -> tuple[np.ndarray, np.ndarray]:
-        """Samples [start, stop) of (beat, sync) as int16 ADC codes (clipped to the file)."""
-        start = max(0, int(start))
-        stop = min(self.info.samples, int(stop))
-        if stop <= start:
-            empty = np.zeros(0, np.int16)
-            return empty, empty.copy()
-        try:
-            beat = self._beat[start:stop]
-            sync = self._sync[start:stop]
-        except (OSError, ValueError) as exc:
-            raise CaptureError(self.path, f"cannot read samples {start}-{stop} ({exc})") from None
-        return beat.astype(np.int16, copy=False), sync.astype(np.int16, copy=False)
+        """Samples [start, stop) of (beat, sync) as int16 ADC codes (clipped to the file),
+        in new arrays."""
+        n = max(0, min(self.info.samples, int(stop)) - max(0, int(start)))
+        return self.read_into(start, stop, np.empty(n, np.int16), np.empty(n, np.int16))
 
     def read_into(self, start: int, stop: int, beat: np.ndarray, sync: np.ndarray
                   ) -> tuple[np.ndarray, np.ndarray]:

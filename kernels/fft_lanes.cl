@@ -46,17 +46,9 @@ float lane(__local const float8 *a, const int k, const int l)
 }
 
 // peak_position (peak.cl) of lane l
-float peak_position_lane(__local const float8 *pw, const int half_n, int kk, const int l)
+float peak_position_lane(__local const float8 *pw, const int half_n, const int kk, const int l)
 {
-    kk = kk < 1 ? 1 : (kk > half_n - 2 ? half_n - 2 : kk);
-    const float tiny = 1.0e-30f;
-    const float a = log(lane(pw, kk - 1, l) + tiny);
-    const float b = log(lane(pw, kk, l) + tiny);
-    const float c = log(lane(pw, kk + 1, l) + tiny);
-    const float den = a - 2.0f * b + c;
-    float delta = den < 0.0f ? 0.5f * (a - c) / den : 0.0f;
-    delta = delta < -0.5f ? -0.5f : (delta > 0.5f ? 0.5f : delta);
-    return (float)kk + delta;
+    return peak_position_strided((__local const float *)pw + l, 8, half_n, kk);
 }
 
 // local_peak (peak.cl) of every lane: the band's arg-max (ties: the lowest bin), then

@@ -4,19 +4,25 @@
 // whole work-group (fft.cl's spectrum_peak); only the peak leaves the device.
 // Twin: fmcw_cl.stages.spectrum.find_peaks.
 
-// Fractional position of the peak at bin kk (clipped to the inner bins): a parabola
-// through the log power of three bins (Gaussian interpolation).
-float peak_position(__local const float *pw, const int half_n, int kk)
+// Fractional position of the peak at bin kk (clipped to the inner bins) of a power
+// spectrum whose bins lie `stride` floats apart (1; 8 for one lane of fft_lanes.cl's
+// float8 bins): a parabola through the log power of three bins (Gaussian interpolation).
+float peak_position_strided(__local const float *pw, const int stride, const int half_n, int kk)
 {
     kk = kk < 1 ? 1 : (kk > half_n - 2 ? half_n - 2 : kk);
     const float tiny = 1.0e-30f;
-    const float a = log(pw[kk - 1] + tiny);
-    const float b = log(pw[kk] + tiny);
-    const float c = log(pw[kk + 1] + tiny);
+    const float a = log(pw[stride * (kk - 1)] + tiny);
+    const float b = log(pw[stride * kk] + tiny);
+    const float c = log(pw[stride * (kk + 1)] + tiny);
     const float den = a - 2.0f * b + c;
     float delta = den < 0.0f ? 0.5f * (a - c) / den : 0.0f;
     delta = delta < -0.5f ? -0.5f : (delta > 0.5f ? 0.5f : delta);
     return (float)kk + delta;
+}
+
+float peak_position(__local const float *pw, const int half_n, const int kk)
+{
+    return peak_position_strided(pw, 1, half_n, kk);
 }
 
 void local_peak(__local const float *pw,   // power of bins 0 .. half_n - 1

@@ -36,11 +36,15 @@ ALIAS_M = 0.01        # ... when the N-point peak lies this close to its mirror 
 CLIP_BLOCK = 256      # codes per block of the clipping flags
 
 
+def is_clipped(codes: np.ndarray, full_scale: int) -> np.ndarray:
+    """Codes at -full_scale or at full_scale - 1 and beyond."""
+    return (codes <= -full_scale) | (codes >= full_scale - 1)
+
+
 def clip_flags(codes: np.ndarray, block: int, full_scale: int) -> np.ndarray:
-    """Whether each block of `block` codes (the last one partial) holds a clipped code:
-    at -full_scale or at full_scale - 1 and beyond. The numpy twin of the `clip_blocks`
-    kernel (kernels/faults.cl)."""
-    hit = (codes <= -full_scale) | (codes >= full_scale - 1)
+    """Whether each block of `block` codes (the last one partial) holds a clipped code
+    (`is_clipped`). The numpy twin of the `clip_blocks` kernel (kernels/faults.cl)."""
+    hit = is_clipped(codes, full_scale)
     pad = -hit.size % block
     return np.concatenate([hit, np.zeros(pad, bool)]).reshape(-1, block).any(axis=1)
 
@@ -71,7 +75,7 @@ def clipped(codes: np.ndarray, starts: np.ndarray, lengths: np.ndarray, full_sca
     for i in np.flatnonzero(~out & (b > a) & ends):
         for lo, hi in ((a[i], min(b[i], first[i] * block)), (max(a[i], last[i] * block), b[i])):
             if hi > lo:
-                out[i] |= bool(np.any((codes[lo:hi] <= -full_scale) | (codes[lo:hi] >= full_scale - 1)))
+                out[i] |= bool(np.any(is_clipped(codes[lo:hi], full_scale)))
     return out
 
 
