@@ -17,8 +17,8 @@ def backend():
     return OpenCLBackend()
 
 
-@pytest.mark.parametrize("sweeps,points", [(1, 1000), (777, 1000), (33, 2048), (5, 999)])
-def test_resample_kernel_matches_numpy(backend, sweeps, points):
+@pytest.mark.parametrize("sweeps,points", [(1, 1000), (777, 1000), (33, 2048), (5, 999), (3, 7)])
+def test_resample_kernel_matches_numpy(backend, kernel_variant, sweeps, points):
     rng = np.random.default_rng(sweeps)
     codes = rng.integers(-8192, 8192, 60_001).astype(np.int16)   # white: the hardest case
     codes[:5000] = 8191                                            # a clipped stretch

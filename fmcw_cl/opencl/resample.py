@@ -8,7 +8,7 @@ from ..numeric import median
 from .buffers import Buffers, DeviceRows, Packed
 from .context import Runtime, cl
 
-LOCAL = (4, 128)    # work-group size on CPUs (one scalar loop a work-item: small groups keep it local), GPUs
+GPU_LOCAL = 128     # work-items of `resample`'s groups (a half-sweep each)
 
 
 def resample(rt: Runtime, bufs: Buffers, codes: np.ndarray, starts: np.ndarray,
@@ -32,8 +32,10 @@ def resample(rt: Runtime, bufs: Buffers, codes: np.ndarray, starts: np.ndarray,
     out = DeviceRows(bufs, sweeps, points)
     if sweeps == 0:
         return out
-    lsz = rt.group_size(*LOCAL)
-    k = rt.kernel("resample", "resample")
-    k(rt.queue, (sweeps * lsz,), (lsz,), d_codes, d_base, d_off, d_dlen, d_int, d_frac, d_u, d_win,
-      np.int32(points), out.buffer, cl.LocalMemory(4 * lsz))
+    args = (d_codes, d_base, d_off, d_dlen, d_int, d_frac, d_u, d_win, np.int32(points))
+    if rt.lanes:
+        rt.kernel("resample", "resample_lanes")(rt.queue, (sweeps,), (1,), *args, out.buffer)
+    else:
+        rt.kernel("resample", "resample")(rt.queue, (sweeps * GPU_LOCAL,), (GPU_LOCAL,), *args, out.buffer,
+                                          cl.LocalMemory(4 * GPU_LOCAL))
     return out
