@@ -17,25 +17,29 @@
 SINCOS_CYCLES(sincos_cycles8, float8)
 RADIX4(radix4_8, float8)
 
+// Sample j of the eight rows r, as one vector built from eight loads (scalar stores read
+// back as a vector would stall on store forwarding).
+#define ROWS8(r, j) ((float8)(r[0][j], r[1][j], r[2][j], r[3][j], r[4][j], r[5][j], r[6][j], r[7][j]))
+
 // Sample j of each lane's transform input (load in fft.cl), zero past the points.
 void load8(__global const float *const *ra, __global const float *const *rb,
            __global const float *beta, const float8 v, const int dechirp, const int points,
            const int j, float8 *re, float8 *im)
 {
-    float a[8], b[8];
-    for (int l = 0; l < 8; ++l) {
-        a[l] = j < points ? ra[l][j] : 0.0f;
-        b[l] = j < points && rb[l] ? rb[l][j] : 0.0f;
+    if (j >= points) {
+        *re = 0.0f;
+        *im = 0.0f;
+        return;
     }
-    const float8 xa = vload8(0, a);
+    const float8 xa = ROWS8(ra, j);
     if (dechirp) {
         float8 c, s;
-        sincos_cycles8(v * (j < points ? beta[j] : 0.0f), &s, &c);
+        sincos_cycles8(v * beta[j], &s, &c);
         *re = xa * c;
         *im = -xa * s;
     } else {
+        *im = ROWS8(rb, j);
         *re = xa;
-        *im = vload8(0, b);
     }
 }
 
@@ -191,7 +195,8 @@ __kernel void spectrum_lanes(__global const float *x, const int sweeps, const in
         first[l] = active ? s : -1;
         const int row = active ? (indexed ? index[s] : s) : 0;
         ra[l] = x + (size_t)row * points;
-        rb[l] = !dechirp && active && s + 1 < sweeps ? ra[l] + points : 0;
+        // a plain row's partner; a lone last row pairs with itself (the copy is not reported)
+        rb[l] = !dechirp && active && s + 1 < sweeps ? ra[l] + points : ra[l];
         vl[l] = dechirp && active ? velocity[s] : 0.0f;
     }
     const float8 v = vload8(0, vl);
@@ -242,7 +247,7 @@ __kernel void spectrum_lanes(__global const float *x, const int sweeps, const in
     for (int r = 0; r < rows; ++r) {
         __local const float8 *p_r = pw + r * half_n;
         int sweep[8];
-        for (int l = 0; l < 8; ++l) sweep[l] = first[l] >= 0 && (r == 0 || rb[l]) ? first[l] + r : -1;
+        for (int l = 0; l < 8; ++l) sweep[l] = first[l] >= 0 && (r == 0 || first[l] + 1 < sweeps) ? first[l] + r : -1;
         if (keep_power) {
             for (int l = 0; l < 8; ++l) {
                 if (sweep[l] < 0) continue;
