@@ -18,6 +18,7 @@ import numpy as np
 
 from .atomic import atomic_path
 from .errors import CaptureError
+from .extents import Extents
 
 FORMAT = "capture"
 FORMAT_VERSION = 1
@@ -246,6 +247,9 @@ class Capture:
             raise CaptureError(self.path, f"damaged capture ({exc})") from None
         self._beat = self._file["adc/beat"]
         self._sync = self._file["adc/sync"]
+        # channels stored raw are read straight from the file (fmcw_cl.extents)
+        self._extents = [Extents.of(self._beat), Extents.of(self._sync)]
+        self._fd = os.open(self.path, os.O_RDONLY) if any(self._extents) else None
 
     def __enter__(self) -> Capture:
         return self
@@ -255,6 +259,9 @@ class Capture:
 
     def close(self) -> None:
         self._file.close()
+        if self._fd is not None:
+            os.close(self._fd)
+            self._fd = None
 
     def read(self, start: int, stop: int) -> tuple[np.ndarray, np.ndarray]:
         """Samples [start, stop) of (beat, sync) as int16 ADC codes (clipped to the file),
@@ -271,9 +278,13 @@ class Capture:
         stop = min(self.info.samples, int(stop))
         n = max(0, stop - start)
         try:
-            if n:
-                self._beat.read_direct(beat, np.s_[start:stop], np.s_[0:n])
-                self._sync.read_direct(sync, np.s_[start:stop], np.s_[0:n])
+            for ds, ext, out in ((self._beat, self._extents[0], beat), (self._sync, self._extents[1], sync)):
+                if not n:
+                    break
+                if ext is not None and out.dtype == np.int16 and out.flags.c_contiguous:
+                    ext.read(self._fd, start, stop, out)
+                else:
+                    ds.read_direct(out, np.s_[start:stop], np.s_[0:n])
         except (OSError, ValueError, TypeError) as exc:
             raise CaptureError(self.path, f"cannot read samples {start}-{stop} ({exc})") from None
         return beat[:n], sync[:n]

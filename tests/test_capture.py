@@ -145,3 +145,73 @@ def test_chunks_in_reused_slots_hold_the_same_samples(static_capture):
             seen.append(chunk.beat.base if chunk.beat.base is not None else chunk.beat)
         assert len(fresh) >= 3 and fresh[-1].beat.size < fresh[0].beat.size
         assert seen[2] is seen[0] and seen[1] is not seen[0]
+
+
+def _relayout(path, tmp_path, layout):
+    """The capture at `path` with both channels stored in `layout`; whether the samples
+    are then read straight from the file (fmcw_cl.extents) or through h5py."""
+    with h5py.File(path, "r") as f:
+        beat, sync = f["adc/beat"][()], f["adc/sync"][()]
+    if layout == "user block":
+        moved = tmp_path / "ub.h5"
+        with h5py.File(path, "r") as src, h5py.File(moved, "w", userblock_size=512) as dst:
+            for k, v in src.attrs.items():
+                dst.attrs[k] = v
+            for name in src:
+                src.copy(name, dst)
+        moved.replace(path)
+        return False
+    raw = {"contiguous": {}, "odd chunks": {"chunks": (4097,)},
+           "chunks written backwards": {"chunks": (1000,)}}
+    kinds = {**raw, "gzip": {"chunks": (5000,), "compression": "gzip"},
+             "big-endian": {"dtype": ">i2"}, "int32": {"dtype": np.int32},
+             "chunks not all written": {"chunks": (1000,)}}
+    with h5py.File(path, "a") as f:
+        for name, data in (("beat", beat), ("sync", sync)):
+            attrs = dict(f["adc"][name].attrs)
+            del f["adc"][name]
+            opts = {"dtype": np.int16, **kinds[layout]}
+            ds = f["adc"].create_dataset(name, data.shape, **opts)
+            if layout == "chunks written backwards":
+                for a in range(data.size // 1000 * 1000, -1, -1000):
+                    ds[a: a + 1000] = data[a: a + 1000]
+            elif layout == "chunks not all written":
+                ds[:3000] = data[:3000]              # the rest: HDF5's fill value, 0
+            else:
+                ds[...] = data
+            for k, v in attrs.items():
+                ds.attrs[k] = v
+    return layout in raw
+
+
+@pytest.mark.parametrize("layout", ["contiguous", "odd chunks", "chunks written backwards", "gzip",
+                                    "big-endian", "int32", "chunks not all written", "user block"])
+def test_every_layout_reads_the_same_samples(tmp_path, layout):
+    """Raw int16 channels are read straight from the file (fmcw_cl.extents), any other
+    layout through h5py; either way every range holds what h5py reads there."""
+    path = tmp_path / "c.h5"
+    write(path, samples=23_457)
+    direct = _relayout(path, tmp_path, layout)
+    rng = np.random.default_rng(7)
+    ranges = [(0, 1), (999, 1001), (4096, 4098), (0, 23_457), (23_450, 23_500)]
+    ranges += [tuple(sorted(rng.integers(0, 23_457, 2))) for _ in range(20)]
+    with Capture(path) as cap, h5py.File(path, "r") as f:
+        assert [e is not None for e in cap._extents] == [direct, direct]
+        for a, b in ranges:
+            beat, sync = cap.read(a, b)
+            np.testing.assert_array_equal(beat, f["adc/beat"][a:b].astype(np.int64).clip(-32768, 32767))
+            np.testing.assert_array_equal(sync, f["adc/sync"][a:b].astype(np.int64).clip(-32768, 32767))
+
+
+def test_a_file_cut_after_opening_fails_its_read(tmp_path):
+    """A raw channel whose bytes are gone (the file cut after it was opened) is a
+    one-line error naming the file and the samples, not short data."""
+    path = tmp_path / "c.h5"
+    write(path, samples=23_457)
+    with Capture(path) as cap:
+        assert cap._extents[0] is not None
+        size = path.stat().st_size
+        with open(path, "r+b") as f:
+            f.truncate(size // 2)
+        with pytest.raises(CaptureError, match=r"c\.h5: cannot read samples 0-23457 \(the file ends"):
+            cap.read(0, 23_457)

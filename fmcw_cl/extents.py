@@ -1,0 +1,75 @@
+"""Where a raw int16 channel's samples lie in its HDF5 file, for reads straight from it.
+
+h5py's `read_direct` copies a chunked dataset through HDF5's own buffers; where the
+samples are stored as they are (no filter, little-endian int16, every chunk written),
+one `preadv` per chunk into the destination moves each byte once: half the CPU time
+(0.3 s of 100 MS/s here: 22 against 42 ms a channel, then 10 against 21 warm). Any
+other layout (compressed, big-endian, a user block, unwritten chunks, no `preadv`)
+has no extents and is read through h5py, as every capture written to the contract can be.
+"""
+
+from __future__ import annotations
+
+import os
+
+import h5py
+import numpy as np
+
+ITEM = 2    # bytes a sample
+
+
+class Extents:
+    """File byte offsets of a 1-D int16 dataset's runs of samples.
+
+    `starts[i]` is the first sample of run i and `offsets[i]` its byte offset in the
+    file; a run ends where the next begins (a contiguous dataset is one run, a chunked
+    one a run per chunk, in sample order whatever their order in the file).
+    """
+
+    def __init__(self, starts: np.ndarray, offsets: np.ndarray, samples: int) -> None:
+        self.starts, self.offsets, self.samples = starts, offsets, samples
+
+    @classmethod
+    def of(cls, dset: h5py.Dataset) -> Extents | None:
+        """The extents of `dset`, or None when its samples are not stored raw."""
+        if not hasattr(os, "preadv") or dset.ndim != 1 or dset.dtype != np.dtype("<i2"):
+            return None
+        try:
+            if dset.file.userblock_size or dset.id.get_create_plist().get_nfilters():
+                return None
+            n = dset.shape[0]
+            if dset.chunks is None:
+                offset = dset.id.get_offset()
+                return None if offset is None else cls(np.zeros(1, np.int64), np.array([offset]), n)
+            size = dset.chunks[0]
+            count = -(-n // size)
+            if dset.id.get_num_chunks() != count:       # some never written: HDF5's fill value
+                return None
+            infos = [dset.id.get_chunk_info(i) for i in range(count)]
+        except (AttributeError, OSError, RuntimeError, ValueError):
+            return None               # an HDF5 without the chunk queries: h5py reads it
+        if any(c.filter_mask or c.size != size * ITEM for c in infos):
+            return None
+        order = sorted(infos, key=lambda c: c.chunk_offset[0])
+        starts = np.array([c.chunk_offset[0] for c in order], np.int64)
+        if not np.array_equal(starts, np.arange(count, dtype=np.int64) * size):
+            return None
+        return cls(starts, np.array([c.byte_offset for c in order], np.int64), n)
+
+    def read(self, fd: int, start: int, stop: int, out: np.ndarray) -> None:
+        """Samples [start, stop) into out[:stop - start] (a contiguous int16 array).
+
+        Raises OSError when the file ends early (a truncated copy)."""
+        view = memoryview(out).cast("B")
+        first = int(np.searchsorted(self.starts, start, side="right")) - 1
+        pos = start
+        for i in range(first, self.starts.size):
+            if pos >= stop:
+                break
+            end = min(stop, int(self.starts[i + 1]) if i + 1 < self.starts.size else self.samples)
+            want = (end - pos) * ITEM
+            got = os.preadv(fd, [view[(pos - start) * ITEM: (end - start) * ITEM]],
+                            int(self.offsets[i]) + (pos - int(self.starts[i])) * ITEM)
+            if got != want:
+                raise OSError(f"the file ends {want - got} bytes into samples {pos}-{end}")
+            pos = end
