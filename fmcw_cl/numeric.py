@@ -1,6 +1,12 @@
-"""Medians for the host's many small arrays, without np.median's per-call overhead
-(30-45 us, against 3-4 us for a partition of a few hundred values): the tracker and the
-echo tables take them per chunk, per slice and per cluster."""
+"""Small numerics of the host, in numpy alone.
+
+Medians for the host's many small arrays, without np.median's per-call overhead (30-45
+us, against 3-4 us for a partition of a few hundred values): the tracker and the echo
+tables take them per chunk, per slice and per cluster. A running median and a
+Savitzky-Golay derivative that equal scipy.ndimage.median_filter's and
+scipy.signal.savgol_filter's: importing those two modules costs a second (scipy.signal
+imports scipy.stats), which every fresh process converting a capture paid.
+"""
 
 from __future__ import annotations
 
@@ -24,3 +30,35 @@ def row_nanmedian(a: np.ndarray) -> np.ndarray:
     n = np.sum(~np.isnan(a), axis=1)
     rows = np.arange(a.shape[0])
     return 0.5 * (s[rows, (n - 1) // 2] + s[rows, n // 2])
+
+
+def running_median(x: np.ndarray, size: int) -> np.ndarray:
+    """Median of each value's `size` (odd) neighbourhood, the ends extended with the end
+    values: scipy.ndimage.median_filter(x, size, mode="nearest") for finite x."""
+    half = size // 2
+    if np.size(x) == 0:
+        return np.zeros(0)
+    windows = np.lib.stride_tricks.sliding_window_view(np.pad(np.asarray(x, np.float64), half, mode="edge"),
+                                                       size)
+    return np.partition(windows, half, axis=1)[:, half]
+
+
+def savgol_derivative(x: np.ndarray, window: int, order: int, delta: float) -> np.ndarray:
+    """First derivative of x (spacing `delta`) by Savitzky-Golay smoothing: the slope of
+    the least-squares polynomial of `order` over each centred `window` (odd, at most
+    x.size); the first and last window // 2 values from the polynomial fitted to the
+    first and last `window` values. scipy.signal.savgol_filter(x, window, order,
+    deriv=1, delta=delta, mode="interp")."""
+    x = np.asarray(x, np.float64)
+    half = window // 2
+    t = np.arange(window, dtype=np.float64)
+    # the slope at the centre is a fixed weighting of the window: the row of the
+    # least-squares solution that holds the linear coefficient (powers of t - half)
+    weights = np.linalg.pinv(np.vander(t - half, order + 1, increasing=True))[1] / delta
+    out = np.empty_like(x)
+    out[half: x.size - half] = np.lib.stride_tricks.sliding_window_view(x, window) @ weights
+    for edge, at in ((slice(0, window), slice(0, half)),
+                     (slice(x.size - window, x.size), slice(x.size - half, x.size))):
+        slope = np.polyder(np.polyfit(t, x[edge], order))
+        out[at] = np.polyval(slope, t[at.start - edge.start: at.stop - edge.start]) / delta
+    return out

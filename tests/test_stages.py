@@ -193,3 +193,27 @@ def test_small_array_medians_equal_numpys():
     a[rng.random(a.shape) < 0.4] = np.nan
     a[:, 0] = 1.0                                   # every row holds a number
     np.testing.assert_array_equal(row_nanmedian(a), np.nanmedian(a, axis=1))
+
+
+def test_running_median_and_savgol_derivative_equal_scipys():
+    """The tracker's running median and the acceleration's Savitzky-Golay derivative
+    (fmcw_cl.numeric: scipy.signal and scipy.ndimage cost a second to import) against
+    scipy's: on random walks of odd and even lengths, windows from 3 to 21, the run
+    shorter than the window included."""
+    from scipy.ndimage import median_filter
+    from scipy.signal import savgol_filter
+
+    from fmcw_cl.numeric import running_median, savgol_derivative
+
+    rng = np.random.default_rng(9)
+    assert running_median(np.zeros(0), 17).size == 0
+    for n in (1, 3, 4, 8, 17, 20, 21, 22, 100, 1001):
+        x = np.cumsum(rng.normal(size=n)) * 3 + 7
+        for size in (1, 3, 17):
+            want = median_filter(x, size=size, mode="nearest")
+            np.testing.assert_array_equal(running_median(x, size), want)
+        for window, order in ((21, 2), (n - 1 + n % 2, 2), (5, 1), (7, 3), (3, 2)):
+            if 1 <= order < window <= n:
+                want = savgol_filter(x, window, order, deriv=1, delta=5e-5, mode="interp")
+                np.testing.assert_allclose(savgol_derivative(x, window, order, 5e-5), want,
+                                           rtol=1e-10, atol=1e-10 * np.abs(want).max())

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..numeric import savgol_derivative
+
 WINDOW_PAIRS = 21
 POLYORDER = 2
 
@@ -20,16 +22,13 @@ def acceleration(velocity: np.ndarray, valid: np.ndarray, period_s: float,
     Invalid pairs are skipped: each run of consecutive valid pairs is differentiated
     on its own, so no value is invented across a gap. Invalid pairs get NaN.
     """
-    from scipy.signal import savgol_filter  # a second to import: only where a track is made
-
     acc = np.full(velocity.shape, np.nan)
     edges = np.flatnonzero(np.diff(np.concatenate([[0], valid.astype(np.int8), [0]])))
     for a, b in zip(edges[::2], edges[1::2], strict=False):
         n = b - a
         if n >= window:
-            acc[a:b] = savgol_filter(velocity[a:b], window, POLYORDER, deriv=1, delta=period_s)
+            acc[a:b] = savgol_derivative(velocity[a:b], window, POLYORDER, period_s)
         elif n >= 3:
             w = n if n % 2 else n - 1
-            acc[a:b] = savgol_filter(velocity[a:b], w, min(POLYORDER, w - 1), deriv=1,
-                                     delta=period_s, mode="interp")
+            acc[a:b] = savgol_derivative(velocity[a:b], w, min(POLYORDER, w - 1), period_s)
     return acc

@@ -20,6 +20,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from .. import numeric
 from ..numeric import median, row_nanmedian
 from ..physics import C
 from . import cfar, integrate
@@ -215,9 +216,7 @@ def continuity(t: np.ndarray, dist: np.ndarray, vel: np.ndarray, trusted: np.nda
 
 def running_median(v: np.ndarray) -> np.ndarray:
     """Median of each pair's 2 NEIGHBOURS + 1 pairs (edges: nearest)."""
-    from scipy.ndimage import median_filter  # imported where used: the command line starts fast
-
-    return median_filter(v, size=2 * NEIGHBOURS + 1, mode="nearest")
+    return numeric.running_median(v, 2 * NEIGHBOURS + 1)
 
 
 def regularise(v: np.ndarray, trusted: np.ndarray, time: np.ndarray) -> np.ndarray:
