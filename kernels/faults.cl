@@ -12,6 +12,7 @@ __kernel void clip_blocks(__global const short *x,
 {
     const int b = get_global_id(0);
     const int a = b * block;
+    if (a >= n) return;
     const int e = a + block < n ? a + block : n;
     int hit = 0;
     int i = a;

@@ -10,9 +10,11 @@ __kernel void cic_decimate(__global const short *x,
                            __global const float *h,     // (taps,)
                            const int taps,
                            const int factor,
+                           const int m,                 // outputs
                            __global float *out)
 {
     const int j = get_global_id(0);
+    if (j >= m) return;
     __global const short *p = x + (size_t)j * factor;
     float8 acc8 = 0.0f;
     int k = 0;
@@ -32,6 +34,7 @@ __kernel void fir_same(__global const float *x,
                        __global float *out)
 {
     const int j = get_global_id(0);
+    if (j >= n) return;
     const int a = j - half_taps < 0 ? half_taps - j : 0;
     const int b = j + half_taps >= n ? half_taps + (n - 1 - j) : 2 * half_taps;
     __global const float *p = x + j - half_taps;

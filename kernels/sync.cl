@@ -9,12 +9,14 @@
 // work-item 0 also zeroes crossing_changes' two counters (this kernel always runs first).
 __kernel void block_sum(__global const short *x,
                         const int factor,
+                        const int m,              // blocks
                         const int stride,
                         __global int *out,
                         __global int *sampled,
                         __global int *counters)
 {
     const int j = get_global_id(0);
+    if (j >= m) return;
     __global const short *p = x + (size_t)j * factor;
     int s = 0;
     for (int k = 0; k < factor; ++k) s += p[k];

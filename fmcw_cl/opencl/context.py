@@ -77,6 +77,7 @@ def select_device(selector: str | None = None):
 
 GPU, CPU, OTHER, SIMULATOR = range(4)
 SIMULATORS = ("oclgrind",)     # kernel checkers: they claim every device type
+ITEMS_LOCAL = (64, 128)        # local size of one-work-item-per-output launches (CPU, GPU): `Runtime.items`
 
 
 def is_simulator(device) -> bool:
@@ -181,6 +182,15 @@ class Runtime:
         """A work-group size by device type: PoCL vectorises across work-items and
         measured fastest with small groups; GPUs want many work-items a group."""
         return gpu if self.device.type & cl.device_type.GPU else cpu
+
+    def items(self, n: int) -> tuple[tuple[int], tuple[int]]:
+        """Global and local size of a launch of n work-items, for a kernel that ignores
+        ids from n on: the local size is fixed per device type (ITEMS_LOCAL). PoCL builds
+        a kernel anew for each local size it meets (0.1-0.2 s, cached on disk by size),
+        and the one it picks itself follows the global size: every capture of another
+        length, and every chunk with another count of sync crossings, paid for builds."""
+        lsz = self.group_size(*ITEMS_LOCAL)
+        return (-(-n // lsz) * lsz,), (lsz,)
 
     def kernel(self, program: str, name: str):
         """Kernel `name` of kernels/<program>.cl (built and retrieved once)."""

@@ -15,7 +15,7 @@ def clip_flags(rt: Runtime, bufs: Buffers, codes: np.ndarray, block: int, full_s
     flags = np.zeros(blocks, np.uint8)
     if blocks:
         d_flags = bufs.get("clip_flags", blocks)
-        rt.kernel("faults", "clip_blocks")(rt.queue, (blocks,), None, bufs.upload_once("codes", codes),
+        rt.kernel("faults", "clip_blocks")(rt.queue, *rt.items(blocks), bufs.upload_once("codes", codes),
                                            np.int32(codes.size), np.int16(-full_scale),
                                            np.int16(full_scale - 1), np.int32(block), d_flags)
         rt.copy(flags, d_flags)

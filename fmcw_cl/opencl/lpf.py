@@ -38,10 +38,10 @@ def intensity(rt: Runtime, bufs: Buffers, x: np.ndarray, sample_rate_hz: float,
         taps = fir_taps(sample_rate_hz / factor)
         d_dec = bufs.get("lpf_decimated", 4 * m)
         d_out = bufs.get("lpf_out", 4 * m)
-        rt.kernel("lpf", "cic_decimate")(rt.queue, (m,), None, bufs.upload_once("lpf_in", x),
+        rt.kernel("lpf", "cic_decimate")(rt.queue, *rt.items(m), bufs.upload_once("lpf_in", x),
                                          bufs.constant("lpf_cic", h), np.int32(h.size),
-                                         np.int32(factor), d_dec)
-        rt.kernel("lpf", "fir_same")(rt.queue, (m,), None, d_dec, np.int32(m),
+                                         np.int32(factor), np.int32(m), d_dec)
+        rt.kernel("lpf", "fir_same")(rt.queue, *rt.items(m), d_dec, np.int32(m),
                                      bufs.constant("lpf_taps", taps), np.int32(taps.size // 2), d_out)
         rt.copy(out, d_out)
     return out.astype(np.float64), lpf.CIC_ORDER * (factor - 1) / 2.0, float(factor)

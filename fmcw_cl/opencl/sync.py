@@ -34,11 +34,11 @@ def coarse(rt: Runtime, bufs: Buffers, x: np.ndarray, factor: int, level: float 
     out = np.empty(2 + 2 * cap_e + 3 * cap_s, np.int32)
     d_sums, d_sampled = bufs.get("block_sums", 4 * m), bufs.get("block_sampled", sampled.nbytes)
     d_out = bufs.get("crossing_changes", out.nbytes)        # its counters zeroed by block_sum
-    rt.kernel("sync", "block_sum")(rt.queue, (m,), None, _codes(bufs, x), np.int32(factor), np.int32(stride),
-                                   d_sums, d_sampled, d_out)
+    rt.kernel("sync", "block_sum")(rt.queue, *rt.items(m), _codes(bufs, x), np.int32(factor), np.int32(m),
+                                   np.int32(stride), d_sums, d_sampled, d_out)
     rt.copy(sampled, d_sampled)
     lv = sync.levels(sampled.astype(np.float64), factor, level)
-    rt.kernel("sync", "crossing_changes")(rt.queue, (m,), None, d_sums, np.int32(m), np.int32(lv.high),
+    rt.kernel("sync", "crossing_changes")(rt.queue, *rt.items(m), d_sums, np.int32(m), np.int32(lv.high),
                                           np.int32(lv.low), np.int32(lv.mid), np.int32(cap_e),
                                           np.int32(cap_s), d_out)
     rt.copy(out, d_out)
@@ -67,7 +67,7 @@ def line_fit_sums(rt: Runtime, bufs: Buffers, x: np.ndarray, centre: np.ndarray,
         args = (_codes(bufs, x), bufs.upload("fit_centre", centre.astype(np.int32)), np.int32(half),
                 np.int32(np.floor(spike)), np.int32(max(1, (2**31 - 1) // (max(half, 1) * 32768 + 32768))), d)
         if rt.lanes:
-            rt.kernel("sync", "line_fit_lanes")(rt.queue, (n,), None, *args)
+            rt.kernel("sync", "line_fit_lanes")(rt.queue, (n,), (1,), *args)   # a work-item a centre
         else:
             lsz = rt.group_size(16, 128)
             rt.kernel("sync", "line_fit")(rt.queue, (n * lsz,), (lsz,), *args, cl.LocalMemory(8 * lsz),
