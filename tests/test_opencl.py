@@ -219,6 +219,28 @@ def test_opencl_track_equals_numpy_track(request, name):
     assert a.attrs["chunk_periods"] == b.attrs["chunk_periods"] == 1024
 
 
+def test_every_kernel_launches_with_one_local_size(static_capture, monkeypatch):
+    """PoCL builds a kernel anew (0.1-0.2 s) for each local size it meets, and picks one
+    that follows the global size when the launch leaves it open: across chunks of other
+    lengths (and counts of sync crossings), each kernel must keep one fixed local size."""
+    from fmcw_cl.opencl import context
+
+    seen: dict[str, set] = {}
+    launch = context._Counted.__call__
+
+    def spy(self, queue, global_size, local_size, *args):
+        seen.setdefault(self.kernel.function_name, set()).add(local_size)
+        return launch(self, queue, global_size, local_size, *args)
+
+    monkeypatch.setattr(context._Counted, "__call__", spy)
+    be = make_backend("opencl")
+    for periods in (97, 160):         # cores and the last partial chunk of other lengths
+        process(static_capture, Options(chunk_periods=periods), be)
+    assert {"resample_lanes", "spectrum_lanes", "block_sum", "crossing_changes", "line_fit_lanes",
+            "clip_blocks", "cic_decimate", "fir_same"} <= set(seen)
+    assert all(len(sizes) == 1 and None not in sizes for sizes in seen.values()), seen
+
+
 def test_kernel_build_failure_falls_back_or_fails(monkeypatch):
     """A kernel that does not build: auto warns and takes numpy, opencl fails, and the
     build log is saved where the message says."""
