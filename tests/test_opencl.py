@@ -241,6 +241,19 @@ def test_every_kernel_launches_with_one_local_size(static_capture, monkeypatch):
     assert all(len(sizes) == 1 and None not in sizes for sizes in seen.values()), seen
 
 
+def test_a_conversion_on_the_device_imports_no_scipy(static_capture):
+    """scipy.signal and scipy.ndimage took a second to import in every fresh process
+    that converted a capture: the OpenCL path imports no scipy module at all."""
+    import subprocess
+    import sys
+
+    code = ("import sys; from fmcw_cl.engine import make_backend, process; "
+            f"process({str(static_capture)!r}, backend=make_backend('opencl')); "
+            "print(sorted(m for m in sys.modules if m.split('.')[0] == 'scipy'))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]", out.stdout
+
+
 def test_kernel_build_failure_falls_back_or_fails(monkeypatch):
     """A kernel that does not build: auto warns and takes numpy, opencl fails, and the
     build log is saved where the message says."""
