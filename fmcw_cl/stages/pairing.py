@@ -219,11 +219,13 @@ def running_median(v: np.ndarray) -> np.ndarray:
     return numeric.running_median(v, 2 * NEIGHBOURS + 1)
 
 
-def regularise(v: np.ndarray, trusted: np.ndarray, time: np.ndarray) -> np.ndarray:
-    """Continuity prior: running median of trusted velocities, gaps filled linearly."""
+def regularise(v: np.ndarray, trusted: np.ndarray, time: np.ndarray,
+               smooth: np.ndarray | None = None) -> np.ndarray:
+    """Continuity prior: running median of trusted velocities, gaps filled linearly
+    (`smooth`: running_median(v) when the caller has it)."""
     if not np.any(trusted):
         return np.zeros_like(v)
-    smooth = running_median(v)
+    smooth = running_median(v) if smooth is None else smooth
     return np.interp(time, time[trusted], smooth[trusted])
 
 
@@ -322,7 +324,7 @@ def _track(xr, xf, t_rise, t_fall, model: DopplerModel, search: Search, iteratio
         # the plain first pass smears fast targets: allow 20 % there, not later
         med = running_median(vel)
         tol = CONSISTENT_MPS + (0.2 * np.abs(med) if it == 0 else 0.0)
-        v_next = regularise(vel, heard & (np.abs(vel - med) < tol), t_mid)
+        v_next = regularise(vel, heard & (np.abs(vel - med) < tol), t_mid, med)
         # the plain pass is the de-chirp at 0 m/s: a still pair is not measured again
         moved = np.flatnonzero(np.abs(v_next - vd) >= STOP_MPS)
         if moved.size == 0:
