@@ -279,11 +279,9 @@ class Capture:
         n = max(0, stop - start)
         try:
             for ds, ext, out in ((self._beat, self._extents[0], beat), (self._sync, self._extents[1], sync)):
-                if not n:
-                    break
-                if ext is not None and out.dtype == np.int16 and out.flags.c_contiguous:
+                if n and ext is not None and out.dtype == np.int16 and out.flags.c_contiguous:
                     ext.read(self._fd, start, stop, out)
-                else:
+                elif n:
                     ds.read_direct(out, np.s_[start:stop], np.s_[0:n])
         except (OSError, ValueError, TypeError) as exc:
             raise CaptureError(self.path, f"cannot read samples {start}-{stop} ({exc})") from None
