@@ -2,10 +2,11 @@
 
 h5py's `read_direct` copies a chunked dataset through HDF5's own buffers; where the
 samples are stored as they are (no filter, little-endian int16, every chunk written),
-one `preadv` per chunk into the destination moves each byte once: half the CPU time
-(0.3 s of 100 MS/s here: 22 against 42 ms a channel, then 10 against 21 warm). Any
-other layout (compressed, big-endian, a user block, unwritten chunks, no `preadv`)
-has no extents and is read through h5py, as every capture written to the contract can be.
+one `preadv` per chunk into the destination moves each byte once: about half the CPU
+time (the 0.3 s jump's two channels: 21-25 against 42-53 ms here). Any other layout
+(compressed, big-endian, a user block, unwritten chunks, external or virtual storage,
+no `preadv`) has no extents and is read through h5py, as every capture written to the
+contract can be.
 """
 
 from __future__ import annotations
@@ -35,7 +36,8 @@ class Extents:
         if not hasattr(os, "preadv") or dset.ndim != 1 or dset.dtype != np.dtype("<i2"):
             return None
         try:
-            if dset.file.userblock_size or dset.id.get_create_plist().get_nfilters():
+            if (dset.file.userblock_size or dset.id.get_create_plist().get_nfilters() or dset.is_virtual
+                    or dset.external):
                 return None
             n = dset.shape[0]
             if dset.chunks is None:

@@ -165,19 +165,28 @@ def _relayout(path, tmp_path, layout):
            "chunks written backwards": {"chunks": (1000,)}}
     kinds = {**raw, "gzip": {"chunks": (5000,), "compression": "gzip"},
              "big-endian": {"dtype": ">i2"}, "int32": {"dtype": np.int32},
-             "chunks not all written": {"chunks": (1000,)}}
+             "chunks not all written": {"chunks": (1000,)}, "external": {}, "virtual": {}}
     with h5py.File(path, "a") as f:
         for name, data in (("beat", beat), ("sync", sync)):
             attrs = dict(f["adc"][name].attrs)
             del f["adc"][name]
-            opts = {"dtype": np.int16, **kinds[layout]}
-            ds = f["adc"].create_dataset(name, data.shape, **opts)
+            if layout == "external":              # the samples in a raw file beside it
+                side = tmp_path / f"{name}.raw"
+                data.astype("<i2").tofile(side)
+                ds = f["adc"].create_dataset(name, data.shape, "<i2", external=[(str(side), 0, data.nbytes)])
+            elif layout == "virtual":             # a view of another dataset
+                src = f.create_dataset(f"src_{name}", data=data)
+                view = h5py.VirtualLayout(shape=data.shape, dtype=np.int16)
+                view[:] = h5py.VirtualSource(src)
+                ds = f["adc"].create_virtual_dataset(name, view)
+            else:
+                ds = f["adc"].create_dataset(name, data.shape, **{"dtype": np.int16, **kinds[layout]})
             if layout == "chunks written backwards":
                 for a in range(data.size // 1000 * 1000, -1, -1000):
                     ds[a: a + 1000] = data[a: a + 1000]
             elif layout == "chunks not all written":
                 ds[:3000] = data[:3000]              # the rest: HDF5's fill value, 0
-            else:
+            elif layout not in ("external", "virtual"):
                 ds[...] = data
             for k, v in attrs.items():
                 ds.attrs[k] = v
@@ -185,7 +194,8 @@ def _relayout(path, tmp_path, layout):
 
 
 @pytest.mark.parametrize("layout", ["contiguous", "odd chunks", "chunks written backwards", "gzip",
-                                    "big-endian", "int32", "chunks not all written", "user block"])
+                                    "big-endian", "int32", "chunks not all written", "user block", "external",
+                                    "virtual"])
 def test_every_layout_reads_the_same_samples(tmp_path, layout):
     """Raw int16 channels are read straight from the file (fmcw_cl.extents), any other
     layout through h5py; either way every range holds what h5py reads there."""
