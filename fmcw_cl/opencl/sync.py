@@ -49,8 +49,10 @@ def coarse(rt: Runtime, bufs: Buffers, x: np.ndarray, factor: int, level: float 
         return sync.coarse_crossings(sync.changes(sums.astype(np.float64), lv), lv, factor)
     events = out[2: 2 + 2 * n_e].reshape(n_e, 2)
     sides = out[2 + 2 * cap_e: 2 + 2 * cap_e + 3 * n_s].reshape(n_s, 3)
-    events = events[np.argsort(events[:, 0])]               # appended in any order
-    sides = sides[np.argsort(sides[:, 0])].astype(np.float64)
+    # appended in any order, nearly sorted (a block each, blocks run in order): merge sort
+    # of the runs is twice as fast as quicksort
+    events = events[np.argsort(events[:, 0], kind="stable")]
+    sides = sides[np.argsort(sides[:, 0], kind="stable")].astype(np.float64)
     ch = sync.Changes(events[:, 0].astype(np.int64), events[:, 1].astype(np.int8),
                       sides[:, 0].astype(np.int64), sides[:, 1], sides[:, 2])
     return sync.coarse_crossings(ch, lv, factor)
