@@ -189,7 +189,7 @@ class Runtime:
         a kernel anew for each local size it meets (0.1-0.2 s, cached on disk by size),
         and the one it picks itself follows the global size: every capture of another
         length, and every chunk with another count of sync crossings, paid for builds."""
-        lsz = self.group_size(*ITEMS_LOCAL)
+        lsz = min(self.group_size(*ITEMS_LOCAL), self.device.max_work_group_size)
         return (-(-n // lsz) * lsz,), (lsz,)
 
     def kernel(self, program: str, name: str):
