@@ -8,7 +8,10 @@ benchmarks/README.md: on one device,
    per second of capture, launches and copies per chunk);
 3. a batch: `--batch` captures of the guide rail, `--seconds` each, converted one after
    the other by one warm backend, as `fmcw-cl process` does: the aggregate multiple of
-   real time, file to track (page cache).
+   real time, file to track (page cache). The backend warms up on a capture of its own,
+   so every capture of the batch is one it has not seen (where a kernel build waits
+   for a new size, it shows: `benchmarks/README.md`, part 3). `--batch-only` skips 1
+   and 2.
 
 Runs on any OpenCL device (PoCL too); the figures are ratios within one run.
 """
@@ -30,12 +33,12 @@ from fmcw_cl.simulator import rail, simulate_capture
 def batch(device: str | None, seconds: float, count: int, tmp: Path) -> dict:
     """Aggregate throughput of `count` captures of `seconds` converted in a row."""
     paths = []
-    for k in range(count):
+    for k in range(count + 1):
         path = tmp / f"rail{k}.h5"
         simulate_capture(path, rail(seconds + 0.1), seconds, seed=100 + k, start_s=0.1)
         paths.append(path)
     be = make_backend("opencl", device)
-    process(paths[0], Options(), be)                 # warm: programs built, buffers sized
+    process(paths.pop(), Options(), be)              # warm: programs built, buffers sized
     wall, cpu = time.perf_counter(), time.thread_time()
     for path in paths:
         process(path, Options(), be)
@@ -50,12 +53,15 @@ def main() -> None:
     ap.add_argument("--device", default=None, help="OpenCL device (see `fmcw-cl devices`)")
     ap.add_argument("--seconds", type=float, default=1.0)
     ap.add_argument("--batch", type=int, default=8)
+    ap.add_argument("--batch-only", action="store_true", help="only the batch (no check, no bench table)")
     ap.add_argument("--json", type=Path)
     args = ap.parse_args()
-    check(args.device)
-    rows = run(args.seconds, 1000, ("numpy", "opencl"), args.device)
-    print("\n| backend | stage | s | x real time | of end to end | host CPU ms per s |")
-    print("|---|---|---|---|---|---|")
+    rows = []
+    if not args.batch_only:
+        check(args.device)
+        rows = run(args.seconds, 1000, ("numpy", "opencl"), args.device)
+        print("\n| backend | stage | s | x real time | of end to end | host CPU ms per s |")
+        print("|---|---|---|---|---|---|")
     for r in rows:
         host = f"{r['host_cpu_ms_per_s']:.0f}" if "host_cpu_ms_per_s" in r else ""
         share = r["share_of_end_to_end"]          # NaN: a scene's row, apart from the shares
