@@ -12,6 +12,7 @@ contract can be.
 from __future__ import annotations
 
 import os
+import sys
 
 import h5py
 import numpy as np
@@ -33,8 +34,9 @@ class Extents:
     @classmethod
     def of(cls, dset: h5py.Dataset) -> Extents | None:
         """The extents of `dset`, or None when its samples are not stored raw."""
-        if not hasattr(os, "preadv") or dset.ndim != 1 or dset.dtype != np.dtype("<i2"):
-            return None
+        if (not hasattr(os, "preadv") or sys.byteorder != "little" or dset.ndim != 1
+                or dset.dtype != np.dtype("<i2")):
+            return None                # the bytes would not be this machine's int16
         try:
             if (dset.file.userblock_size or dset.id.get_create_plist().get_nfilters() or dset.is_virtual
                     or dset.external):
