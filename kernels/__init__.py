@@ -4,8 +4,7 @@ from importlib.resources import files
 
 # programs built from more than one file (device functions first)
 # (survey.cl: alone)
-PROGRAMS = {"spectrum": ("peak", "cfar", "fft", "fft_lanes"), "integrate": ("peak", "integrate"),
-            "lpf": ("lanes", "lpf"), "resample": ("lanes", "resample")}
+PROGRAMS = {"spectrum": ("peak", "cfar", "fft", "fft_lanes"), "integrate": ("peak", "integrate")}
 
 
 def files_of(program: str) -> tuple[str, ...]:
