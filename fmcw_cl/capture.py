@@ -250,6 +250,7 @@ class Capture:
         # channels stored raw are read straight from the file (fmcw_cl.extents)
         self._extents = [Extents.of(self._beat), Extents.of(self._sync)]
         self._fd = os.open(self.path, os.O_RDONLY) if any(self._extents) else None
+        self._slots: list[tuple[np.ndarray, np.ndarray]] = []
 
     def __enter__(self) -> Capture:
         return self
@@ -287,6 +288,17 @@ class Capture:
             raise CaptureError(self.path, f"cannot read samples {start}-{stop} ({exc})") from None
         return beat[:n], sync[:n]
 
+    def slot(self, i: int, samples: int) -> tuple[np.ndarray, np.ndarray]:
+        """Int16 arrays of `samples` (beat, sync) for `read_into`, slot i of those this
+        capture keeps: made once and grown when needed, so that their pages are faulted
+        in once per capture (the sync delay's stretches and then the chunks use slot
+        0). What a slot held is overwritten by its next user."""
+        while len(self._slots) <= i:
+            self._slots.append((np.empty(0, np.int16), np.empty(0, np.int16)))
+        if self._slots[i][0].size < samples:
+            self._slots[i] = (np.empty(samples, np.int16), np.empty(samples, np.int16))
+        return self._slots[i][0][:samples], self._slots[i][1][:samples]
+
     def chunks(self, periods: int, margin: int = 0, start: int = 0, stop: int | None = None,
                slots: int = 0) -> Iterator[Chunk]:
         """Iterate over the capture in chunks of whole modulation periods.
@@ -301,15 +313,15 @@ class Capture:
         start, stop : int
             Sample range to cover (default: the whole capture).
         slots : int
-            0: every chunk in new arrays. k > 0: the chunks take turns in k pairs of
-            arrays made once (`read_into`), so chunk i's samples are overwritten by
-            chunk i + k's: for a consumer that is done with a chunk k - 1 chunks later.
+            0: every chunk in new arrays. k > 0: the chunks take turns in the capture's
+            slots 0 .. k - 1 (`slot`), so chunk i's samples are overwritten by chunk
+            i + k's: for a consumer that is done with a chunk k - 1 chunks later.
         """
         if periods < 1:
             raise ValueError("periods must be >= 1")
         stop = self.info.samples if stop is None else min(stop, self.info.samples)
         core = max(1, round(periods * self.info.samples_per_period))
-        ring: list[tuple[np.ndarray, np.ndarray]] = []
+        size = min(core + 2 * margin, self.info.samples)
         for i, core_start in enumerate(range(int(start), stop, core)):
             core_stop = min(core_start + core, stop)
             lo = max(0, core_start - margin)
@@ -317,10 +329,7 @@ class Capture:
             if not slots:
                 beat, sync = self.read(lo, hi)
             else:
-                if len(ring) < slots:
-                    size = min(core + 2 * margin, self.info.samples)
-                    ring.append((np.empty(size, np.int16), np.empty(size, np.int16)))
-                beat, sync = self.read_into(lo, hi, *ring[i % slots])
+                beat, sync = self.read_into(lo, hi, *self.slot(i % slots, size))
             yield Chunk(lo, beat, sync, core_start, core_stop)
 
     def truth(self) -> Truth | None:

@@ -120,15 +120,13 @@ def estimate_capture_delay(cap: Capture, intensity=lpf.intensity) -> tuple[float
     info = cap.info
     hp = info.samples_per_period / 2
     length = int(DELAY_STRETCH_PERIODS * info.samples_per_period)
-    starts = np.linspace(0, max(0, info.samples - length), DELAY_STRETCHES).astype(np.int64)
-    lags, misfits = [], []
-    slot = np.empty(length, np.int16), np.empty(length, np.int16)      # each stretch read into it
-    for a in np.unique(starts):
-        beat, sy = cap.read_into(a, a + length, *slot)
-        lg, mf = sync.period_delays(beat, sy, info.sample_rate_hz, hp, intensity)
-        lags.append(lg)
-        misfits.append(mf)
-    return sync.combine_delays(np.concatenate(lags), np.concatenate(misfits))
+    starts = np.unique(np.linspace(0, max(0, info.samples - length), DELAY_STRETCHES).astype(np.int64))
+    length = min(length, info.samples)
+    # the stretches as rows (in the memory the chunks use next), low-passed by one launch a channel
+    beat, sy = (x.reshape(starts.size, length) for x in cap.slot(0, starts.size * length))
+    for a, b, s in zip(starts, beat, sy, strict=True):
+        cap.read_into(a, a + length, b, s)
+    return sync.combine_delays(*sync.period_delays(beat, sy, info.sample_rate_hz, hp, intensity))
 
 
 def make_lut(info: CaptureInfo, points: int, chirp=None) -> Lut:

@@ -2,20 +2,24 @@
 // at the decimated rate only (a full-rate FIR would cost more than everything else).
 // Each output is a dot product over contiguous inputs, taken eight at a time in float8
 // (PoCL vectorises across work-items only where a kernel has no loop; these have one).
-// Twin: fmcw_cl.stages.lpf.intensity.
+// Both take rows of one length (the sync delay's stretches, one launch for all), each
+// filtered alone. Twin: fmcw_cl.stages.lpf.intensity.
 
 // Three cascaded boxcars of `factor` samples, kept every `factor`-th output (a CIC
 // decimator, sinc^3): out[j] = sum_k h[k] x[j factor + k], h the boxcars' convolution.
-__kernel void cic_decimate(__global const short *x,
+__kernel void cic_decimate(__global const short *x,     // (rows, stride)
                            __global const float *h,     // (taps,)
                            const int taps,
                            const int factor,
-                           const int m,                 // outputs
-                           __global float *out)
+                           const int m,                 // outputs a row
+                           const int rows,
+                           const int stride,            // input samples a row
+                           __global float *out)         // (rows, m)
 {
-    const int j = get_global_id(0);
-    if (j >= m) return;
-    __global const short *p = x + (size_t)j * factor;
+    const int i = get_global_id(0);
+    if (i >= rows * m) return;
+    const int r = i / m, j = i - r * m;
+    __global const short *p = x + (size_t)r * stride + (size_t)j * factor;
     float8 acc8 = 0.0f;
     int k = 0;
     for (; k + 8 <= taps; k += 8) acc8 += vload8(0, h + k) * convert_float8(vload8(0, p + k));
@@ -23,21 +27,24 @@ __kernel void cic_decimate(__global const short *x,
     for (; k < taps; ++k) acc += h[k] * (float)p[k];
     float lanes[8];          // summed through memory: Oclgrind's checks crash on acc8.s0 + ...
     vstore8(acc8, 0, lanes);
-    out[j] = acc + (((lanes[0] + lanes[1]) + (lanes[2] + lanes[3])) + ((lanes[4] + lanes[5]) + (lanes[6] + lanes[7])));
+    out[i] = acc + (((lanes[0] + lanes[1]) + (lanes[2] + lanes[3])) + ((lanes[4] + lanes[5]) + (lanes[6] + lanes[7])));
 }
 
-// Symmetric (zero-phase) FIR, centred, zero outside [0, n): numpy.convolve(..., "same").
-__kernel void fir_same(__global const float *x,
+// Symmetric (zero-phase) FIR, centred, zero outside each row's [0, n):
+// numpy.convolve(..., "same") of every row.
+__kernel void fir_same(__global const float *x,         // (rows, n)
                        const int n,
+                       const int rows,
                        __global const float *taps,      // (2 half + 1,)
                        const int half_taps,
-                       __global float *out)
+                       __global float *out)             // (rows, n)
 {
-    const int j = get_global_id(0);
-    if (j >= n) return;
+    const int i = get_global_id(0);
+    if (i >= rows * n) return;
+    const int j = i - (i / n) * n;
     const int a = j - half_taps < 0 ? half_taps - j : 0;
     const int b = j + half_taps >= n ? half_taps + (n - 1 - j) : 2 * half_taps;
-    __global const float *p = x + j - half_taps;
+    __global const float *p = x + i - half_taps;
     float8 acc8 = 0.0f;
     int t = a;
     for (; t + 8 <= b + 1; t += 8) acc8 += vload8(0, taps + t) * vload8(0, p + t);
@@ -45,5 +52,5 @@ __kernel void fir_same(__global const float *x,
     for (; t <= b; ++t) acc += taps[t] * p[t];
     float lanes[8];
     vstore8(acc8, 0, lanes);
-    out[j] = acc + (((lanes[0] + lanes[1]) + (lanes[2] + lanes[3])) + ((lanes[4] + lanes[5]) + (lanes[6] + lanes[7])));
+    out[i] = acc + (((lanes[0] + lanes[1]) + (lanes[2] + lanes[3])) + ((lanes[4] + lanes[5]) + (lanes[6] + lanes[7])));
 }

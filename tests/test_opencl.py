@@ -303,6 +303,22 @@ def test_lpf_kernel_matches_numpy(backend, n):
     assert np.all(np.abs(got[0] - ref[0]) < 1e-3)     # codes; float32 sums of 73 taps
 
 
+@pytest.mark.parametrize("rows,n", [(6, 40_013), (3, 5_000), (2, 73), (4, 60), (0, 500)])
+def test_lpf_kernel_rows_match_numpy(backend, rows, n):
+    """Rows (the sync delay's stretches) low-passed by one launch: each row as if alone
+    (its own zero-padded ends), against numpy's row by row."""
+    rng = np.random.default_rng(rows * n)
+    t = np.arange(n) / 100e6
+    codes = np.rint(400 * np.sin(2 * np.pi * 2e4 * t + rng.uniform(0, 6, (rows, 1)))
+                    + rng.normal(0, 300, (rows, n))).astype(np.int16)
+    ref = lpf.intensity(codes, 100e6)
+    got = backend.intensity(codes, 100e6)
+    assert got[0].shape == ref[0].shape == (rows, lpf.outputs(n)) and got[1:] == ref[1:]
+    assert np.all(np.abs(got[0] - ref[0]) < 1e-3)
+    for r in range(rows):                                   # and the same as each row alone
+        assert np.all(np.abs(got[0][r] - backend.intensity(codes[r], 100e6)[0]) < 1e-3)
+
+
 def test_kernels_build_without_warnings(backend):
     """Every program builds with -Werror: a program built with warnings can come back
     from PoCL's kernel cache without its kernels (shared notes, pitfall 3)."""

@@ -55,6 +55,20 @@ def test_delay_from_the_intensity_triangle(lag, sign):
     assert used > 0.8 * lags.size and best < sync.CLEAN_MISFIT
 
 
+def test_delay_of_stretches_as_rows():
+    """Stretches given as rows (one low-pass call for all) give each stretch's periods
+    as if fitted alone, in turn."""
+    n = 200_000
+    sync_ch = np.stack([triangle(n, HP, t0=100.0 * k, amp=6000, noise=4, seed=k) for k in range(3)])
+    optical = np.stack([triangle(n, HP, t0=100.0 * k - 12.5, amp=800, noise=25, seed=9 + k)
+                        for k in range(3)])
+    lags, misfit = sync.period_delays(optical, sync_ch, 100e6, HP)
+    alone = [sync.period_delays(o, s, 100e6, HP) for o, s in zip(optical, sync_ch, strict=True)]
+    assert np.array_equal(lags, np.concatenate([a[0] for a in alone]), equal_nan=True)
+    assert np.array_equal(misfit, np.concatenate([a[1] for a in alone]), equal_nan=True)
+    assert lags.size == 3 * alone[0][0].size > 0 and np.nanmedian(lags) == pytest.approx(12.5, abs=0.2)
+
+
 def test_lut_uniform_frequency_and_mirror():
     laser = paper_dfb()
     cur = np.linspace(0.02, 0.5, 25)

@@ -28,20 +28,22 @@ def fir_taps(sample_rate_hz: float) -> np.ndarray:
 
 def intensity(rt: Runtime, bufs: Buffers, x: np.ndarray, sample_rate_hz: float,
               factor: int = lpf.DECIMATION) -> tuple[np.ndarray, float, float]:
-    """Low-passed int16 codes at the decimated rate (see the numpy twin)."""
+    """Low-passed int16 codes at the decimated rate, of each row alone when x is
+    (rows, samples), all rows in one launch a kernel (see the numpy twin)."""
     if x.dtype != np.int16:
         raise TypeError("the low-pass kernel takes int16 ADC codes")
     h = cic_taps(factor)
-    m = max(0, (x.size - (lpf.CIC_ORDER - 1) * (factor - 1)) // factor)
-    out = np.empty(m, np.float32)
-    if m:
+    rows = x.shape[0] if x.ndim == 2 else 1
+    m = lpf.outputs(x.shape[-1], factor)
+    out = np.empty((*x.shape[:-1], m), np.float32)
+    if out.size:
         taps = fir_taps(sample_rate_hz / factor)
-        d_dec = bufs.get("lpf_decimated", 4 * m)
-        d_out = bufs.get("lpf_out", 4 * m)
-        rt.kernel("lpf", "cic_decimate")(rt.queue, *rt.items(m), bufs.upload_once("lpf_in", x),
-                                         bufs.constant("lpf_cic", h), np.int32(h.size),
-                                         np.int32(factor), np.int32(m), d_dec)
-        rt.kernel("lpf", "fir_same")(rt.queue, *rt.items(m), d_dec, np.int32(m),
+        d_dec = bufs.get("lpf_decimated", out.nbytes)
+        d_out = bufs.get("lpf_out", out.nbytes)
+        rt.kernel("lpf", "cic_decimate")(rt.queue, *rt.items(out.size), bufs.upload_once("lpf_in", x),
+                                         bufs.constant("lpf_cic", h), np.int32(h.size), np.int32(factor),
+                                         np.int32(m), np.int32(rows), np.int32(x.shape[-1]), d_dec)
+        rt.kernel("lpf", "fir_same")(rt.queue, *rt.items(out.size), d_dec, np.int32(m), np.int32(rows),
                                      bufs.constant("lpf_taps", taps), np.int32(taps.size // 2), d_out)
         rt.copy(out, d_out)
     return out.astype(np.float64), lpf.CIC_ORDER * (factor - 1) / 2.0, float(factor)

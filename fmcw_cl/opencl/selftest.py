@@ -68,6 +68,8 @@ def stream(be, beat, sync_codes, fs, hp, rng) -> None:
     """The per-sample stages: low-pass, sync crossings, resampling."""
     y, _, _ = be.intensity(beat, fs)
     close("low-pass (cic_decimate, fir_same)", y, lpf.intensity(beat, fs)[0], 1e-5)
+    rows = beat[: 3 * (beat.size // 3)].reshape(3, -1)       # the sync delay's stretches, one launch
+    close("low-pass of rows", be.intensity(rows, fs)[0], lpf.intensity(rows, fs)[0], 1e-5)
     got = be.turning_points(sync_codes, hp)
     want = sync.sync_turning_points(sync_codes, hp)
     close("sync (block_sum, line_fit)", got.time, want.time, 1e-9)

@@ -61,17 +61,27 @@ def lowpass(x: np.ndarray, taps: np.ndarray) -> np.ndarray:
 
 def intensity(beat: np.ndarray, sample_rate_hz: float, factor: int = DECIMATION
               ) -> tuple[np.ndarray, float, float]:
-    """Low-passed beat channel at the decimated rate.
+    """Low-passed beat channel at the decimated rate; of each row alone when `beat` is
+    (rows, samples).
 
     Returns
     -------
     y : ndarray
-        Low-passed beat (ADC codes) at sample_rate / factor.
+        Low-passed beat (ADC codes) at sample_rate / factor, (m,) or (rows, m).
     t0 : float
         Input sample position of y[0] (samples).
     step : float
         Input samples between consecutive outputs.
     """
+    t0 = CIC_ORDER * (factor - 1) / 2.0
+    if np.ndim(beat) == 2:
+        m = outputs(np.shape(beat)[1], factor)
+        rows = [intensity(row, sample_rate_hz, factor)[0] for row in beat]
+        return (np.stack(rows) if rows else np.zeros((0, m))), t0, float(factor)
     dec = cic_decimate(beat, factor)
-    y = lowpass(dec, lowpass_taps(sample_rate_hz / factor))
-    return y, CIC_ORDER * (factor - 1) / 2.0, float(factor)
+    return lowpass(dec, lowpass_taps(sample_rate_hz / factor)), t0, float(factor)
+
+
+def outputs(samples: int, factor: int = DECIMATION) -> int:
+    """Decimated samples from `samples` inputs (the CIC's whole outputs)."""
+    return max(0, (samples - (CIC_ORDER - 1) * (factor - 1)) // factor)

@@ -336,16 +336,30 @@ def period_delays(beat: np.ndarray, sync: np.ndarray, sample_rate_hz: float,
     (Gauss-Newton). The detector imbalance may have either sign: the regression's
     scale takes it.
 
-    `intensity` is the low-pass step (lpf.intensity or a backend's kernel).
+    `beat` and `sync` are (samples,), or (stretches, samples): stretches of the capture,
+    low-passed by one call of `intensity` (lpf.intensity or a backend's kernel) and
+    fitted each alone.
 
     Returns
     -------
-    lags : (P,) samples, NaN where a period gives no triangle.
+    lags : (P,) samples, NaN where a period gives no triangle (the stretches' in turn).
     misfit : (P,) rms residual of each period's fit relative to the triangle's rms;
         large where a target beat near 0 Hz leaks into the low band.
     """
     y, _, step = intensity(beat, sample_rate_hz)
     z, _, _ = intensity(sync, sample_rate_hz)
+    if y.ndim == 1:
+        return _fit_delays(y, z, step, half_period)
+    # a stretch at a time: the temporaries of all at once are large enough that the
+    # allocator returns them to the system and faults them in again each time
+    fits = [_fit_delays(a, b, step, half_period) for a, b in zip(y, z, strict=True)]
+    return tuple(np.concatenate([f[i] for f in fits] or [np.zeros(0)]) for i in (0, 1))
+
+
+def _fit_delays(y: np.ndarray, z: np.ndarray, step: float, half_period: float
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """period_delays of one stretch from its low-passed beat y and sync z (decimated
+    by `step`)."""
     edge = lpf.TAPS // 2 + 1
     y, z = y[edge:-edge] - y[edge:-edge].mean(), z[edge:-edge] - z[edge:-edge].mean()
     span = int(MAX_DELAY_SAMPLES / step) + 1
