@@ -85,6 +85,10 @@ class NumpyBackend(pairing.SpectrumOps):
     def resample(self, codes, starts, lengths, u, win):
         return resample.resample(codes, starts, lengths, u, win)
 
+    def resample_each(self, codes, jobs, win):
+        """`resample` of each (starts, lengths, u) of `jobs` (a backend: one upload)."""
+        return [self.resample(codes, *job, win) for job in jobs]
+
     def clip_flags(self, codes, block, full_scale):
         return faults.clip_flags(codes, block, full_scale)
 
@@ -250,8 +254,8 @@ def _chunk_pairs(plan: Plan, chunk, backend) -> _Pairs | None:
     if r.size == 0:
         return None
     f = r + 1
-    xr = backend.resample(chunk.beat, hs.start[r], hs.length[r], plan.lut.u_rise, plan.window)
-    xf = backend.resample(chunk.beat, hs.start[f], hs.length[f], plan.lut.u_fall, plan.window)
+    xr, xf = backend.resample_each(chunk.beat, [(hs.start[r], hs.length[r], plan.lut.u_rise),
+                                                (hs.start[f], hs.length[f], plan.lut.u_fall)], plan.window)
     fs = info.sample_rate_hz
     t_r = (chunk.start + hs.centre[r]) / fs
     t_f = (chunk.start + hs.centre[f]) / fs
@@ -316,11 +320,11 @@ def _beyond_range(plan: Plan, beat: np.ndarray, hs, r: np.ndarray, f: np.ndarray
                            res.distance])
     stride = CHECK_STRIDE if np.any(seen > CHECK_NEAR * plan.lut.unambiguous_range_m) else CHECK_STRIDE_FAR
     checked = np.unique(np.r_[np.arange(0, r.size, stride), r.size - 1])
+    sides = ((r[checked], lut2.u_rise), (f[checked], lut2.u_fall))
+    xs = backend.resample_each(beat, [(hs.start[idx], hs.length[idx], u) for idx, u in sides], win2)
+    got = backend.measure_each(xs, (None, None), None, model2, Search(plan.search.lo, model2.nfft // 2))
     beyond = np.zeros(checked.size, bool)
-    for idx, u, dn in ((r[checked], lut2.u_rise, res.dist_rise[checked]),
-                       (f[checked], lut2.u_fall, res.dist_fall[checked])):
-        x2 = backend.resample(beat, hs.start[idx], hs.length[idx], u, win2)
-        d2, s2 = backend.measure(x2, None, None, model2, Search(plan.search.lo, model2.nfft // 2))
+    for (d2, s2), dn in zip(got, (res.dist_rise[checked], res.dist_fall[checked]), strict=True):
         beyond |= faults.beyond_range(d2, s2, plan.lut.unambiguous_range_m, pairing.SNR_MIN_DB, dn)
     right = np.searchsorted(checked, np.arange(r.size))          # first checked pair >= i
     left = np.searchsorted(checked, np.arange(r.size), side="right") - 1

@@ -65,6 +65,9 @@ class OpenCLBackend(pairing.SpectrumOps):
     def resample(self, codes, starts, lengths, u, win):
         return k_resample.resample(self.rt, self.bufs, codes, starts, lengths, u, win)
 
+    def resample_each(self, codes, jobs, win):
+        return k_resample.resample_each(self.rt, self.bufs, codes, jobs, win)
+
     def clip_flags(self, codes, block, full_scale):
         return k_faults.clip_flags(self.rt, self.bufs, codes, block, full_scale)
 
@@ -74,12 +77,18 @@ class OpenCLBackend(pairing.SpectrumOps):
         return x.get(self.rt.queue) if isinstance(x, DeviceRows) else x
 
     def measure(self, x, beta, v, model, search, rows=None):
+        return self.measure_each([x], [beta], v, model, search, rows)[0]
+
+    def measure_each(self, xs, betas, v, model, search, rows=None):
+        """Twin: pairing.SpectrumOps.measure_each; one upload of the rows and velocities,
+        one download of every result."""
+        pairs = list(zip(xs, betas, strict=True))
         if not k_spectrum.fits(self.rt, model.nfft):
-            return pairing.measure(self._host(x), beta, v, model, search, rows)
-        pk, _, det = k_spectrum.measure(self.rt, self.bufs, x, beta, v, model.nfft, search.lo, search.hi,
-                                        index=rows, echoes=search.echoes)
-        got = (pk.bin * model.metres_per_bin, pk.snr_db)
-        return (*got, det) if search.echoes else got
+            return [pairing.measure(self._host(x), b, v, model, search, rows) for x, b in pairs]
+        got = k_spectrum.measure_each(self.rt, self.bufs, [(x, b, None) for x, b in pairs], v, model.nfft,
+                                      search.lo, search.hi, index=rows, echoes=search.echoes)
+        return [(pk.bin * model.metres_per_bin, pk.snr_db, *([det] if search.echoes else []))
+                for pk, _, det in got]
 
     def power(self, x, beta, v, nfft, rows=None):
         """Power spectra of rows of x (plain, or de-chirped at v); twin: pairing.power."""
@@ -102,11 +111,12 @@ class OpenCLBackend(pairing.SpectrumOps):
         """Twin: pairing.SpectrumOps.survey; the spectra stay on the device."""
         if not k_spectrum.fits(self.rt, nfft):
             return super().survey(self._host(x), beta, v, nfft, rows, lo, tracked_bin, plain_bin, others)
-        spectra = []
-        for b, vel in ((None, None), (beta, v)):          # plain, then de-chirped at v
-            store = DeviceRows(self.bufs, np.size(rows), nfft // 2)
-            k_spectrum.measure(self.rt, self.bufs, x, b, vel, nfft, 1, index=rows, store=store, scatter=False)
-            spectra.append(store)
+        # plain (de-chirped at v along a zero basis: the phase is 0), then de-chirped at v: one
+        # upload of the rows and velocities for both
+        spectra = [DeviceRows(self.bufs, np.size(rows), nfft // 2) for _ in range(2)]
+        plain = k_spectrum.zeros(x.shape[1])
+        jobs = [(x, plain, spectra[0]), (x, beta, spectra[1])]
+        k_spectrum.measure_each(self.rt, self.bufs, jobs, v, nfft, 1, index=rows, scatter=False)
         return k_survey.hidden(self.rt, self.bufs, *spectra, lo, tracked_bin, plain_bin, others)
 
     def integrated_peaks(self, store, disp, k, search):

@@ -94,24 +94,31 @@ def measure(rt: Runtime, bufs: Buffers, rows, beta: np.ndarray | None,
     keeps the power on the device instead, and nothing comes back (None, None, None):
     in the rows of `index` when `scatter` (all rows when None), else one row per
     measured sweep."""
-    if not isinstance(rows, DeviceRows):
-        host = np.ascontiguousarray(rows, np.float32)
-        rows = DeviceRows(bufs, *host.shape)
-        if host.size:
-            rt.copy(rows.buffer, host)
-    sweeps, points = rows.shape
+    return measure_each(rt, bufs, [(rows, beta, store)], velocity, nfft, lo, hi, keep_power, index, echoes,
+                        scatter)[0]
+
+
+def measure_each(rt: Runtime, bufs: Buffers, jobs: list, velocity: np.ndarray | None, nfft: int, lo: int,
+                 hi: int | None = None, keep_power: bool = False, index: np.ndarray | None = None,
+                 echoes: bool = False, scatter: bool = True) -> list[tuple]:
+    """`measure` of each (rows, beta, store) of `jobs` (rows of one shape: a pair's
+    rising and falling half-sweeps) with the same picked rows, velocities and band: the
+    picked rows and velocities go up once and every result comes back by one download."""
+    up = {id(rows): as_device(bufs, rows) for rows, _, _ in jobs}      # a host array goes up once
+    rows_of = [up[id(rows)] for rows, _, _ in jobs]
+    sweeps, points = rows_of[0].shape
     if index is not None:
         sweeps = int(np.size(index))
         if velocity is None:
-            beta, velocity = zeros(points), zeros(sweeps)
+            velocity = zeros(sweeps)
+            jobs = [(rows, zeros(points), store) for rows, _, store in jobs]
     half = nfft // 2
     hi = half if hi is None else hi
     if sweeps == 0:
-        return (Peaks(np.zeros(0), np.zeros(0, np.float32)), np.zeros((0, half), np.float32),
-                cfar.Detections.empty() if echoes else None)
+        return [(Peaks(np.zeros(0), np.zeros(0, np.float32)), np.zeros((0, half), np.float32),
+                 cfar.Detections.empty() if echoes else None)] * len(jobs)
     twr, twi, perm = tables(nfft)
     dechirp = velocity is not None
-    d_beta = bufs.constant("beta", beta if dechirp else zeros(points))
     if index is not None:          # the rows picked and their velocities: one upload
         picked = Packed(bufs, "picked", [(np.int32, sweeps), (np.float32, sweeps)])
         d_index, d_v = picked.upload(index, velocity)
@@ -120,40 +127,58 @@ def measure(rt: Runtime, bufs: Buffers, rows, beta: np.ndarray | None,
         d_v = (bufs.upload("velocity", np.asarray(velocity, np.float32)) if dechirp
                else bufs.constant("v0", zeros(1)))
     m = cfar.MAX_ECHOES
-    own_power = keep_power and store is None
-    # what comes back, in one download: peaks, echoes, the power when kept here
+    # what comes back, in one download: each job's peaks, echoes, the power when kept here
     listed = sweeps if echoes else 0
-    out = Packed(bufs, "measured", [(np.float32, sweeps), (np.float32, sweeps), (np.float32, listed * m),
-                                    (np.float32, listed * m), (np.int32, listed),
-                                    (np.float32, sweeps * half if own_power else 1)])
-    d_bin, d_snr, d_ebin, d_esnr, d_ecount, d_own = out.buffers
-    d_power = store.buffer if store is not None else d_own
+    parts = []
+    for _, _, store in jobs:
+        own = keep_power and store is None
+        parts += [(np.float32, sweeps), (np.float32, sweeps), (np.float32, listed * m),
+                  (np.float32, listed * m), (np.int32, listed), (np.float32, sweeps * half if own else 1)]
+    out = Packed(bufs, "measured", parts)
     transforms = sweeps if dechirp else (sweeps + 1) // 2    # plain rows: two per transform
-    args = (rows.buffer, np.int32(sweeps), np.int32(points), d_index,
-            np.int32(index is not None), d_beta, d_v, np.int32(dechirp),
-            bufs.constant("tw_re", twr), bufs.constant("tw_im", twi),
-            bufs.constant("perm", perm, np.int32), np.int32(nfft), np.int32(lo), np.int32(hi),
-            np.int32(GUARD_BINS), d_bin, d_snr, d_power, np.int32(keep_power or store is not None),
-            np.int32(store is not None and index is not None and scatter),
-            np.int32(echoes), np.int32(cfar.GUARD), np.int32(cfar.TRAIN),
-            bufs.constant("cfar_scale", cfar_scales()), np.int32(m),
-            d_ebin, d_esnr, d_ecount)
-    if uses_lanes(rt, nfft):
-        groups = -(-transforms // LANES)
-        rt.kernel("spectrum", "spectrum_lanes")(rt.queue, (groups,), (1,), *args,
-                                                *(cl.LocalMemory(4 * LANES * nfft),) * 3)
-    else:
-        lsz = local_size(rt, nfft)
-        rt.kernel("spectrum", "spectrum_peak")(
-            rt.queue, (transforms * lsz,), (lsz,), *args,
-            cl.LocalMemory(4 * nfft), cl.LocalMemory(4 * nfft), cl.LocalMemory(4 * half),
-            cl.LocalMemory(12 * lsz), cl.LocalMemory(half if echoes else 1))
-    if store is not None:           # the spectra stay where they are for the next kernel
-        return None, None, None
-    b, s, ebin, esnr, ecount, own = out.download()
-    power = own.reshape(sweeps, half).copy() if own_power else None
-    det = None
-    if echoes:
-        det = cfar.Detections(ebin.reshape(sweeps, m).astype(np.float64), esnr.reshape(sweeps, m).copy(),
-                              ecount.copy())
-    return Peaks(b.astype(np.float64), s.copy()), power, det
+    for i, (rows, (_, beta, store)) in enumerate(zip(rows_of, jobs, strict=True)):
+        d_bin, d_snr, d_ebin, d_esnr, d_ecount, d_own = out.buffers[6 * i: 6 * i + 6]
+        d_power = store.buffer if store is not None else d_own
+        args = (rows.buffer, np.int32(sweeps), np.int32(points), d_index,
+                np.int32(index is not None), bufs.constant("beta", beta if dechirp else zeros(points)), d_v,
+                np.int32(dechirp), bufs.constant("tw_re", twr), bufs.constant("tw_im", twi),
+                bufs.constant("perm", perm, np.int32), np.int32(nfft), np.int32(lo), np.int32(hi),
+                np.int32(GUARD_BINS), d_bin, d_snr, d_power, np.int32(keep_power or store is not None),
+                np.int32(store is not None and index is not None and scatter),
+                np.int32(echoes), np.int32(cfar.GUARD), np.int32(cfar.TRAIN),
+                bufs.constant("cfar_scale", cfar_scales()), np.int32(m),
+                d_ebin, d_esnr, d_ecount)
+        if uses_lanes(rt, nfft):
+            groups = -(-transforms // LANES)
+            rt.kernel("spectrum", "spectrum_lanes")(rt.queue, (groups,), (1,), *args,
+                                                    *(cl.LocalMemory(4 * LANES * nfft),) * 3)
+        else:
+            lsz = local_size(rt, nfft)
+            rt.kernel("spectrum", "spectrum_peak")(
+                rt.queue, (transforms * lsz,), (lsz,), *args,
+                cl.LocalMemory(4 * nfft), cl.LocalMemory(4 * nfft), cl.LocalMemory(4 * half),
+                cl.LocalMemory(12 * lsz), cl.LocalMemory(half if echoes else 1))
+    if all(store is not None for _, _, store in jobs):      # the spectra stay for the next kernel
+        return [(None, None, None)] * len(jobs)
+    views = out.download()
+    results = []
+    for i, (_, _, store) in enumerate(jobs):
+        b, s, ebin, esnr, ecount, own = views[6 * i: 6 * i + 6]
+        power = own.reshape(sweeps, half).copy() if keep_power and store is None else None
+        det = None
+        if echoes:
+            det = cfar.Detections(ebin.reshape(sweeps, m).astype(np.float64), esnr.reshape(sweeps, m).copy(),
+                                  ecount.copy())
+        results.append((Peaks(b.astype(np.float64), s.copy()), power, det))
+    return results
+
+
+def as_device(bufs: Buffers, rows) -> DeviceRows:
+    """`rows` as DeviceRows (a host array is copied up)."""
+    if isinstance(rows, DeviceRows):
+        return rows
+    host = np.ascontiguousarray(rows, np.float32)
+    out = DeviceRows(bufs, *host.shape)
+    if host.size:
+        bufs.rt.copy(out.buffer, host)
+    return out

@@ -148,6 +148,11 @@ class SpectrumOps:
     def measure(self, x, beta, v, model: DopplerModel, search: Search, rows=None) -> tuple:
         return measure(x, beta, v, model, search, rows)
 
+    def measure_each(self, xs, betas, v, model: DopplerModel, search: Search, rows=None) -> list[tuple]:
+        """`measure` of each x of `xs` (a pair's rising and falling half-sweeps) with its
+        beta of `betas`, the same velocities and rows (a backend: in one round trip)."""
+        return [self.measure(x, beta, v, model, search, rows) for x, beta in zip(xs, betas, strict=True)]
+
     def power(self, x, beta, v, nfft: int, rows=None) -> np.ndarray:
         return power(x, beta, v, nfft, rows)
 
@@ -280,8 +285,8 @@ def track_pairs(xr: np.ndarray, xf: np.ndarray, t_rise: np.ndarray, t_fall: np.n
     """
     ops = ops or NUMPY
     # the plain pass (with every echo) does not depend on the integration: made once
-    first = (ops.measure(xr, model.beta_rise, None, model, search),
-             ops.measure(xf, model.beta_fall, None, model, search))
+    betas = (model.beta_rise, model.beta_fall)
+    first = tuple(ops.measure_each((xr, xf), betas, None, model, search))
     args = (xr, xf, t_rise, t_fall, model, replace(search, echoes=False), iterations, dechirp, ops, first)
     if integrate_k is not None:
         return _track(*args, integrate_k)
@@ -334,8 +339,8 @@ def _track(xr, xf, t_rise, t_fall, model: DopplerModel, search: Search, iteratio
             d_r, s_r, d_f, s_f, count = windows.measure(vd, moved)
         else:
             every = None if moved.size == vd.size else moved
-            d_r[moved], s_r[moved] = ops.measure(xr, model.beta_rise, vd[moved], model, search, every)
-            d_f[moved], s_f[moved] = ops.measure(xf, model.beta_fall, vd[moved], model, search, every)
+            (d_r[moved], s_r[moved]), (d_f[moved], s_f[moved]) = ops.measure_each(
+                (xr, xf), (model.beta_rise, model.beta_fall), vd[moved], model, search, every)
         dist, vel, dv = solve_pair(d_r, d_f, vd, half_gap, model)
         heard = (s_r >= snr_min) & (s_f >= snr_min)
     med = running_median(vel)
