@@ -16,6 +16,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+from . import pool
 from .atomic import atomic_path
 from .errors import CaptureError
 from .extents import Extents
@@ -259,6 +260,10 @@ class Capture:
         self.close()
 
     def close(self) -> None:
+        for pair in self._slots:      # the slots go back to the pool for the next capture
+            for a in pair:
+                pool.give(a)
+        self._slots = []
         self._file.close()
         if self._fd is not None:
             os.close(self._fd)
@@ -290,13 +295,16 @@ class Capture:
 
     def slot(self, i: int, samples: int) -> tuple[np.ndarray, np.ndarray]:
         """Int16 arrays of `samples` (beat, sync) for `read_into`, slot i of those this
-        capture keeps: made once and grown when needed, so that their pages are faulted
-        in once per capture (the sync delay's stretches and then the chunks use slot
-        0). What a slot held is overwritten by its next user."""
+        capture holds: borrowed from `fmcw_cl.pool` and given back when the capture is
+        closed, so that memory is touched once per process, not per capture or chunk
+        (the sync delay's stretches and then the chunks use slot 0). What a slot held is
+        overwritten by its next user, after `close` by another capture."""
         while len(self._slots) <= i:
             self._slots.append((np.empty(0, np.int16), np.empty(0, np.int16)))
         if self._slots[i][0].size < samples:
-            self._slots[i] = (np.empty(samples, np.int16), np.empty(samples, np.int16))
+            for a in self._slots[i]:
+                pool.give(a)
+            self._slots[i] = (pool.lease(samples), pool.lease(samples))
         return self._slots[i][0][:samples], self._slots[i][1][:samples]
 
     def chunks(self, periods: int, margin: int = 0, start: int = 0, stop: int | None = None,

@@ -147,6 +147,37 @@ def test_chunks_in_reused_slots_hold_the_same_samples(static_capture):
         assert seen[2] is seen[0] and seen[1] is not seen[0]
 
 
+def test_slots_return_to_the_pool_for_the_next_capture(static_capture, monkeypatch):
+    """A closed capture's slots serve the next capture (memory touched once per process);
+    two open captures never share one; the pool keeps at most its limit, largest first."""
+    from fmcw_cl import pool
+
+    pool.clear()
+
+    def owner(a):
+        return a.base if a.base is not None else a
+
+    with Capture(static_capture) as a, Capture(static_capture) as b:
+        sa, sb = a.slot(0, 5000), b.slot(0, 5000)
+        assert not np.shares_memory(sa[0], sb[0]) and not np.shares_memory(sa[0], sa[1])
+        first = owner(sa[0])
+        assert owner(a.slot(0, 4000)[0]) is first           # a smaller request keeps the slot
+        grown = owner(a.slot(0, 9000)[0])                   # a larger one borrows anew ...
+        assert grown is not first and grown.size == 9000
+    with Capture(static_capture) as c:
+        assert owner(c.slot(0, 8000)[0]) is grown            # ... and the smallest that fits is lent
+        beat, sync = c.read_into(0, 8000, *c.slot(1, 8000))
+        fresh = c.read(0, 8000)
+        np.testing.assert_array_equal(beat, fresh[0])
+        np.testing.assert_array_equal(sync, fresh[1])
+    monkeypatch.setattr(pool, "LIMIT_BYTES", 3 * 9000 * 2)
+    pool.give(np.empty(100, np.int16))
+    kept = sorted(a.size for a in pool._free)
+    assert sum(2 * n for n in kept) <= pool.LIMIT_BYTES and kept[-1] == 9000
+    pool.clear()
+    assert pool.lease(10).size == 10 and not pool._free
+
+
 def _relayout(path, tmp_path, layout):
     """The capture at `path` with both channels stored in `layout`; whether the samples
     are then read straight from the file (fmcw_cl.extents) or through h5py."""
