@@ -287,21 +287,22 @@ def _survey(plan: Plan, backend, rows: tuple, times: tuple, res: pairing.PairRes
     velocity."""
     m = plan.model
     idx = own[:: echoes.SURVEY_STRIDE]
-    got: dict[str, list] = {k: [] for k in SURVEY_KEYS}
-    per_direction = ((m.beta_rise, res.dist_rise, res.dechirped_rise, res.echoes_rise),
-                     (m.beta_fall, res.dist_fall, res.dechirped_fall, res.echoes_fall))
-    for x, t, (beta, dist, dech, det) in zip(rows, times, per_direction, strict=True):
-        if idx.size == 0 or det is None:
-            break
-        others = det.take(idx).bin.copy()
-        others[echoes.is_tracked(others * m.metres_per_bin, dist[idx, None])] = np.nan
-        ratio, centroid, found = backend.survey(x, beta, res.velocity[idx], m.nfft, idx, plan.search.lo,
-                                                dech[idx] / m.metres_per_bin, dist[idx] / m.metres_per_bin,
-                                                others)
-        for k, v in zip(SURVEY_KEYS, (t[idx], ratio, centroid * m.metres_per_bin, found), strict=True):
-            got[k].append(v)
-    return {k: np.concatenate(v) if v else np.zeros(0, bool if k == "found" else float)
-            for k, v in got.items()}
+    dets = (res.echoes_rise, res.echoes_fall)
+    if idx.size == 0 or dets[0] is None:
+        return {k: np.zeros(0, bool if k == "found" else float) for k in SURVEY_KEYS}
+    dists, others = (res.dist_rise, res.dist_fall), []
+    for dist, det in zip(dists, dets, strict=True):
+        o = det.take(idx).bin.copy()
+        o[echoes.is_tracked(o * m.metres_per_bin, dist[idx, None])] = np.nan
+        others.append(o)
+    got = backend.survey_each(rows, (m.beta_rise, m.beta_fall), res.velocity[idx], m.nfft, idx,
+                              plan.search.lo,
+                              [d[idx] / m.metres_per_bin for d in (res.dechirped_rise, res.dechirped_fall)],
+                              [d[idx] / m.metres_per_bin for d in dists], others)
+    return {"time_s": np.concatenate([t[idx] for t in times]),
+            "ratio": np.concatenate([g[0] for g in got]),
+            "distance_m": np.concatenate([g[1] * m.metres_per_bin for g in got]),
+            "found": np.concatenate([g[2] for g in got])}
 
 
 def _beyond_range(plan: Plan, beat: np.ndarray, hs, r: np.ndarray, f: np.ndarray,

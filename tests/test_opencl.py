@@ -73,6 +73,40 @@ def test_short_rows_and_idle_lanes(backend, kernel_variant, sweeps, points, nfft
     np.testing.assert_allclose(pk.snr_db, want.snr_db, atol=1e-2)
 
 
+@pytest.mark.parametrize("sweeps,picked", [(41, None), (41, 9), (3, 0)])
+def test_both_directions_in_one_trip_equal_each_alone(backend, kernel_variant, sweeps, picked):
+    """resample_each and measure_each (a pair's rising and falling half-sweeps, their
+    positions up in one copy, all results down in one): bit for bit each direction
+    alone, plain (every echo listed) and de-chirped at picked rows."""
+    from fmcw_cl.stages import pairing
+    from fmcw_cl.stages.lut import build_lut
+
+    rng = np.random.default_rng(sweeps)
+    codes = rng.integers(-3000, 3000, 200_003).astype(np.int16)
+    cur = np.linspace(0.16, 0.48, 50)
+    lut = build_lut(cur, 190e12 + 160e9 * ((cur - 0.16) / 0.32) ** 1.3, 0.16, 0.48, 500, 1.0)
+    win = resample.window(500)
+    jobs = [(rng.uniform(10, 190_000, sweeps), np.full(sweeps, 2500.0) + rng.uniform(-1, 1, sweeps), u)
+            for u in (lut.u_rise, lut.u_fall)]
+    both = backend.resample_each(codes, jobs, win)
+    for x, job in zip(both, jobs, strict=True):
+        np.testing.assert_array_equal(x.get(), backend.resample(codes, *job, win).get())
+    model = pairing.doppler_model(lut, 25e-6, 1024, win)
+    betas = (model.beta_rise, model.beta_fall)
+    search = Search(3, 400, echoes=picked is None)
+    rows = None if picked is None else np.sort(rng.choice(sweeps, picked, replace=False))
+    v = None if picked is None else rng.uniform(-5, 5, picked)
+    together = backend.measure_each(both, betas, v, model, search, rows)
+    for x, beta, got in zip(both, betas, together, strict=True):
+        alone = backend.measure(x, beta, v, model, search, rows)
+        assert len(got) == len(alone) == (3 if picked is None else 2)
+        np.testing.assert_array_equal(got[0], alone[0])
+        np.testing.assert_array_equal(got[1], alone[1])
+        if picked is None:
+            for k in ("bin", "snr_db", "count"):
+                np.testing.assert_array_equal(getattr(got[2], k), getattr(alone[2], k))
+
+
 def test_fft_tables_undo_the_digit_reversal():
     for nfft in (8, 32, 2048, 4096):
         _, _, perm = k_spectrum.tables(nfft)
@@ -393,3 +427,10 @@ def test_survey_kernel_matches_numpy(backend, kernel_variant, rows, nfft, lo):
     np.testing.assert_allclose(got[1], want[1], rtol=1e-4)
     if rows >= 9:
         assert want[2].any() and not want[2].all()  # the rival is found where nothing explains it
+    # two directions in one trip: each as alone
+    flipped = x[:, ::-1].astype(np.float32)
+    both = backend.survey_each([x.astype(np.float32), flipped], [beta, -beta], v, nfft, pick, lo,
+                               [args[5]] * 2, [args[6]] * 2, [others] * 2)
+    alone = backend.survey(flipped, -beta, *args[1:])
+    for a, b in zip((*got, *alone), (*both[0], *both[1]), strict=True):
+        np.testing.assert_array_equal(a, b)

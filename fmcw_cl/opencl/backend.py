@@ -108,16 +108,24 @@ class OpenCLBackend(pairing.SpectrumOps):
         return store
 
     def survey(self, x, beta, v, nfft, rows, lo, tracked_bin, plain_bin, others):
-        """Twin: pairing.SpectrumOps.survey; the spectra stay on the device."""
+        return self.survey_each([x], [beta], v, nfft, rows, lo, [tracked_bin], [plain_bin], [others])[0]
+
+    def survey_each(self, xs, betas, v, nfft, rows, lo, tracked_bins, plain_bins, others):
+        """Twin: pairing.SpectrumOps.survey_each; the spectra stay on the device, the rows
+        and velocities go up once, the bins once, the results come back once."""
         if not k_spectrum.fits(self.rt, nfft):
-            return super().survey(self._host(x), beta, v, nfft, rows, lo, tracked_bin, plain_bin, others)
-        # plain (de-chirped at v along a zero basis: the phase is 0), then de-chirped at v: one
-        # upload of the rows and velocities for both
-        spectra = [DeviceRows(self.bufs, np.size(rows), nfft // 2) for _ in range(2)]
-        plain = k_spectrum.zeros(x.shape[1])
-        jobs = [(x, plain, spectra[0]), (x, beta, spectra[1])]
+            return super().survey_each([self._host(x) for x in xs], betas, v, nfft, rows, lo, tracked_bins,
+                                       plain_bins, others)
+        # each direction plain (de-chirped at v along a zero basis: the phase is 0), then
+        # de-chirped at v
+        jobs, spectra = [], []
+        for x, beta in zip(xs, betas, strict=True):
+            both = [DeviceRows(self.bufs, np.size(rows), nfft // 2) for _ in range(2)]
+            jobs += [(x, k_spectrum.zeros(x.shape[1]), both[0]), (x, beta, both[1])]
+            spectra.append(both)
         k_spectrum.measure_each(self.rt, self.bufs, jobs, v, nfft, 1, index=rows, scatter=False)
-        return k_survey.hidden(self.rt, self.bufs, *spectra, lo, tracked_bin, plain_bin, others)
+        per = zip(spectra, tracked_bins, plain_bins, others, strict=True)
+        return k_survey.hidden_each(self.rt, self.bufs, [(*sp, tb, pb, o) for sp, tb, pb, o in per], lo)
 
     def integrated_peaks(self, store, disp, k, search):
         if isinstance(store, np.ndarray):       # a transform the device could not hold

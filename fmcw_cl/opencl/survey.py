@@ -13,26 +13,43 @@ def hidden(rt: Runtime, bufs: Buffers, plain: DeviceRows, dechirped: DeviceRows,
            tracked_bin: np.ndarray, plain_bin: np.ndarray, others: np.ndarray
            ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(ratio, centroid, found) of each row's spectra left on the device (see the twin)."""
-    rows, half = plain.shape
-    if rows == 0:
-        return np.zeros(0), np.zeros(0), np.zeros(0, bool)
+    return hidden_each(rt, bufs, [(plain, dechirped, tracked_bin, plain_bin, others)], lo)[0]
+
+
+def hidden_each(rt: Runtime, bufs: Buffers, jobs: list, lo: int) -> list[tuple]:
+    """`hidden` of each (plain, dechirped, tracked_bin, plain_bin, others) of `jobs` (a
+    pair's two directions): their inputs go up in one copy, their results come back in
+    one."""
+    inputs, outputs, values = [], [], []
+    for plain, _, tracked_bin, plain_bin, others in jobs:
+        rows, m = plain.shape[0], others.shape[1]
+        inputs += [(np.float32, rows), (np.float32, rows), (np.float32, rows * m)]
+        outputs += [(np.float32, rows), (np.float32, rows), (np.int32, rows)]
+        values += [tracked_bin, plain_bin, others.ravel()]
+    d_in = Packed(bufs, "survey_in", inputs).upload(*values)
+    out = Packed(bufs, "survey_out", outputs)
     lsz = rt.group_size(16, 256)
-    m = others.shape[1]
-    inputs = Packed(bufs, "survey_in", [(np.float32, rows), (np.float32, rows), (np.float32, rows * m)])
-    out = Packed(bufs, "survey_out", [(np.float32, rows), (np.float32, rows), (np.int32, rows)])
-    d_tracked, d_plain_bin, d_others = inputs.upload(tracked_bin, plain_bin, others.ravel())
     rules = (np.int32(echoes.EXPLAIN_BINS), np.float32(echoes.SHARP),
              np.float32(10 ** (-echoes.RIVAL_DB / 10)), np.float32(echoes.HIDDEN_SIGMAS))
-    band = half - lo
-    if rt.lanes:
-        rt.kernel("survey", "hidden_lanes")(
-            rt.queue, (-(-rows // 8),), (1,), plain.buffer, dechirped.buffer, np.int32(half), np.int32(lo),
-            np.int32(rows), d_tracked, d_plain_bin, d_others, np.int32(m), *rules, *out.buffers,
-            cl.LocalMemory(32 * band), cl.LocalMemory(32 * band), cl.LocalMemory(32 * max(m, 1)))
-    else:
-        rt.kernel("survey", "hidden")(
-            rt.queue, (rows * lsz,), (lsz,), plain.buffer, dechirped.buffer, np.int32(half), np.int32(lo),
-            d_tracked, d_plain_bin, d_others, np.int32(m), *rules, *out.buffers, cl.LocalMemory(4 * band),
-            cl.LocalMemory(24 * lsz), cl.LocalMemory(8))
-    ratio, centroid, found = out.download()
-    return ratio.astype(np.float64), centroid.astype(np.float64), found.astype(bool)
+    for i, (plain, dechirped, _, _, others) in enumerate(jobs):
+        (rows, half), m = plain.shape, others.shape[1]
+        if rows == 0:
+            continue
+        d_tracked, d_plain_bin, d_others = d_in[3 * i: 3 * i + 3]
+        results = out.buffers[3 * i: 3 * i + 3]
+        band = half - lo
+        if rt.lanes:
+            rt.kernel("survey", "hidden_lanes")(
+                rt.queue, (-(-rows // 8),), (1,), plain.buffer, dechirped.buffer, np.int32(half),
+                np.int32(lo), np.int32(rows), d_tracked, d_plain_bin, d_others, np.int32(m), *rules, *results,
+                cl.LocalMemory(32 * band), cl.LocalMemory(32 * band), cl.LocalMemory(32 * max(m, 1)))
+        else:
+            rt.kernel("survey", "hidden")(
+                rt.queue, (rows * lsz,), (lsz,), plain.buffer, dechirped.buffer, np.int32(half), np.int32(lo),
+                d_tracked, d_plain_bin, d_others, np.int32(m), *rules, *results,
+                cl.LocalMemory(4 * band), cl.LocalMemory(24 * lsz), cl.LocalMemory(8))
+    if all(plain.shape[0] == 0 for plain, *_ in jobs):
+        return [(np.zeros(0), np.zeros(0), np.zeros(0, bool))] * len(jobs)
+    got = out.download()
+    return [(ratio.astype(np.float64), centroid.astype(np.float64), found.astype(bool))
+            for ratio, centroid, found in zip(got[0::3], got[1::3], got[2::3], strict=True)]

@@ -177,6 +177,12 @@ class SpectrumOps:
         return hidden(power(x, None, None, nfft, rows), power(x, beta, v, nfft, rows), lo, tracked_bin,
                       plain_bin, others)
 
+    def survey_each(self, xs, betas, v, nfft: int, rows, lo: int, tracked_bins, plain_bins, others) -> list:
+        """`survey` of each x of `xs` (a pair's two directions) with its beta, tracked and
+        plain bins and other echoes, the same rows and velocities (a backend: one trip)."""
+        return [self.survey(*a[:2], v, nfft, rows, lo, *a[2:])
+                for a in zip(xs, betas, tracked_bins, plain_bins, others, strict=True)]
+
 
 NUMPY = SpectrumOps()
 
