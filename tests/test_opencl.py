@@ -270,7 +270,7 @@ def test_every_kernel_launches_with_one_local_size(static_capture, monkeypatch):
     be = make_backend("opencl")
     for periods in (97, 160):         # cores and the last partial chunk of other lengths
         process(static_capture, Options(chunk_periods=periods), be)
-    assert {"resample_lanes", "spectrum_lanes", "block_sum", "crossing_changes", "line_fit_lanes",
+    assert {"resample_lanes", "spectrum_lanes", "block_sum_span", "crossing_changes_span", "line_fit_lanes",
             "clip_blocks", "cic_decimate", "fir_same"} <= set(seen)
     assert all(len(sizes) == 1 and None not in sizes for sizes in seen.values()), seen
 
