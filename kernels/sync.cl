@@ -50,20 +50,11 @@ int band(const int b, const int high, const int low)
 // always) and side of the level (`mid`), appended in any order through counters that
 // block_sum zeroed: out = [events, sides, (block, band) x cap_events, (block, before,
 // after) x cap_sides]; past a capacity only the count grows (the host then redoes it).
-__kernel void crossing_changes(__global const int *sums,
-                               const int m,
-                               const int high,
-                               const int low,
-                               const int mid,
-                               const int cap_events,
-                               const int cap_sides,
-                               __global int *out)
+// Block i's entries, from its filtered sum b and the previous block's a (i = 0: its own).
+void record_changes(const int i, const int a, const int b, const int high, const int low, const int mid,
+                    const int cap_events, const int cap_sides, __global int *out)
 {
-    const int i = get_global_id(0);
-    if (i >= m) return;
-    const int b = filtered(sums, m, i);
     const int e = band(b, high, low);
-    const int a = i > 0 ? filtered(sums, m, i - 1) : b;
     if (i == 0 || e != band(a, high, low)) {
         const int k = atomic_inc(out);
         if (k < cap_events) {
@@ -80,6 +71,21 @@ __kernel void crossing_changes(__global const int *sums,
             o[2] = b;
         }
     }
+}
+
+__kernel void crossing_changes(__global const int *sums,
+                               const int m,
+                               const int high,
+                               const int low,
+                               const int mid,
+                               const int cap_events,
+                               const int cap_sides,
+                               __global int *out)
+{
+    const int i = get_global_id(0);
+    if (i >= m) return;
+    const int b = filtered(sums, m, i);
+    record_changes(i, i > 0 ? filtered(sums, m, i - 1) : b, b, high, low, mid, cap_events, cap_sides, out);
 }
 
 // Integer sums of x and (i - c) x over x[c - hw .. c + hw], one work-group per
@@ -219,23 +225,7 @@ __kernel void crossing_changes_span(__global const int *sums,
     int a = filtered(sums, m, i0 > 0 ? i0 - 1 : 0);
     for (int i = i0; i < i1; ++i) {
         const int b = filtered(sums, m, i);
-        const int e = band(b, high, low);
-        if (i == 0 || e != band(a, high, low)) {
-            const int k = atomic_inc(out);
-            if (k < cap_events) {
-                out[2 + 2 * k] = i;
-                out[3 + 2 * k] = e;
-            }
-        }
-        if (i > 0 && (b >= mid) != (a >= mid)) {
-            const int k = atomic_inc(out + 1);
-            if (k < cap_sides) {
-                __global int *o = out + 2 + 2 * cap_events + 3 * k;
-                o[0] = i;
-                o[1] = a;
-                o[2] = b;
-            }
-        }
+        record_changes(i, a, b, high, low, mid, cap_events, cap_sides, out);
         a = b;
     }
 }
