@@ -5,6 +5,19 @@
 // then timed by line fits on the full-rate codes. Twins: fmcw_cl.stages.sync.block_sums,
 // changes and line_fit_sums.
 
+// The integer sum of block j of `factor` codes, kept in `sampled` too when j is a
+// multiple of `stride`.
+void sum_block(__global const short *x, const int factor, const int stride, const int j,
+               __global int *out, __global int *sampled)
+{
+    __global const short *p = x + (size_t)j * factor;
+    int s = 0;
+    for (int k = 0; k < factor; ++k) s += p[k];
+    out[j] = s;
+    const int q = j / stride;       // (not j % stride: Oclgrind cannot follow the code made of it)
+    if (q * stride == j) sampled[q] = s;
+}
+
 // Integer sums of whole blocks of `factor` int16 codes, and every `stride`-th of them;
 // work-item 0 also zeroes crossing_changes' two counters (this kernel always runs first).
 __kernel void block_sum(__global const short *x,
@@ -17,12 +30,7 @@ __kernel void block_sum(__global const short *x,
 {
     const int j = get_global_id(0);
     if (j >= m) return;
-    __global const short *p = x + (size_t)j * factor;
-    int s = 0;
-    for (int k = 0; k < factor; ++k) s += p[k];
-    out[j] = s;
-    const int q = j / stride;       // (not j % stride: Oclgrind cannot follow the code made of it)
-    if (q * stride == j) sampled[q] = s;
+    sum_block(x, factor, stride, j, out, sampled);
     if (j == 0) {
         counters[0] = 0;
         counters[1] = 0;
@@ -199,14 +207,7 @@ __kernel void block_sum_span(__global const short *x,
         counters[0] = 0;
         counters[1] = 0;
     }
-    for (int j = j0; j < j1; ++j) {
-        __global const short *p = x + (size_t)j * factor;
-        int s = 0;
-        for (int k = 0; k < factor; ++k) s += p[k];
-        out[j] = s;
-        const int q = j / stride;
-        if (q * stride == j) sampled[q] = s;
-    }
+    for (int j = j0; j < j1; ++j) sum_block(x, factor, stride, j, out, sampled);
 }
 
 __kernel void crossing_changes_span(__global const int *sums,

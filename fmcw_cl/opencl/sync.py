@@ -37,17 +37,17 @@ def coarse(rt: Runtime, bufs: Buffers, x: np.ndarray, factor: int, level: float 
     out = np.empty(2 + 2 * cap_e + 3 * cap_s, np.int32)
     d_sums, d_sampled = bufs.get("block_sums", 4 * m), bufs.get("block_sampled", sampled.nbytes)
     d_out = bufs.get("crossing_changes", out.nbytes)        # its counters zeroed by block_sum
-    if rt.lanes:                        # CPUs: a work-item a span of blocks
-        spans = ((-(-m // SPAN),), (1,), np.int32(SPAN))
-        block_sum, changes, sized = "block_sum_span", "crossing_changes_span", spans
+    if rt.lanes:                        # CPUs: a work-item a span of blocks (the span an argument)
+        suffix, sizes, span = "_span", ((-(-m // SPAN),), (1,)), (np.int32(SPAN),)
     else:
-        block_sum, changes, sized = "block_sum", "crossing_changes", (*rt.items(m),)
-    rt.kernel("sync", block_sum)(rt.queue, *sized[:2], _codes(bufs, x), np.int32(factor), np.int32(m),
-                                 np.int32(stride), *sized[2:], d_sums, d_sampled, d_out)
+        suffix, sizes, span = "", rt.items(m), ()
+    rt.kernel("sync", "block_sum" + suffix)(rt.queue, *sizes, _codes(bufs, x), np.int32(factor), np.int32(m),
+                                            np.int32(stride), *span, d_sums, d_sampled, d_out)
     rt.copy(sampled, d_sampled)
     lv = sync.levels(sampled.astype(np.float64), factor, level)
-    rt.kernel("sync", changes)(rt.queue, *sized[:2], d_sums, np.int32(m), np.int32(lv.high), np.int32(lv.low),
-                               np.int32(lv.mid), np.int32(cap_e), np.int32(cap_s), *sized[2:], d_out)
+    rt.kernel("sync", "crossing_changes" + suffix)(rt.queue, *sizes, d_sums, np.int32(m), np.int32(lv.high),
+                                                   np.int32(lv.low), np.int32(lv.mid), np.int32(cap_e),
+                                                   np.int32(cap_s), *span, d_out)
     rt.copy(out, d_out)
     n_e, n_s = int(out[0]), int(out[1])
     if n_e > cap_e or n_s > cap_s:      # not a triangle's changes: the host redoes them
