@@ -69,6 +69,18 @@ def test_delay_of_stretches_as_rows():
     assert lags.size == 3 * alone[0][0].size > 0 and np.nanmedian(lags) == pytest.approx(12.5, abs=0.2)
 
 
+@pytest.mark.parametrize("shifts", [(-3.25, 0.0, 2.5), (-40.0, 0.5, 60.0), (7.0, -7.0, 1e-9)])
+def test_shifted_template_is_interp(shifts):
+    """The delay fit's template moved by one shift a period equals np.interp on the
+    sample grid, rows that run off either end held at the end values."""
+    rng = np.random.default_rng(3)
+    z = rng.normal(size=300)
+    windows = np.arange(20, 260, 80)[:3, None] + np.arange(80)
+    shift = np.array(shifts)
+    want = np.interp(windows + shift[:, None], np.arange(z.size, dtype=float), z)
+    assert np.allclose(sync._shifted(z, windows, shift), want, rtol=0, atol=1e-12)
+
+
 def test_lut_uniform_frequency_and_mirror():
     laser = paper_dfb()
     cur = np.linspace(0.02, 0.5, 25)

@@ -364,30 +364,33 @@ def _fit_delays(y: np.ndarray, z: np.ndarray, step: float, half_period: float
     y, z = y[edge:-edge] - y[edge:-edge].mean(), z[edge:-edge] - z[edge:-edge].mean()
     span = int(MAX_DELAY_SAMPLES / step) + 1
     period = int(round(2 * half_period / step))
-    if y.size < 2 * span + 2 * period:
+    n = y.size
+    if n < 2 * span + 2 * period:
         return np.zeros(0), np.zeros(0)
     # coarse: integer lag (decimated samples) of the largest |cross-correlation|
-    corr = np.correlate(z, y[span: y.size - span], "valid")     # lags -span .. span
+    corr = np.correlate(z, y[span: n - span], "valid")     # lags -span .. span
     shift = np.full(1, float(np.argmax(np.abs(corr)) - span))
-    j = np.arange(y.size, dtype=np.float64)
-    starts = np.arange(span, y.size - span - period, period)
+    starts = np.arange(span, n - span - period, period)
     windows = starts[:, None] + np.arange(period)
     yw = y[windows]
+    gram = np.zeros((starts.size, 3, 3))
+    gram[:, 0, 0] = period
+
     def dot(a, b):                    # per period
         return np.einsum("pk,pk->p", a, b)
 
-    ones = np.ones(period)
     for _ in range(3):
         # shift the template period by period (one shift for all in the first pass)
-        zs = np.interp(j[windows] + shift[:, None], j, z)
-        dz = np.gradient(zs, axis=1)
+        zs = _shifted(z, windows, shift)
+        dz = np.empty_like(zs)                              # np.gradient along a period
+        dz[:, 1:-1] = (zs[:, 2:] - zs[:, :-2]) / 2.0
+        dz[:, 0], dz[:, -1] = zs[:, 1] - zs[:, 0], zs[:, -1] - zs[:, -2]
         # batched least squares on (1, zs, dz): the 3x3 normal equations of each period
-        s_z, s_d = zs @ ones, dz @ ones
-        s_zd = dot(zs, dz)
-        gram = np.stack([np.stack([np.full(s_z.shape, float(period)), s_z, s_d], 1),
-                         np.stack([s_z, dot(zs, zs), s_zd], 1),
-                         np.stack([s_d, s_zd, dot(dz, dz)], 1)], 1)
-        rhs = np.stack([yw @ ones, dot(zs, yw), dot(dz, yw)], 1)
+        gram[:, 0, 1] = gram[:, 1, 0] = zs.sum(axis=1)
+        gram[:, 0, 2] = gram[:, 2, 0] = dz.sum(axis=1)
+        gram[:, 1, 2] = gram[:, 2, 1] = dot(zs, dz)
+        gram[:, 1, 1], gram[:, 2, 2] = dot(zs, zs), dot(dz, dz)
+        rhs = np.stack([yw.sum(axis=1), dot(zs, yw), dot(dz, yw)], 1)
         coef = np.linalg.solve(gram + 1e-12 * np.eye(3), rhs[..., None])[..., 0]
         with np.errstate(divide="ignore", invalid="ignore"):
             step_lag = np.where(np.abs(coef[:, 1]) > 0, coef[:, 2] / coef[:, 1], np.nan)
@@ -397,6 +400,21 @@ def _fit_delays(y: np.ndarray, z: np.ndarray, step: float, half_period: float
         misfit = np.sqrt(np.mean(resid**2, axis=1) / np.mean((coef[:, 1:2] * zs) ** 2, axis=1))
     lags = np.where(np.isfinite(step_lag), shift * step, np.nan)
     return lags, misfit
+
+
+def _shifted(z: np.ndarray, windows: np.ndarray, shift: np.ndarray) -> np.ndarray:
+    """np.interp(windows + shift[:, None], arange(z.size), z): z at the samples of each
+    row of `windows` moved by the row's shift, linear between samples, held at the
+    ends. One shift a row has one fraction: two gathers, no search."""
+    whole = np.floor(shift)
+    i = windows + whole.astype(np.int64)[:, None]
+    frac = (shift - whole)[:, None]
+    if i.min() < 0 or i.max() > z.size - 2:       # a row off the stretch: clamp sample by sample
+        x = windows + shift[:, None]
+        i = np.clip(np.floor(x).astype(np.int64), 0, z.size - 2)
+        frac = np.clip(x - i, 0.0, 1.0)
+    a = z[i]
+    return a + frac * (z[i + 1] - a)
 
 
 CLEAN_MISFIT = 0.2  # a clean intensity triangle fits to a few percent rms
