@@ -11,9 +11,9 @@ import numpy as np
 
 from fmcw_cl import options as opts
 from fmcw_cl.api import engine_options
-from fmcw_cl.engine import make_backend, process
+from fmcw_cl.engine import make_backend, process_each
 from fmcw_cl.errors import FmcwError
-from fmcw_cl.progress import Progress, check_interrupted
+from fmcw_cl.progress import Progress
 from fmcw_cl.stages import faults
 from fmcw_cl.track import track_path, write_track
 
@@ -71,22 +71,36 @@ def report(s: dict, attrs: dict, quiet: bool, as_json: bool) -> None:
 
 
 def run_local(captures, outdir, options, stages, quiet, debug):
-    """Yield (capture, out, attrs, valid) or (capture, error) per capture, in order."""
-    for number, cap in enumerate(captures, 1):
-        check_interrupted()
+    """Yield {capture, track, attrs, valid} or {capture, error} per capture, in order.
+    Captures convert as many at a time as the backend wants (engine.process_each); the
+    bar shows the first one not yet reported."""
+    captures = list(captures)
+    bars: dict[int, Progress] = {}
+    head = [0]
+    shown = not quiet and sys.stderr.isatty()
+
+    def progress(i: int, done: int, total: int, fs: float) -> None:
+        if i not in bars:                       # made when its capture starts: its own rate
+            bars[i] = Progress(f"[{i + 1}/{len(captures)}] {captures[i].name}", enabled=False)
+        bars[i].enabled = shown and head[0] == i
+        if total:
+            bars[i](done, total, fs)
+
+    for i, (cap, got) in enumerate(process_each(captures, options, stages, None, progress)):
+        if i in bars:
+            bars.pop(i).close()
+        head[0] = i + 1
         out = track_path(outdir, cap)
-        bar = Progress(f"[{number}/{len(captures)}] {cap.name}", enabled=False if quiet else None)
         try:
-            track = process(cap, options, stages, progress=bar)
-            bar.close()
-            write_track(out, track)
+            if isinstance(got, FmcwError):
+                raise got
+            write_track(out, got)
         except FmcwError as exc:
-            bar.close()
             if debug:
                 raise
             yield {"capture": str(cap), "error": str(exc)}
             continue
-        yield {"capture": str(cap), "track": str(out), "attrs": track.attrs, "valid": track.valid}
+        yield {"capture": str(cap), "track": str(out), "attrs": got.attrs, "valid": got.valid}
 
 
 def run_cluster(captures, outdir, options, backend, device, scheduler, quiet):

@@ -50,13 +50,41 @@ def process(path: PathLike, *, progress: Callable[[int, int, float], None] | Non
     Track : per half-sweep and per pair (distance m, velocity m/s, acceleration m/s^2,
         valid, reason), every echo (`track.echoes`), the parameters (`track.attrs`).
     """
-    from .engine import make_backend
     from .engine import process as run
 
-    values = opts.check(options)
-    backend = make_backend(values["backend"], values["device"],
-                           warn=warn or (lambda m: warnings.warn(m, stacklevel=3)))
+    backend, values = _backend(options, warn)
     return run(Path(path), engine_options(values), backend, progress)
+
+
+def process_each(paths, *, progress: Callable[[int, int, int, float], None] | None = None,
+                 warn: Callable[[str], None] | None = None, workers: int | None = None, **options):
+    """Convert captures as `fmcw-cl process` does: several at once where the backend
+    gains by it (numpy; a GPU), the results in the order of `paths`.
+
+    Parameters
+    ----------
+    paths : the capture files.
+    progress : callable(index, samples_done, samples_total, sample_rate_hz), optional.
+    warn, **options : as for `process`.
+    workers : captures at once (None: the backend's choice; see engine.process_each).
+
+    Yields
+    ------
+    (path, Track), or (path, FmcwError) for a capture that cannot be converted.
+    """
+    from .engine import process_each as run
+
+    backend, values = _backend(options, warn)
+    yield from run(paths, engine_options(values), backend, workers, progress)
+
+
+def _backend(options: dict, warn):
+    """The checked option values and the backend they name."""
+    from .engine import make_backend
+
+    values = opts.check(options)
+    return make_backend(values["backend"], values["device"],
+                        warn=warn or (lambda m: warnings.warn(m, stacklevel=4))), values
 
 
 def open_capture(path: PathLike) -> Capture:

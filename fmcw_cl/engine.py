@@ -75,6 +75,9 @@ class NumpyBackend(pairing.SpectrumOps):
     name = "numpy"
     device = "numpy (CPU)"
     chunk_default = 1024       # periods a chunk: peak memory about 0.35 GB
+    # captures a batch converts at once (process_each): numpy's steps run on one core
+    # each, two workers made 4 x 1 s captures 1.5-1.6x faster on two cores
+    batch_workers = 2
 
     def intensity(self, codes, sample_rate_hz):
         return lpf.intensity(codes, sample_rate_hz)
@@ -91,6 +94,10 @@ class NumpyBackend(pairing.SpectrumOps):
 
     def clip_flags(self, codes, block, full_scale):
         return faults.clip_flags(codes, block, full_scale)
+
+    def fork(self) -> NumpyBackend:
+        """A backend for another thread (`process_each`)."""
+        return NumpyBackend()
 
 
 def make_backend(name: str = "auto", device: str | None = None, warn=None):
@@ -401,6 +408,83 @@ def process(path, options: Options | None = None, backend=None,
         track = assemble(plan, parts, backend, time.perf_counter() - started)
         check_tuning(cap, plan, track, backend)
     return track
+
+
+class _Stopped(Exception):
+    """A capture of `process_each` abandoned because the batch stopped."""
+
+
+def process_each(paths, options: Options | None = None, backend=None, workers: int | None = None,
+                 progress: Callable[[int, int, int, float], None] | None = None
+                 ) -> Iterator[tuple[Path, Track | FmcwError]]:
+    """`process` of each capture of `paths`, `workers` at a time, the results in order.
+
+    While one capture's kernels run, the next one is opened, planned and read and its
+    host steps run (a device waits on the host for about a fifth of a capture's time
+    on PoCL, most of it on a GPU). Each worker has its own `backend.fork()` (queue,
+    kernels and buffers); at most `workers` captures are in flight or done and not
+    yet yielded.
+
+    Parameters
+    ----------
+    paths : the capture files.
+    options, backend : as for `process` (the backend itself serves the first worker).
+    workers : captures converted at once (1: one after the other, in this thread);
+        None: the backend's `batch_workers`.
+    progress : callable(index, samples_done, samples_total, sample_rate_hz), optional:
+        the progress of capture `paths[index]`, called from its worker's thread, first
+        with zeros when the capture starts.
+
+    Yields
+    ------
+    (path, Track), or (path, FmcwError) for a capture that cannot be converted (the
+    others still are). Any other exception stops the batch: captures in flight stop at
+    their next chunk.
+    """
+    import queue
+    import threading
+
+    options = options or Options()
+    backend = backend or NumpyBackend()
+    workers = getattr(backend, "batch_workers", 1) if workers is None else workers
+    paths = [Path(p) for p in paths]
+    stop = threading.Event()
+    free: queue.SimpleQueue = queue.SimpleQueue()
+    for i in range(max(1, min(workers, len(paths)))):
+        free.put(backend if i == 0 else backend.fork())
+
+    def convert(i: int) -> Track | FmcwError:
+        def tick(done: int, total: int, fs: float) -> None:
+            if stop.is_set():
+                raise _Stopped
+            if progress:
+                progress(i, done, total, fs)
+
+        stages = free.get()
+        try:
+            if progress:
+                progress(i, 0, 0, 0.0)          # started (its rate counts from here)
+            return process(paths[i], options, stages, tick)
+        except FmcwError as exc:
+            return exc
+        finally:
+            free.put(stages)
+
+    if workers <= 1:
+        for i, path in enumerate(paths):
+            yield path, convert(i)
+        return
+    pool = ThreadPoolExecutor(workers)
+    try:
+        running = [pool.submit(convert, i) for i in range(min(workers, len(paths)))]
+        for i, path in enumerate(paths):
+            got = running[i].result()
+            if i + workers < len(paths):
+                running.append(pool.submit(convert, i + workers))
+            yield path, got
+    finally:
+        stop.set()
+        pool.shutdown(wait=True, cancel_futures=True)
 
 
 def check_tuning(cap: Capture, plan: Plan, track: Track, backend=None) -> None:

@@ -124,3 +124,15 @@ def test_top_level_is_lazy_and_complete():
         assert getattr(fmcw_cl, name) is not None
     with pytest.raises(AttributeError):
         fmcw_cl.no_such_thing  # noqa: B018
+
+
+def test_process_each_by_option_names(tmp_path):
+    """A batch through the API: results in order, the options by the command line's
+    names, a bad file as its error while the others convert."""
+    bad = tmp_path / "bad.h5"
+    bad.write_bytes(b"not a capture")
+    got = list(fmcw_cl.process_each([SAMPLE, bad, SAMPLE], backend="numpy", dechirp=False))
+    assert [Path(p) for p, _ in got] == [Path(SAMPLE), bad, Path(SAMPLE)]
+    assert isinstance(got[1][1], FmcwError)
+    for _, track in (got[0], got[2]):
+        assert isinstance(track, fmcw_cl.Track) and track.attrs["dechirp"] is False and track.pairs > 0

@@ -75,3 +75,44 @@ def test_dropped_samples_split_the_stream(tmp_path, static_capture):
 def test_min_range_beyond_the_unambiguous_range_is_refused(static_capture):
     with pytest.raises(FmcwError, match="unambiguous range"):
         process(static_capture, Options(points=100, min_range_m=0.1))
+
+
+def test_process_each_keeps_order_and_reports_bad_files(tmp_path, static_capture):
+    """A batch converted two at a time: results in the order given, each equal to the
+    capture converted alone, a bad file reported as its error without stopping the
+    others, and each capture's progress under its own index (zeros when it starts)."""
+    from fmcw_cl.engine import NumpyBackend, process_each
+
+    bad = tmp_path / "bad.h5"
+    bad.write_bytes(b"not a capture")
+    paths = [static_capture, bad, static_capture, static_capture]
+    started, seen = set(), set()
+
+    def progress(i, done, total, fs):
+        (seen if total else started).add(i)
+
+    got = list(process_each(paths, backend=NumpyBackend(), workers=2, progress=progress))
+    assert [p for p, _ in got] == paths
+    assert isinstance(got[1][1], FmcwError) and str(bad) in str(got[1][1])
+    alone = process(static_capture)
+    for _, track in (got[0], got[2], got[3]):
+        np.testing.assert_array_equal(track.valid, alone.valid)
+        np.testing.assert_array_equal(track.distance_m, alone.distance_m)
+    assert started == {0, 1, 2, 3} and seen == {0, 2, 3}
+
+
+def test_process_each_stops_on_an_exception(static_capture):
+    """An exception other than a capture's error (here Ctrl-C seen by a progress report)
+    ends the batch: it reaches the caller, and no later capture is started."""
+    from fmcw_cl.engine import NumpyBackend, process_each
+
+    started = set()
+
+    def progress(i, done, total, fs):
+        started.add(i)
+        if i == 0:
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        list(process_each([static_capture] * 5, backend=NumpyBackend(), workers=2, progress=progress))
+    assert started <= {0, 1}

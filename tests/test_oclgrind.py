@@ -80,7 +80,10 @@ def test_gpu_benchmark_batch_runs_anywhere(tmp_path):
     spec = importlib.util.spec_from_file_location("gpu", Path(__file__).parents[1] / "benchmarks" / "gpu.py")
     gpu = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(gpu)
-    got = gpu.batch(None, 0.01, 2, tmp_path)
-    assert got["captures"] == 2 and got["capture_seconds"] == 0.02
-    assert got["real_time_multiple"] == pytest.approx(0.02 / got["wall_s"])
-    assert got["host_cpu_ms_per_s"] > 0 and "Oclgrind" not in got["device"]
+    one, two = gpu.batch(None, 0.01, 2, tmp_path)
+    assert (one["workers"], two["workers"]) == (1, 2) and one["default"] != two["default"]
+    for got in (one, two):
+        assert got["captures"] == 2 and got["capture_seconds"] == 0.02
+        assert got["real_time_multiple"] == pytest.approx(0.02 / got["wall_s"])
+        assert got["process_cpu_cores"] > 0 and "Oclgrind" not in got["device"]
+    assert one["host_cpu_ms_per_s"] > 0

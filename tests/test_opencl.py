@@ -253,6 +253,22 @@ def test_opencl_track_equals_numpy_track(request, name):
     assert a.attrs["chunk_periods"] == b.attrs["chunk_periods"] == 1024
 
 
+def test_forked_backend_converts_the_same_track(backend, static_capture):
+    """Two captures at once, each worker on its own queue, kernels and buffers
+    (OpenCLBackend.fork, engine.process_each): each track equals the one converted alone."""
+    from fmcw_cl.engine import process_each
+
+    alone = process(static_capture, Options(), backend)
+    fork = backend.fork()
+    assert fork.rt.queue is not backend.rt.queue and fork.rt.context is backend.rt.context
+    assert fork.bufs is not backend.bufs and fork.rt.programs is backend.rt.programs
+    got = list(process_each([static_capture] * 3, Options(), backend, workers=2))
+    for _, track in got:
+        np.testing.assert_array_equal(track.valid, alone.valid)
+        np.testing.assert_array_equal(track.distance_m, alone.distance_m)
+        np.testing.assert_array_equal(track.velocity_mps, alone.velocity_mps)
+
+
 def test_every_kernel_launches_with_one_local_size(static_capture, monkeypatch):
     """PoCL builds a kernel anew (0.1-0.2 s) for each local size it meets, and picks one
     that follows the global size when the launch leaves it open: across chunks of other

@@ -21,7 +21,7 @@ from . import spectrum as k_spectrum
 from . import survey as k_survey
 from . import sync as k_sync
 from .buffers import Buffers, DeviceRows
-from .context import runtime
+from .context import Runtime, runtime
 
 
 class OpenCLBackend(pairing.SpectrumOps):
@@ -33,14 +33,27 @@ class OpenCLBackend(pairing.SpectrumOps):
     chunk_default = 8192
     programs = ("lpf", "sync", "resample", "spectrum", "integrate", "survey", "faults")
 
-    def __init__(self, selector: str | None = None) -> None:
-        self.rt = runtime(selector)
+    def __init__(self, selector: str | None = None, rt: Runtime | None = None) -> None:
+        self.rt = rt or runtime(selector)
         for program in self.programs:      # build now: a failure must surface before any work
             self.rt.program(program)
         self.bufs = Buffers(self.rt)
         self.device = self.rt.name
         self._coarse = functools.partial(k_sync.coarse, self.rt, self.bufs)
         self._sums = functools.partial(k_sync.line_fit_sums, self.rt, self.bufs)
+
+    @property
+    def batch_workers(self) -> int:
+        """Captures a batch converts at once (engine.process_each). A GPU waits on the
+        host for most of a capture: two overlap one's host steps with the other's
+        kernels. A CPU device's kernels already keep its cores busy (PoCL, 2 cores: 1.75
+        of them), and a second capture cost more CPU than it filled: one."""
+        return 1 if self.rt.zero_copy else 2
+
+    def fork(self) -> OpenCLBackend:
+        """The same device for another thread (engine.process_each): its own queue,
+        kernels and buffers; the programs are built once."""
+        return OpenCLBackend(rt=self.rt.stream())
 
     def chunk_periods(self, samples_per_period: float, points: int) -> int:
         """Modulation periods of one chunk that fit in a quarter of the device's memory

@@ -10,6 +10,7 @@ and says where.
 
 from __future__ import annotations
 
+import copy
 import os
 import tempfile
 from dataclasses import dataclass, field
@@ -164,10 +165,21 @@ class Runtime:
         self.context = cl.Context([self.device])
         # profiled: `fmcw-cl bench` reports the device's busy share (timestamps cost nothing
         # measurable)
-        self.queue = cl.CommandQueue(self.context, properties=cl.command_queue_properties.PROFILING_ENABLE)
+        self.queue = self._new_queue()
         # a CPU runs a work-group's work-items as a loop, which PoCL vectorises only where
         # the kernel has no loop of its own (kernels/fft_lanes.cl); GPUs want work-groups
         self.lanes = rank(self.device) == CPU
+
+    def _new_queue(self):
+        return cl.CommandQueue(self.context, properties=cl.command_queue_properties.PROFILING_ENABLE)
+
+    def stream(self) -> Runtime:
+        """Another in-order queue on this context for another thread, with its own kernel
+        objects (a launch sets a kernel's arguments first: two threads must not share
+        one) and counters; the context and the built programs are shared."""
+        other = copy.copy(self)
+        other.queue, other.kernels, other.traffic = other._new_queue(), {}, Traffic()
+        return other
 
     @property
     def name(self) -> str:
