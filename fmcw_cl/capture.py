@@ -9,6 +9,7 @@ from __future__ import annotations
 import math
 import os
 import re
+import threading
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -252,6 +253,7 @@ class Capture:
         self._extents = [Extents.of(self._beat), Extents.of(self._sync)]
         self._fd = os.open(self.path, os.O_RDONLY) if any(self._extents) else None
         self._slots: list[tuple[np.ndarray, np.ndarray]] = []
+        self._slots_lock = threading.Lock()     # the chunk reader's thread takes slots too
 
     def __enter__(self) -> Capture:
         return self
@@ -297,15 +299,17 @@ class Capture:
         """Int16 arrays of `samples` (beat, sync) for `read_into`, slot i of those this
         capture holds: borrowed from `fmcw_cl.pool` and given back when the capture is
         closed, so that memory is touched once per process, not per capture or chunk
-        (the sync delay's stretches and then the chunks use slot 0). What a slot held is
-        overwritten by its next user, after `close` by another capture."""
-        while len(self._slots) <= i:
-            self._slots.append((np.empty(0, np.int16), np.empty(0, np.int16)))
-        if self._slots[i][0].size < samples:
-            for a in self._slots[i]:
-                pool.give(a)
-            self._slots[i] = (pool.lease(samples), pool.lease(samples))
-        return self._slots[i][0][:samples], self._slots[i][1][:samples]
+        (the chunks take turns in slots 0 and 1, the sync delay's stretches use slot 1).
+        What a slot held is overwritten by its next user, after `close` by another
+        capture."""
+        with self._slots_lock:
+            while len(self._slots) <= i:
+                self._slots.append((np.empty(0, np.int16), np.empty(0, np.int16)))
+            if self._slots[i][0].size < samples:
+                for a in self._slots[i]:
+                    pool.give(a)
+                self._slots[i] = (pool.lease(samples), pool.lease(samples))
+            return self._slots[i][0][:samples], self._slots[i][1][:samples]
 
     def chunks(self, periods: int, margin: int = 0, start: int = 0, stop: int | None = None,
                slots: int = 0) -> Iterator[Chunk]:

@@ -133,8 +133,9 @@ def estimate_capture_delay(cap: Capture, intensity=lpf.intensity) -> tuple[float
     length = int(DELAY_STRETCH_PERIODS * info.samples_per_period)
     starts = np.unique(np.linspace(0, max(0, info.samples - length), DELAY_STRETCHES).astype(np.int64))
     length = min(length, info.samples)
-    # the stretches as rows (in the memory the chunks use next), low-passed by one launch a channel
-    beat, sy = (x.reshape(starts.size, length) for x in cap.slot(0, starts.size * length))
+    # the stretches as rows (in the slot the second chunk uses next: the first may be
+    # read meanwhile), low-passed by one launch a channel
+    beat, sy = (x.reshape(starts.size, length) for x in cap.slot(1, starts.size * length))
     for a, b, s in zip(starts, beat, sy, strict=True):
         cap.read_into(a, a + length, b, s)
     return sync.combine_delays(*sync.period_delays(beat, sy, info.sample_rate_hz, hp, intensity))
@@ -360,31 +361,54 @@ def split_ranges(info: CaptureInfo, options: Options, seconds: float) -> list[tu
     return [(a, min(a + per, info.samples)) for a in range(0, info.samples, per)]
 
 
-def read_ahead(chunks: Iterator) -> Iterator:
+class ReadAhead:
     """The items of `chunks`, the next one read by a thread while this one is processed
-    (HDF5 reads and the kernels' waits release the GIL)."""
-    with ThreadPoolExecutor(1) as pool:
-        ahead = pool.submit(next, chunks, None)
-        while (item := ahead.result()) is not None:
-            ahead = pool.submit(next, chunks, None)
+    (HDF5 reads and the kernels' waits release the GIL). The first read starts at once:
+    a capture's first chunk is read while its plan is made. `close` (or leaving the
+    `with`) waits for a read in flight, so that its slot is not handed on mid-read."""
+
+    def __init__(self, chunks: Iterator) -> None:
+        self._chunks, self._pool = chunks, ThreadPoolExecutor(1)
+        self._ahead = self._pool.submit(next, chunks, None)
+
+    def __iter__(self) -> Iterator:
+        while (item := self._ahead.result()) is not None:
+            self._ahead = self._pool.submit(next, self._chunks, None)
             yield item
+
+    def close(self) -> None:
+        self._pool.shutdown(wait=True, cancel_futures=True)
+
+    def __enter__(self) -> ReadAhead:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+def read_chunks(cap: Capture, options: Options, start: int = 0, stop: int | None = None) -> ReadAhead:
+    """The chunks of `options` whose cores lie in samples [start, stop), read ahead into
+    the capture's slots 0 and 1: a chunk's results keep none of its samples, and its
+    kernels are done when the next one starts."""
+    info = cap.info
+    margin = int((options.context_periods + 1) * info.samples_per_period + sync.MAX_DELAY_SAMPLES + 8)
+    return ReadAhead(cap.chunks(options.chunk_periods, margin, start, stop, slots=2))
 
 
 def capture_parts(cap: Capture, plan: Plan, backend, start: int = 0, stop: int | None = None,
-                  progress: Callable[[int, int, float], None] | None = None) -> list[_Pairs]:
+                  progress: Callable[[int, int, float], None] | None = None,
+                  chunks: ReadAhead | None = None) -> list[_Pairs]:
     """The owned pairs of every chunk whose core lies in samples [start, stop)
-    (`start` a multiple of `core_samples`)."""
-    info, options = cap.info, plan.options
-    margin = int((options.context_periods + 1) * info.samples_per_period + sync.MAX_DELAY_SAMPLES + 8)
+    (`start` a multiple of `core_samples`), from `chunks` when given (`read_chunks` of
+    the same range and plan.options, already reading)."""
     parts: list[_Pairs] = []
-    # two slots: one chunk processed while the next is read (`read_ahead`); a chunk's
-    # results keep none of its samples, and its kernels are done when the next one starts
-    for chunk in read_ahead(cap.chunks(options.chunk_periods, margin, start, stop, slots=2)):
-        got = _chunk_pairs(plan, chunk, backend)
-        if got is not None:
-            parts.append(got)
-        if progress:
-            progress(chunk.core_stop, info.samples, info.sample_rate_hz)
+    with chunks or read_chunks(cap, plan.options, start, stop) as ahead:
+        for chunk in ahead:
+            got = _chunk_pairs(plan, chunk, backend)
+            if got is not None:
+                parts.append(got)
+            if progress:
+                progress(chunk.core_stop, cap.info.samples, cap.info.sample_rate_hz)
     return parts
 
 
@@ -403,8 +427,15 @@ def process(path, options: Options | None = None, backend=None,
     backend = backend or NumpyBackend()
     started = time.perf_counter()
     with Capture(path) as cap:
-        plan = make_plan(cap, options, backend=backend)
-        parts = capture_parts(cap, plan, backend, progress=progress)
+        # the first chunk is read while the plan is made (the delay's stretches are read
+        # into slot 1); a chirp calibration's plan converts stretches itself (refine)
+        ahead = None if options.chirp else read_chunks(cap, fit_chunks(options, cap.info, backend))
+        try:
+            plan = make_plan(cap, options, backend=backend)
+            parts = capture_parts(cap, plan, backend, progress=progress, chunks=ahead)
+        finally:
+            if ahead is not None:
+                ahead.close()
         track = assemble(plan, parts, backend, time.perf_counter() - started)
         check_tuning(cap, plan, track, backend)
     return track
