@@ -507,11 +507,11 @@ def process_each(paths, options: Options | None = None, backend=None, workers: i
         return
     pool = ThreadPoolExecutor(workers)
     try:
-        running = [pool.submit(convert, i) for i in range(min(workers, len(paths)))]
+        running = {i: pool.submit(convert, i) for i in range(min(workers, len(paths)))}
         for i, path in enumerate(paths):
-            got = running[i].result()
+            got = running.pop(i).result()          # a yielded track is the caller's alone
             if i + workers < len(paths):
-                running.append(pool.submit(convert, i + workers))
+                running[i + workers] = pool.submit(convert, i + workers)
             yield path, got
     finally:
         stop.set()

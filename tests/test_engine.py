@@ -116,3 +116,27 @@ def test_process_each_stops_on_an_exception(static_capture):
     with pytest.raises(KeyboardInterrupt):
         list(process_each([static_capture] * 5, backend=NumpyBackend(), workers=2, progress=progress))
     assert started <= {0, 1}
+
+
+def test_read_ahead_starts_at_once_and_close_waits():
+    """The chunk reader starts its first read when made (a capture's first chunk is read
+    while its plan is made), yields in order, and `close` returns only when a read in
+    flight has ended (its slot must not be handed on mid-read)."""
+    import threading
+
+    from fmcw_cl.engine import ReadAhead
+
+    assert list(ReadAhead(iter([1, 2, 3]))) == [1, 2, 3]
+    started, release, finished = threading.Event(), threading.Event(), threading.Event()
+
+    def items():
+        started.set()
+        release.wait(10)
+        finished.set()
+        yield 1
+
+    ahead = ReadAhead(items())
+    assert started.wait(10)                      # before anything asked for an item
+    threading.Timer(0.2, release.set).start()
+    ahead.close()
+    assert finished.is_set()
