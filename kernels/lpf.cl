@@ -25,9 +25,7 @@ __kernel void cic_decimate(__global const short *x,     // (rows, stride)
     for (; k + 8 <= taps; k += 8) acc8 += vload8(0, h + k) * convert_float8(vload8(0, p + k));
     float acc = 0.0f;
     for (; k < taps; ++k) acc += h[k] * (float)p[k];
-    float lanes[8];          // summed through memory: Oclgrind's checks crash on acc8.s0 + ...
-    vstore8(acc8, 0, lanes);
-    out[i] = acc + (((lanes[0] + lanes[1]) + (lanes[2] + lanes[3])) + ((lanes[4] + lanes[5]) + (lanes[6] + lanes[7])));
+    out[i] = acc + sum8(acc8);
 }
 
 // Symmetric (zero-phase) FIR, centred, zero outside each row's [0, n):
@@ -50,7 +48,5 @@ __kernel void fir_same(__global const float *x,         // (rows, n)
     for (; t + 8 <= b + 1; t += 8) acc8 += vload8(0, taps + t) * vload8(0, p + t);
     float acc = 0.0f;
     for (; t <= b; ++t) acc += taps[t] * p[t];
-    float lanes[8];
-    vstore8(acc8, 0, lanes);
-    out[i] = acc + (((lanes[0] + lanes[1]) + (lanes[2] + lanes[3])) + ((lanes[4] + lanes[5]) + (lanes[6] + lanes[7])));
+    out[i] = acc + sum8(acc8);
 }

@@ -102,9 +102,7 @@ __kernel void resample_lanes(__global const short *codes,
         vstore8(y, 0, row + j);
         acc += y;
     }
-    float lanes[8];          // summed through memory: Oclgrind's checks crash on acc.s0 + ...
-    vstore8(acc, 0, lanes);
-    float total = ((lanes[0] + lanes[1]) + (lanes[2] + lanes[3])) + ((lanes[4] + lanes[5]) + (lanes[6] + lanes[7]));
+    float total = sum8(acc);
     for (int j = whole; j < points; ++j) {
         const float y = point(codes, b, off, dl, lut_int, lut_frac, u, j);
         row[j] = y;
