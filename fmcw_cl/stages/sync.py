@@ -326,19 +326,19 @@ MAX_DELAY_SAMPLES = 400  # search range of the sync-to-optics delay
 
 
 def period_delays(beat: np.ndarray, sync: np.ndarray, sample_rate_hz: float,
-                  half_period: float, intensity=lpf.intensity) -> tuple[np.ndarray, np.ndarray]:
+                  half_period: float, intensity=lpf.intensity, fit=None) -> tuple[np.ndarray, np.ndarray]:
     """Per-period estimates of how far the sync lags the optics (samples).
 
     The low-passed beat carries the laser intensity triangle, which has the optical
     timing. The sync is passed through the same decimation and low-pass, so both
     triangles have identically rounded corners; the beat is then regressed, one
     modulation period at a time, on the shifted template and its derivative
-    (Gauss-Newton). The detector imbalance may have either sign: the regression's
-    scale takes it.
+    (Gauss-Newton, `fit_periods`). The detector imbalance may have either sign: the
+    regression's scale takes it.
 
     `beat` and `sync` are (samples,), or (stretches, samples): stretches of the capture,
     low-passed by one call of `intensity` (lpf.intensity or a backend's kernel) and
-    fitted each alone.
+    fitted each alone, all by one call of `fit` (fit_periods or a backend's kernel).
 
     Returns
     -------
@@ -348,32 +348,55 @@ def period_delays(beat: np.ndarray, sync: np.ndarray, sample_rate_hz: float,
     """
     y, _, step = intensity(beat, sample_rate_hz)
     z, _, _ = intensity(sync, sample_rate_hz)
-    if y.ndim == 1:
-        return _fit_delays(y, z, step, half_period)
-    # a stretch at a time: the temporaries of all at once are large enough that the
-    # allocator returns them to the system and faults them in again each time
-    fits = [_fit_delays(a, b, step, half_period) for a, b in zip(y, z, strict=True)]
-    return tuple(np.concatenate([f[i] for f in fits] or [np.zeros(0)]) for i in (0, 1))
-
-
-def _fit_delays(y: np.ndarray, z: np.ndarray, step: float, half_period: float
-                ) -> tuple[np.ndarray, np.ndarray]:
-    """period_delays of one stretch from its low-passed beat y and sync z (decimated
-    by `step`)."""
+    y, z = np.atleast_2d(y), np.atleast_2d(z)
     edge = lpf.TAPS // 2 + 1
-    y, z = y[edge:-edge] - y[edge:-edge].mean(), z[edge:-edge] - z[edge:-edge].mean()
+    y, z = y[:, edge:-edge], z[:, edge:-edge]
     span = int(MAX_DELAY_SAMPLES / step) + 1
     period = int(round(2 * half_period / step))
-    n = y.size
-    if n < 2 * span + 2 * period:
+    if y.shape[1] < 2 * span + 2 * period or y.shape[0] == 0:
         return np.zeros(0), np.zeros(0)
+    y = y - y.mean(axis=1, keepdims=True)
+    z = z - z.mean(axis=1, keepdims=True)
     # coarse: integer lag (decimated samples) of the largest |cross-correlation|
-    corr = np.correlate(z, y[span: n - span], "valid")     # lags -span .. span
-    shift = np.full(1, float(np.argmax(np.abs(corr)) - span))
+    shift = np.array([np.argmax(np.abs(np.correlate(b, a[span:-span], "valid"))) - span   # lags -span..span
+                      for a, b in zip(y, z, strict=True)], np.float64)
+    lags, misfit = (fit or fit_periods)(y, z, shift, period, span)
+    return (lags * step).ravel(), misfit.ravel()
+
+
+def fit_periods(y: np.ndarray, z: np.ndarray, shift: np.ndarray, period: int, span: int
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """The Gauss-Newton fit of each period of each row: beat y on the sync template z
+    moved by a lag (decimated samples), its derivative and a constant, three steps from
+    the row's coarse `shift`.
+
+    Parameters
+    ----------
+    y, z : (rows, n) low-passed beat and sync, each row's mean removed.
+    shift : (rows,) coarse lag of each row (decimated samples).
+    period : decimated samples of one period; the periods start at `span` and go on
+        while `span` samples are left after them.
+
+    Returns
+    -------
+    lags : (rows, periods) decimated samples, NaN where a period gives no triangle.
+    misfit : (rows, periods) rms residual relative to the fitted triangle's rms.
+    """
+    n = y.shape[1]
     starts = np.arange(span, n - span - period, period)
     windows = starts[:, None] + np.arange(period)
+    # a row at a time: the temporaries of all at once are large enough that the
+    # allocator returns them to the system and faults them in again each time
+    got = [_fit_row(a, b, np.full(1, float(s)), windows) for a, b, s in zip(y, z, shift, strict=True)]
+    return tuple(np.stack([g[i] for g in got]) for i in (0, 1))
+
+
+def _fit_row(y: np.ndarray, z: np.ndarray, shift: np.ndarray, windows: np.ndarray
+             ) -> tuple[np.ndarray, np.ndarray]:
+    """fit_periods of one row."""
     yw = y[windows]
-    gram = np.zeros((starts.size, 3, 3))
+    period = windows.shape[1]
+    gram = np.zeros((windows.shape[0], 3, 3))
     gram[:, 0, 0] = period
 
     def dot(a, b):                    # per period
@@ -398,8 +421,7 @@ def _fit_delays(y: np.ndarray, z: np.ndarray, step: float, half_period: float
     resid = yw - (coef[:, :1] + coef[:, 1:2] * zs + coef[:, 2:] * dz)
     with np.errstate(divide="ignore", invalid="ignore"):
         misfit = np.sqrt(np.mean(resid**2, axis=1) / np.mean((coef[:, 1:2] * zs) ** 2, axis=1))
-    lags = np.where(np.isfinite(step_lag), shift * step, np.nan)
-    return lags, misfit
+    return np.where(np.isfinite(step_lag), shift, np.nan), misfit
 
 
 def _shifted(z: np.ndarray, windows: np.ndarray, shift: np.ndarray) -> np.ndarray:
