@@ -82,6 +82,9 @@ class NumpyBackend(pairing.SpectrumOps):
     def intensity(self, codes, sample_rate_hz):
         return lpf.intensity(codes, sample_rate_hz)
 
+    def fit_periods(self, y, z, shift, period, span):
+        return sync.fit_periods(y, z, shift, period, span)
+
     def turning_points(self, codes, half_period):
         return sync.sync_turning_points(codes, half_period)
 
@@ -122,12 +125,13 @@ def make_backend(name: str = "auto", device: str | None = None, warn=None):
         return NumpyBackend()
 
 
-def estimate_capture_delay(cap: Capture, intensity=lpf.intensity) -> tuple[float, int, float]:
+def estimate_capture_delay(cap: Capture, backend=None) -> tuple[float, int, float]:
     """Sync lag (samples) pooled over stretches spread through the capture.
 
-    Returns (lag, periods used, misfit); see `sync.combine_delays`. `intensity` is the
-    low-pass step (a backend's).
+    Returns (lag, periods used, misfit); see `sync.combine_delays`. `backend` runs the
+    low-pass and the per-period fit (default numpy).
     """
+    backend = backend or NumpyBackend()
     info = cap.info
     hp = info.samples_per_period / 2
     length = int(DELAY_STRETCH_PERIODS * info.samples_per_period)
@@ -138,7 +142,8 @@ def estimate_capture_delay(cap: Capture, intensity=lpf.intensity) -> tuple[float
     beat, sy = (x.reshape(starts.size, length) for x in cap.slot(1, starts.size * length))
     for a, b, s in zip(starts, beat, sy, strict=True):
         cap.read_into(a, a + length, b, s)
-    return sync.combine_delays(*sync.period_delays(beat, sy, info.sample_rate_hz, hp, intensity))
+    return sync.combine_delays(*sync.period_delays(beat, sy, info.sample_rate_hz, hp, backend.intensity,
+                                                   backend.fit_periods))
 
 
 def make_lut(info: CaptureInfo, points: int, chirp=None) -> Lut:
@@ -172,8 +177,7 @@ def make_plan(cap: Capture, options: Options, lag: float | None = None, backend=
     check_sync_period(cap)
     options = fit_chunks(options, info, backend)
     known = lag is not None
-    intensity = backend.intensity if backend is not None else lpf.intensity
-    lag, votes, misfit = estimate_capture_delay(cap, intensity) if lag is None else (lag, 0, 0.0)
+    lag, votes, misfit = estimate_capture_delay(cap, backend) if lag is None else (lag, 0, 0.0)
     if not np.isfinite(lag):
         raise CaptureError(info.path, "no laser intensity triangle in the beat channel: "
                                       "cannot align the sync to the optics")

@@ -341,6 +341,30 @@ def test_no_opencl_platform(monkeypatch):
     assert len(warnings) == 1 and "no OpenCL device found" in warnings[0]
 
 
+@pytest.mark.parametrize("rows,n,period", [(1, 441, 200), (3, 1237, 200), (6, 9999, 160)])
+def test_delay_fit_kernel_matches_numpy(backend, rows, n, period):
+    """The per-period Gauss-Newton fit of the sync delay (delay_fit) against its twin on
+    noisy triangles moved by lags of up to 9 samples, from coarse lags up to half a
+    sample off, a silent row among them: the same NaNs, lags within 1e-3 decimated
+    samples (the estimate's own noise, about 0.1, is larger), near the true lag."""
+    from fmcw_cl.opencl.selftest import delay_rows
+
+    rng = np.random.default_rng(n)
+    y, z, coarse, lag = delay_rows(rng, rows, n, period)
+    span = 17
+    got = backend.fit_periods(y, z, coarse, period, span)
+    want = sync.fit_periods(y, z, coarse, period, span)
+    assert got[0].shape == want[0].shape == (rows, len(range(span, n - span - period, period)))
+    for g, w in zip(got, want, strict=True):
+        np.testing.assert_array_equal(np.isnan(g), np.isnan(w))
+    ok = np.isfinite(want[0])
+    heard = np.arange(rows) < max(1, rows - 1)              # of two rows or more the last is silent
+    assert (ok.all(axis=1) == heard).all() and not ok[~heard].any()
+    assert np.abs(got[0][ok] - want[0][ok]).max() < 1e-3
+    assert np.abs(got[1][ok] - want[1][ok]).max() < 1e-4
+    assert np.abs(got[0][heard] - lag[heard, None]).max() < 0.5         # noise: about 0.1 a period
+
+
 @pytest.mark.parametrize("n", [400_003, 5_000, 73, 72, 0])
 def test_lpf_kernel_matches_numpy(backend, n):
     """The CIC decimator and the centred FIR (zero-padded ends), on a chirped beat that

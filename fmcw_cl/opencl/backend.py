@@ -1,5 +1,6 @@
-"""The OpenCL backend: the low-pass, the sync's block sums, their band changes and line
-fits, the clipping flags, resampling, and the de-chirp/FFT/peak/echo stage on a device.
+"""The OpenCL backend: the low-pass, the sync delay's per-period fits, the sync's block
+sums, their band changes and line fits, the clipping flags, resampling, and the
+de-chirp/FFT/peak/echo stage on a device.
 The resampled half-sweeps stay on the device across the tracker's passes; only the sync's
 sparse changes and sums, clipping flags and peaks come back. The band-state flips, the
 turning-point grid, pairing and the tracker's regularisation stay on the host
@@ -13,6 +14,7 @@ import functools
 import numpy as np
 
 from ..stages import pairing, sync
+from . import delay as k_delay
 from . import faults as k_faults
 from . import integrate as k_integrate
 from . import lpf as k_lpf
@@ -31,7 +33,7 @@ class OpenCLBackend(pairing.SpectrumOps):
     # periods a chunk: a chunk's launches, copies and host steps cost about the same
     # whatever its size (0.4 s of capture: 160 MB of codes, 65 MB of resampled rows)
     chunk_default = 8192
-    programs = ("lpf", "sync", "resample", "spectrum", "integrate", "survey", "faults")
+    programs = ("lpf", "delay", "sync", "resample", "spectrum", "integrate", "survey", "faults")
 
     def __init__(self, selector: str | None = None, rt: Runtime | None = None) -> None:
         self.rt = rt or runtime(selector)
@@ -71,6 +73,9 @@ class OpenCLBackend(pairing.SpectrumOps):
 
     def intensity(self, codes, sample_rate_hz):
         return k_lpf.intensity(self.rt, self.bufs, codes, sample_rate_hz)
+
+    def fit_periods(self, y, z, shift, period, span):
+        return k_delay.fit_periods(self.rt, self.bufs, y, z, shift, period, span)
 
     def turning_points(self, codes, half_period):
         return sync.sync_turning_points(codes, half_period, self._coarse, self._sums)

@@ -64,12 +64,34 @@ def _group(be: OpenCLBackend, group: str) -> None:
     be.rt.lanes = chosen
 
 
+def delay_rows(rng, rows: int = 3, n: int = 1237, period: int = 200) -> tuple:
+    """Rows of a decimated sync triangle (period `period`) and a beat that is the
+    triangle moved by a lag of its own, scaled, with noise, each row's mean removed;
+    of two rows or more the last beat row is silent (no triangle: NaN lags). Returns
+    (y, z, coarse lags, true lags)."""
+    k = np.arange(n, dtype=np.float64)
+    z = np.stack([1000 * (np.abs(((k + 31 * r) / period) % 1.0 - 0.5) * 2 - 0.5) for r in range(rows)])
+    lag = rng.uniform(-9, 9, rows)
+    y = np.stack([0.4 * np.interp(k + a, k, b) for a, b in zip(lag, z, strict=True)])
+    y += rng.normal(0, 5, y.shape)
+    if rows > 1:
+        y[-1] = 0.0
+    return y - y.mean(axis=1, keepdims=True), z - z.mean(axis=1, keepdims=True), np.round(lag), lag
+
+
 def stream(be, beat, sync_codes, fs, hp, rng) -> None:
-    """The per-sample stages: low-pass, sync crossings, resampling."""
+    """The per-sample stages: low-pass, the sync delay's fit, sync crossings, resampling."""
     y, _, _ = be.intensity(beat, fs)
     close("low-pass (cic_decimate, fir_same)", y, lpf.intensity(beat, fs)[0], 1e-5)
     rows = beat[: 3 * (beat.size // 3)].reshape(3, -1)       # the sync delay's stretches, one launch
     close("low-pass of rows", be.intensity(rows, fs)[0], lpf.intensity(rows, fs)[0], 1e-5)
+    y, z, shift, _ = delay_rows(rng)
+    got, want = be.fit_periods(y, z, shift, 200, 17), sync.fit_periods(y, z, shift, 200, 17)
+    if not all(np.array_equal(np.isnan(g), np.isnan(w)) for g, w in zip(got, want, strict=True)):
+        raise SystemExit("sync delay fit (delay_fit): kernel and numpy twin differ in their NaNs")
+    ok = np.isfinite(want[0])
+    close("sync delay fit (delay_fit)", got[0][ok], want[0][ok], 1e-4)
+    close("sync delay fit, misfit", got[1][ok], want[1][ok], 1e-3)
     got = be.turning_points(sync_codes, hp)
     want = sync.sync_turning_points(sync_codes, hp)
     close("sync (block_sum, line_fit)", got.time, want.time, 1e-9)

@@ -1,0 +1,26 @@
+"""Launcher of kernels/delay.cl (twin: fmcw_cl.stages.sync.fit_periods)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .buffers import Buffers
+from .context import Runtime
+
+
+def fit_periods(rt: Runtime, bufs: Buffers, y: np.ndarray, z: np.ndarray, shift: np.ndarray, period: int,
+                span: int) -> tuple[np.ndarray, np.ndarray]:
+    """The Gauss-Newton fit of every period of every row, a work-item each: the rows go
+    up in one copy (beat and sync together), lags and misfits come back in one."""
+    rows, n = y.shape
+    periods = len(range(span, n - span - period, period))
+    out = np.empty((2, rows, periods), np.float32)
+    if out.size:
+        d_yz = bufs.upload("delay_yz", np.stack([y, z]).astype(np.float32))
+        d_out = bufs.get("delay_out", out.nbytes)
+        d_coarse = bufs.upload("delay_coarse", np.asarray(shift, np.float32))
+        rt.kernel("delay", "delay_fit")(rt.queue, *rt.items(rows * periods), d_yz, np.int32(n),
+                                        np.int32(rows), np.int32(periods), np.int32(period), np.int32(span),
+                                        d_coarse, d_out)
+        rt.copy(out, d_out)
+    return out[0].astype(np.float64), out[1].astype(np.float64)

@@ -1,0 +1,91 @@
+// Stage 3: the sync-to-optics delay, fitted period by period. The low-passed beat y of
+// one period is regressed on the low-passed sync z moved by a lag, its derivative and a
+// constant (Gauss-Newton, three steps from the row's coarse lag); one work-item per
+// period of every row (the sync delay's stretches). Twin: fmcw_cl.stages.sync.fit_periods.
+
+// z at sample i + t of a row of n (t in [0, 1)): linear between samples, held at the
+// ends (np.interp on the sample grid). The whole and fractional samples are apart: a
+// float sample index near 40000 resolves only 0.004 samples.
+float at(__global const float *z, const int n, const int i, const float t)
+{
+    if (i < 0) return z[0];
+    if (i >= n - 1) return z[n - 1];
+    return z[i] + t * (z[i + 1] - z[i]);
+}
+
+// The template (zs) and its derivative along the period (dz, np.gradient's: one-sided at
+// the ends) at point k of a period of `len` samples from sample w of the row, moved by
+// s + t samples.
+void template_at(__global const float *z, const int n, const int w, const int len, const int s,
+                 const float t, const int k, float *zs, float *dz)
+{
+    const int i = w + k + s;
+    const float here = at(z, n, i, t);
+    const float before = k > 0 ? at(z, n, i - 1, t) : here;
+    const float after = k + 1 < len ? at(z, n, i + 1, t) : here;
+    *zs = here;
+    *dz = (k > 0 && k + 1 < len) ? 0.5f * (after - before) : after - before;
+}
+
+__kernel void delay_fit(__global const float *yz,     // (2, rows, n): beat, sync; each row's mean removed
+                        const int n,
+                        const int rows,
+                        const int periods,            // periods a row
+                        const int len,                // samples a period
+                        const int span,               // the first period's first sample
+                        __global const float *coarse, // (rows,) the row's coarse lag
+                        __global float *out)          // (2, rows, periods): lag (NaN: no
+                                                      // triangle), misfit
+{
+    const int g = get_global_id(0);
+    if (g >= rows * periods) return;
+    const int r = g / periods;
+    const int w = span + (g - r * periods) * len;
+    __global const float *yr = yz + (size_t)r * n;
+    __global const float *zr = yz + (size_t)(rows + r) * n;
+    float shift = coarse[r], c0 = 0.0f, c1 = 0.0f, c2 = 0.0f, step = 0.0f;
+    int s = 0;
+    float t = 0.0f;
+    for (int it = 0; it < 3; ++it) {
+        s = (int)floor(shift);
+        t = shift - floor(shift);
+        // the normal equations of (1, zs, dz): sums over the period
+        float sz = 0.0f, sd = 0.0f, szz = 0.0f, szd = 0.0f, sdd = 0.0f, sy = 0.0f, szy = 0.0f, sdy = 0.0f;
+        for (int k = 0; k < len; ++k) {
+            float zs, dz;
+            template_at(zr, n, w, len, s, t, k, &zs, &dz);
+            const float yk = yr[w + k];
+            sz += zs;
+            sd += dz;
+            szz += zs * zs;
+            szd += zs * dz;
+            sdd += dz * dz;
+            sy += yk;
+            szy += zs * yk;
+            sdy += dz * yk;
+        }
+        // the 3x3 symmetric system by elimination (the template is nearly orthogonal to
+        // its derivative and the constant over a period: well conditioned)
+        const float a00 = (float)len, m1 = sz / a00, m2 = sd / a00;
+        const float a11 = szz - m1 * sz, a12 = szd - m1 * sd, b1 = szy - m1 * sy;
+        const float a21 = szd - m2 * sz, a22 = sdd - m2 * sd, b2 = sdy - m2 * sy;
+        const float m3 = a21 / a11;
+        c2 = (b2 - m3 * b1) / (a22 - m3 * a12);
+        c1 = (b1 - a12 * c2) / a11;
+        c0 = (sy - sz * c1 - sd * c2) / a00;
+        step = fabs(c1) > 0.0f ? c2 / c1 : NAN;
+        // a step that is not finite is not taken, and none leaves the row (numpy's
+        // nan_to_num moves an overflowing one to the float's end: no lag either way)
+        if (isfinite(step)) shift = fmin(fmax(shift + step, (float)-n), (float)n);
+    }
+    float rr = 0.0f, tt = 0.0f;                 // the last step's residual and triangle
+    for (int k = 0; k < len; ++k) {
+        float zs, dz;
+        template_at(zr, n, w, len, s, t, k, &zs, &dz);
+        const float e = yr[w + k] - (c0 + c1 * zs + c2 * dz);
+        rr += e * e;
+        tt += (c1 * zs) * (c1 * zs);
+    }
+    out[g] = isfinite(step) ? shift : NAN;
+    out[rows * periods + g] = sqrt(rr / tt);
+}
