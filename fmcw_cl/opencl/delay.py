@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..stages import sync
 from .buffers import Buffers
 from .context import Runtime
 
@@ -13,7 +14,7 @@ def fit_periods(rt: Runtime, bufs: Buffers, y: np.ndarray, z: np.ndarray, shift:
     """The Gauss-Newton fit of every period of every row, a work-item each: the rows go
     up in one copy (beat and sync together), lags and misfits come back in one."""
     rows, n = y.shape
-    periods = len(range(span, n - span - period, period))
+    periods = sync.period_starts(n, period, span).size      # the kernel's w = span + p period
     out = np.empty((2, rows, periods), np.float32)
     if out.size:
         d_yz = bufs.upload("delay_yz", np.stack([y, z]).astype(np.float32))

@@ -375,20 +375,24 @@ def fit_periods(y: np.ndarray, z: np.ndarray, shift: np.ndarray, period: int, sp
     y, z : (rows, n) low-passed beat and sync, each row's mean removed.
     shift : (rows,) coarse lag of each row (decimated samples).
     period : decimated samples of one period; the periods start at `span` and go on
-        while `span` samples are left after them.
+        while `span` samples are left after them (`period_starts`).
 
     Returns
     -------
     lags : (rows, periods) decimated samples, NaN where a period gives no triangle.
     misfit : (rows, periods) rms residual relative to the fitted triangle's rms.
     """
-    n = y.shape[1]
-    starts = np.arange(span, n - span - period, period)
-    windows = starts[:, None] + np.arange(period)
+    windows = period_starts(y.shape[1], period, span)[:, None] + np.arange(period)
     # a row at a time: the temporaries of all at once are large enough that the
     # allocator returns them to the system and faults them in again each time
     got = [_fit_row(a, b, np.full(1, float(s)), windows) for a, b, s in zip(y, z, shift, strict=True)]
     return tuple(np.stack([g[i] for g in got]) for i in (0, 1))
+
+
+def period_starts(n: int, period: int, span: int) -> np.ndarray:
+    """First samples of the periods fit_periods fits in a row of n: from `span` on, while
+    `span` samples are left after a period."""
+    return np.arange(span, n - span - period, period)
 
 
 def _fit_row(y: np.ndarray, z: np.ndarray, shift: np.ndarray, windows: np.ndarray
