@@ -17,7 +17,9 @@ def fit_periods(rt: Runtime, bufs: Buffers, y: np.ndarray, z: np.ndarray, shift:
     periods = sync.period_starts(n, period, span).size      # the kernel's w = span + p period
     out = np.empty((2, rows, periods), np.float32)
     if out.size:
-        d_yz = bufs.upload("delay_yz", np.stack([y, z]).astype(np.float32))
+        yz = np.empty((2, rows, n), np.float32)        # (np.stack would make a float64 copy first)
+        yz[0], yz[1] = y, z
+        d_yz = bufs.upload("delay_yz", yz)
         d_out = bufs.get("delay_out", out.nbytes)
         d_coarse = bufs.upload("delay_coarse", np.asarray(shift, np.float32))
         rt.kernel("delay", "delay_fit")(rt.queue, *rt.items(rows * periods), d_yz, np.int32(n),

@@ -331,6 +331,7 @@ def _track(xr, xf, t_rise, t_fall, model: DopplerModel, search: Search, iteratio
     snr_min = SNR_MIN_DB if windows is None else integrate.threshold_db(count, SNR_MIN_DB)
     dist, vel, dv = solve_pair(d_r, d_f, vd, half_gap, model)
     heard = (s_r >= snr_min) & (s_f >= snr_min)
+    med = None                         # running_median(vel), while vel is unchanged
     for it in range(iterations if dechirp else 0):
         # the plain first pass smears fast targets: allow 20 % there, not later
         med = running_median(vel)
@@ -340,6 +341,7 @@ def _track(xr, xf, t_rise, t_fall, model: DopplerModel, search: Search, iteratio
         moved = np.flatnonzero(np.abs(v_next - vd) >= STOP_MPS)
         if moved.size == 0:
             break
+        med = None
         vd[moved] = v_next[moved]
         if windows is not None:
             d_r, s_r, d_f, s_f, count = windows.measure(vd, moved)
@@ -349,7 +351,7 @@ def _track(xr, xf, t_rise, t_fall, model: DopplerModel, search: Search, iteratio
                 (xr, xf), (model.beta_rise, model.beta_fall), vd[moved], model, search, every)
         dist, vel, dv = solve_pair(d_r, d_f, vd, half_gap, model)
         heard = (s_r >= snr_min) & (s_f >= snr_min)
-    med = running_median(vel)
+    med = running_median(vel) if med is None else med
     valid = heard
     if dechirp:
         valid = valid & (np.abs(dv) < CONVERGED_MPS) & (np.abs(vel - med) < CONSISTENT_MPS)
