@@ -13,18 +13,37 @@ float at(__global const float *z, const int n, const int i, const float t)
     return z[i] + t * (z[i + 1] - z[i]);
 }
 
-// The template (zs) and its derivative along the period (dz, np.gradient's: one-sided at
-// the ends) at point k of a period of `len` samples from sample w of the row, moved by
-// s + t samples.
-void template_at(__global const float *z, const int n, const int w, const int len, const int s,
-                 const float t, const int k, float *zs, float *dz)
+// The template moved by s + t samples, walked along a period of `len` samples from
+// sample w of the row: its values at points k - 1, k and k + 1, each computed once; at
+// the period's ends the missing neighbour is the point itself.
+typedef struct {
+    float before, here, after;
+} Walk;
+
+Walk walk_start(__global const float *z, const int n, const int w, const int len, const int s, const float t)
 {
-    const int i = w + k + s;
-    const float here = at(z, n, i, t);
-    const float before = k > 0 ? at(z, n, i - 1, t) : here;
-    const float after = k + 1 < len ? at(z, n, i + 1, t) : here;
-    *zs = here;
-    *dz = (k > 0 && k + 1 < len) ? 0.5f * (after - before) : after - before;
+    Walk v;
+    v.here = at(z, n, w + s, t);
+    v.before = v.here;
+    v.after = len > 1 ? at(z, n, w + s + 1, t) : v.here;
+    return v;
+}
+
+// The template (zs) and its derivative along the period (dz, np.gradient's: one-sided at
+// the ends) at point k.
+void walk_point(const Walk v, const int k, const int len, float *zs, float *dz)
+{
+    *zs = v.here;
+    *dz = (k > 0 && k + 1 < len) ? 0.5f * (v.after - v.before) : v.after - v.before;
+}
+
+// From point k to k + 1.
+void walk_next(__global const float *z, const int n, const int w, const int len, const int s, const float t,
+               const int k, Walk *v)
+{
+    v->before = v->here;
+    v->here = v->after;
+    v->after = k + 2 < len ? at(z, n, w + s + k + 2, t) : v->here;
 }
 
 __kernel void delay_fit(__global const float *yz,     // (2, rows, n): beat, sync; each row's mean removed
@@ -51,9 +70,11 @@ __kernel void delay_fit(__global const float *yz,     // (2, rows, n): beat, syn
         t = shift - floor(shift);
         // the normal equations of (1, zs, dz): sums over the period
         float sz = 0.0f, sd = 0.0f, szz = 0.0f, szd = 0.0f, sdd = 0.0f, sy = 0.0f, szy = 0.0f, sdy = 0.0f;
+        Walk v = walk_start(zr, n, w, len, s, t);
         for (int k = 0; k < len; ++k) {
             float zs, dz;
-            template_at(zr, n, w, len, s, t, k, &zs, &dz);
+            walk_point(v, k, len, &zs, &dz);
+            walk_next(zr, n, w, len, s, t, k, &v);
             const float yk = yr[w + k];
             sz += zs;
             sd += dz;
@@ -79,9 +100,11 @@ __kernel void delay_fit(__global const float *yz,     // (2, rows, n): beat, syn
         if (isfinite(step)) shift = fmin(fmax(shift + step, (float)-n), (float)n);
     }
     float rr = 0.0f, tt = 0.0f;                 // the last step's residual and triangle
+    Walk v = walk_start(zr, n, w, len, s, t);
     for (int k = 0; k < len; ++k) {
         float zs, dz;
-        template_at(zr, n, w, len, s, t, k, &zs, &dz);
+        walk_point(v, k, len, &zs, &dz);
+        walk_next(zr, n, w, len, s, t, k, &v);
         const float e = yr[w + k] - (c0 + c1 * zs + c2 * dz);
         rr += e * e;
         tt += (c1 * zs) * (c1 * zs);
