@@ -11,6 +11,7 @@ from fmcw_cl.opencl.context import (
     CPU,
     GPU,
     SIMULATOR,
+    cannot_compile,
     describe,
     devices,
     rank,
@@ -43,11 +44,13 @@ def command(device, check):
     for p, d, _, dev in seen:
         mark = "*" if chosen is not None and dev.int_ptr == chosen.int_ptr else " "
         mem = dev.global_mem_size / 2**30
+        broken = None if rank(dev) == SIMULATOR else cannot_compile(dev)
         click.echo(f"{mark} {p}:{d}  {describe(dev)}  ({KINDS.get(rank(dev), 'other')}, "
-                   f"{dev.max_compute_units} units, {mem:.1f} GiB, OpenCL {dev.version.strip()})")
+                   f"{dev.max_compute_units} units, {mem:.1f} GiB, {dev.version.strip()})"
+                   + (f"  cannot compile: {broken}" if broken else ""))
     if chosen is not None:
         why = (f"the selector {device!r}" if device else "PYOPENCL_CTX" if os.environ.get("PYOPENCL_CTX")
-               else "the automatic choice: GPUs first, then CPUs, never a simulator")
+               else "the automatic choice: GPUs first, then CPUs, the first that compiles, never a simulator")
         click.echo(f"used: {describe(chosen)} ({why})")
     for vendor, lib in unregistered_drivers():
         click.echo(f"note: the {vendor} OpenCL driver {lib} is installed but no ICD file names it, so it is "

@@ -3,7 +3,10 @@
 A platform/device is chosen deliberately (never "whatever comes first"): by index
 "P" or "P:D", by a substring of the platform or device name, or by the standard
 PYOPENCL_CTX; by default the first GPU, else the first CPU, else the first other
-device, never a simulator such as Oclgrind (it claims to be every kind of device).
+device that compiles a probe kernel, never a simulator such as Oclgrind (it claims to
+be every kind of device). A CPU runtime whose compiler does not know the CPU (PoCL 3.0
+from pip, LLVM 14, on an AMD Zen 5: "unknown target CPU 'generic'") is passed over for
+the next one, and `fmcw-cl devices` says why.
 Programs are built once per context and cached; a failed build saves its log to a file
 and says where.
 """
@@ -68,12 +71,36 @@ def select_device(selector: str | None = None):
             if selector.lower() in f"{plat.name} {dev.name}".lower():
                 return dev
         raise FmcwError(f"no OpenCL device matches {selector!r}; `fmcw-cl devices` lists them")
-    ranked = sorted(seen, key=lambda item: rank(item[3]))
-    if rank(ranked[0][3]) == SIMULATOR:
-        raise FmcwError(f"only a simulator ({describe(ranked[0][3])}) is seen: it checks kernels, "
+    ranked = [dev for *_, dev in sorted(seen, key=lambda item: rank(item[3]))]
+    if rank(ranked[0]) == SIMULATOR:
+        raise FmcwError(f"only a simulator ({describe(ranked[0])}) is seen: it checks kernels, "
                         "it does not run them at speed; select it by name (--device) or install an "
                         "OpenCL runtime (pip install pocl-binary-distribution)")
-    return ranked[0][3]
+    runnable = [dev for dev in ranked if rank(dev) != SIMULATOR]
+    for dev in runnable:
+        if cannot_compile(dev) is None:
+            return dev
+    why = "; ".join(f"{describe(dev)}: {cannot_compile(dev)}" for dev in runnable)
+    raise FmcwError(f"no OpenCL device compiles kernels ({why}); a CPU newer than PoCL's compiler "
+                    "needs a newer PoCL (Debian/Ubuntu: apt-get install pocl-opencl-icd)")
+
+
+PROBE = "__kernel void probe(__global float *x) { x[get_global_id(0)] *= 2.0f; }"
+_PROBED: dict[int, str | None] = {}
+
+
+def cannot_compile(device) -> str | None:
+    """Why `device` cannot build a kernel (the build log's first error line), or None
+    when it can; probed once per device and process."""
+    key = device.int_ptr
+    if key not in _PROBED:
+        try:
+            cl.Program(cl.Context([device]), PROBE).build()
+            _PROBED[key] = None
+        except cl.Error as exc:
+            lines = [x.strip() for x in str(exc).splitlines() if "error" in x.lower() and ":" in x]
+            _PROBED[key] = lines[-1] if lines else str(exc).splitlines()[0]
+    return _PROBED[key]
 
 
 GPU, CPU, OTHER, SIMULATOR = range(4)
