@@ -36,6 +36,32 @@ def summary(capture, out, attrs: dict, valid: np.ndarray) -> dict:
     }
 
 
+def tracked(attrs: dict) -> str:
+    """The tracked target's distances and what it is, in words."""
+    lo, hi = np.asarray(attrs.get("target_tracked_m", (np.nan, np.nan)), float)
+    if not np.isfinite(lo):
+        return "no valid pair"
+    what = "moving" if attrs.get("target_moving") else "fixed"
+    return f"{what}, {lo:.3f} m" if hi - lo < 0.002 else f"{what}, {lo:.3f}-{hi:.3f} m"
+
+
+def target_lines(cap, attrs: dict) -> None:
+    """One line on the target choice where it left echoes out or could not decide."""
+    fixed = np.asarray(attrs.get("target_fixed_echoes_m", ()), float)
+    band = np.asarray(attrs.get("target_band_m", (np.nan, np.nan)), float)
+    amb = int(attrs.get("invalid_ambiguous", 0))
+    choice = attrs.get("target_choice", "")
+    hint = "--target, --target-near choose another"
+    if amb:
+        click.echo(f"warning: {cap}: {amb} pairs ambiguous: {choice} ({hint})", err=True)
+    elif np.any((fixed < band[0]) | (fixed >= np.nan_to_num(band[1], nan=np.inf))):     # echoes left out
+        left = fixed[(fixed < band[0]) | (fixed >= np.nan_to_num(band[1], nan=np.inf))]
+        top = "the end" if not np.isfinite(band[1]) else f"{band[1]:.3f} m"
+        click.echo(f"note: {cap}: the target ({tracked(attrs)}) is tracked from {band[0]:.3f} m to {top}, "
+                   f"leaving out the fixed echo{'es' if left.size > 1 else ''} at "
+                   f"{', '.join(f'{x:.3f}' for x in left)} m ({hint})", err=True)
+
+
 def report(s: dict, attrs: dict, quiet: bool, as_json: bool) -> None:
     """Warnings (always, on stderr) and the one-screen summary of one capture."""
     cap = s["capture"]
@@ -51,14 +77,15 @@ def report(s: dict, attrs: dict, quiet: bool, as_json: bool) -> None:
         click.echo(f"warning: {cap}: its peaks are {attrs['tuning_peak_width_ratio']:.1f}x wider than the "
                    f"window's own: the laser's chirp does not match the {source} (fmcw-cl calibrate)",
                    err=True)
+    target_lines(cap, attrs)
     rival = attrs.get("rival_echo_m")
     if rival is not None and np.isfinite(rival):
         db = float(attrs["rival_echo_db"])
         how = f"{abs(db):.1f} dB {'stronger' if db >= 0 else 'weaker'} than"
         what = (f"a moving echo (smeared by its Doppler shift) around {rival:.3f} m"
-                if attrs.get("rival_echo_diffuse") else f"another echo at {rival:.3f} m")
-        click.echo(f"warning: {cap}: {what} is {how} the tracked target "
-                   "(--min-range, --max-range choose the band the target is tracked in)", err=True)
+                if attrs.get("rival_echo_diffuse") else f"a fixed echo at {rival:.3f} m")
+        click.echo(f"warning: {cap}: {what} is {how} the tracked target ({tracked(attrs)}) "
+                   "(--target-near, --min-range, --max-range choose the target)", err=True)
     if quiet or as_json:
         return
     click.echo(f"{cap} -> {s['track']}\n  {s['duration_s']:.3f} s, {s['pairs']} pairs, "

@@ -23,12 +23,15 @@ from .capture import Capture
 from .engine import (
     Options,
     assemble,
+    band_of,
     capture_parts,
     check_tuning,
+    choose_target,
     make_backend,
     make_plan,
     process,
     split_ranges,
+    with_band,
 )
 from .errors import FmcwError
 from .track import track_path, write_track
@@ -152,6 +155,17 @@ def _collect(client, jobs: dict, samples: dict, refused: list, backend: str, dev
     total, done = sum(n for n, _ in samples.values()), 0
     ranges: dict = {}               # capture -> [plan, number of ranges, {index: parts}]
     pending = as_completed(list(jobs))
+
+    def submit_ranges(cap, out, plan, cuts, choice) -> None:
+        """The range tasks of one pass over a long capture (`choice`: the target of its
+        first pass, None in the first)."""
+        shared = client.scatter(plan)
+        ranges[str(cap)] = [plan, len(cuts), {}, choice, cuts]
+        for i, (a, b) in enumerate(cuts):
+            f = client.submit(_range, str(cap), shared, a, b, backend, device, pure=False)
+            jobs[f] = ("range", cap, out, i)
+            pending.add(f)
+
     for fut in pending:
         kind, cap, out, index = jobs.pop(fut)
         try:
@@ -161,24 +175,25 @@ def _collect(client, jobs: dict, samples: dict, refused: list, backend: str, dev
             kind = "convert"
             ranges.pop(str(cap), None)
         if kind == "plan":
-            plan, cuts = value
-            shared = client.scatter(plan)
-            ranges[str(cap)] = [plan, len(cuts), {}]
-            for i, (a, b) in enumerate(cuts):
-                f = client.submit(_range, str(cap), shared, a, b, backend, device, pure=False)
-                jobs[f] = ("range", cap, out, i)
-                pending.add(f)
+            submit_ranges(cap, out, *value, None)
             continue
         if kind == "range":
             if str(cap) not in ranges:          # an earlier range of it failed
                 continue
-            plan, count, got = ranges[str(cap)]
+            plan, count, got, choice, cuts = ranges[str(cap)]
             got[index] = value
             if len(got) < count:
                 continue
             del ranges[str(cap)]
             parts = [p for i in range(count) for p in got[i][0]]
-            track = assemble(plan, parts, _Made(*got[0][1:]), time.perf_counter() - started)
+            made = _Made(*got[0][1:])
+            track = assemble(plan, parts, made, time.perf_counter() - started, choice)
+            if choice is None:                    # the first pass: which echo is the target
+                choice = choose_target(plan, track)
+                if choice.band_m != band_of(plan.options):    # its band: the ranges again
+                    submit_ranges(cap, out, with_band(plan, choice.band_m), cuts, choice)
+                    continue
+                track = assemble(plan, parts, made, time.perf_counter() - started, choice)
             with Capture(cap) as c:
                 check_tuning(c, plan, track)
             value = _written(str(cap), out, track)

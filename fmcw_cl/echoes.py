@@ -125,7 +125,7 @@ def persistent(t_sweep: np.ndarray, level_db: np.ndarray, t: np.ndarray, dist: n
             level = median(snr[d0:d1][mine] if mine.sum() >= SEEN * sweeps else level_db[s0:s1])
             others = ~mine
             found = [(d, x, share, x - level, False)
-                     for d, x, share in _clusters(dist[d0:d1][others], snr[d0:d1][others], sweeps)]
+                     for d, x, share in clusters(dist[d0:d1][others], snr[d0:d1][others], sweeps)]
             if survey is not None and v1 - v0 >= 4:
                 hit = survey["found"][v0:v1]
                 if hit.sum() >= PRESENT * (v1 - v0):
@@ -185,10 +185,11 @@ def hidden(plain: np.ndarray, dechirped: np.ndarray, lo: int, tracked_bin: np.nd
     return ratio, centroid, found
 
 
-def _clusters(dist: np.ndarray, snr: np.ndarray, sweeps: int):
-    """(median distance, median SNR, share) of each distance seen in >= PRESENT of
-    `sweeps` half-sweeps: local maxima of the counts over three histogram bins."""
-    if dist.size < PRESENT * sweeps:
+def clusters(dist: np.ndarray, snr: np.ndarray, sweeps: int, present: float = PRESENT):
+    """(median distance, median SNR, share) of each distance seen in >= `present` of
+    `sweeps` half-sweeps (or slices): local maxima of the counts over three histogram
+    bins."""
+    if dist.size == 0 or dist.size < present * sweeps:
         return
     idx = np.floor(dist / HIST_M).astype(np.int64)
     base = idx.min() - 1
@@ -196,6 +197,6 @@ def _clusters(dist: np.ndarray, snr: np.ndarray, sweeps: int):
     window = counts + np.r_[0, counts[:-1]] + np.r_[counts[1:], 0]
     left = np.r_[-1, window[:-1]]
     right = np.r_[window[1:], -1]
-    for b in np.flatnonzero((window >= PRESENT * sweeps) & (window > left) & (window >= right)):
+    for b in np.flatnonzero((window >= present * sweeps) & (window > left) & (window >= right)):
         near = np.abs(idx - base - b) <= 1
         yield median(dist[near]), median(snr[near]), float(near.sum() / sweeps)

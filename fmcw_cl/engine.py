@@ -17,9 +17,10 @@ from pathlib import Path
 
 import numpy as np
 
-from . import __version__, echoes
+from . import __version__, echoes, target
 from .capture import Capture, CaptureInfo
 from .errors import CaptureError, FmcwError
+from .numeric import median
 from .stages import cfar, faults, kinematics, lpf, pairing, resample, spectrum, sync
 from .stages.cfar import Detections
 from .stages.lut import Lut, build_lut
@@ -49,6 +50,8 @@ class Options:
     range_check: bool = True      # flag targets beyond the unambiguous range (2N resampling)
     chirp: str | None = None      # a calibration file (fmcw-cl calibrate) instead of G(I)
     integrate: int | None = None  # half-sweeps of a direction per measurement; None: from the SNR
+    target: str = "auto"          # which echo is the target (fmcw_cl.target.RULES)
+    target_near_m: float | None = None   # ... the one nearest to this distance
 
 
 @dataclass(frozen=True)
@@ -441,8 +444,37 @@ def process(path, options: Options | None = None, backend=None,
             if ahead is not None:
                 ahead.close()
         track = assemble(plan, parts, backend, time.perf_counter() - started)
+        choice = choose_target(plan, track)
+        if choice.band_m != band_of(plan.options):          # the target alone in its band: again
+            plan = with_band(plan, choice.band_m)
+            parts = capture_parts(cap, plan, backend, progress=progress)
+        if choice.band_m != band_of(options) or choice.ambiguous_m.size:
+            track = assemble(plan, parts, backend, time.perf_counter() - started, choice)
+        else:
+            track.attrs.update(choice.attrs())
         check_tuning(cap, plan, track, backend)
     return track
+
+
+def band_of(options: Options) -> tuple[float, float | None]:
+    return options.min_range_m, options.max_range_m
+
+
+def with_band(plan: Plan, band: tuple[float, float | None]) -> Plan:
+    """The plan with the peak search in `band` (m)."""
+    options = replace(plan.options, min_range_m=band[0], max_range_m=band[1])
+    return replace(plan, options=options, search=make_search(options, plan.lut, plan.model))
+
+
+def choose_target(plan: Plan, track: Track) -> target.Choice:
+    """The target of a first conversion (fmcw_cl.target.choose)."""
+    e = track.echoes
+    level = median(e.snr_db[e.tracked]) if e.tracked.any() else median(track.sweep_snr_db)
+    try:
+        return target.choose(plan.options.target, plan.options.target_near_m, track.time_s, track.distance_m,
+                             track.velocity_mps, track.valid, e, level, band_of(plan.options))
+    except ValueError as exc:
+        raise CaptureError(plan.info.path, str(exc)) from None
 
 
 class _Stopped(Exception):
@@ -534,9 +566,12 @@ def check_tuning(cap: Capture, plan: Plan, track: Track, backend=None) -> None:
     track.attrs["tuning_matches"] = bool(not ratio > WIDTH_LIMIT)
 
 
-def assemble(plan: Plan, parts: list[_Pairs], backend, seconds: float) -> Track:
+def assemble(plan: Plan, parts: list[_Pairs], backend, seconds: float,
+             choice: target.Choice | None = None) -> Track:
     """The track from the owned pairs of all chunks, in capture order: missing periods
-    filled as invalid, acceleration, attributes. `seconds`: the processing time."""
+    filled as invalid, pairs on an echo the target cannot be told from (`choice`)
+    ambiguous, validity verified (faults.verified), acceleration, attributes.
+    `seconds`: the processing time."""
     info, options = plan.info, plan.options
     if not parts:
         raise CaptureError(info.path, "no complete modulation period found in the sync channel")
@@ -553,8 +588,13 @@ def assemble(plan: Plan, parts: list[_Pairs], backend, seconds: float) -> Track:
     def with_gaps(x, fill):
         return np.concatenate([x, np.full(n_missing, fill, dtype=np.asarray(x).dtype)])[order]
 
-    valid = with_gaps(res["valid"], False)
     reason_owned = np.concatenate([p.reason for p in parts])
+    if choice is not None:
+        reason_owned = target.ambiguous(reason_owned, res["distance"], choice)
+    if options.dechirp:         # the paper's method (--no-dechirp) is reported as the paper did
+        reason_owned = faults.verified(t_mid, res["distance"], res["velocity"], reason_owned)
+    res["valid"] = reason_owned == faults.OK
+    valid = with_gaps(res["valid"], False)
     reason = with_gaps(reason_owned, faults.SYNC_GAP)
     dist = with_gaps(res["distance"], np.nan)
     vel = with_gaps(res["velocity"], np.nan)
@@ -587,6 +627,8 @@ def assemble(plan: Plan, parts: list[_Pairs], backend, seconds: float) -> Track:
         "cfar": f"cell-averaging, guard {cfar.GUARD} and {cfar.TRAIN} training bins a side, "
                 f"false-alarm probability {cfar.PFA:g} per cell",
         **seen.attrs(),
+        **(choice.attrs() if choice is not None else {}),
+        "target_tracked_m": np.percentile(dist[valid], [1, 99]) if valid.any() else np.full(2, np.nan),
         "bandwidth_hz": lut.bandwidth_hz,
         "tuning": "chirp calibration" if options.chirp else "static G(I) table",
         "range_resolution_m": lut.range_resolution_m,

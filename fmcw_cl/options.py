@@ -65,6 +65,12 @@ PROCESS = (
         "Ignore peaks below this distance (m): DC, intensity ramp, lens reflection.", lo=0.0),
     Opt("max_range", None, float, "Ignore peaks beyond this distance (m): a wall or a window behind the "
         "target. The track follows the strongest echo of [min-range, max-range).", lo=0.0),
+    Opt("target", "auto", str, "Which echo is the target: auto (a moving echo where there is one, fixed "
+        "echoes it does not reach left out of the band; docs/pipeline.md), moving (refuse a capture "
+        "without one), nearest, or strongest (pair by pair).", choices=("auto", "moving", "nearest",
+                                                                        "strongest")),
+    Opt("target_near", None, float, "The target is the echo nearest to this distance (m), fixed or "
+        "moving; the echoes beside it are left out of the band.", lo=0.0),
     Opt("dechirp", True, bool, "Doppler de-chirp tracking; --no-dechirp: the paper's method alone."),
     Opt("range_check", True, bool, "The 2N-point resampling that flags targets beyond the unambiguous range "
         "(--no-range-check skips it)."),
@@ -80,7 +86,8 @@ PROCESS = (
 
 # engine.Options field each processing option sets (backend and device choose where it runs)
 FIELDS = {"points": "points", "min_range": "min_range_m", "max_range": "max_range_m", "dechirp": "dechirp",
-          "range_check": "range_check", "chirp": "chirp", "integrate": "integrate"}
+          "range_check": "range_check", "chirp": "chirp", "integrate": "integrate", "target": "target",
+          "target_near": "target_near_m"}
 
 
 def check(options: dict, spec: tuple[Opt, ...] = PROCESS, where: str = "") -> dict:

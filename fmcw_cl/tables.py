@@ -29,10 +29,13 @@ def optional(module: str, what: str):
 
 
 def plain_attrs(attrs: dict) -> dict:
-    """Attributes as Python scalars and strings (JSON- and NetCDF-safe; booleans as 0/1)."""
+    """Attributes as Python scalars and strings (JSON- and NetCDF-safe; booleans as 0/1;
+    arrays, such as target_band_m, as comma-separated numbers)."""
     out = {}
     for k, v in attrs.items():
         v = v.item() if isinstance(v, np.generic) else v
+        if isinstance(v, np.ndarray):
+            v = ", ".join(f"{x:g}" for x in v.ravel())
         out[k] = int(v) if isinstance(v, bool) else v
     return out
 

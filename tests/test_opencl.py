@@ -437,7 +437,10 @@ def test_wall_track_and_echoes_equal_numpy(wall_capture):
     np.testing.assert_allclose(a.echoes.distance_m, b.echoes.distance_m, atol=1e-6)
     np.testing.assert_allclose(a.echoes.snr_db, b.echoes.snr_db, atol=0.02)
     np.testing.assert_array_equal(a.echoes.tracked, b.echoes.tracked)
-    assert a.attrs["rival_echo_m"] == pytest.approx(b.attrs["rival_echo_m"], abs=1e-5)
+    assert a.attrs["rival_echo_m"] == pytest.approx(b.attrs["rival_echo_m"], abs=1e-5, nan_ok=True)
+    # the same target chosen, in the same band
+    assert a.attrs["target_choice"] == b.attrs["target_choice"]
+    np.testing.assert_allclose(a.attrs["target_band_m"], b.attrs["target_band_m"], atol=1e-5)
 
 
 @pytest.mark.parametrize("rows,nfft,lo", [(1, 2048, 64), (37, 2048, 20), (9, 4096, 100), (5, 128, 3)])

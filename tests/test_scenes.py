@@ -3,8 +3,6 @@ speckle fading, a landing at close range, and the echoes a track lists."""
 
 from __future__ import annotations
 
-import json
-
 import numpy as np
 import pytest
 from conftest import realistic
@@ -23,37 +21,69 @@ def scored(path, **opts):
         return accuracy(track, cap.truth()), track
 
 
-def test_wall_is_named_and_max_range_keeps_the_target(wall_capture, tmp_path, fmcw):
-    # as a user runs it first: the wall wins the band, and the warning says so
-    proc = fmcw("process", wall_capture, "-o", tmp_path, "--json", "--backend", "numpy")
-    line = [w for w in proc.stderr.splitlines() if "another echo" in w]
-    assert len(line) == 1 and "m is" in line[0] and "--max-range" in line[0], proc.stderr
-    rival = json.loads(proc.stdout)[0]["rival_echo"]
+def wrong(track, truth, limit=2e-3) -> int:
+    """Valid pairs more than `limit` m from the truth."""
+    r, _, _ = truth_at(truth, track.time_s[track.valid])
+    return int(np.sum(np.abs(track.distance_m[track.valid] - r) > limit))
+
+
+def test_the_moving_target_is_tracked_past_a_stronger_wall(wall_capture, tmp_path, fmcw):
+    # as a user runs it first: the wall is a fixed echo, the moving target is tracked
+    proc = fmcw("process", wall_capture, "-o", tmp_path, "--backend", "numpy")
+    note = [w for w in proc.stderr.splitlines() if "leaving out the fixed echo at 0.420 m" in w]
+    assert len(note) == 1 and "the target (moving, 0.0" in note[0] and "--target-near" in note[0], proc.stderr
     track = read_track(track_path(tmp_path, wall_capture))
-    assert np.isfinite(track.attrs["rival_echo_m"])
-    assert rival["relative_db"] >= -10
-    # the wall is among the persistent echoes at its distance
+    with Capture(wall_capture) as cap:
+        truth = cap.truth()
+    assert wrong(track, truth) == 0
+    assert track.valid.mean() >= 0.95
+    assert track.attrs["target_moving"] and track.attrs["target_rule"] == "auto"
+    assert np.any(np.abs(track.attrs["target_fixed_echoes_m"] - 0.42) < 2e-3)
+    assert track.attrs["target_band_m"][1] < 0.42 - 0.01
+    # the wall is still listed, never hidden, but out of the band
     pers = track.echoes.persistent
-    assert np.any(np.abs(pers["distance_m"] - 0.42) < 2e-3)
-    # with the band closed before the wall: the target, with the pipeline's figures
+    assert np.any((np.abs(pers["distance_m"] - 0.42) < 2e-3) & ~pers["in_band"])
+    # the strongest echo pair by pair (the user's explicit choice) follows the wall in flight
+    _, strongest = scored(wall_capture, target="strongest")
+    assert np.sum(np.abs(strongest.distance_m[strongest.valid] - 0.42) < 2e-3) > 1000
+    # with the band closed by hand: the pipeline's figures
     acc, track = scored(wall_capture, max_range_m=0.40)
     assert acc["valid_share"] >= 0.98
     assert acc["distance_p95_m"] <= 0.5e-3
     assert acc["velocity_p95_mps"] <= 0.02
-    assert not np.any(track.distance_m[track.valid] > 0.40)
-    # the wall is still listed, never hidden, but no longer rivals the target
-    pers = track.echoes.persistent
-    assert np.any((np.abs(pers["distance_m"] - 0.42) < 2e-3) & ~pers["in_band"])
-    assert np.isnan(track.attrs["rival_echo_m"])
+    assert wrong(track, truth) == 0
 
 
-def test_two_static_reflectors_listed_at_their_distances(tmp_path):
+def test_the_shipped_wall_sample_is_never_wrong(fmcw, tmp_path):
+    from pathlib import Path
+
+    sample = Path(__file__).parent.parent / "data_samples" / "jump_wall_fading.h5"
+    track = process(sample)
+    with Capture(sample) as cap:
+        assert wrong(track, cap.truth()) == 0
+    assert track.valid.mean() >= 0.9 and track.attrs["target_moving"]
+
+
+@pytest.mark.parametrize("seed", [41, 42])
+def test_a_wall_inside_the_targets_span_is_ambiguous_never_wrong(tmp_path, seed):
+    path = realistic(tmp_path / "crossing.h5", seed=seed, reflectors=((0.20, 800.0),), speckle_s=3e-3)
+    track = process(path)
+    with Capture(path) as cap:
+        assert wrong(track, cap.truth()) == 0
+    assert track.attrs["invalid_ambiguous"] > 0
+    assert np.any(np.abs(track.attrs["target_ambiguous_echoes_m"] - 0.20) < 2e-3)
+
+
+def test_two_static_reflectors_are_ambiguous_until_the_user_chooses(tmp_path, fmcw):
     path = tmp_path / "two.h5"
     cfg = SimulationConfig(snr_db=0.0, reflectors=((0.37, 400.0),))
     simulate_capture(path, static(0.02, 0.21), 0.02, seed=41, config=cfg)
     track = process(path)
+    # no echo moves: the rule cannot tell the target from the other echo
+    assert not track.valid.any() and (track.reason == faults.AMBIGUOUS).all()
+    proc = fmcw("process", path, "-o", tmp_path / "out", "--backend", "numpy")
+    assert "pairs ambiguous: no echo moves: the fixed echoes at 0.210, 0.370 m" in proc.stderr
     e = track.echoes
-    assert np.all(np.abs(track.distance_m[track.valid] - 0.21) < 0.5e-3)   # the stronger one
     near = lambda d: np.abs(e.distance_m - d) < 1e-3  # noqa: E731
     sweeps = track.sweep_time_s.size
     assert near(0.21).sum() >= 0.98 * sweeps and e.tracked[near(0.21)].all()
@@ -62,6 +92,37 @@ def test_two_static_reflectors_listed_at_their_distances(tmp_path):
     # 400 codes at 0.37 m against 1500 * 0.1/0.21 = 714 at 0.21 m: about 5 dB weaker
     assert track.attrs["rival_echo_m"] == pytest.approx(0.37, abs=1e-3)
     assert -8 < track.attrs["rival_echo_db"] < -2
+    # each rule that names one: that one
+    for opts, want in (({"target": "nearest"}, 0.21), ({"target": "strongest"}, 0.21),
+                       ({"target_near_m": 0.36}, 0.37)):
+        got = process(path, Options(**opts))
+        assert got.valid.mean() >= 0.98, opts
+        assert np.all(np.abs(got.distance_m[got.valid] - want) < 0.5e-3), opts
+
+
+def test_verification_drops_isolated_pairs_and_short_wrong_runs():
+    from fmcw_cl.stages import pairing
+
+    rng = np.random.default_rng(1)
+    t = np.arange(600) * 50e-6
+    v = 2.0 + 100 * t
+    d = 0.1 + 2.0 * t + 50 * t**2 + rng.normal(0, 20e-6, t.size)
+    ok = np.ones(t.size, bool)
+    ok[100:140] = False
+    ok[120] = True                       # alone in a fade: right, but nothing vouches for it
+    ok[300:340] = False
+    ok[310:316] = True                   # six pairs on another echo, consistent with each other
+    d[310:316] += 0.044
+    got, unsupported = pairing.verify(t, d, v, ok)
+    assert not got[120] and unsupported[120]
+    assert not got[310:316].any() and unsupported[310:316].all()
+    assert got[ok & ~np.isin(np.arange(t.size), [120, *range(310, 316)])].all()
+    # a short run that continues its anchors' motion across a gap stays
+    d[310:316] -= 0.044
+    ok[310:316] = False
+    ok[318:324] = True
+    got2, _ = pairing.verify(t, d, v, ok)
+    assert got2[318:324].all()
 
 
 def test_speckle_fades_are_flagged_never_wrong(tmp_path):

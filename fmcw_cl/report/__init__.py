@@ -19,7 +19,7 @@ from ..capture import Capture, Truth
 from ..errors import CaptureError
 from ..evaluate import truth_at
 from ..track import Track, read_track
-from .events import Event, compare, find_events
+from .events import Event, compare, find_events, left_out, mark_gaps, verified_stretches
 
 STATIC_MPS = 0.01        # a track is "static" when 95 % of its |velocity| is below this
 SLOW_MPS = 0.2           # spectra are shown where the target is this slow (no Doppler smear)
@@ -40,8 +40,9 @@ def true_events(truth: Truth, t0: float, t1: float) -> list[Event]:
     return find_events(g, *truth_at(truth, g), refine_s=20 * TRUTH_GRID_S)
 
 
-def events_markdown(rows: list[dict], title: str) -> str:
-    """The event table as Markdown (times in ms; errors when a truth was matched)."""
+def events_markdown(rows: list[dict], title: str, skipped: dict | None = None) -> str:
+    """The event table as Markdown (times in ms; errors when a truth was matched; what
+    was left out, `events.left_out`, under it)."""
     truth = any(r["true_time_s"] is not None for r in rows)
     head = "| event | time (ms) | value | unit |"
     rule = "|---|---:|---:|---|"
@@ -50,7 +51,8 @@ def events_markdown(rows: list[dict], title: str) -> str:
         rule += "---:|---:|---:|---:|"
     lines = [f"# Events: {title}", "", head, rule]
     for r in rows:
-        line = (f"| {r['kind'].replace('_', ' ')} | {1e3 * r['time_s']:.3f} | {r['value']:.4g} | "
+        kind = r["kind"].replace("_", " ") + (" (next to a gap)" if r.get("near_gap") else "")
+        line = (f"| {kind} | {1e3 * r['time_s']:.3f} | {r['value']:.4g} | "
                 f"{UNITS[r['quantity']]} |")
         if truth:
             if r["true_time_s"] is None:
@@ -63,6 +65,11 @@ def events_markdown(rows: list[dict], title: str) -> str:
         lines.append(line)
     if not rows:
         lines.append("| (none: the target is at rest) | | | |")
+    if skipped:
+        k = skipped
+        lines += ["", f"Events are taken from runs of at least {k['min_stretch_pairs']} valid pairs only: of "
+                      f"{k['pairs']} pairs, {k['invalid']} invalid and {k['short_stretches']} valid ones in "
+                      "shorter runs were left out."]
     return "\n".join(lines) + "\n"
 
 
@@ -106,8 +113,12 @@ def make_report(track_file: str | os.PathLike, outdir: str | os.PathLike,
         with Capture(src) as cap:
             truth = cap.truth()
     written: list[Path] = []
-    ev = find_events(track.time_s, np.where(track.valid, track.distance_m, np.nan),
-                     track.velocity_mps, track.acceleration_mps2)
+    used = verified_stretches(track.valid)
+    series = (track.distance_m, track.velocity_mps, track.acceleration_mps2)
+    kept = [np.where(used, x, np.nan) for x in series]
+    ev = mark_gaps(find_events(track.time_s, *kept), track.time_s, used,
+                   float(track.attrs.get("modulation_period_s", 5e-5)))
+    skipped = left_out(track.valid, used)
     t0, t1 = (float(track.time_s[0]), float(track.time_s[-1])) if track.pairs else (0.0, 0.0)
     rows = compare(ev, true_events(truth, t0, t1) if truth is not None else [])
 
@@ -136,9 +147,10 @@ def make_report(track_file: str | os.PathLike, outdir: str | os.PathLike,
             figures.precision(track, tmp, true_d)
         written.append(out / "precision.png")
     title = Path(str(track.attrs.get("source", track_file))).name
-    _write_text(out / "events.md", events_markdown(rows, title))
+    _write_text(out / "events.md", events_markdown(rows, title, skipped))
     _write_text(out / "events.json", json.dumps(
-        {"track": str(track_file), "source": str(src) if src else None, "events": rows}, indent=2))
+        {"track": str(track_file), "source": str(src) if src else None, "events": rows, "left_out": skipped},
+        indent=2))
     written += [out / "events.md", out / "events.json"]
     return {"written": [str(p) for p in written], "events": rows}
 

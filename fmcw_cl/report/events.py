@@ -14,6 +14,11 @@ the 50 us pair spacing. Extrema are kept when their prominence is at least
 `PROMINENCE` of the series' largest magnitude (that keeps the paper's second strike,
 78 m/s^2 beside 365 m/s^2) and at least `NOISE_FACTOR` times the series' noise, the
 spread of its quietest stretch (that drops the noise of a resting target).
+
+Only verified stretches are used (`verified_stretches`): runs of valid pairs at least
+as long as the acceleration's Savitzky-Golay window (stages.kinematics.WINDOW_PAIRS),
+so that an isolated pair is never an event; an event within half a window of a pair
+left out is marked ``near_gap`` (its extremum may lie in the gap).
 """
 
 from __future__ import annotations
@@ -22,6 +27,8 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 from scipy.signal import find_peaks
+
+from ..stages.kinematics import WINDOW_PAIRS
 
 PROMINENCE = 0.1     # of the largest magnitude of the series
 REFINE_S = 5e-3      # largest half-width of the cubic fitted around an extremum
@@ -39,6 +46,35 @@ class Event:
     quantity: str    # distance_m, velocity_mps or acceleration_mps2
     time_s: float
     value: float
+    near_gap: bool = False
+
+
+def verified_stretches(valid: np.ndarray, min_pairs: int = WINDOW_PAIRS) -> np.ndarray:
+    """The valid pairs that lie in runs of at least `min_pairs` consecutive valid pairs."""
+    valid = np.asarray(valid, bool)
+    edges = np.flatnonzero(np.diff(np.r_[0, valid.astype(np.int8), 0]))
+    out = np.zeros(valid.size, bool)
+    for a, b in zip(edges[::2], edges[1::2], strict=True):
+        if b - a >= min_pairs:
+            out[a:b] = True
+    return out
+
+
+def left_out(valid: np.ndarray, used: np.ndarray) -> dict:
+    """Pairs an event table left out, by why: invalid, or valid in too short a run."""
+    return {"pairs": int(valid.size), "invalid": int(np.sum(~valid)),
+            "short_stretches": int(np.sum(valid & ~used)), "min_stretch_pairs": WINDOW_PAIRS}
+
+
+def mark_gaps(events: list[Event], time_s: np.ndarray, used: np.ndarray, period_s: float) -> list[Event]:
+    """`events` with near_gap set where a pair left out lies within half a window."""
+    gaps = time_s[~used]
+    reach = 0.5 * WINDOW_PAIRS * period_s
+    out = []
+    for e in events:
+        near = bool(gaps.size and np.min(np.abs(gaps - e.time_s)) <= reach)
+        out.append(Event(e.kind, e.quantity, e.time_s, e.value, near))
+    return out
 
 
 def _refine(t: np.ndarray, y: np.ndarray, i: int, width: float) -> tuple[float, float]:

@@ -4,12 +4,17 @@ Written per pair in ``/track/reason`` and per half-sweep in ``/sweeps/reason`` (
 half-sweep carries its pair's code). When several apply, the first in this order wins:
 a missing sync beats a clipped beat beats a weak echo beats an alias beats an
 unsettled tracker beats a discontinuous distance (with no echo, the range check only
-sees noise).
+sees noise); an ambiguous target and an unverified pair come last.
+
+Validity is positive: a pair is valid only when every check passed *and* at least
+pairing.SUPPORT valid neighbours vouch for its distance (`verified`).
 """
 
 from __future__ import annotations
 
 import numpy as np
+
+from .pairing import verify
 
 OK = 0
 SYNC_GAP = 1       # no pair measured here: dropped samples or a broken sync stretch
@@ -18,6 +23,8 @@ NO_ECHO = 3        # a half-sweep's peak is below the SNR threshold (no target, 
 BEYOND_RANGE = 4   # the target lies beyond the unambiguous range (its peak is an alias)
 UNSTABLE = 5       # the de-chirp did not settle or the velocity disagrees with its neighbours
 DISCONTINUOUS = 6  # the distance disagrees with its neighbours' (a fade's noise peak, another echo)
+UNVERIFIED = 7     # too few valid neighbours to check the distance against (an isolated pair)
+AMBIGUOUS = 8      # the target cannot be told from a fixed echo here (see stages.target)
 
 REASONS = {
     OK: "ok",
@@ -27,6 +34,8 @@ REASONS = {
     BEYOND_RANGE: "beyond_range",
     UNSTABLE: "unstable",
     DISCONTINUOUS: "discontinuous",
+    UNVERIFIED: "unverified",
+    AMBIGUOUS: "ambiguous",
 }
 
 RANGE_MARGIN = 1.02   # a 2N-point peak beyond this share of the N-point range is an alias
@@ -99,3 +108,14 @@ def reasons(valid: np.ndarray, heard: np.ndarray, clip: np.ndarray, alias: np.nd
                         (~heard, NO_ECHO), (clip, CLIPPED)):
         code[mask] = value          # later assignments take precedence
     return code
+
+
+def verified(t: np.ndarray, distance: np.ndarray, velocity: np.ndarray, code: np.ndarray) -> np.ndarray:
+    """The codes `code` of pairs at times t with the pairs that are OK but not vouched
+    for by enough OK neighbours (pairing.verify) set to UNVERIFIED, or DISCONTINUOUS
+    where their neighbours disagree with them."""
+    ok, unsupported = verify(t, distance, velocity, code == OK)
+    out = code.copy()
+    dropped = (code == OK) & ~ok
+    out[dropped] = np.where(unsupported[dropped], UNVERIFIED, DISCONTINUOUS)
+    return out

@@ -34,7 +34,10 @@ NEIGHBOURS = 8        # half-width (pairs) of the continuity median
 STOP_MPS = 1e-3       # a pair is re-measured when its de-chirp velocity moves this much
 JUMP_M = 0.25e-3      # a distance this far from its neighbours' prediction is discontinuous
 JUMP_SIGMAS = 6.0     # ... or this many robust standard deviations of the chunk's residuals
+JUMP_MAX_M = 1e-3     # ... but never more than this
 SUPPORT = 2           # trusted neighbours needed to vouch for a pair
+ANCHOR_PAIRS = 2 * NEIGHBOURS + 1   # a run of valid pairs this long stands on its own
+ACCEL_MAX = 500.0     # m/s^2: how far a shorter run may stray from an anchor across its gap
 
 
 @dataclass(frozen=True)
@@ -198,31 +201,122 @@ def solve_pair(d_r, d_f, v0, half_gap, model: DopplerModel):
     return dist, v0 + dv, dv
 
 
+def _residuals(t: np.ndarray, dist: np.ndarray, vel: np.ndarray, trusted: np.ndarray,
+               rows: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """For the pairs `rows` (all when None): |distance - the median prediction of its
+    trusted neighbours| (inf with fewer than SUPPORT of them) and how many there are."""
+    n = dist.size
+    rows = np.arange(n) if rows is None else rows
+    off = np.r_[-NEIGHBOURS:0, 1:NEIGHBOURS + 1]
+    j = rows[:, None] + off[None, :]
+    inside = (j >= 0) & (j < n)
+    j = np.clip(j, 0, n - 1)
+    ok = inside & trusted[j]
+    support = ok.sum(axis=1)
+    enough = support >= SUPPORT
+    resid = np.full(rows.size, np.inf)
+    if enough.any():
+        i, jj, okk = rows[enough], j[enough], ok[enough]
+        pred = np.where(okk, dist[jj] + (t[i, None] - t[jj]) * 0.5 * (vel[i, None] + vel[jj]), np.nan)
+        resid[enough] = np.abs(dist[i] - row_nanmedian(pred))
+    return resid, support
+
+
+def _tolerance(resid: np.ndarray, trusted: np.ndarray) -> float:
+    """JUMP_M, or JUMP_SIGMAS robust standard deviations of the trusted pairs' residuals
+    (a noisy capture), at most JUMP_MAX_M: when most pairs are wrong their scatter must
+    not widen the test until wrong pairs pass."""
+    sure = np.isfinite(resid) & trusted
+    sigma = 1.4826 * median(resid[sure]) if sure.any() else 0.0
+    return min(max(JUMP_M, JUMP_SIGMAS * sigma), JUMP_MAX_M)
+
+
 def continuity(t: np.ndarray, dist: np.ndarray, vel: np.ndarray, trusted: np.ndarray) -> np.ndarray:
     """Which pairs' distances agree with what their trusted neighbours predict.
 
     Neighbour j (within NEIGHBOURS pairs) predicts d_j + (t_i - t_j) (v_i + v_j) / 2 for
     pair i (the velocities are measured to mm/s, so the prediction is as good as d_j).
     A pair agrees when the median prediction is within JUMP_M, or JUMP_SIGMAS robust
-    standard deviations of all residuals (a noisy capture), of its distance, and at
-    least SUPPORT neighbours vouch for it. A noise peak in a fade, or both half-sweeps
-    on another echo, moves both sweeps' distances alike: the velocity test cannot see
-    it, this one does.
+    standard deviations of all residuals (a noisy capture; at most JUMP_MAX_M), of its
+    distance, and at least SUPPORT neighbours vouch for it. A noise peak in a fade, or
+    both half-sweeps on another echo, moves both sweeps' distances alike: the velocity
+    test cannot see it, this one does.
     """
-    n = dist.size
-    off = np.r_[-NEIGHBOURS:0, 1:NEIGHBOURS + 1]
-    j = np.arange(n)[:, None] + off[None, :]
-    inside = (j >= 0) & (j < n)
-    j = np.clip(j, 0, n - 1)
-    ok = inside & trusted[j]
-    pred = np.where(ok, dist[j] + (t[:, None] - t[j]) * 0.5 * (vel[:, None] + vel[j]), np.nan)
-    enough = ok.sum(axis=1) >= SUPPORT
-    resid = np.full(n, np.inf)
-    if enough.any():
-        resid[enough] = np.abs(dist[enough] - row_nanmedian(pred[enough]))
-    sure = np.isfinite(resid) & trusted
-    sigma = 1.4826 * median(resid[sure]) if sure.any() else 0.0
-    return resid <= max(JUMP_M, JUMP_SIGMAS * sigma)
+    resid, _ = _residuals(t, dist, vel, trusted)
+    return resid <= _tolerance(resid, trusted)
+
+
+def verify(t: np.ndarray, dist: np.ndarray, vel: np.ndarray, ok: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Validity as a fixed point: of the pairs `ok`, those that at least SUPPORT other
+    pairs of the final set vouch for (`continuity`'s test, against the final set only).
+
+    A pair vouched for by neighbours that are themselves rejected is rejected in turn,
+    until nothing changes; only the pairs near a change are tested again.
+
+    Returns
+    -------
+    verified : the final set.
+    unsupported : pairs of `ok` dropped for too few valid neighbours (the others
+        dropped disagree with theirs).
+    """
+    ok = np.asarray(ok, bool).copy()
+    unsupported = np.zeros(ok.size, bool)
+    _vouched(t, dist, vel, ok, unsupported)
+    _anchored(t, dist, vel, ok, unsupported)
+    return ok, unsupported
+
+
+def _vouched(t, dist, vel, ok, unsupported) -> None:
+    """`verify`'s fixed point of the neighbours' test, in place."""
+    rows = np.flatnonzero(ok)
+    tol = None
+    while rows.size:
+        resid, support = _residuals(t, dist, vel, ok, rows)
+        tol = _tolerance(resid, ok[rows]) if tol is None else tol   # the capture's scatter, once
+        drop = resid > tol
+        if not drop.any():
+            break
+        gone = rows[drop]
+        ok[gone] = False
+        unsupported[gone] = support[drop] < SUPPORT
+        near = np.zeros(ok.size + 2 * NEIGHBOURS + 1, np.int32)       # pairs within reach of a drop
+        np.add.at(near, gone, 1)
+        near = np.convolve(near, np.ones(2 * NEIGHBOURS + 1, np.int32))[NEIGHBOURS:NEIGHBOURS + ok.size] > 0
+        rows = np.flatnonzero(ok & near)
+
+
+def _anchored(t, dist, vel, ok, unsupported) -> None:
+    """Runs of valid pairs (no gap wider than NEIGHBOURS pairs, each pair predicting the
+    next as below) shorter than ANCHOR_PAIRS vouch for each other only: such a run stays
+    valid where the anchor run nearest on either side predicts its end across the gap,
+    distance within
+    JUMP_MAX_M + ACCEL_MAX dt^2 / 8 and velocity within ACCEL_MAX dt; else every pair
+    of it is unsupported (a wrong echo followed for a few pairs is self-consistent)."""
+    idx = np.flatnonzero(ok)
+    if idx.size == 0:
+        return
+
+    def agrees(a, b):                           # pair a predicts pair b (arrays or ints)
+        dt = t[b] - t[a]
+        pred = dist[a] + dt * 0.5 * (vel[a] + vel[b])
+        return ((np.abs(dist[b] - pred) <= JUMP_MAX_M + ACCEL_MAX * dt * dt / 8)
+                & (np.abs(vel[b] - vel[a]) <= ACCEL_MAX * np.abs(dt) + CONSISTENT_MPS))
+
+    # a run ends at a gap, or where the next valid pair leaves its kinematics (a wrong
+    # echo beside right pairs joins no run of theirs)
+    cut = np.flatnonzero((np.diff(idx) > NEIGHBOURS) | ~agrees(idx[:-1], idx[1:])) + 1
+    runs = np.split(idx, cut)
+    anchors = [r for r in runs if r.size >= ANCHOR_PAIRS]
+    firsts = np.array([r[0] for r in anchors])
+    for r in runs:
+        if r.size >= ANCHOR_PAIRS:
+            continue
+        k = np.searchsorted(firsts, r[0])         # anchors[k - 1] lies before r, anchors[k] after
+        sides = ([(anchors[k - 1][-1], r[0])] if k > 0 else []) + \
+                ([(anchors[k][0], r[-1])] if k < len(anchors) else [])
+        if not any(bool(agrees(a, b)) for a, b in sides):
+            ok[r] = False
+            unsupported[r] = True
 
 
 def running_median(v: np.ndarray) -> np.ndarray:

@@ -1,0 +1,225 @@
+"""Which echo is the target: the band it is tracked in, and where it cannot be told apart.
+
+A first conversion tracks the strongest echo of the user's band [--min-range,
+--max-range) and lists every echo (stages.cfar, `echoes.table`). From its tables:
+
+- a **fixed echo** is a distance where the echoes of both current directions cluster
+  (within echoes.HIST_M) in at least FIXED_SHARE of the capture's 10 ms slices, at a
+  level within echoes.RIVAL_DB of the tracked echo's: a wall, a window, a lens, or a
+  target at rest for most of the capture;
+- the **moving echo** spans the distances of the verified pairs that move faster than
+  MOVING_MPS and of the echoes found by their Doppler-smeared energy (echoes.hidden).
+
+The rule (`--target`):
+
+- ``auto``: where a moving echo is found, it is the target (the instrument exists to
+  measure motion); the fixed echoes it does not reach are left out of the band, which
+  becomes the gap between them that holds the moving echo's span (each edge
+  WALL_MARGIN_M inside the fixed echo, or half way to the span where that is nearer). A fixed echo
+  inside the span is the target at rest when it fades with the target's departure;
+  one that stays while the target is elsewhere is another object, and the pairs within
+  GATE_M of it are ``ambiguous``. With no moving echo and several fixed echoes, the
+  rule cannot tell which is the target: every pair on one of them is ``ambiguous``.
+  With one echo, it is the target.
+- ``moving``: as auto, and a capture without a moving echo is refused.
+- ``nearest``: the nearest fixed echo or moving span, left alone in its gap.
+- ``strongest``: the strongest echo of the band, pair by pair (no second pass).
+- ``--target-near D``: the fixed echo or moving span nearest to D m, left alone.
+
+When the band changes, the capture is converted again in the chosen band (a second
+pass over the file: a scene with a wall costs two conversions).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import echoes
+from .numeric import median
+from .stages import faults
+
+RULES = ("auto", "moving", "nearest", "strongest")
+FIXED_SHARE = 0.5     # of the slices a fixed echo is seen in
+MOVING_MPS = 0.3      # a verified pair this fast belongs to the moving echo
+GATE_M = 0.01         # pairs this close to an echo the target cannot be told from are ambiguous
+WALL_MARGIN_M = 0.03  # a band edge lies this far inside a left-out fixed echo where the gap allows
+MIN_GAP_M = 0.004     # a band edge lies at least half this inside a left-out fixed echo
+APART_M = 0.02        # fixed echoes closer than this are one (a smeared peak's lobes); nearer the
+                      # target's span than this, a fixed echo is not left out of the band
+MIN_TRAVEL_M = 0.01   # a moving echo's verified pairs span at least this (a biased velocity is no motion)
+AWAY_SHARE = 0.5      # a fixed echo seen in this share of the slices where the target is away is an object
+
+
+@dataclass
+class Choice:
+    """The target chosen from a first conversion.
+
+    Attributes
+    ----------
+    rule : the rule applied (RULES, or "near D").
+    fixed_m : the fixed echoes' distances (m).
+    objects : whether each fixed echo stays while the target is elsewhere.
+    span_m : (lo, hi) of the target's distances (m), None when no echo is the target.
+    moving : the target was chosen for its motion.
+    band_m : the band (lo, hi) it is tracked in (m; hi None: to the end of the range).
+    ambiguous_m : fixed echoes inside the band that the target cannot be told from.
+    note : what was chosen and why, one line.
+    """
+
+    rule: str
+    fixed_m: np.ndarray
+    objects: np.ndarray
+    span_m: tuple[float, float] | None
+    moving: bool
+    band_m: tuple[float, float | None]
+    ambiguous_m: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    note: str = ""
+
+    def attrs(self) -> dict:
+        return {"target_rule": self.rule,
+                "target_fixed_echoes_m": np.asarray(self.fixed_m, np.float64),
+                "target_moving": bool(self.moving),
+                "target_span_m": np.asarray(self.span_m if self.span_m else (np.nan, np.nan), np.float64),
+                "target_band_m": np.asarray((self.band_m[0], np.nan if self.band_m[1] is None
+                                             else self.band_m[1]), np.float64),
+                "target_ambiguous_echoes_m": np.asarray(self.ambiguous_m, np.float64),
+                "target_choice": self.note}
+
+
+def fixed_echoes(e: echoes.Echoes, level_db: float) -> tuple[np.ndarray, np.ndarray]:
+    """(distances m, levels dB) of the fixed echoes of an echo table (see the module)."""
+    if e.time_s.size == 0:
+        return np.zeros(0), np.zeros(0)
+    edges = np.arange(e.time_s.min(), e.time_s.max() + echoes.SLICE_S, echoes.SLICE_S)
+    found_d, found_s, slices = [], [], 0
+    for a in edges:
+        inside = (e.time_s >= a) & (e.time_s < a + echoes.SLICE_S)
+        sweeps = np.unique(e.time_s[inside]).size
+        if sweeps < 20:
+            continue
+        slices += 1
+        for d, snr, _ in echoes.clusters(e.distance_m[inside], e.snr_db[inside], sweeps):
+            found_d.append(d)
+            found_s.append(snr)
+    if not found_d:
+        return np.zeros(0), np.zeros(0)
+    d, snr = np.asarray(found_d), np.asarray(found_s)
+    out_d, out_s = [], []
+    for x, level, _ in echoes.clusters(d, snr, slices, FIXED_SHARE):
+        if level < level_db - echoes.RIVAL_DB:
+            continue
+        if out_d and x - out_d[-1] < APART_M:            # one echo: the stronger stands for both
+            if level > out_s[-1]:
+                out_d[-1], out_s[-1] = x, level
+            continue
+        out_d.append(x)
+        out_s.append(level)
+    return np.asarray(out_d), np.asarray(out_s)
+
+
+def moving_span(distance_m, velocity_mps, valid, e: echoes.Echoes, band) -> tuple[float, float] | None:
+    """(lo, hi) of the moving echo's distances (m) inside `band`, or None."""
+    fast = valid & (np.abs(velocity_mps) >= MOVING_MPS)
+    if fast.any() and np.ptp(distance_m[fast]) < MIN_TRAVEL_M:
+        fast[:] = False
+    ds = list(distance_m[fast])
+    p = e.persistent
+    diffuse = p["diffuse"] & (p["distance_m"] >= band[0]) & (p["distance_m"] < (band[1] or np.inf))
+    ds += list(p["distance_m"][diffuse])
+    if fast.sum() < 3 and not diffuse.any():       # a slice's smeared energy is evidence alone
+        return None
+    ds = np.asarray(ds)
+    return float(np.percentile(ds, 1)), float(np.percentile(ds, 99))
+
+
+def _object(f: float, time_s, distance_m, valid, e: echoes.Echoes) -> bool:
+    """Whether the fixed echo at f stays while the tracked target is elsewhere."""
+    away = seen = 0
+    for a in np.arange(time_s.min(), time_s.max() + echoes.SLICE_S, echoes.SLICE_S):
+        pairs = valid & (time_s >= a) & (time_s < a + echoes.SLICE_S)
+        if pairs.sum() < 20 or abs(median(distance_m[pairs]) - f) <= GATE_M:
+            continue
+        away += 1
+        inside = (e.time_s >= a) & (e.time_s < a + echoes.SLICE_S)
+        sweeps = np.unique(e.time_s[inside]).size
+        hits = np.abs(e.distance_m[inside] - f) <= 1.5 * echoes.HIST_M
+        seen += bool(sweeps and hits.sum() >= echoes.PRESENT * sweeps)
+    return away == 0 or seen >= AWAY_SHARE * away
+
+
+def _gap(span: tuple[float, float], fixed: np.ndarray, band) -> tuple[float, float | None]:
+    """The band around `span` that leaves out the fixed echoes outside it."""
+    lo, hi = band
+    below, above = fixed[fixed < span[0] - APART_M], fixed[fixed > span[1] + APART_M]
+    if below.size:
+        f = below.max()
+        lo = max(lo, f + _margin(span[0] - f))
+    if above.size:
+        f = above.min()
+        edge = f - _margin(f - span[1])
+        hi = edge if hi is None else min(hi, edge)
+    return lo, hi
+
+
+def _margin(gap: float) -> float:
+    """How far inside a left-out fixed echo a band edge lies, `gap` m from the target's
+    span: WALL_MARGIN_M (its lobes stay out), less where the gap is narrow (half of it,
+    at least MIN_GAP_M / 2)."""
+    return min(WALL_MARGIN_M, max(MIN_GAP_M / 2, gap / 2))
+
+
+def choose(rule: str, near_m: float | None, time_s, distance_m, velocity_mps, valid,
+           e: echoes.Echoes, level_db: float, band: tuple[float, float | None]) -> Choice:
+    """The target of a first conversion's pairs (valid, distances, velocities) and echo
+    table `e` (see the module); `level_db` is the tracked echo's level, `band` the
+    user's (lo, hi) in m."""
+    fixed, _ = fixed_echoes(e, level_db)
+    inband = (fixed >= band[0]) & (fixed < (band[1] or np.inf))
+    fixed = fixed[inband]
+    objects = np.array([_object(f, time_s, distance_m, valid, e) for f in fixed], bool)
+    span = moving_span(distance_m, velocity_mps, valid, e, band)
+    name = rule if near_m is None else f"near {near_m:g} m"
+    if rule == "strongest" and near_m is None:
+        return Choice(name, fixed, objects, None, False, band, note="the strongest echo of the band")
+    if rule == "moving" and span is None and near_m is None:
+        raise ValueError("no moving echo found (--target moving): choose another --target")
+    # the candidates: every fixed echo (a point) and the moving span
+    cands = [((f, f), False) for f in fixed] + ([(span, True)] if span else [])
+    if near_m is not None:
+        target = min(cands, key=lambda c: max(c[0][0] - near_m, near_m - c[0][1], 0.0), default=None)
+    elif rule == "nearest":
+        target = min(cands, key=lambda c: c[0][0], default=None)
+    elif span is not None:
+        target = (span, True)
+    elif fixed.size <= 1:
+        return Choice(name, fixed, objects, None, False, band, note="one echo: the target")
+    else:                     # still echoes only: the rule cannot tell which is the target
+        return Choice(name, fixed, objects, None, False, band, fixed.copy(),
+                      note=f"no echo moves: the fixed echoes at {_list(fixed)} cannot be told apart")
+    if target is None:
+        return Choice(name, fixed, objects, None, False, band, note="no echo found")
+    (lo, hi), moving = target
+    outside = (fixed < lo - APART_M) | (fixed > hi + APART_M)
+    new = _gap((lo, hi), fixed[outside], band)
+    within = fixed[~outside & objects] if moving else np.zeros(0)
+    what = (f"the moving echo at {lo:.3f}-{hi:.3f} m" if moving else f"the echo at {lo:.3f} m")
+    left = fixed[outside]
+    note = what + (f", fixed echoes at {_list(left)} left out" if left.size else "")
+    if within.size:
+        note += f"; ambiguous where it passes the fixed echoes at {_list(within)}"
+    return Choice(name, fixed, objects, (lo, hi), moving, new, within, note)
+
+
+def _list(xs) -> str:
+    return ", ".join(f"{x:.3f}" for x in xs) + " m"
+
+
+def ambiguous(code: np.ndarray, distance_m: np.ndarray, choice: Choice) -> np.ndarray:
+    """`code` with the OK pairs within GATE_M of the choice's ambiguous echoes set to
+    faults.AMBIGUOUS."""
+    out = code.copy()
+    for f in choice.ambiguous_m:
+        out[(out == faults.OK) & (np.abs(distance_m - f) <= GATE_M)] = faults.AMBIGUOUS
+    return out
