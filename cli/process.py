@@ -52,10 +52,10 @@ def target_lines(cap, attrs: dict) -> None:
     amb = int(attrs.get("invalid_ambiguous", 0))
     choice = attrs.get("target_choice", "")
     hint = "--target, --target-near choose another"
+    left = fixed[(fixed < band[0]) | (fixed >= np.nan_to_num(band[1], nan=np.inf))]
     if amb:
         click.echo(f"warning: {cap}: {amb} pairs ambiguous: {choice} ({hint})", err=True)
-    elif np.any((fixed < band[0]) | (fixed >= np.nan_to_num(band[1], nan=np.inf))):     # echoes left out
-        left = fixed[(fixed < band[0]) | (fixed >= np.nan_to_num(band[1], nan=np.inf))]
+    elif left.size:
         top = "the end" if not np.isfinite(band[1]) else f"{band[1]:.3f} m"
         click.echo(f"note: {cap}: the target ({tracked(attrs)}) is tracked from {band[0]:.3f} m to {top}, "
                    f"leaving out the fixed echo{'es' if left.size > 1 else ''} at "

@@ -32,6 +32,7 @@ from .engine import (
     process,
     split_ranges,
     with_band,
+    with_choice,
 )
 from .errors import FmcwError
 from .track import track_path, write_track
@@ -193,7 +194,7 @@ def _collect(client, jobs: dict, samples: dict, refused: list, backend: str, dev
                 if choice.band_m != band_of(plan.options):    # its band: the ranges again
                     submit_ranges(cap, out, with_band(plan, choice.band_m), cuts, choice)
                     continue
-                track = assemble(plan, parts, made, time.perf_counter() - started, choice)
+                track = with_choice(plan, parts, made, time.perf_counter() - started, track, choice)
             with Capture(cap) as c:
                 check_tuning(c, plan, track)
             value = _written(str(cap), out, track)

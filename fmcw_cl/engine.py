@@ -448,11 +448,20 @@ def process(path, options: Options | None = None, backend=None,
         if choice.band_m != band_of(plan.options):          # the target alone in its band: again
             plan = with_band(plan, choice.band_m)
             parts = capture_parts(cap, plan, backend, progress=progress)
-        if choice.band_m != band_of(options) or choice.ambiguous_m.size:
             track = assemble(plan, parts, backend, time.perf_counter() - started, choice)
         else:
-            track.attrs.update(choice.attrs())
+            track = with_choice(plan, parts, backend, time.perf_counter() - started, track, choice)
         check_tuning(cap, plan, track, backend)
+    return track
+
+
+def with_choice(plan: Plan, parts: list[_Pairs], backend, seconds: float, track: Track,
+                choice: target.Choice) -> Track:
+    """The first conversion's `track` with a target `choice` that kept its band: made
+    again where the choice makes pairs ambiguous, else its attributes added."""
+    if choice.ambiguous_m.size:
+        return assemble(plan, parts, backend, seconds, choice)
+    track.attrs.update(choice.attrs())
     return track
 
 

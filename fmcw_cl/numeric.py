@@ -62,3 +62,10 @@ def savgol_derivative(x: np.ndarray, window: int, order: int, delta: float) -> n
         slope = np.polyder(np.polyfit(t, x[edge], order))
         out[at] = np.polyval(slope, t[at.start - edge.start: at.stop - edge.start]) / delta
     return out
+
+
+def runs(mask: np.ndarray) -> np.ndarray:
+    """(start, stop) of each run of consecutive True values of `mask`, as rows of an
+    (R, 2) array (stop exclusive)."""
+    edges = np.flatnonzero(np.diff(np.r_[0, np.asarray(mask, bool).astype(np.int8), 0]))
+    return edges.reshape(-1, 2)

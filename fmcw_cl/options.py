@@ -64,7 +64,7 @@ PROCESS = (
     Opt("min_range", 0.03, float,
         "Ignore peaks below this distance (m): DC, intensity ramp, lens reflection.", lo=0.0),
     Opt("max_range", None, float, "Ignore peaks beyond this distance (m): a wall or a window behind the "
-        "target. The track follows the strongest echo of [min-range, max-range).", lo=0.0),
+        "target. The target is chosen in [min-range, max-range) (--target).", lo=0.0),
     Opt("target", "auto", str, "Which echo is the target: auto (a moving echo where there is one, fixed "
         "echoes it does not reach left out of the band; docs/pipeline.md), moving (refuse a capture "
         "without one), nearest, or strongest (pair by pair).", choices=("auto", "moving", "nearest",

@@ -17,6 +17,7 @@ from dataclasses import replace
 import numpy as np
 
 from .capture import Capture
+from .numeric import runs
 
 STRETCHES = 3
 STRETCH_PERIODS = 240
@@ -46,8 +47,7 @@ def mismatch(cap: Capture, plan, lag: float, backend=None) -> float:
         d = np.concatenate([q.result.distance for q in parts])
         v = np.concatenate([q.result.velocity for q in parts])
         ok = np.concatenate([q.reason == 0 for q in parts])
-        edges = np.flatnonzero(np.diff(np.r_[0, ok.astype(np.int8), 0]))
-        i, j = max(zip(edges[::2], edges[1::2], strict=True), key=lambda r: r[1] - r[0], default=(0, 0))
+        i, j = max(runs(ok), key=lambda r: r[1] - r[0], default=(0, 0))
         if j - i < MIN_RUN:
             continue
         tt, dd, vv = t[i:j], d[i:j], v[i:j]

@@ -28,6 +28,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 from scipy.signal import find_peaks
 
+from ..numeric import runs
 from ..stages.kinematics import WINDOW_PAIRS
 
 PROMINENCE = 0.1     # of the largest magnitude of the series
@@ -51,10 +52,8 @@ class Event:
 
 def verified_stretches(valid: np.ndarray, min_pairs: int = WINDOW_PAIRS) -> np.ndarray:
     """The valid pairs that lie in runs of at least `min_pairs` consecutive valid pairs."""
-    valid = np.asarray(valid, bool)
-    edges = np.flatnonzero(np.diff(np.r_[0, valid.astype(np.int8), 0]))
-    out = np.zeros(valid.size, bool)
-    for a, b in zip(edges[::2], edges[1::2], strict=True):
+    out = np.zeros(np.size(valid), bool)
+    for a, b in runs(valid):
         if b - a >= min_pairs:
             out[a:b] = True
     return out

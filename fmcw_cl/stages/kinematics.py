@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..numeric import savgol_derivative
+from ..numeric import runs, savgol_derivative
 
 WINDOW_PAIRS = 21
 POLYORDER = 2
@@ -23,8 +23,7 @@ def acceleration(velocity: np.ndarray, valid: np.ndarray, period_s: float,
     on its own, so no value is invented across a gap. Invalid pairs get NaN.
     """
     acc = np.full(velocity.shape, np.nan)
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], valid.astype(np.int8), [0]])))
-    for a, b in zip(edges[::2], edges[1::2], strict=False):
+    for a, b in runs(valid):
         n = b - a
         if n >= window:
             acc[a:b] = savgol_derivative(velocity[a:b], window, POLYORDER, period_s)

@@ -279,9 +279,10 @@ def _vouched(t, dist, vel, ok, unsupported) -> None:
         gone = rows[drop]
         ok[gone] = False
         unsupported[gone] = support[drop] < SUPPORT
-        near = np.zeros(ok.size + 2 * NEIGHBOURS + 1, np.int32)       # pairs within reach of a drop
-        np.add.at(near, gone, 1)
-        near = np.convolve(near, np.ones(2 * NEIGHBOURS + 1, np.int32))[NEIGHBOURS:NEIGHBOURS + ok.size] > 0
+        hit = np.zeros(ok.size, np.int32)
+        hit[gone] = 1
+        reach = np.convolve(hit, np.ones(2 * NEIGHBOURS + 1, np.int32))       # pairs within reach of a drop
+        near = reach[NEIGHBOURS:NEIGHBOURS + ok.size] > 0
         rows = np.flatnonzero(ok & near)
 
 
