@@ -3,8 +3,11 @@
 A first conversion tracks the strongest echo of the user's band [--min-range,
 --max-range) and lists every echo (stages.cfar, `echoes.table`). From its tables:
 
-- a **fixed echo** is a distance where the echoes of both current directions cluster
-  (within echoes.HIST_M) in at least FIXED_SHARE of the capture's 10 ms slices, at a
+- a **fixed echo** is a distance where the echoes of each current direction cluster
+  (within echoes.HIST_M), the two within GATE_M of each other (a sync delay's error
+  parts them by a few mm; a moving target's plain peak in one direction only, where
+  its Doppler shift cancels its motion, is no fixed echo), at their midpoint, in at
+  least FIXED_SHARE of the capture's 10 ms slices, at a
   level within echoes.RIVAL_DB of the tracked echo's: a wall, a window, a lens, or a
   target at rest for most of the capture;
 - the **moving echo** spans the distances of the verified pairs that move faster than
@@ -96,13 +99,17 @@ def fixed_echoes(e: echoes.Echoes, level_db: float) -> tuple[np.ndarray, np.ndar
     found_d, found_s, slices = [], [], 0
     for a in edges:
         inside = (e.time_s >= a) & (e.time_s < a + echoes.SLICE_S)
-        sweeps = np.unique(e.time_s[inside]).size
-        if sweeps < 20:
+        if np.unique(e.time_s[inside]).size < 20:
             continue
         slices += 1
-        for d, snr, _ in echoes.clusters(e.distance_m[inside], e.snr_db[inside], sweeps):
-            found_d.append(d)
-            found_s.append(snr)
+        # each direction apart: an echo seen in one only is a moving target's Doppler image
+        rise, fall = (_slice_clusters(e, inside & (e.rising == up)) for up in (True, False))
+        for d, snr in rise:
+            gap = [abs(x - d) for x, _ in fall]
+            if gap and min(gap) <= GATE_M:
+                x, y = fall[int(np.argmin(gap))]
+                found_d.append(0.5 * (d + x))
+                found_s.append(min(snr, y))
     if not found_d:
         return np.zeros(0), np.zeros(0)
     d, snr = np.asarray(found_d), np.asarray(found_s)
@@ -117,6 +124,13 @@ def fixed_echoes(e: echoes.Echoes, level_db: float) -> tuple[np.ndarray, np.ndar
         out_d.append(x)
         out_s.append(level)
     return np.asarray(out_d), np.asarray(out_s)
+
+
+def _slice_clusters(e: echoes.Echoes, rows: np.ndarray) -> list[tuple[float, float]]:
+    """(distance m, level dB) of the echo clusters among the detections `rows` (one
+    direction of a slice), each seen in echoes.PRESENT of those half-sweeps."""
+    sweeps = np.unique(e.time_s[rows]).size
+    return [(d, snr) for d, snr, _ in echoes.clusters(e.distance_m[rows], e.snr_db[rows], sweeps)]
 
 
 def moving_span(distance_m, velocity_mps, valid, e: echoes.Echoes, band) -> tuple[float, float] | None:
