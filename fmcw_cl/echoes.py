@@ -185,6 +185,32 @@ def hidden(plain: np.ndarray, dechirped: np.ndarray, lo: int, tracked_bin: np.nd
     return ratio, centroid, found
 
 
+def keyed_clusters(key: np.ndarray, dist: np.ndarray, snr: np.ndarray, sweeps: np.ndarray,
+                   present: float = PRESENT) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """`clusters` of many groups at once: the detections of group `key` (0..K-1) among
+    `sweeps[key]` half-sweeps. Returns each cluster's (group, mean distance m, mean SNR
+    dB) over its three histogram bins, by group, then distance."""
+    if dist.size == 0:
+        return np.zeros(0, np.int64), np.zeros(0), np.zeros(0)
+    idx = np.floor(dist / HIST_M).astype(np.int64)
+    base = idx.min() - 1
+    nb = int(idx.max() - base + 2)
+    flat = key * nb + idx - base
+    shape = (sweeps.size, nb)
+
+    def windowed(weights=None):                 # sums over three neighbouring bins, per group
+        h = np.bincount(flat, weights, minlength=sweeps.size * nb).reshape(shape)
+        return h + np.pad(h[:, :-1], ((0, 0), (1, 0))) + np.pad(h[:, 1:], ((0, 0), (0, 1)))
+
+    window = windowed()
+    left = np.pad(window[:, :-1], ((0, 0), (1, 0)), constant_values=-1)
+    right = np.pad(window[:, 1:], ((0, 0), (0, 1)), constant_values=-1)
+    g, b = np.nonzero((window >= present * sweeps[:, None]) & (window > left) & (window >= right)
+                      & (window > 0))
+    n = window[g, b]
+    return g, windowed(dist)[g, b] / n, windowed(snr)[g, b] / n
+
+
 def clusters(dist: np.ndarray, snr: np.ndarray, sweeps: int, present: float = PRESENT):
     """(median distance, median SNR, share) of each distance seen in >= `present` of
     `sweeps` half-sweeps (or slices): local maxima of the counts over three histogram

@@ -459,7 +459,7 @@ def with_choice(plan: Plan, parts: list[_Pairs], backend, seconds: float, track:
                 choice: target.Choice) -> Track:
     """The first conversion's `track` with a target `choice` that kept its band: made
     again where the choice makes pairs ambiguous, else its attributes added."""
-    if choice.ambiguous_m.size:
+    if choice.undecided:
         return assemble(plan, parts, backend, seconds, choice)
     track.attrs.update(choice.attrs())
     return track

@@ -10,8 +10,10 @@ A first conversion tracks the strongest echo of the user's band [--min-range,
   least FIXED_SHARE of the capture's 10 ms slices, at a
   level within echoes.RIVAL_DB of the tracked echo's: a wall, a window, a lens, or a
   target at rest for most of the capture;
-- the **moving echo** spans the distances of the verified pairs that move faster than
-  MOVING_MPS and of the echoes found by their Doppler-smeared energy (echoes.hidden).
+- a **moving echo** spans the distances of the verified pairs that move faster than
+  MOVING_MPS and of the echoes found by their Doppler-smeared energy (echoes.hidden);
+  those distances part into several moving echoes where APART_M of range holds none
+  (a second limb, a swinging cable).
 
 The rule (`--target`):
 
@@ -21,11 +23,12 @@ The rule (`--target`):
   WALL_MARGIN_M inside the fixed echo, or half way to the span where that is nearer). A fixed echo
   inside the span is the target at rest when it fades with the target's departure;
   one that stays while the target is elsewhere is another object, and the pairs within
-  GATE_M of it are ``ambiguous``. With no moving echo and several fixed echoes, the
-  rule cannot tell which is the target: every pair on one of them is ``ambiguous``.
-  With one echo, it is the target.
+  GATE_M of it are ``ambiguous``. With no moving echo and several fixed echoes, or
+  several moving echoes, the rule cannot tell which is the target: every pair on one of
+  them is ``ambiguous``. With one echo, it is the target.
 - ``moving``: as auto, and a capture without a moving echo is refused.
-- ``nearest``: the nearest fixed echo or moving span, left alone in its gap.
+- ``nearest``: the nearest fixed echo or moving span, left alone in its gap (the other
+  echoes' nearer ends bound it).
 - ``strongest``: the strongest echo of the band, pair by pair (no second pass).
 - ``--target-near D``: the fixed echo or moving span nearest to D m, left alone.
 
@@ -52,6 +55,8 @@ MIN_GAP_M = 0.004     # a band edge lies at least half this inside a left-out fi
 APART_M = 0.02        # fixed echoes closer than this are one (a smeared peak's lobes); nearer the
                       # target's span than this, a fixed echo is not left out of the band
 MIN_TRAVEL_M = 0.01   # a moving echo's verified pairs span at least this (a biased velocity is no motion)
+TOGETHER_S = 2e-3    # pairs this close in time but APART_M apart are two moving echoes
+SPAN_KEY_M = 1e3     # slices' sort keys lie this far apart (beyond any distance)
 AWAY_SHARE = 0.5      # a fixed echo seen in this share of the slices where the target is away is an object
 
 
@@ -68,6 +73,7 @@ class Choice:
     moving : the target was chosen for its motion.
     band_m : the band (lo, hi) it is tracked in (m; hi None: to the end of the range).
     ambiguous_m : fixed echoes inside the band that the target cannot be told from.
+    ambiguous_spans_m : (k, 2) moving echoes' spans (m) the rule cannot tell apart.
     note : what was chosen and why, one line.
     """
 
@@ -79,6 +85,12 @@ class Choice:
     band_m: tuple[float, float | None]
     ambiguous_m: np.ndarray = field(default_factory=lambda: np.zeros(0))
     note: str = ""
+    ambiguous_spans_m: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+
+    @property
+    def undecided(self) -> bool:
+        """Whether some pairs are ambiguous under this choice."""
+        return bool(self.ambiguous_m.size or self.ambiguous_spans_m.size)
 
     def attrs(self) -> dict:
         return {"target_rule": self.rule,
@@ -88,6 +100,7 @@ class Choice:
                 "target_band_m": np.asarray((self.band_m[0], np.nan if self.band_m[1] is None
                                              else self.band_m[1]), np.float64),
                 "target_ambiguous_echoes_m": np.asarray(self.ambiguous_m, np.float64),
+                "target_ambiguous_spans_m": np.asarray(self.ambiguous_spans_m, np.float64).ravel(),
                 "target_choice": self.note}
 
 
@@ -95,26 +108,33 @@ def fixed_echoes(e: echoes.Echoes, level_db: float) -> tuple[np.ndarray, np.ndar
     """(distances m, levels dB) of the fixed echoes of an echo table (see the module)."""
     if e.time_s.size == 0:
         return np.zeros(0), np.zeros(0)
-    edges = np.arange(e.time_s.min(), e.time_s.max() + echoes.SLICE_S, echoes.SLICE_S)
-    found_d, found_s, slices = [], [], 0
-    for a in edges:
-        inside = (e.time_s >= a) & (e.time_s < a + echoes.SLICE_S)
-        if np.unique(e.time_s[inside]).size < 20:
-            continue
-        slices += 1
-        # each direction apart: an echo seen in one only is a moving target's Doppler image
-        rise, fall = (_slice_clusters(e, inside & (e.rising == up)) for up in (True, False))
-        for d, snr in rise:
-            gap = [abs(x - d) for x, _ in fall]
-            if gap and min(gap) <= GATE_M:
-                x, y = fall[int(np.argmin(gap))]
-                found_d.append(0.5 * (d + x))
-                found_s.append(min(snr, y))
-    if not found_d:
+    # each direction of each slice apart: an echo seen in one only is a moving target's
+    # Doppler image
+    slice_ = np.floor((e.time_s - e.time_s.min()) / echoes.SLICE_S).astype(np.int64)
+    key = 2 * slice_ + e.rising.astype(np.int64)
+    first = np.r_[True, (np.diff(e.time_s) != 0) | (np.diff(key) != 0)]   # a half-sweep's first echo
+    sweeps = np.bincount(key[first], minlength=2 * slice_.max() + 2)
+    kept = np.bincount(slice_[first], minlength=slice_.max() + 1) >= 20
+    rows = kept[slice_]
+    g, d, snr = echoes.keyed_clusters(key[rows], e.distance_m[rows], e.snr_db[rows], sweeps)
+    fall, rise = (g % 2 == 0), (g % 2 == 1)
+    # pair each rising cluster with the nearest falling one of its slice, within GATE_M
+    at = (g // 2) * SPAN_KEY_M + d                     # slice-major sort key (m)
+    order = np.argsort(at[fall], kind="stable")
+    f_at, f_d, f_s = at[fall][order], d[fall][order], snr[fall][order]
+    r_at, r_d, r_s = at[rise], d[rise], snr[rise]
+    if f_at.size == 0 or r_at.size == 0:
         return np.zeros(0), np.zeros(0)
-    d, snr = np.asarray(found_d), np.asarray(found_s)
+    j = np.searchsorted(f_at, r_at)
+    below, above = np.clip(j - 1, 0, f_at.size - 1), np.clip(j, 0, f_at.size - 1)
+    j = np.where(np.abs(f_at[below] - r_at) <= np.abs(f_at[above] - r_at), below, above)
+    pair = np.abs(f_at[j] - r_at) <= GATE_M
+    found_d = 0.5 * (r_d[pair] + f_d[j[pair]])
+    found_s = np.minimum(r_s[pair], f_s[j[pair]])
+    if not found_d.size:
+        return np.zeros(0), np.zeros(0)
     out_d, out_s = [], []
-    for x, level, _ in echoes.clusters(d, snr, slices, FIXED_SHARE):
+    for x, level, _ in echoes.clusters(found_d, found_s, int(kept.sum()), FIXED_SHARE):
         if level < level_db - echoes.RIVAL_DB:
             continue
         if out_d and x - out_d[-1] < APART_M:            # one echo: the stronger stands for both
@@ -126,26 +146,45 @@ def fixed_echoes(e: echoes.Echoes, level_db: float) -> tuple[np.ndarray, np.ndar
     return np.asarray(out_d), np.asarray(out_s)
 
 
-def _slice_clusters(e: echoes.Echoes, rows: np.ndarray) -> list[tuple[float, float]]:
-    """(distance m, level dB) of the echo clusters among the detections `rows` (one
-    direction of a slice), each seen in echoes.PRESENT of those half-sweeps."""
-    sweeps = np.unique(e.time_s[rows]).size
-    return [(d, snr) for d, snr, _ in echoes.clusters(e.distance_m[rows], e.snr_db[rows], sweeps)]
+def moving_spans(time_s, distance_m, velocity_mps, valid, e: echoes.Echoes,
+                 band) -> list[tuple[float, float]]:
+    """(lo, hi) of each moving echo's distances (m) inside `band`, nearest first.
 
-
-def moving_span(distance_m, velocity_mps, valid, e: echoes.Echoes, band) -> tuple[float, float] | None:
-    """(lo, hi) of the moving echo's distances (m) inside `band`, or None."""
+    The fast verified pairs part where APART_M of range holds none; neighbouring parts
+    are one echo unless both were measured within TOGETHER_S (one target cannot be in
+    both: it would have crossed APART_M in that time). The Doppler-smeared echoes join
+    the nearest part (alone, they are one echo).
+    """
     fast = valid & (np.abs(velocity_mps) >= MOVING_MPS)
-    if fast.any() and np.ptp(distance_m[fast]) < MIN_TRAVEL_M:
-        fast[:] = False
-    ds = list(distance_m[fast])
+    t, d = time_s[fast], distance_m[fast]
+    order = np.argsort(d, kind="stable")
+    t, d = t[order], d[order]
+    parts: list[tuple[np.ndarray, np.ndarray]] = []
+    for g in np.split(np.arange(d.size), np.flatnonzero(np.diff(d) > APART_M) + 1):
+        if g.size and parts and not _together(parts[-1][0], t[g]):
+            parts[-1] = (np.concatenate([parts[-1][0], t[g]]), np.concatenate([parts[-1][1], d[g]]))
+        elif g.size:
+            parts.append((t[g], d[g]))
+    # pairs must travel (a biased velocity is no motion)
+    parts = [(pt, pd) for pt, pd in parts if pd.size >= 3 and np.ptp(pd) >= MIN_TRAVEL_M]
     p = e.persistent
     diffuse = p["diffuse"] & (p["distance_m"] >= band[0]) & (p["distance_m"] < (band[1] or np.inf))
-    ds += list(p["distance_m"][diffuse])
-    if fast.sum() < 3 and not diffuse.any():       # a slice's smeared energy is evidence alone
-        return None
-    ds = np.asarray(ds)
-    return float(np.percentile(ds, 1)), float(np.percentile(ds, 99))
+    smeared = p["distance_m"][diffuse]
+    if not parts:                               # a slice's smeared energy is evidence alone
+        parts = [(np.zeros(0), smeared)] if smeared.size else []
+    else:
+        for x in smeared:
+            k = int(np.argmin([min(abs(x - pd.min()), abs(x - pd.max())) for _, pd in parts]))
+            parts[k] = (parts[k][0], np.append(parts[k][1], x))
+    return sorted((float(np.percentile(pd, 1)), float(np.percentile(pd, 99))) for _, pd in parts)
+
+
+def _together(a: np.ndarray, b: np.ndarray) -> bool:
+    """Whether some time of `a` lies within TOGETHER_S of one of `b` (s)."""
+    a = np.sort(a)
+    i = np.clip(np.searchsorted(a, b), 1, a.size - 1) if a.size > 1 else np.zeros(b.size, int)
+    near = np.minimum(np.abs(a[i] - b), np.abs(a[np.maximum(i - 1, 0)] - b))
+    return bool(np.any(near < TOGETHER_S))
 
 
 def _object(f: float, time_s, distance_m, valid, e: echoes.Echoes) -> bool:
@@ -193,20 +232,25 @@ def choose(rule: str, near_m: float | None, time_s, distance_m, velocity_mps, va
     inband = (fixed >= band[0]) & (fixed < (band[1] or np.inf))
     fixed = fixed[inband]
     objects = np.array([_object(f, time_s, distance_m, valid, e) for f in fixed], bool)
-    span = moving_span(distance_m, velocity_mps, valid, e, band)
+    spans = moving_spans(time_s, distance_m, velocity_mps, valid, e, band)
     name = rule if near_m is None else f"near {near_m:g} m"
     if rule == "strongest" and near_m is None:
         return Choice(name, fixed, objects, None, False, band, note="the strongest echo of the band")
-    if rule == "moving" and span is None and near_m is None:
+    if rule == "moving" and not spans and near_m is None:
         raise ValueError("no moving echo found (--target moving): choose another --target")
-    # the candidates: every fixed echo (a point) and the moving span
-    cands = [((f, f), False) for f in fixed] + ([(span, True)] if span else [])
+    # the candidates: every fixed echo (a point) and each moving span
+    cands = [((f, f), False) for f in fixed] + [(span, True) for span in spans]
     if near_m is not None:
         target = min(cands, key=lambda c: max(c[0][0] - near_m, near_m - c[0][1], 0.0), default=None)
     elif rule == "nearest":
         target = min(cands, key=lambda c: c[0][0], default=None)
-    elif span is not None:
-        target = (span, True)
+    elif len(spans) > 1:      # several echoes move: the rule cannot tell which is the target
+        return Choice(name, fixed, objects, None, False, band, fixed.copy(),
+                      ambiguous_spans_m=np.asarray(spans),
+                      note=f"the moving echoes at {', '.join(f'{lo:.3f}-{hi:.3f}' for lo, hi in spans)} m "
+                           "cannot be told apart")
+    elif spans:
+        target = (spans[0], True)
     elif fixed.size <= 1:
         return Choice(name, fixed, objects, None, False, band, note="one echo: the target")
     else:                     # still echoes only: the rule cannot tell which is the target
@@ -216,7 +260,9 @@ def choose(rule: str, near_m: float | None, time_s, distance_m, velocity_mps, va
         return Choice(name, fixed, objects, None, False, band, note="no echo found")
     (lo, hi), moving = target
     outside = (fixed < lo - APART_M) | (fixed > hi + APART_M)
-    new = _gap((lo, hi), fixed[outside], band)
+    # the other moving echoes bound the band by their nearer ends
+    others = [a if a > hi else b for a, b in spans if (a, b) != (lo, hi)]
+    new = _gap((lo, hi), np.concatenate([fixed[outside], others]), band)
     within = fixed[~outside & objects] if moving else np.zeros(0)
     what = (f"the moving echo at {lo:.3f}-{hi:.3f} m" if moving else f"the echo at {lo:.3f} m")
     left = fixed[outside]
@@ -231,9 +277,11 @@ def _list(xs) -> str:
 
 
 def ambiguous(code: np.ndarray, distance_m: np.ndarray, choice: Choice) -> np.ndarray:
-    """`code` with the OK pairs within GATE_M of the choice's ambiguous echoes set to
-    faults.AMBIGUOUS."""
+    """`code` with the OK pairs within GATE_M of the choice's ambiguous echoes (fixed
+    echoes and moving spans) set to faults.AMBIGUOUS."""
     out = code.copy()
-    for f in choice.ambiguous_m:
-        out[(out == faults.OK) & (np.abs(distance_m - f) <= GATE_M)] = faults.AMBIGUOUS
+    spans = [(f, f) for f in choice.ambiguous_m] + [tuple(s) for s in choice.ambiguous_spans_m]
+    for lo, hi in spans:
+        near = (distance_m >= lo - GATE_M) & (distance_m <= hi + GATE_M)
+        out[(out == faults.OK) & near] = faults.AMBIGUOUS
     return out

@@ -116,6 +116,32 @@ def test_two_static_reflectors_are_ambiguous_until_the_user_chooses(tmp_path, fm
         assert np.all(np.abs(got.distance_m[got.valid] - want) < 0.5e-3), opts
 
 
+def test_two_moving_echoes_are_ambiguous_until_the_user_chooses(tmp_path, fmcw):
+    """The jump and, beyond it, a second limb swinging 0.38-0.42 m at 8 Hz (1 m/s) and
+    stronger than the target in flight: the strongest echo hops between the two."""
+    from fmcw_cl.simulator.scene import Trajectory
+
+    w = 2 * np.pi * 8
+    sway = Trajectory.from_velocity(0.0, 0.31, lambda t: 0.02 * w * np.cos(w * t),
+                                    lambda t: -0.02 * w * w * np.sin(w * t), 0.40)
+    path = realistic(tmp_path / "limbs.h5", seed=1, movers=((sway, 800.0),), speckle_s=3e-3)
+    with Capture(path) as cap:
+        truth = cap.truth()
+    _, strongest = scored(path, target="strongest")
+    on_sway = np.abs(strongest.distance_m - sway.at(strongest.time_s)[0]) < 2e-3
+    assert np.sum(strongest.valid & on_sway) > 1000        # the scene is what it claims
+    track = process(path)
+    assert not track.valid.any() and track.attrs["invalid_ambiguous"] > 0.9 * track.time_s.size
+    spans = track.attrs["target_ambiguous_spans_m"].reshape(-1, 2)
+    assert spans.shape == (2, 2) and spans[0, 1] < 0.31 and 0.37 < spans[1, 0] < spans[1, 1] < 0.43
+    proc = fmcw("process", path, "-o", tmp_path / "out", "--backend", "numpy")
+    assert "pairs ambiguous: the moving echoes at 0.0" in proc.stderr and "--target-near" in proc.stderr
+    for opts in ({"target": "nearest"}, {"target_near_m": 0.2}):
+        got = process(path, Options(**opts))
+        assert wrong(got, truth) == 0 and got.valid.mean() >= 0.90, opts
+        assert 0.31 < got.attrs["target_band_m"][1] < 0.37
+
+
 def test_verification_drops_isolated_pairs_and_short_wrong_runs():
     from fmcw_cl.stages import pairing
 

@@ -3,7 +3,8 @@
 The beat phase comes from the optical phase, phi = 2 pi [nu(t) tau - nu'(t) tau^2 / 2]
 with tau = 2 R(t) n / c, so a moving target gets its Doppler shift from the physics;
 laser phase noise enters as the difference of one random-walk phase at t and t - tau.
-A real scene adds static reflectors (a wall, a window), speckle fading of the
+A real scene adds static reflectors (a wall, a window), other moving echoes (a second
+limb; their truth is not written), speckle fading of the
 target's echo (a complex Gaussian field, Rayleigh amplitude), relative intensity
 noise of the laser and white detector noise set by a per-sample SNR
 (docs/pipeline.md, "The simulator").
@@ -60,6 +61,7 @@ class SimulationConfig:
     thermal_fraction: float = 0.8   # share of the tuning that is thermal (the rest: carriers)
     snr_db: float | None = None     # target's per-sample SNR at 0.3 m, mid-sweep; sets the noise
     reflectors: tuple[tuple[float, float], ...] = ()   # static echoes: (distance m, amplitude codes)
+    movers: tuple[tuple[Trajectory, float], ...] = ()  # other moving echoes: (trajectory, amplitude codes)
     speckle_s: float = 0.0          # correlation time of the target's speckle fading (0: none)
     rin_db_hz: float | None = None  # laser relative intensity noise, one-sided (dB/Hz)
 
@@ -177,6 +179,7 @@ def simulate_capture(path, trajectory: Trajectory, duration_s: float, seed: int 
     gain = min(1.0, 2 ** (cfg.bits - 1) / (HEADROOM * max(noise, 1e-9)))
     speckle = speckle_field(duration_s, cfg.speckle_s, rng) if cfg.speckle_s > 0 else None
     walls = [(2 * d * n_idx / C, a, rng.uniform(0, 2 * np.pi)) for d, a in cfg.reflectors]
+    movers = [(trj, a, rng.uniform(0, 2 * np.pi)) for trj, a in cfg.movers]
     rin = 0.0 if cfg.rin_db_hz is None else np.sqrt(10 ** (cfg.rin_db_hz / 10) * fs / 2)
 
     writer = CaptureWriter(path, samples, fs, cfg.bits, mod, table_i, table_f,
@@ -221,6 +224,8 @@ def simulate_capture(path, trajectory: Trajectory, duration_s: float, seed: int 
                     + rng.normal(0, noise, m))
             for tau_w, a_w, ph_w in walls:
                 beat += a_w * power * np.cos(echo(tau_w, ph_w))
+            for trj, a_m, ph_m in movers:
+                beat += a_m * power * np.cos(echo(2 * trj.at(t + start_s)[0] * n_idx / C, ph_m))
 
             tri_s, _ = _triangle((t - delay / fs) * mod.frequency_hz + phase0)
             sync = cfg.sync_codes * (tri_s - 0.5) + rng.normal(0, cfg.sync_noise_codes, m)

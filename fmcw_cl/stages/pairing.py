@@ -205,20 +205,24 @@ def _residuals(t: np.ndarray, dist: np.ndarray, vel: np.ndarray, trusted: np.nda
                rows: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """For the pairs `rows` (all when None): |distance - the median prediction of its
     trusted neighbours| (inf with fewer than SUPPORT of them) and how many there are."""
-    n = dist.size
-    rows = np.arange(n) if rows is None else rows
-    off = np.r_[-NEIGHBOURS:0, 1:NEIGHBOURS + 1]
-    j = rows[:, None] + off[None, :]
-    inside = (j >= 0) & (j < n)
-    j = np.clip(j, 0, n - 1)
-    ok = inside & trusted[j]
+    if rows is not None and rows.size > dist.size // 4:     # cheaper on strided views
+        resid, support = _residuals(t, dist, vel, trusted)
+        return resid[rows], support[rows]
+    at = slice(None) if rows is None else rows
+
+    def around(a, fill):
+        """Each row's window of 2 NEIGHBOURS + 1 pairs (itself in the middle), a strided
+        view of the padded array (copied for a subset of rows)."""
+        padded = np.pad(a, NEIGHBOURS, constant_values=fill)
+        return np.lib.stride_tricks.sliding_window_view(padded, 2 * NEIGHBOURS + 1)[at]
+
+    ok = np.array(around(trusted, False))
+    ok[:, NEIGHBOURS] = False                   # a pair does not vouch for itself
     support = ok.sum(axis=1)
-    enough = support >= SUPPORT
-    resid = np.full(rows.size, np.inf)
-    if enough.any():
-        i, jj, okk = rows[enough], j[enough], ok[enough]
-        pred = np.where(okk, dist[jj] + (t[i, None] - t[jj]) * 0.5 * (vel[i, None] + vel[jj]), np.nan)
-        resid[enough] = np.abs(dist[i] - row_nanmedian(pred))
+    tj, dj, vj = (around(a, 0.0) for a in (t, dist, vel))
+    pred = np.where(ok, dj + (t[at, None] - tj) * 0.5 * (vel[at, None] + vj), np.nan)
+    with np.errstate(invalid="ignore"):
+        resid = np.where(support >= SUPPORT, np.abs(dist[at] - row_nanmedian(pred)), np.inf)
     return resid, support
 
 
