@@ -43,7 +43,6 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import echoes
-from .numeric import median
 from .stages import faults
 
 RULES = ("auto", "moving", "nearest", "strongest")
@@ -187,19 +186,37 @@ def _together(a: np.ndarray, b: np.ndarray) -> bool:
     return bool(np.any(near < TOGETHER_S))
 
 
-def _object(f: float, time_s, distance_m, valid, e: echoes.Echoes) -> bool:
-    """Whether the fixed echo at f stays while the tracked target is elsewhere."""
-    away = seen = 0
-    for a in np.arange(time_s.min(), time_s.max() + echoes.SLICE_S, echoes.SLICE_S):
-        pairs = valid & (time_s >= a) & (time_s < a + echoes.SLICE_S)
-        if pairs.sum() < 20 or abs(median(distance_m[pairs]) - f) <= GATE_M:
-            continue
-        away += 1
-        inside = (e.time_s >= a) & (e.time_s < a + echoes.SLICE_S)
-        sweeps = np.unique(e.time_s[inside]).size
-        hits = np.abs(e.distance_m[inside] - f) <= 1.5 * echoes.HIST_M
-        seen += bool(sweeps and hits.sum() >= echoes.PRESENT * sweeps)
-    return away == 0 or seen >= AWAY_SHARE * away
+def _objects(fixed: np.ndarray, time_s, distance_m, valid, e: echoes.Echoes) -> np.ndarray:
+    """Whether each fixed echo stays while the tracked target is elsewhere: seen in
+    AWAY_SHARE of the slices (of >= 20 valid pairs) whose valid pairs' median lies more
+    than GATE_M from it (so in every slice, when there is none)."""
+    if fixed.size == 0 or time_s.size == 0:
+        return np.zeros(fixed.size, bool)
+    t0 = time_s.min()
+    nslices = int((time_s.max() - t0) // echoes.SLICE_S) + 1
+    k = ((time_s[valid] - t0) // echoes.SLICE_S).astype(np.int64)
+    d = distance_m[valid]
+    order = np.lexsort((d, k))
+    k, d = k[order], d[order]
+    count = np.bincount(k, minlength=nslices)
+    start = np.r_[0, np.cumsum(count)[:-1]]
+    full = count >= 20
+    mid = np.full(nslices, np.nan)                        # the slice's median distance
+    c, s0 = count[full], start[full]
+    mid[full] = 0.5 * (d[s0 + (c - 1) // 2] + d[s0 + c // 2])
+    # the echoes' slices (echo times outside the pairs' span fall out)
+    ke = ((e.time_s - t0) // echoes.SLICE_S).astype(np.int64)
+    inside = (ke >= 0) & (ke < nslices)
+    ke, de = ke[inside], e.distance_m[inside]
+    first = np.r_[True, np.diff(e.time_s[inside]) != 0]
+    sweeps = np.bincount(ke[first], minlength=nslices)
+    out = np.zeros(fixed.size, bool)
+    for n, f in enumerate(fixed):
+        away = full & (np.abs(mid - f) > GATE_M)
+        hits = np.bincount(ke[np.abs(de - f) <= 1.5 * echoes.HIST_M], minlength=nslices)
+        seen = away & (sweeps > 0) & (hits >= echoes.PRESENT * sweeps)
+        out[n] = not away.any() or seen.sum() >= AWAY_SHARE * away.sum()
+    return out
 
 
 def _gap(span: tuple[float, float], fixed: np.ndarray, band) -> tuple[float, float | None]:
@@ -231,7 +248,7 @@ def choose(rule: str, near_m: float | None, time_s, distance_m, velocity_mps, va
     fixed, _ = fixed_echoes(e, level_db)
     inband = (fixed >= band[0]) & (fixed < (band[1] or np.inf))
     fixed = fixed[inband]
-    objects = np.array([_object(f, time_s, distance_m, valid, e) for f in fixed], bool)
+    objects = _objects(fixed, time_s, distance_m, valid, e)
     spans = moving_spans(time_s, distance_m, velocity_mps, valid, e, band)
     name = rule if near_m is None else f"near {near_m:g} m"
     if rule == "strongest" and near_m is None:

@@ -1,0 +1,51 @@
+"""Host work per second of capture: the converting thread's CPU time, best of 5 warm
+conversions (markdown rows on stdout).
+
+    python benchmarks/host.py [--backend opencl] [CAPTURE ...]
+
+On PoCL a wait for the device sleeps, so this is the host's own work, the figure that
+bounds a GPU's end to end. Without captures: a 1 s rail, the 0.3 s jump and a 0.5 s
+static target of the simulator's defaults (seeds 1-3), made in a temporary folder. To
+compare two versions, install one apart (pip install --target DIR) and run this script
+with PYTHONPATH=DIR, alternately with the other, in one session.
+"""
+
+from __future__ import annotations
+
+import argparse
+import tempfile
+import time
+from pathlib import Path
+
+from fmcw_cl.engine import Options, make_backend, process
+from fmcw_cl.simulator import jump, rail, simulate_capture, static
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("captures", nargs="*", type=Path)
+    ap.add_argument("--backend", default="opencl")
+    ap.add_argument("--repeat", type=int, default=5)
+    args = ap.parse_args()
+    captures = args.captures
+    if not captures:
+        tmp = Path(tempfile.mkdtemp(prefix="fmcw-host-"))
+        for seed, (name, scene, seconds) in enumerate((("rail", rail, 1.0), ("jump", jump, 0.3),
+                                                        ("static", static, 0.5)), 1):
+            captures.append(tmp / f"{name}.h5")
+            simulate_capture(captures[-1], scene(seconds), seconds, seed=seed)
+    be = make_backend(args.backend)
+    print("| capture | device | host CPU ms per s of capture |\n|---|---|---|")
+    for path in captures:
+        process(path, Options(), be)                 # warm: programs built, caches filled
+        best = float("inf")
+        for _ in range(args.repeat):
+            t = time.thread_time()
+            track = process(path, Options(), be)
+            best = min(best, time.thread_time() - t)
+        per_s = 1e3 * best / track.attrs["capture_duration_s"]
+        print(f"| {path.name} | {track.attrs['device']} | {per_s:.0f} |")
+
+
+if __name__ == "__main__":
+    main()
