@@ -7,12 +7,15 @@ import json
 import click
 
 from fmcw_cl.bench import run
+from fmcw_cl.options import MAX_POINTS
 from fmcw_cl.progress import Progress
 
 
 @click.command("bench")
-@click.option("--seconds", default=0.2, show_default=True, help="Length of the simulated capture.")
-@click.option("--points", default=1000, show_default=True)
+@click.option("--seconds", default=0.2, show_default=True, type=click.FloatRange(0.005, 60),
+              help="Length of the simulated capture (s).")
+@click.option("--points", default=1000, show_default=True, type=click.IntRange(16, MAX_POINTS),
+              help="Resampling intervals per half-sweep (as `process --points`).")
 @click.option("--backend", type=click.Choice(["all", "numpy", "opencl"]), default="all",
               show_default=True)
 @click.option("--device", default=None, help="OpenCL device (see `fmcw-cl devices`).")

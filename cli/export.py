@@ -25,11 +25,12 @@ def command(tracks, outdir, fmt, per):
       fmcw-cl export tracks/*.track.h5 -o tables/ --format parquet
       fmcw-cl export tracks/jump.track.h5 -o tables/ --format netcdf
     """
+    from fmcw_cl.atomic import output_folder
     from fmcw_cl.errors import FmcwError
     from fmcw_cl.tables import FORMATS, export
     from fmcw_cl.track import read_track
 
-    outdir.mkdir(parents=True, exist_ok=True)
+    output_folder(outdir)
     failed = 0
     for path in tracks:
         out = outdir / (path.name.removesuffix(".h5").removesuffix(".track") + FORMATS[fmt])

@@ -40,7 +40,9 @@ def command(dump, tuning, output, sample_rate, frequency, current_min, current_m
     """Make a capture from DUMP (interleaved int16 binary, or .npy (N, 2) / (2, N)).
 
     DUMP may also be a LabVIEW TDMS recording (.tdms): channels by GROUP/CHANNEL, its
-    sample rate from wf_increment, raw int16 codes or scaled volts (--full-scale-volts).
+    sample rate from wf_increment, integer codes, DAQmx raw data (read raw) or scaled
+    volts (--full-scale-volts). Samples beyond the ADC's full scale are clipped, and
+    the warning says how many.
 
     \b
     Example:
@@ -55,7 +57,8 @@ def command(dump, tuning, output, sample_rate, frequency, current_min, current_m
     try:
         import_capture(dump, tuning, output, sample_rate, Modulation(frequency, current_min, current_max),
                        bits, order, refractive_index, air, progress=bar, beat_channel=beat_channel,
-                       sync_channel=sync_channel, full_scale_volts=full_scale_volts)
+                       sync_channel=sync_channel, full_scale_volts=full_scale_volts,
+                       warn=lambda m: click.echo(f"warning: {m}", err=True))
     finally:
         bar.close()
     if not quiet:

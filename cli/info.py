@@ -8,7 +8,8 @@ import click
 import numpy as np
 
 from fmcw_cl.capture import Capture
-from fmcw_cl.engine import estimate_capture_delay
+from fmcw_cl.engine import check_sync_period, estimate_capture_delay
+from fmcw_cl.errors import CaptureError
 from fmcw_cl.stages.lut import build_lut
 from fmcw_cl.stages.sync import CLEAN_MISFIT
 
@@ -29,7 +30,13 @@ def command(capture, points):
         m = i.modulation
         lut = build_lut(i.tuning_current_a, i.tuning_frequency_hz, m.current_min_a,
                         m.current_max_a, points, i.refractive_index)
-        lag, votes, misfit = estimate_capture_delay(cap)
+        try:                          # what `process` refuses is said, not estimated
+            check_sync_period(cap)
+            lag, votes, misfit = estimate_capture_delay(cap)
+            delay = (f"sync lags the optics by {lag:+.3f} samples ({votes} periods, misfit {misfit:.3f}"
+                     f"{'' if misfit <= CLEAN_MISFIT else ', UNRELIABLE'})")
+        except CaptureError as exc:
+            delay = f"none: {exc.problem} (process refuses this capture)"
         beat, _ = cap.read(0, min(i.samples, int(20 * i.samples_per_period)))
         clipped = np.mean(np.abs(beat.astype(np.int32)) >= i.full_scale)
         lines = [
@@ -49,8 +56,7 @@ def command(capture, points):
             f"+-{lut.scale_ppm * 1e-3 * lut.unambiguous_range_m:.3f} mm at the range's end; "
             "calibrate (fmcw-cl calibrate) where that is too much",
             f"unambiguous    {lut.unambiguous_range_m:.4f} m at --points {points}",
-            f"sync delay     sync lags the optics by {lag:+.3f} samples ({votes} periods, "
-            f"misfit {misfit:.3f}{'' if misfit <= CLEAN_MISFIT else ', UNRELIABLE'})",
+            f"sync delay     {delay}",
             f"beat level     rms {beat.std():.0f} codes, peak {np.abs(beat).max()} of "
             f"{i.full_scale}, clipped {100 * clipped:.3f} % (first 20 periods)",
             f"truth          {'yes' if i.has_truth else 'no'}",

@@ -4,11 +4,13 @@ from __future__ import annotations
 
 import importlib
 import sys
+import warnings
 
 import click
 
 from fmcw_cl import __version__
 from fmcw_cl.errors import FmcwError
+from fmcw_cl.options import use_flags
 from fmcw_cl.progress import latch_interrupts
 
 # name: (module of cli/, one line of help). A command's module (and numpy, scipy,
@@ -67,12 +69,20 @@ def cli(ctx: click.Context, debug: bool) -> None:
 def main(argv: list[str] | None = None) -> None:
     """Run the CLI; a project error becomes one line on stderr and exit status 1."""
     debug = "--debug" in (sys.argv[1:] if argv is None else argv)
+    if not debug:                   # numpy's and the libraries' own warnings are not the user's
+        for kind in (RuntimeWarning, DeprecationWarning, FutureWarning):
+            warnings.simplefilter("ignore", kind)
     latch_interrupts()
+    use_flags()
     try:
         cli.main(args=argv, prog_name="fmcw-cl", standalone_mode=False)
     except click.exceptions.Abort:
         click.echo("interrupted", err=True)
         sys.exit(130)
+    except click.UsageError as exc:             # one line, with where to read more
+        where = exc.ctx.command_path if exc.ctx is not None else "fmcw-cl"
+        click.echo(f"error: {exc.format_message()} ({where} -h)", err=True)
+        sys.exit(exc.exit_code)
     except click.ClickException as exc:
         exc.show()
         sys.exit(exc.exit_code)

@@ -11,6 +11,7 @@ import numpy as np
 
 from fmcw_cl import options as opts
 from fmcw_cl.api import engine_options
+from fmcw_cl.atomic import output_folder
 from fmcw_cl.engine import make_backend, process_each
 from fmcw_cl.errors import FmcwError
 from fmcw_cl.progress import Progress
@@ -91,7 +92,7 @@ def report(s: dict, attrs: dict, quiet: bool, as_json: bool) -> None:
     click.echo(f"{cap} -> {s['track']}\n  {s['duration_s']:.3f} s, {s['pairs']} pairs, "
                f"{100 * s['valid_share']:.1f} % valid, sync delay "
                f"{s['sync_delay_samples']:+.2f} samples, {s['device']}, "
-               f"{s['processing_time_s']:.1f} s ({s['real_time_multiple']:.2f}x real time)")
+               f"{s['processing_time_s']:.2f} s ({s['real_time_multiple']:.3g}x real time)")
     why = ", ".join(f"{n} {name}" for name, n in s["invalid"].items() if n)
     if why:
         click.echo(f"  invalid pairs: {why}")
@@ -153,7 +154,9 @@ def run_cluster(captures, outdir, options, backend, device, scheduler, quiet):
 @click.option("--scheduler", default=None,
               help="Run on a Dask cluster: a scheduler address (tcp://host:8786), or local:N for N "
                    "worker processes here. Paths must be valid on the workers.")
-@click.option("--json", "as_json", is_flag=True, help="Print the summaries as JSON on stdout.")
+@click.option("--json", "as_json", is_flag=True,
+              help="Print one record per capture as JSON on stdout: its summary, or its error, or why "
+                   "it was skipped.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress, no summary.")
 @click.pass_context
 def command(ctx, captures, outdir, skip_existing, scheduler, as_json, quiet, **options):
@@ -165,20 +168,29 @@ def command(ctx, captures, outdir, skip_existing, scheduler, as_json, quiet, **o
       fmcw-cl process runs/*.h5 -o tracks/ --scheduler local:2
       fmcw-cl process wall.h5 -o tracks/ --max-range 0.40
     """
-    outdir.mkdir(parents=True, exist_ok=True)
-    values = opts.check(options)
+    values = opts.check(options)          # every check before any work
     backend, device = values["backend"], values["device"]
     options = engine_options(values)
-    todo = [c for c in captures if not (skip_existing and track_path(outdir, c).exists())]
+    output_folder(outdir)
+    existing = [c for c in captures if track_path(outdir, c).exists()]
+    todo = [c for c in captures if not (skip_existing and c in existing)]
+    results: list[dict] = []
+    if existing and not quiet:
+        what = "skipping" if skip_existing else "overwriting"
+        click.echo(f"note: {what} {len(existing)} existing track{'s' if len(existing) > 1 else ''} in "
+                   f"{outdir} ({_names(existing)})", err=True)
+    if skip_existing:
+        results += [{"capture": str(c), "skipped": "its track exists"} for c in existing]
     if scheduler:
         runs = run_cluster(todo, outdir, options, backend, device, scheduler, quiet)
     else:
         stages = make_backend(backend, device, warn=lambda m: click.echo(m, err=True))
         runs = run_local(todo, outdir, options, stages, quiet, ctx.obj.get("debug"))
-    results, failed = [], 0
+    failed = 0
     for got in runs:
         if "error" in got:
             click.echo(f"error: {got['error']}", err=True)
+            results.append(got)
             failed += 1
             continue
         s = summary(got["capture"], got["track"], got["attrs"], got["valid"])
@@ -186,5 +198,15 @@ def command(ctx, captures, outdir, skip_existing, scheduler, as_json, quiet, **o
         report(s, got["attrs"], quiet, as_json)
     if as_json:
         click.echo(json.dumps(results, indent=2))
+    skipped = len(captures) - len(todo)
+    if not quiet and (len(captures) > 1 or skipped):      # one capture: its own line says it
+        click.echo(f"{len(captures)} capture{'s' if len(captures) > 1 else ''}: {len(todo) - failed} "
+                   f"converted, {failed} failed, {skipped} skipped", err=True)
     if failed:
         sys.exit(1)
+
+
+def _names(paths, most: int = 3) -> str:
+    """The first `most` file names, and how many more."""
+    names = ", ".join(p.name for p in paths[:most])
+    return names + (f" and {len(paths) - most} more" if len(paths) > most else "")

@@ -12,12 +12,13 @@ from fmcw_cl.report import make_report
 @click.command("report")
 @click.argument("track", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("-o", "--outdir", required=True, type=click.Path(file_okay=False, path_type=Path),
-              help="Folder for kinematics.png, spectra.png, precision.png, events.md/json.")
+              help="Folder for kinematics.png, echoes.png, spectra.png, precision.png, events.md/json.")
 @click.option("--capture", default=None, type=click.Path(dir_okay=False, path_type=Path),
               help="The source capture (default: the track's `source` attribute); gives the "
                    "truth overlay and the spectra.")
 @click.option("--at", "at_ms", default=None, type=float,
-              help="Centre of the spectra's stretch (ms) [default: the fastest moment].")
+              help="Centre of the spectra's stretch (ms) [default: the farthest moment where the target "
+                   "is slow].")
 @click.option("--span", "span_ms", default=10.0, show_default=True,
               help="Length of the spectra's stretch (ms).")
 @click.option("-q", "--quiet", is_flag=True, help="Print nothing.")

@@ -131,6 +131,12 @@ def _dataset(f: h5py.File, name: str, path: Path) -> h5py.Dataset:
     return obj
 
 
+# the contract's ranges of the ADC's and the modulation's attributes (validate; the
+# import checks them before it reads a sample); the modulation's upper bound is fs / 20
+LIMITS = {"sample_rate_hz": (1e3, 1e12), "bits": (2, 16), "frequency_hz": (1e-3, None),
+          "current_a": (0.0, 100.0)}
+
+
 def validate(f: h5py.File, path: Path) -> CaptureInfo:
     """Check an open HDF5 file against the capture contract and describe it.
 
@@ -157,8 +163,8 @@ def validate(f: h5py.File, path: Path) -> CaptureInfo:
     if beat.shape != sync.shape:
         raise CaptureError(path, f"/adc/beat has {beat.shape[0]} samples but /adc/sync has {sync.shape[0]}")
     adc = f["adc"]
-    fs = _number(adc, "sample_rate_hz", path, "/adc", 1e3, 1e12)
-    bits = int(_number(adc, "bits", path, "/adc", 2, 16))
+    fs = _number(adc, "sample_rate_hz", path, "/adc", *LIMITS["sample_rate_hz"])
+    bits = int(_number(adc, "bits", path, "/adc", *LIMITS["bits"]))
 
     mod = f.get("modulation")
     if mod is None:
@@ -166,9 +172,9 @@ def validate(f: h5py.File, path: Path) -> CaptureInfo:
     waveform = str(_attr(mod, "waveform", path, "/modulation"))
     if waveform != "triangle":
         raise CaptureError(path, f"modulation waveform {waveform!r} is not supported (only 'triangle')")
-    fmod = _number(mod, "frequency_hz", path, "/modulation", 1e-3, fs / 20)
-    imin = _number(mod, "current_min_a", path, "/modulation", 0.0, 100.0)
-    imax = _number(mod, "current_max_a", path, "/modulation", 0.0, 100.0)
+    fmod = _number(mod, "frequency_hz", path, "/modulation", LIMITS["frequency_hz"][0], fs / 20)
+    imin = _number(mod, "current_min_a", path, "/modulation", *LIMITS["current_a"])
+    imax = _number(mod, "current_max_a", path, "/modulation", *LIMITS["current_a"])
     if not imin < imax:
         raise CaptureError(path, f"current_min_a ({imin:g} A) is not below current_max_a ({imax:g} A)")
 

@@ -1,4 +1,4 @@
-"""Batch conversion on a Dask cluster (optional extra: ``pip install fmcw-cl[cluster]``).
+"""Batch conversion on a Dask cluster (optional extra: ``pip install ".[cluster]"`` in the fmcw-cl folder).
 
 Two levels of parallelism:
 - one task per capture: the worker reads the capture, converts it and writes its
@@ -38,6 +38,7 @@ from .errors import FmcwError
 from .track import track_path, write_track
 
 TASK_SECONDS = 1.0      # capture seconds per range task of a long capture
+CONNECT_TIMEOUT_S = 10  # a scheduler address that does not answer in this time is refused
 
 _BACKENDS: dict = {}    # per worker process: (name, device) -> backend
 
@@ -64,14 +65,20 @@ def connect(scheduler: str):
         import dask
         from dask.distributed import Client, LocalCluster
     except ImportError:
-        raise FmcwError("--scheduler needs Dask: pip install 'fmcw-cl[cluster]'") from None
+        raise FmcwError('--scheduler needs Dask: pip install ".[cluster]" (in the fmcw-cl folder)') from None
     if scheduler.startswith("local:"):
-        n = int(scheduler.split(":", 1)[1])
+        n = scheduler.split(":", 1)[1]
+        if not n.isdigit() or int(n) < 1:
+            raise FmcwError(f"--scheduler {scheduler!r}: local:N needs a whole number of workers N >= 1")
         dask.config.set(WORKER_MALLOC)
-        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+        cluster = LocalCluster(n_workers=int(n), threads_per_worker=1, processes=True,
                                dashboard_address=None)
         return Client(cluster)
-    return Client(scheduler)
+    try:
+        return Client(scheduler, timeout=CONNECT_TIMEOUT_S)
+    except (ValueError, OSError, TimeoutError) as exc:
+        raise FmcwError(f"--scheduler {scheduler!r}: no Dask scheduler there ({exc}); give "
+                        "tcp://host:port or local:N") from None
 
 
 def _written(capture: str, out: str, track) -> dict:

@@ -21,6 +21,7 @@ from . import __version__, echoes, target
 from .capture import Capture, CaptureInfo
 from .errors import CaptureError, FmcwError
 from .numeric import median
+from .options import said
 from .stages import cfar, faults, kinematics, lpf, pairing, resample, spectrum, sync
 from .stages.cfar import Detections
 from .stages.lut import Lut, build_lut
@@ -112,7 +113,7 @@ def make_backend(name: str = "auto", device: str | None = None, warn=None):
     "auto" takes OpenCL whenever a device is there (on PoCL, the CPU, it measured 2.4-3x
     faster end to end than numpy; see benchmarks/README.md). A failing OpenCL (no
     platform, a kernel that does not build) falls back to numpy with a one-line warning
-    through `warn`; "opencl" forces it and fails loudly.
+    through `warn`; "opencl", or a `device` named, forces it and fails loudly.
     """
     if name == "numpy":
         return NumpyBackend()
@@ -121,7 +122,7 @@ def make_backend(name: str = "auto", device: str | None = None, warn=None):
 
         return OpenCLBackend(device)
     except FmcwError as exc:
-        if name == "opencl":
+        if name == "opencl" or device is not None:     # what the user named is used or refused
             raise
         if warn:
             warn(f"warning: OpenCL unavailable ({exc}); using the numpy backend")
@@ -201,13 +202,17 @@ def make_search(options: Options, lut: Lut, model: pairing.DopplerModel) -> Sear
     """The band [--min-range, --max-range) in padded bins (the tracked peak is its
     strongest); the plain pass lists every echo of the band."""
     unamb = lut.unambiguous_range_m
-    if not 0 <= options.min_range_m < 0.9 * unamb:
-        raise FmcwError(f"--min-range {options.min_range_m:g} m is not below the unambiguous range "
-                        f"{unamb:.3f} m of --points {options.points}")
-    top = options.max_range_m
-    if top is not None and not options.min_range_m + 0.01 <= top:
-        raise FmcwError(f"--max-range {top:g} m must exceed --min-range {options.min_range_m:g} m "
+    lo, top = options.min_range_m, options.max_range_m
+    if not 0 <= lo < 0.9 * unamb:
+        raise FmcwError(f"{said('min_range', lo)} m is not below the unambiguous range "
+                        f"{unamb:.3f} m of {said('points', options.points)}")
+    if top is not None and not lo + 0.01 <= top:
+        raise FmcwError(f"{said('max_range', top)} m must exceed {said('min_range', lo)} m "
                         "by at least 0.01 m")
+    if top is not None and top > unamb:
+        raise FmcwError(f"{said('max_range', top)} m lies beyond the unambiguous range {unamb:.3f} m of "
+                        f"{said('points', options.points)}: a target there would alias (raise "
+                        f"{said('points')})")
     half = model.nfft // 2
     lo = max(1, int(np.ceil(options.min_range_m / model.metres_per_bin)))
     hi = half if top is None else min(half, int(np.floor(top / model.metres_per_bin)) + 1)

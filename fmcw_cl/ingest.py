@@ -8,24 +8,31 @@ analyser exports it: injection current in mA and peak wavelength in nm, one row 
 current; header and comment lines are skipped. Wavelengths are taken as vacuum
 wavelengths (nu = c / lambda); say `air=True` for an OSA that reports air wavelengths.
 
-A TDMS recording (LabVIEW's own format, read by npTDMS) names its channels GROUP/CHANNEL;
-by default the first two channels of the first group are the beat and the sync. Its
-sample rate is the waveform property `wf_increment` (1 / rate). Integer channels hold
-ADC codes (DAQmx raw data is read unscaled); float channels hold scaled volts, turned
-back into codes with the ADC's input range (`full_scale_volts`: +-V is +-2^(bits-1)).
-It is read in ranges (npTDMS's streaming mode, either data layout), so a recording
-larger than memory imports in bounded memory.
+A TDMS recording (LabVIEW's own format, read by npTDMS) names its channels GROUP/CHANNEL,
+matched whole against the file's names (LabVIEW's group names hold '/'); by default the
+first two channels of the first group are the beat and the sync. Its sample rate is the
+waveform property `wf_increment` (1 / rate). Integer channels hold ADC codes; DAQmx raw
+data (which npTDMS reports through its scale, as float64) is read raw, through its one
+raw scaler, so the codes are the ADC's bit for bit; float channels hold scaled volts,
+turned back into codes with the ADC's input range (`full_scale_volts`: +-V is
++-2^(bits-1)). Text, timestamps and other channels that are not numbers are refused by
+what they are. It is read in ranges (npTDMS's streaming mode, either data layout), so a
+recording larger than memory imports in bounded memory.
+
+The settings (rate, bits, modulation) and the channels are checked before a sample is
+read; samples beyond the ADC's full scale are clipped and counted in a warning.
 """
 
 from __future__ import annotations
 
 import csv
 import os
+import warnings
 from pathlib import Path
 
 import numpy as np
 
-from .capture import Capture, CaptureWriter, Modulation
+from .capture import LIMITS, Capture, CaptureWriter, Modulation
 from .errors import CaptureError
 from .physics import C
 
@@ -62,8 +69,8 @@ def read_dump(path: str | os.PathLike) -> np.ndarray:
 
 
 class TdmsChannels:
-    """The beat and sync channels of a TDMS recording as an (N, 2) int16 source:
-    `shape`, `data[a:b]` (read from the file on demand), `sample_rate_hz`."""
+    """The beat and sync channels of a TDMS recording as an (N, 2) source of codes:
+    `shape`, `data[a:b]` (int32, read from the file on demand), `sample_rate_hz`."""
 
     def __init__(self, path: str | os.PathLike, beat: str | None = None, sync: str | None = None,
                  full_scale_volts: float | None = None, bits: int = 14) -> None:
@@ -77,17 +84,27 @@ class TdmsChannels:
             self.file = nptdms.TdmsFile.open(self.path)
         except Exception as exc:  # noqa: BLE001 - npTDMS raises several kinds for a bad file
             raise CaptureError(self.path, f"not a readable TDMS file ({exc})") from None
-        self.channels = [self._channel(name, k) for k, name in enumerate((beat, sync))]
-        lengths = {len(c) for c in self.channels}
-        if len(lengths) != 1:
-            raise CaptureError(self.path, f"the beat and sync channels differ in length ({sorted(lengths)})")
-        self.shape = (lengths.pop(), 2)
-        self.scale = [self._codes_per_unit(c, full_scale_volts, bits) for c in self.channels]
-        rates = {1.0 / float(c.properties["wf_increment"]) for c in self.channels
-                 if "wf_increment" in c.properties}
-        if len(rates) > 1:
-            raise CaptureError(self.path, f"the channels' wf_increment disagree ({sorted(rates)} Hz)")
-        self.sample_rate_hz = rates.pop() if rates else None
+        try:
+            self.channels = [self._channel(name, k) for k, name in enumerate((beat, sync))]
+            lengths = {len(c) for c in self.channels}
+            if len(lengths) != 1:
+                raise CaptureError(self.path, "the beat and sync channels differ in length "
+                                              f"({sorted(lengths)})")
+            self.shape = (lengths.pop(), 2)
+            self.raw = [self._is_raw(c, nptdms) for c in self.channels]
+            self.scale = [None if raw else self._codes_per_unit(c, full_scale_volts, bits)
+                          for c, raw in zip(self.channels, self.raw, strict=True)]
+            rates = {1.0 / float(c.properties["wf_increment"]) for c in self.channels
+                     if float(c.properties.get("wf_increment", 0) or 0) > 0}
+            if len(rates) > 1:
+                raise CaptureError(self.path, f"the channels' wf_increment disagree ({sorted(rates)} Hz)")
+            self.sample_rate_hz = rates.pop() if rates else None
+        except CaptureError:
+            self.file.close()
+            raise
+
+    def names(self, channel) -> str:
+        return f"{channel.group_name}/{channel.name}"
 
     def _channel(self, name: str | None, k: int):
         groups = self.file.groups()
@@ -97,28 +114,51 @@ class TdmsChannels:
                 raise CaptureError(self.path, "the first group holds fewer than two channels: "
                                               "name them (--beat-channel, --sync-channel GROUP/CHANNEL)")
             return chans[k]
-        group, _, chan = name.partition("/")
-        try:
-            return self.file[group][chan]
-        except KeyError:
-            have = ", ".join(f"{g.name}/{c.name}" for g in groups for c in g.channels())
-            raise CaptureError(self.path, f"no channel {name!r} (it holds {have})") from None
+        # group and channel names may hold '/' (LabVIEW's "07/09/2012 ... - All Data"):
+        # match the whole name against the file's own
+        found = [c for g in groups for c in g.channels() if f"{g.name}/{c.name}" == name]
+        if len(found) != 1:
+            have = "; ".join(repr(f"{g.name}/{c.name}") for g in groups for c in g.channels())
+            what = "no channel" if not found else "several channels named"
+            raise CaptureError(self.path, f"{what} {name!r} (it holds {have or 'no channels'})")
+        return found[0]
 
-    def _codes_per_unit(self, channel, full_scale_volts: float | None, bits: int) -> float | None:
-        if np.issubdtype(channel.dtype, np.integer):
-            return None                     # ADC codes already (DAQmx raw data, unscaled)
+    def _is_raw(self, channel, nptdms) -> bool:
+        """Whether the channel holds ADC codes: integers, or DAQmx raw data (read through
+        its one raw scaler, never its scale); refuses what is not a number."""
+        where = self.names(channel)
+        if channel.data_type is nptdms.types.DaqMxRawData:
+            kinds = [np.dtype(getattr(x, "nptype", x)) for x in channel.scaler_data_types.values()]
+            if len(kinds) != 1 or kinds[0].kind not in "iu":
+                raise CaptureError(self.path, f"{where} is DAQmx raw data of {len(kinds)} raw scalers "
+                                              f"({', '.join(map(str, kinds))}): not one channel of integer "
+                                              "ADC codes")
+            return True
+        dtype = np.dtype(channel.dtype)
+        if dtype.kind in "iu":
+            return True
+        if dtype.kind != "f":
+            what = {"O": "text", "U": "text", "S": "bytes", "M": "timestamps", "m": "time spans",
+                    "b": "booleans", "c": "complex values"}.get(dtype.kind, str(dtype))
+            raise CaptureError(self.path, f"{where} holds {what}, not ADC samples")
+        return False
+
+    def _codes_per_unit(self, channel, full_scale_volts: float | None, bits: int) -> float:
         if not full_scale_volts:
-            raise CaptureError(self.path, f"{channel.group_name}/{channel.name} holds scaled values "
+            raise CaptureError(self.path, f"{self.names(channel)} holds scaled values "
                                           f"({channel.dtype}): give the ADC's input range "
                                           "(--full-scale-volts)")
         return 2 ** (bits - 1) / full_scale_volts
 
     def __getitem__(self, rows: slice) -> np.ndarray:
         a, b, _ = rows.indices(self.shape[0])
-        out = np.empty((max(0, b - a), 2), np.int16)
-        for k, (c, scale) in enumerate(zip(self.channels, self.scale, strict=True)):
-            x = c.read_data(a, b - a, scaled=scale is not None)
-            out[:, k] = x if scale is None else np.clip(np.rint(x * scale), -32768, 32767)
+        out = np.empty((max(0, b - a), 2), np.int32)
+        for k, (c, raw, scale) in enumerate(zip(self.channels, self.raw, self.scale, strict=True)):
+            x = c.read_data(a, b - a, scaled=not raw)
+            if isinstance(x, dict):                     # DAQmx raw data: {scaler: codes}
+                (x,) = x.values()
+            x = np.asarray(x)
+            out[:, k] = x if scale is None else np.clip(np.rint(x * scale), -(2 ** 31), 2 ** 31 - 1)
         return out
 
     def close(self) -> None:
@@ -160,7 +200,8 @@ def import_capture(dump: str | os.PathLike, table: str | os.PathLike, output: st
                    sample_rate_hz: float | None, modulation: Modulation, bits: int = 14,
                    order: str = "beat,sync", refractive_index: float | None = None,
                    air: bool = False, progress=None, beat_channel: str | None = None,
-                   sync_channel: str | None = None, full_scale_volts: float | None = None) -> Path:
+                   sync_channel: str | None = None, full_scale_volts: float | None = None,
+                   warn=None) -> Path:
     """Write a capture from a dump or a TDMS recording and an OSA table; the result is
     validated.
 
@@ -179,6 +220,13 @@ def import_capture(dump: str | os.PathLike, table: str | os.PathLike, output: st
     beat_channel, sync_channel : TDMS only: GROUP/CHANNEL (default: the first group's
         first two channels; `order` does not apply).
     full_scale_volts : TDMS float channels: the ADC's input range (+-V).
+    warn : callable(message) for samples beyond the ADC's full scale, which are clipped
+        (default: warnings.warn).
+
+    Raises
+    ------
+    CaptureError : naming the input and the problem, before any sample is read where
+        the settings or the channels are wrong.
     """
     if order not in ("beat,sync", "sync,beat"):
         raise ValueError(f"order must be 'beat,sync' or 'sync,beat', not {order!r}")
@@ -186,29 +234,61 @@ def import_capture(dump: str | os.PathLike, table: str | os.PathLike, output: st
     data = TdmsChannels(dump, beat_channel, sync_channel, full_scale_volts, bits) if tdms else read_dump(dump)
     try:
         return _write_capture(data, dump, table, output, sample_rate_hz, modulation, bits,
-                              "beat,sync" if tdms else order, refractive_index, air, progress)
+                              "beat,sync" if tdms else order, refractive_index, air, progress,
+                              warn or (lambda m: warnings.warn(m, stacklevel=3)))
     finally:
         if tdms:
             data.close()
 
 
+def check_settings(dump, samples: int, sample_rate_hz: float | None, modulation: Modulation,
+                   bits: int) -> None:
+    """Refuse, before any sample is read, settings the capture layout does not allow
+    (capture.validate's limits), naming the input and the setting."""
+    where = Path(dump)
+    fs = sample_rate_hz
+    if not fs:
+        raise CaptureError(where, "no sample rate: give --sample-rate (the recording has no wf_increment)")
+    lo, hi = LIMITS["sample_rate_hz"]
+    if not lo <= fs <= hi:
+        raise CaptureError(where, f"a sample rate of {fs:g} Hz is outside [{lo:g}, {hi:g}] Hz "
+                                  "(--sample-rate)")
+    lo, hi = LIMITS["bits"]
+    if not lo <= bits <= hi:
+        raise CaptureError(where, f"{bits} bits is outside [{lo}, {hi}] (--bits)")
+    f = modulation.frequency_hz
+    if not LIMITS["frequency_hz"][0] <= f <= fs / 20:
+        raise CaptureError(where, f"a modulation of {f:g} Hz is outside [{LIMITS['frequency_hz'][0]:g}, "
+                                  f"{fs / 20:g}] Hz at {fs:g} Hz sampling (--frequency)")
+    lo, hi = LIMITS["current_a"]
+    imin, imax = modulation.current_min_a, modulation.current_max_a
+    if not (lo <= imin < imax <= hi):
+        raise CaptureError(where, f"the current range {imin:g}-{imax:g} A must rise within "
+                                  f"[{lo:g}, {hi:g}] A (--current-min, --current-max)")
+    if samples < 2 * fs / f:
+        raise CaptureError(where, f"{samples} samples are fewer than two modulation periods "
+                                  f"({2 * fs / f:.0f} samples at {f:g} Hz, {fs:g} Hz sampling)")
+
+
 def _write_capture(data, dump, table, output, sample_rate_hz, modulation, bits, order, refractive_index,
-                   air, progress) -> Path:
+                   air, progress, warn) -> Path:
     sample_rate_hz = sample_rate_hz or getattr(data, "sample_rate_hz", None)
-    if not sample_rate_hz:
-        raise CaptureError(Path(dump), "no sample rate: give --sample-rate "
-                                       "(the recording has no wf_increment)")
+    n = data.shape[0]
+    check_settings(dump, n, sample_rate_hz, modulation, bits)
     current_a, frequency_hz = read_osa_table(table, air)
     lo, hi = modulation.current_min_a, modulation.current_max_a
     if current_a[0] > lo or current_a[-1] < hi:
         raise CaptureError(Path(table), f"the G(I) table ({current_a[0] * 1e3:g}-{current_a[-1] * 1e3:g} mA) "
                                         f"does not cover the modulation range ({lo * 1e3:g}-{hi * 1e3:g} mA)")
     ib, isy = (0, 1) if order == "beat,sync" else (1, 0)
-    n = data.shape[0]
+    code_lo, code_hi = -(2 ** (bits - 1)), 2 ** (bits - 1) - 1
+    clipped = np.zeros(2, np.int64)
     with CaptureWriter(output, n, sample_rate_hz, bits, modulation, current_a, frequency_hz,
                        refractive_index, attrs={"imported_from": str(Path(dump).resolve())}) as w:
         for a in range(0, n, CHUNK):
             block = np.asarray(data[a:a + CHUNK])
+            clipped += np.sum((block < code_lo) | (block > code_hi), axis=0)
+            block = np.clip(block, code_lo, code_hi).astype(np.int16)
             w.write(a, block[:, ib], block[:, isy])
             if progress:
                 progress(min(a + CHUNK, n), n, sample_rate_hz)
@@ -217,4 +297,9 @@ def _write_capture(data, dump, table, output, sample_rate_hz, modulation, bits, 
     except CaptureError:
         Path(output).unlink(missing_ok=True)
         raise
+    for name, k in (("beat", ib), ("sync", isy)):
+        if clipped[k]:
+            warn(f"{dump}: {clipped[k]} samples ({100 * clipped[k] / n:.2f} %) of the {name} channel lie "
+                 f"beyond the {bits}-bit full scale and were clipped to [{code_lo}, {code_hi}] "
+                 "(--full-scale-volts, --bits)")
     return Path(output)

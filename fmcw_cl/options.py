@@ -14,6 +14,26 @@ from dataclasses import dataclass
 
 from .errors import FmcwError
 
+# errors name an option as the user gave it: --max-range 5 on the command line (whose
+# entry sets this, for the whole process), max_range=5 in Python
+_SPELLING = {"flags": False}
+
+
+def use_flags() -> None:
+    """Name options as command-line flags in errors from now on (the CLI's entry)."""
+    _SPELLING["flags"] = True
+
+
+def said(name: str, value=None) -> str:
+    """Option `name` (a keyword, e.g. "max_range") as the user spells it, with `value`
+    when given: "--max-range 5" or "max_range=5"."""
+    flags = _SPELLING["flags"]
+    key = "--" + name.replace("_", "-") if flags else name
+    if value is None:
+        return key
+    shown = f"{value:g}" if isinstance(value, float) else str(value) if flags else repr(value)
+    return f"{key} {shown}" if flags else f"{key}={shown}"
+
 MAX_POINTS = 16384    # a 32768-point FFT per half-sweep; ~2500 samples are resampled
 
 
@@ -29,6 +49,7 @@ class Opt:
     hi: float | None = None
     choices: tuple[str, ...] | None = None
     why: str = ""                  # what the bounds are, for the error message
+    metavar: str | None = None     # the value's name in --help (default: its type)
 
     @property
     def flag(self) -> str:
@@ -41,20 +62,20 @@ class Opt:
             return None
         if self.kind is bool:
             if not isinstance(value, bool):
-                raise FmcwError(f"{where}{self.name}={value!r} must be True or False")
+                raise FmcwError(f"{where}{said(self.name, value)} must be True or False")
             return value
         try:
             got = self.kind(value)
         except (TypeError, ValueError):
-            raise FmcwError(f"{where}{self.name}={value!r} is not {self.kind.__name__}") from None
+            raise FmcwError(f"{where}{said(self.name, value)} is not {self.kind.__name__}") from None
         if self.kind is int and got != value:
-            raise FmcwError(f"{where}{self.name}={value!r} is not a whole number")
+            raise FmcwError(f"{where}{said(self.name, value)} is not a whole number")
         if self.choices is not None and got not in self.choices:
-            raise FmcwError(f"{where}{self.name}={got!r} is not one of {', '.join(self.choices)}")
+            raise FmcwError(f"{where}{said(self.name, got)} is not one of {', '.join(self.choices)}")
         if self.lo is not None and got < self.lo:
-            raise FmcwError(f"{where}{self.name}={got:g} is below {self.lo:g}")
+            raise FmcwError(f"{where}{said(self.name, got)} is below {self.lo:g}")
         if self.hi is not None and got > self.hi:
-            raise FmcwError(f"{where}{self.name}={got:g} exceeds {self.hi:g}{self.why}")
+            raise FmcwError(f"{where}{said(self.name, got)} exceeds {self.hi:g}{self.why}")
         return got
 
 
@@ -77,7 +98,8 @@ PROCESS = (
     Opt("integrate", None, int, "Half-sweeps of a direction whose spectra are summed per output (1: none; "
         "the time resolution becomes K periods); default: chosen per chunk from the measured SNR, 1 "
         "unless the single half-sweeps are too weak.", lo=1, hi=32, why=", the most half-sweeps integrated"),
-    Opt("chirp", None, str, "A chirp calibration (fmcw-cl calibrate) to use instead of the G(I) table."),
+    Opt("chirp", None, str, "A chirp calibration (fmcw-cl calibrate) to use instead of the G(I) table.",
+        metavar="FILE"),
     Opt("backend", "auto", str, "Stage implementation; auto: OpenCL if a device is there, else numpy.",
         choices=("auto", "opencl", "numpy")),
     Opt("device", None, str, "OpenCL device: index P or P:D, or a name substring (default: PYOPENCL_CTX, "
@@ -113,7 +135,7 @@ def click_options(spec: tuple[Opt, ...] = PROCESS) -> Callable:
                 func = click.option(o.flag, o.name, type=click.Choice(o.choices), default=o.default,
                                     show_default=True, help=o.help)(func)
             else:
-                func = click.option(o.flag, o.name, type=o.kind, default=o.default,
+                func = click.option(o.flag, o.name, type=o.kind, default=o.default, metavar=o.metavar,
                                     show_default=o.default is not None, help=o.help)(func)
         return func
     return decorate

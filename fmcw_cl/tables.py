@@ -1,6 +1,6 @@
 """A track as a table (pandas) or a labelled dataset (xarray), and written as CSV,
 Parquet or NetCDF (`fmcw-cl export`). pandas, pyarrow, xarray and h5netcdf are optional
-(`pip install "fmcw-cl[tables]"`): a missing one is named in one line.
+(`pip install ".[tables]"` in the fmcw-cl folder): a missing one is named in one line.
 """
 
 from __future__ import annotations
@@ -25,7 +25,8 @@ def optional(module: str, what: str):
     try:
         return importlib.import_module(module)
     except ImportError:
-        raise FmcwError(f"{what} needs {module.split('.')[0]}: pip install \"fmcw-cl[tables]\"") from None
+        raise FmcwError(f"{what} needs {module.split('.')[0]}: pip install \".[tables]\" (in the fmcw-cl "
+                        "folder)") from None
 
 
 def plain_attrs(attrs: dict) -> dict:

@@ -43,6 +43,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import echoes
+from .options import said
 from .stages import faults
 
 RULES = ("auto", "moving", "nearest", "strongest")
@@ -254,7 +255,8 @@ def choose(rule: str, near_m: float | None, time_s, distance_m, velocity_mps, va
     if rule == "strongest" and near_m is None:
         return Choice(name, fixed, objects, None, False, band, note="the strongest echo of the band")
     if rule == "moving" and not spans and near_m is None:
-        raise ValueError("no moving echo found (--target moving): choose another --target")
+        raise ValueError(f"no moving echo found ({said('target', 'moving')}): choose another "
+                         f"{said('target')}")
     # the candidates: every fixed echo (a point) and each moving span
     cands = [((f, f), False) for f in fixed] + [(span, True) for span in spans]
     if near_m is not None:

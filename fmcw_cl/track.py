@@ -16,7 +16,7 @@ FORMAT = "track"
 FORMAT_VERSION = 1
 
 
-@dataclass
+@dataclass(repr=False)
 class Track:
     """Per half-sweep and per pair results, with the parameters that made them."""
 
@@ -50,10 +50,19 @@ class Track:
     def pairs(self) -> int:
         return int(self.time_s.size)
 
+    def __repr__(self) -> str:
+        """One line: what a user checks first (the arrays are the fields)."""
+        span = f"{self.time_s[0]:.4f}-{self.time_s[-1]:.4f} s" if self.pairs else "empty"
+        valid = f"{100 * np.mean(self.valid):.1f} % valid" if self.pairs else "no pairs"
+        where = self.attrs.get("source", "")
+        return (f"<Track {Path(str(where)).name + ': ' if where else ''}{self.pairs} pairs, {span}, "
+                f"{valid}>")
+
     def to_pandas(self, per: str = "pair"):
         """A pandas DataFrame per "pair" (time_s, distance_m, velocity_mps,
         acceleration_mps2, valid, reason), per "sweep" (each half-sweep) or per "echo";
-        the attributes in `.attrs`. Needs pandas (`pip install "fmcw-cl[tables]"`)."""
+        the attributes in `.attrs`. Needs pandas (`pip install ".[tables]"` in the
+        fmcw-cl folder)."""
         from .tables import to_pandas
 
         return to_pandas(self, per)

@@ -113,7 +113,10 @@ def test_a_missing_optional_library_is_named(monkeypatch, jump_track):
 
     monkeypatch.setattr(builtins, "__import__", no_pandas)
     monkeypatch.delitem(__import__("sys").modules, "pandas", raising=False)
-    with pytest.raises(FmcwError, match=r'to_pandas needs pandas: pip install "fmcw-cl\[tables\]"'):
+    # the README's words: the install from the checkout
+    readme = (Path(__file__).parents[1] / "README.md").read_text()
+    assert 'pip install ".[tables]"' in readme
+    with pytest.raises(FmcwError, match=r'to_pandas needs pandas: pip install "\.\[tables\]"'):
         fmcw_cl.read_track(jump_track).to_pandas()
 
 

@@ -63,12 +63,104 @@ def test_skip_existing_resumes_a_batch(tmp_path, static_capture, fmcw):
     done = out / "static.track.h5"
     stamp = done.stat().st_mtime_ns
     res = fmcw("process", static_capture, "-o", out, "--skip-existing", "--json")
-    assert json.loads(res.stdout) == [] and done.stat().st_mtime_ns == stamp
+    assert json.loads(res.stdout) == [{"capture": str(static_capture), "skipped": "its track exists"}]
+    assert done.stat().st_mtime_ns == stamp
+    assert "note: skipping 1 existing track in" in res.stderr and "static.h5" in res.stderr
+    assert "1 capture: 0 converted, 0 failed, 1 skipped" in res.stderr
+    res = fmcw("process", static_capture, "-o", out)           # overwriting is fine, and said
+    assert "note: overwriting 1 existing track" in res.stderr and done.stat().st_mtime_ns != stamp
+
+
+def test_a_batch_accounts_for_every_capture(tmp_path, static_capture, fmcw):
+    """An output that cannot be written fails that capture in one line; the others
+    convert; the batch ends with its account and --json lists the failure."""
+    out = tmp_path / "tracks"
+    (out / "blocked.track.h5").mkdir(parents=True)            # the track's name is taken by a folder
+    blocked = tmp_path / "blocked.h5"
+    blocked.write_bytes(static_capture.read_bytes())
+    bad = tmp_path / "bad.h5"
+    bad.write_text("no hdf5")
+    res = fmcw("process", static_capture, blocked, bad, "-o", out, "--json", check=False)
+    assert res.returncode == 1 and "Traceback" not in res.stderr
+    errors = [line for line in res.stderr.splitlines() if line.startswith("error:")]
+    assert len(errors) == 2 and "blocked.track.h5: cannot write it (Is a directory)" in errors[0]
+    assert "3 captures: 1 converted, 2 failed, 0 skipped" in res.stderr
+    records = json.loads(res.stdout)
+    assert [("error" in r, Path(r["capture"]).name) for r in records] == \
+        [(False, "static.h5"), (True, "blocked.h5"), (True, "bad.h5")]
+    assert (out / "static.track.h5").exists() and not list(out.glob("*.part"))
+
+
+@pytest.mark.parametrize(("args", "words"), [
+    (["process", "{cap}", "-o", "{file}/sub"], ["{file}/sub", "cannot make the output folder"]),
+    (["process", "{cap}", "-o", "{tmp}/o", "--scheduler", "bogus"], ["--scheduler 'bogus'"]),
+    (["process", "{cap}", "-o", "{tmp}/o", "--device", "9"], ["no OpenCL device '9'"]),
+    (["process", "{cap}", "-o", "{tmp}/o", "--max-range", "5"], ["--max-range 5 m", "unambiguous range",
+                                                                  "--points"]),
+    (["process", "{cap}", "-o", "{tmp}/o", "--points", "0"], ["--points 0 is below 16"]),
+    (["bench", "--seconds", "0"], ["--seconds", "0.005"]),
+    (["bench", "--seconds", "-1"], ["--seconds"]),
+    (["bench", "--points", "8"], ["--points"]),
+])
+def test_first_hour_mistakes_are_one_line(tmp_path, static_capture, fmcw, args, words):
+    (tmp_path / "afile").write_text("")
+    fill = {"cap": static_capture, "file": tmp_path / "afile", "tmp": tmp_path}
+    res = fmcw(*[a.format(**fill) for a in args], check=False)
+    lines = res.stderr.strip().splitlines()
+    assert res.returncode != 0 and lines and lines[0].startswith("error:"), res.stderr
+    assert all(not line.startswith(("Traceback", "Usage")) for line in lines), res.stderr
+    assert len([line for line in lines if not line.startswith("1 capture:")]) == 1, res.stderr
+    for w in words:
+        assert w.format(**fill) in lines[0], res.stderr
+
+
+def test_the_api_names_keywords_where_the_command_line_names_flags(static_capture):
+    import fmcw_cl
+    from fmcw_cl.errors import FmcwError
+
+    with pytest.raises(FmcwError, match=r"^points=0 is below 16"):
+        fmcw_cl.process(static_capture, points=0)
+    with pytest.raises(FmcwError, match=r"^max_range=5 m lies beyond the unambiguous range .* points=1000"):
+        fmcw_cl.process(static_capture, max_range=5.0)
+
+
+def test_a_track_prints_in_one_line(static_capture):
+    import fmcw_cl
+
+    text = repr(fmcw_cl.process(static_capture))
+    assert "\n" not in text and len(text) < 120 and "pairs" in text and "% valid" in text
+
+
+def test_info_agrees_with_process_on_a_sync_it_refuses(tmp_path, static_capture, fmcw):
+    """A sync at another frequency than /modulation says: `info` gives no delay, it names
+    the problem `process` refuses the capture for, and neither prints a library warning."""
+    bad = tmp_path / "wrong_sync.h5"
+    bad.write_bytes(static_capture.read_bytes())
+    with h5py.File(bad, "r+") as f:
+        n = f["adc/sync"].shape[0]
+        f["adc/sync"][:] = (3000 * np.sin(2 * np.pi * np.arange(n) / 7000)).astype(np.int16)
+    info = fmcw("info", bad)
+    proc = fmcw("process", bad, "-o", tmp_path / "o", check=False)
+    problem = "the sync repeats every 70.00 us"
+    assert f"sync delay     none: {problem}" in info.stdout and "process refuses" in info.stdout
+    assert proc.returncode == 1 and problem in proc.stderr
+    assert "Warning" not in info.stderr + proc.stderr
 
 
 def test_devices_lists_and_marks_one(fmcw):
     out = fmcw("devices").stdout.splitlines()
     assert sum(line.startswith("*") for line in out) == 1
+
+
+def test_help_names_what_each_option_takes_and_gives(fmcw):
+    def helped(*cmd):
+        return " ".join(fmcw(*cmd, "--help").stdout.split())
+
+    assert "--chirp FILE" in helped("process")
+    assert "--points INTEGER RANGE Resampling intervals per half-sweep" in helped("bench")
+    report = helped("report")
+    assert "kinematics.png, echoes.png," in report
+    assert "the farthest moment where the target is slow" in report
 
 
 def test_help_shows_examples(fmcw):
@@ -106,10 +198,12 @@ def test_bench_rows_for_both_backends(fmcw):
             assert r["real_time_multiple"] == pytest.approx(0.01 / r["seconds"])
             assert r["half_sweeps_per_s"] == pytest.approx(r["real_time_multiple"] * 40_000, rel=0.01)
             share = r["share_of_end_to_end"]
-            if r["stage"] in scenes:
-                assert share != share
+            if r["stage"] in scenes | {"resample + FFT + peak + echoes", "end to end, paper's method"}:
+                assert share != share                         # wholes of their own, not parts
             else:
                 assert 0 < share and (share == 1) == (r["stage"] == "end to end (file to track)")
+        parts = [r["share_of_end_to_end"] for r in mine if r["share_of_end_to_end"] < 1]
+        assert 0 < sum(parts) < 1                             # the parts do not overlap
         ends = [r for r in mine if r["stage"].startswith("end to end")]
         assert len(ends) == 4
         for r in ends:       # where the time goes: host CPU, and the device's traffic per chunk

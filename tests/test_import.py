@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import re
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -153,3 +156,100 @@ def test_tdms_refusals(raw, tmp_path, fmcw):
         proc = fmcw("import", rec, *common, *extra, check=False)
         assert proc.returncode == 1 and word in proc.stderr and proc.stderr.count("\n") == 1, proc.stderr
     assert not (tmp_path / "x.h5").exists()
+
+
+REAL = Path(__file__).parent / "data" / "tdms"       # written by LabVIEW and NI-DAQmx (README there)
+
+
+@pytest.fixture()
+def osa(tmp_path):
+    """A G(I) table over 100-500 mA (any laser: these files hold no FMCW signal)."""
+    rows = "\n".join(f"{i}, {C / (193e12 + (i - 100) * 0.4e9) * 1e9:.9f}" for i in range(100, 520, 20))
+    (tmp_path / "osa.csv").write_text("mA, nm\n" + rows + "\n")
+    return tmp_path / "osa.csv"
+
+
+def test_daqmx_raw_data_is_read_raw(tmp_path, osa, fmcw):
+    """A DAQmx log (raw int16 of a 16-bit device, +-10 V, interleaved, scale properties,
+    3 segments): the capture's codes are the ADC's, bit for bit, without
+    --full-scale-volts."""
+    from nptdms import TdmsFile
+
+    out = tmp_path / "daqmx.h5"
+    fmcw("import", REAL / "npTDMS_raw1.tdms", "--tuning", osa, "-o", out, "--sample-rate", "100e6",
+         "--frequency", "1e6", "--sync-channel", "Layer Data/Fifth Chan", "--bits", "16", "-q")
+    with TdmsFile.open(REAL / "npTDMS_raw1.tdms") as f:
+        beat = f["Layer Data"]["First  Channel"].read_data(scaled=False)
+        sync = f["Layer Data"]["Fifth Chan"].read_data(scaled=False)
+        volts = f["Layer Data"]["First  Channel"].read_data()
+    (beat,), (sync,) = beat.values(), sync.values()
+    assert beat.dtype == np.int16 and volts.dtype == np.float64      # npTDMS scales it by default
+    with Capture(out) as cap:
+        b, s = cap.read(0, cap.info.samples)
+    np.testing.assert_array_equal(b, beat)
+    np.testing.assert_array_equal(s, sync)
+
+
+def test_labview_group_names_with_slashes(tmp_path, osa, fmcw):
+    group = "07/09/2012 06:58:23 PM - Digital Input - All Data"
+    name = f"{group}/Dev1_port3_line7 - line 0"
+    out = tmp_path / "digital.h5"
+    fmcw("import", REAL / "npTDMS_Digital_Input.tdms", "--tuning", osa, "-o", out, "--beat-channel", name,
+         "--sync-channel", name, "--sample-rate", "100e6", "--frequency", "1e6", "-q")
+    with Capture(out) as cap:
+        assert cap.info.samples == 20000
+    wrong = fmcw("import", REAL / "npTDMS_Digital_Input.tdms", "--tuning", osa, "-o", tmp_path / "x.h5",
+                 "--beat-channel", f"{group}/nope", check=False)
+    assert wrong.returncode == 1 and wrong.stderr.count("\n") == 1
+    assert f"no channel '{group}/nope'" in wrong.stderr and repr(name) in wrong.stderr
+
+
+def test_values_beyond_full_scale_are_clipped_and_counted(tmp_path, osa, fmcw):
+    """LabVIEW's float64 example (big-endian, values up to about 3) with a 1 V range."""
+    out = tmp_path / "volts.h5"
+    proc = fmcw("import", REAL / "npTDMS_big_endian.tdms", "--tuning", osa, "-o", out,
+                "--full-scale-volts", "1", "--frequency", "10", "-q")
+    warned = [line for line in proc.stderr.splitlines() if line.startswith("warning:")]
+    assert len(warned) == 2 and "of the beat channel lie beyond the 14-bit full scale" in warned[0]
+    share = float(re.search(r"\(([\d.]+) %\)", warned[0]).group(1))
+    with Capture(out) as cap:
+        b, _ = cap.read(0, cap.info.samples)
+        assert cap.info.sample_rate_hz == pytest.approx(1e3)
+    at_rail = np.mean((b == 8191) | (b == -8192))
+    assert at_rail == pytest.approx(share / 100, abs=1e-3) and share > 1
+
+
+def test_what_is_not_a_number_is_refused_by_what_it_is(tmp_path, osa, fmcw):
+    from nptdms import ChannelObject, TdmsWriter
+
+    path = tmp_path / "text.tdms"
+    with TdmsWriter(str(path)) as w:
+        stamps = np.array(["2024-01-01T00:00"] * 300, "datetime64[us]")
+        w.write_segment([ChannelObject("log", "note", np.array(["a", "b", "c"] * 100)),
+                         ChannelObject("log", "when", stamps)])
+    for channel, what in (("log/note", "holds text"), ("log/when", "holds timestamps")):
+        proc = fmcw("import", path, "--tuning", osa, "-o", tmp_path / "x.h5", "--beat-channel", channel,
+                    "--sync-channel", channel, "--sample-rate", "100e6", "--full-scale-volts", "1",
+                    check=False)
+        assert proc.returncode == 1 and proc.stderr.count("\n") == 1 and what in proc.stderr, proc.stderr
+        assert channel in proc.stderr and "Traceback" not in proc.stderr
+
+
+def test_settings_are_checked_before_the_samples_are_read(tmp_path, osa, fmcw, monkeypatch):
+    """A rate or a modulation the capture layout does not allow is refused naming the
+    input and the flag, and nothing is read or written."""
+    from fmcw_cl import ingest
+
+    cases = ((["--sample-rate", "1"], "--sample-rate"), (["--frequency", "5e7"], "--frequency"),
+             (["--current-min", "0.5"], "--current-min"), (["--bits", "20"], "--bits"))
+    for extra, flag in cases:
+        proc = fmcw("import", REAL / "npTDMS_raw1.tdms", "--tuning", osa, "-o", tmp_path / "x.h5",
+                    "--sample-rate", "100e6", *extra, check=False)
+        assert proc.returncode == 1 and proc.stderr.count("\n") == 1, proc.stderr
+        assert "npTDMS_raw1.tdms" in proc.stderr and flag in proc.stderr, proc.stderr
+    assert not list(tmp_path.glob("x.h5*"))
+    read = []
+    monkeypatch.setattr(ingest.TdmsChannels, "__getitem__", lambda self, rows: read.append(rows))
+    with pytest.raises(CaptureError, match="sample rate of 1 Hz"):
+        import_capture(REAL / "npTDMS_raw1.tdms", osa, tmp_path / "x.h5", 1.0, Modulation(20e3, 0.16, 0.48))
+    assert read == []

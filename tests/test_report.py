@@ -118,3 +118,17 @@ def test_cramer_rao_bound_of_a_pair():
     assert crb_pair_m(1.0, 1000, 160e9) == pytest.approx(11.6e-6, rel=0.01)
     assert crb_pair_m(10.0, 1000, 160e9) == pytest.approx(11.6e-6 / np.sqrt(10), rel=0.01)
     assert eta_from_peak_snr([10 * np.log10(1000 / 3)] * 3, 1000) == pytest.approx(1.0)
+
+
+def test_a_still_targets_axes_read_plain_numbers(tmp_path, static_capture, monkeypatch):
+    """A static target's distance varies by microns: its axis must read 0.25000, not an
+    offset label such as 1e-5+2.5e-1."""
+    from fmcw_cl.engine import process
+    from fmcw_cl.report import figures
+
+    figs = []
+    monkeypatch.setattr(figures.plt, "close", figs.append)
+    figures.kinematics(process(static_capture), tmp_path / "k.png")
+    (fig,) = figs
+    fig.canvas.draw()
+    assert [ax.yaxis.get_major_formatter().get_offset() for ax in fig.axes] == ["", "", ""]

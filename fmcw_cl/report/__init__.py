@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..atomic import atomic_path
+from ..atomic import atomic_path, output_folder
 from ..capture import Capture, Truth
 from ..errors import CaptureError
 from ..evaluate import truth_at
@@ -105,8 +105,7 @@ def make_report(track_file: str | os.PathLike, outdir: str | os.PathLike,
         track = read_track(track_file)
     except (OSError, ValueError, KeyError) as exc:
         raise CaptureError(Path(track_file), f"not a readable track file ({exc})") from None
-    out = Path(outdir)
-    out.mkdir(parents=True, exist_ok=True)
+    out = output_folder(outdir)
     src = _source(track, capture)
     truth = None
     if src is not None:

@@ -41,6 +41,7 @@ def kinematics(track: Track, path: Path, truth: Truth | None = None,
             ax.plot([1e3 * e.time_s for e in marks], [e.value for e in marks], "o", ms=5,
                     mfc="none", color="C3", label="events")
         ax.set_ylabel(label)
+        ax.ticklabel_format(axis="y", useOffset=False)     # a still target: 0.30001, not 1e-5+3e-1
         ax.grid(alpha=0.3)
     axes[0].legend(loc="best", fontsize=8)
     axes[-1].set_xlabel("time (ms)")

@@ -249,7 +249,8 @@ def crossings(x: np.ndarray, half_period: float, level: float | None = None,
     guess = co.block * factor + 0.5 * (factor - 1)
     fitted = np.full(guess.size, -1)        # centre of each crossing's last fit
     for _ in range(2):
-        centre = np.rint(np.nan_to_num(guess, nan=-1.0)).astype(np.int64)
+        # no guess (NaN) or one beyond the channel is out of the fit's reach: -1
+        centre = np.rint(np.clip(np.nan_to_num(guess, nan=-1.0), -1, x.size)).astype(np.int64)
         ok = np.isfinite(guess) & (centre - half >= 2) & (centre + half < x.size - 2)
         guess[~ok] = np.nan
         redo = ok & (centre != fitted)       # a fit on the same centre would repeat itself
