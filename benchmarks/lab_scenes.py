@@ -21,10 +21,9 @@ import numpy as np
 from fmcw_cl.capture import Capture
 from fmcw_cl.engine import make_backend, process
 from fmcw_cl.evaluate import truth_at
-from fmcw_cl.simulator import SimulationConfig, jump, rail, simulate_capture, static
+from fmcw_cl.simulator import LAB, jump, rail, simulate_capture, static
 from fmcw_cl.stages import faults
 
-LAB = SimulationConfig(leak_codes=150.0, noise_codes=600.0, table_noise_hz=20e6)
 parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
 parser.add_argument("--out", default=None, help="folder for the captures (default: a temporary one)")
 out = Path(parser.parse_args().out or tempfile.mkdtemp(prefix="fmcw-lab-"))

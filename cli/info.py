@@ -8,10 +8,24 @@ import click
 import numpy as np
 
 from fmcw_cl.capture import Capture
-from fmcw_cl.engine import check_sync_period, estimate_capture_delay
-from fmcw_cl.errors import CaptureError
+from fmcw_cl.engine import Options, Plan, make_plan
+from fmcw_cl.errors import FmcwError
+from fmcw_cl.stages import faults
 from fmcw_cl.stages.lut import build_lut
 from fmcw_cl.stages.sync import CLEAN_MISFIT
+
+
+def delay_line(plan: Plan) -> str:
+    """The sync delay as `process` uses it: refined on the target with its uncertainty,
+    and the intensity triangle's first estimate."""
+    first = (f"the intensity triangle gave {plan.lag_intensity:+.3f} ({plan.lag_periods} periods, misfit "
+             f"{plan.lag_misfit:.3f}{'' if plan.lag_misfit <= CLEAN_MISFIT else ', UNRELIABLE'})")
+    if not plan.lag_refined:
+        return (f"sync lags the optics by {plan.lag:+.3f} samples: {first}; no valid run of a target to "
+                "refine it on")
+    return (f"sync lags the optics by {plan.lag:+.3f} +-{plan.lag_sigma_samples:.3f} samples, refined on the "
+            f"target (velocities +-{plan.lag_sigma_mps:.4f} m/s, distances +-{1e3 * plan.lag_sigma_m:.4f} mm "
+            f"at {plan.lag_at_m:.3f} m); {first}")
 
 
 @click.command("info")
@@ -31,14 +45,11 @@ def command(capture, points):
         lut = build_lut(i.tuning_current_a, i.tuning_frequency_hz, m.current_min_a,
                         m.current_max_a, points, i.refractive_index)
         try:                          # what `process` refuses is said, not estimated
-            check_sync_period(cap)
-            lag, votes, misfit = estimate_capture_delay(cap)
-            delay = (f"sync lags the optics by {lag:+.3f} samples ({votes} periods, misfit {misfit:.3f}"
-                     f"{'' if misfit <= CLEAN_MISFIT else ', UNRELIABLE'})")
-        except CaptureError as exc:
-            delay = f"none: {exc.problem} (process refuses this capture)"
+            delay = delay_line(make_plan(cap, Options(points=points)))
+        except FmcwError as exc:
+            delay = f"none: {getattr(exc, 'problem', exc)} (process refuses this capture)"
         beat, _ = cap.read(0, min(i.samples, int(20 * i.samples_per_period)))
-        clipped = np.mean(np.abs(beat.astype(np.int32)) >= i.full_scale)
+        clipped = int(np.sum(faults.is_clipped(beat, i.full_scale + 1)))
         lines = [
             f"capture        {capture}",
             f"samples        {i.samples} per channel at {i.sample_rate_hz / 1e6:g} MS/s, "
@@ -57,8 +68,10 @@ def command(capture, points):
             "calibrate (fmcw-cl calibrate) where that is too much",
             f"unambiguous    {lut.unambiguous_range_m:.4f} m at --points {points}",
             f"sync delay     {delay}",
-            f"beat level     rms {beat.std():.0f} codes, peak {np.abs(beat).max()} of "
-            f"{i.full_scale}, clipped {100 * clipped:.3f} % (first 20 periods)",
+            f"beat level     rms {beat.std():.0f} codes, peak {np.abs(beat.astype(np.int32)).max()} of "
+            f"{i.full_scale + 1}, {clipped} codes at full scale ({100 * clipped / max(beat.size, 1):.3f} %) "
+            f"in the first 20 periods (a pair is flagged clipped from {100 * faults.CLIP_SHARE:g} % of "
+            "its span)",
             f"truth          {'yes' if i.has_truth else 'no'}",
         ]
         click.echo("\n".join(lines))

@@ -63,6 +63,17 @@ def target_lines(cap, attrs: dict) -> None:
                    f"{', '.join(f'{x:.3f}' for x in left)} m ({hint})", err=True)
 
 
+def delay_doubt(attrs: dict) -> str:
+    """Why the sync delay may bias velocities beyond the track's stated bound, in words."""
+    bound = float(attrs.get("sync_delay_velocity_bound_mps", 0.002))
+    if attrs.get("sync_delay_refined"):
+        return (f"the sync delay is uncertain by {attrs['sync_delay_uncertainty_samples']:.2f} samples "
+                f"(velocities +-{attrs['sync_delay_velocity_uncertainty_mps']:.4f} m/s, more than "
+                f"{bound:g}): the target's valid runs are short or noisy")
+    return (f"no valid run of the target to align the sync delay on, and no clear intensity triangle "
+            f"(misfit {attrs['sync_delay_misfit']:.2f}): velocities may be biased beyond {bound:g} m/s")
+
+
 def report(s: dict, attrs: dict, quiet: bool, as_json: bool) -> None:
     """Warnings (always, on stderr) and the one-screen summary of one capture."""
     cap = s["capture"]
@@ -71,13 +82,15 @@ def report(s: dict, attrs: dict, quiet: bool, as_json: bool) -> None:
                    f"the unambiguous range ({attrs['unambiguous_range_m']:.3f} m); a farther "
                    "target would alias: raise --points", err=True)
     if not attrs["sync_delay_reliable"]:
-        click.echo(f"warning: {cap}: the sync delay estimate is unreliable (a target beat "
-                   "near 0 Hz in every period); velocities may be biased", err=True)
+        click.echo(f"warning: {cap}: {delay_doubt(attrs)}", err=True)
     if attrs.get("tuning_matches") is False:
         source = "chirp calibration" if attrs.get("chirp") else "G(I) table"
+        marked = int(attrs.get("invalid_uncalibrated", 0))
+        what = (f"; {marked} pairs marked uncalibrated: a chirp calibrated on a static target (fmcw-cl "
+                "calibrate, then --chirp) gives them back at the usual precision" if marked
+                else " (fmcw-cl calibrate)")
         click.echo(f"warning: {cap}: its peaks are {attrs['tuning_peak_width_ratio']:.1f}x wider than the "
-                   f"window's own: the laser's chirp does not match the {source} (fmcw-cl calibrate)",
-                   err=True)
+                   f"window's own: the laser's chirp does not match the {source}{what}", err=True)
     target_lines(cap, attrs)
     rival = attrs.get("rival_echo_m")
     if rival is not None and np.isfinite(rival):

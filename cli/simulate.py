@@ -49,10 +49,16 @@ def parse_reflector(text: str) -> tuple[float, float]:
 @click.option("--thermal-lag-us", default=0.0, show_default=True,
               help="First-order lag (us) of the thermal part of the laser tuning; the capture "
                    "keeps the static G(I) table, as a lab would.")
+@click.option("--lab", is_flag=True,
+              help="A lab's instrument: an intensity triangle of +-150 codes under 600 codes rms of "
+                   "noise, a G(I) table with 20 MHz scatter (--noise, --snr-db, --table-noise-mhz still "
+                   "apply).")
+@click.option("--no-headroom", is_flag=True,
+              help="No gain setting: noise peaks reach full scale (--noise 3000: 0.7 % of the codes).")
 @click.option("--compress", is_flag=True, help="gzip the ADC channels (small files, slow reads).")
 @click.option("-q", "--quiet", is_flag=True, help="No progress.")
 def command(scenario, output, duration, seed, distance, start, noise, snr_db, reflectors, speckle_ms,
-            table_noise_mhz, rin_db_hz, sync_delay, thermal_lag_us, compress, quiet):
+            table_noise_mhz, rin_db_hz, sync_delay, thermal_lag_us, lab, no_headroom, compress, quiet):
     """Simulate SCENARIO (static, rail or jump) into a capture file.
 
     \b
@@ -60,6 +66,7 @@ def command(scenario, output, duration, seed, distance, start, noise, snr_db, re
       fmcw-cl simulate jump -o jump.h5 --duration 0.3 --seed 1
       fmcw-cl simulate static -o static.h5 --distance 0.25
       fmcw-cl simulate jump -o wall.h5 --snr-db 0 --reflector 0.42:800 --speckle-ms 3
+      fmcw-cl simulate static -o lab.h5 --lab --distance 0.4
     """
     reflectors = tuple(parse_reflector(r) for r in reflectors)
     duration = duration or DURATIONS_S[scenario]
@@ -68,7 +75,8 @@ def command(scenario, output, duration, seed, distance, start, noise, snr_db, re
     hidden = fmcw_cl.simulate(output, scenario, duration=duration, seed=seed, distance=distance, start=start,
                               noise=noise, snr_db=snr_db, reflectors=reflectors, speckle_ms=speckle_ms,
                               table_noise_mhz=table_noise_mhz, rin_db_hz=rin_db_hz, sync_delay=sync_delay,
-                              thermal_lag_us=thermal_lag_us, compress=compress, progress=bar)
+                              thermal_lag_us=thermal_lag_us, compress=compress, lab=lab,
+                              no_headroom=no_headroom, progress=bar)
     bar.close()
     if not quiet:
         click.echo(f"{output}: {scenario}, {duration:g} s, seed {seed}, "

@@ -97,6 +97,7 @@ def simulate(path: PathLike, scenario: str = "jump", *, duration: float | None =
              snr_db: float | None = None, reflectors: tuple[tuple[float, float], ...] = (),
              speckle_ms: float = 0.0, table_noise_mhz: float | None = None, rin_db_hz: float | None = None,
              sync_delay: float | None = None, thermal_lag_us: float = 0.0, compress: bool = False,
+             lab: bool = False, no_headroom: bool = False,
              progress: Callable[[int, int], None] | None = None) -> dict:
     """Write a simulated capture with `/truth` (the options of `fmcw-cl simulate`).
 
@@ -117,6 +118,11 @@ def simulate(path: PathLike, scenario: str = "jump", *, duration: float | None =
     sync_delay : samples the sync lags the optics (None: drawn from the seed).
     thermal_lag_us : first-order lag of the thermal part of the tuning (us).
     compress : gzip the ADC channels.
+    lab : a lab's instrument (simulator.LAB): an intensity triangle of +-150 codes under
+        600 codes rms of noise, a G(I) table with 20 MHz scatter; `noise`, `snr_db` and
+        `table_noise_mhz` still apply over it.
+    no_headroom : no gain setting: the noise's peaks reach full scale where its rms is
+        near it (3000 codes rms on 14 bits: 0.7 % of the codes).
 
     Returns
     -------
@@ -125,7 +131,7 @@ def simulate(path: PathLike, scenario: str = "jump", *, duration: float | None =
     from dataclasses import replace
 
     from .errors import FmcwError
-    from .simulator import DURATIONS_S, SCENARIOS, SimulationConfig, simulate_capture
+    from .simulator import DURATIONS_S, LAB, SCENARIOS, SimulationConfig, simulate_capture
 
     if scenario not in SCENARIOS:
         raise FmcwError(f"scenario {scenario!r} is not one of {', '.join(sorted(SCENARIOS))}")
@@ -140,9 +146,10 @@ def simulate(path: PathLike, scenario: str = "jump", *, duration: float | None =
             raise FmcwError(f"reflector {d:g}:{a:g}: the distance must be > 0 m and the amplitude >= 0")
     if noise is not None and snr_db is not None:
         raise FmcwError("give noise or snr_db, not both")
-    cfg = SimulationConfig(reflectors=tuple(reflectors), speckle_s=speckle_ms * 1e-3, snr_db=snr_db,
-                           rin_db_hz=rin_db_hz, thermal_lag_s=thermal_lag_us * 1e-6,
-                           sync_delay_samples=sync_delay)
+    cfg = replace(LAB if lab else SimulationConfig(), reflectors=tuple(reflectors),
+                  speckle_s=speckle_ms * 1e-3, snr_db=snr_db, rin_db_hz=rin_db_hz,
+                  thermal_lag_s=thermal_lag_us * 1e-6, sync_delay_samples=sync_delay,
+                  headroom=None if no_headroom else LAB.headroom)
     if noise is not None:
         cfg = replace(cfg, noise_codes=noise)
     if table_noise_mhz is not None:

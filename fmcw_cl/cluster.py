@@ -21,6 +21,7 @@ from pathlib import Path
 
 from .capture import Capture
 from .engine import (
+    NumpyBackend,
     Options,
     assemble,
     band_of,
@@ -203,7 +204,7 @@ def _collect(client, jobs: dict, samples: dict, refused: list, backend: str, dev
                     continue
                 track = with_choice(plan, parts, made, time.perf_counter() - started, track, choice)
             with Capture(cap) as c:
-                check_tuning(c, plan, track)
+                check_tuning(c, plan, track, NumpyBackend())
             value = _written(str(cap), out, track)
         n, fs = samples[str(cap)]
         done += n

@@ -22,6 +22,7 @@ from .capture import Capture, CaptureInfo
 from .errors import CaptureError, FmcwError
 from .numeric import median
 from .options import said
+from .refine import WIDTH_LIMIT, peak_width_ratio, refine_lag, stillest
 from .stages import cfar, faults, kinematics, lpf, pairing, resample, spectrum, sync
 from .stages.cfar import Detections
 from .stages.lut import Lut, build_lut
@@ -69,8 +70,13 @@ class Plan:
     lag_periods: int    # periods that voted for it
     lag_misfit: float   # rms misfit of those periods' triangles (clean: < 0.2)
     check: tuple | None = None   # (LUT, window, model) at 2N points for the range check
-    lag_refined: bool = False    # moved to kinematic consistency (chirp calibrations)
+    lag_refined: bool = False    # moved to kinematic consistency (refine)
     lag_mismatch_mps: float = float("nan")   # what remains of the inconsistency there
+    lag_sigma_samples: float = float("nan")  # the refined delay's standard uncertainty
+    lag_sigma_mps: float = float("nan")      # ... as a velocity bias (m/s)
+    lag_sigma_m: float = float("nan")        # ... as a distance bias (m)
+    lag_intensity: float = float("nan")      # the first estimate, from the intensity triangle
+    lag_at_m: float = float("nan")           # the target's mean distance where it was refined
 
 
 class NumpyBackend(pairing.SpectrumOps):
@@ -99,8 +105,8 @@ class NumpyBackend(pairing.SpectrumOps):
         """`resample` of each (starts, lengths, u) of `jobs` (a backend: one upload)."""
         return [self.resample(codes, *job, win) for job in jobs]
 
-    def clip_flags(self, codes, block, full_scale):
-        return faults.clip_flags(codes, block, full_scale)
+    def clip_counts(self, codes, block, full_scale):
+        return faults.clip_counts(codes, block, full_scale)
 
     def fork(self) -> NumpyBackend:
         """A backend for another thread (`process_each`)."""
@@ -162,7 +168,7 @@ def make_lut(info: CaptureInfo, points: int, chirp=None) -> Lut:
 
 def make_plan(cap: Capture, options: Options, lag: float | None = None, backend=None) -> Plan:
     """Fit G(I) (or read the chirp calibration), build the LUT and the Doppler model,
-    estimate the sync delay (with a calibration: refined on the data, see `refine`).
+    estimate the sync delay (from the intensity triangle, refined on the target: `refine`).
 
     A known `lag` (samples the sync lags the optics, e.g. from a track) skips the
     estimate; `backend` runs its low-pass (default numpy).
@@ -191,10 +197,9 @@ def make_plan(cap: Capture, options: Options, lag: float | None = None, backend=
         win2 = resample.window(2 * options.points)
         check = (lut2, win2, pairing.doppler_model(lut2, info.modulation.period_s / 2,
                                                    spectrum.fft_length(2 * options.points), win2))
-    plan = Plan(info, options, lut, win, model, search, lag, votes, misfit, check)
-    if chirp is not None and not known:
-        from .refine import refine_lag
-        plan = refine_lag(cap, plan, backend)
+    plan = Plan(info, options, lut, win, model, search, lag, votes, misfit, check, lag_intensity=lag)
+    if not known and options.dechirp:          # the paper's method (--no-dechirp) as published
+        plan = refine_lag(cap, plan, capture_parts, backend or NumpyBackend())
     return plan
 
 
@@ -261,6 +266,7 @@ class _Pairs:
     result: pairing.PairResult
     reason: np.ndarray
     survey: dict          # echoes.hidden of every SURVEY_STRIDE-th pair's half-sweeps
+    clipped_codes: int = 0  # beat codes at full scale in the chunk's core (to a block at its edges)
 
 
 def _chunk_pairs(plan: Plan, chunk, backend) -> _Pairs | None:
@@ -286,15 +292,21 @@ def _chunk_pairs(plan: Plan, chunk, backend) -> _Pairs | None:
     sel = res.take(own)
     r, f = r[own], f[own]
     # the falling half-sweep starts where the rising one ends: one span per pair
-    clip = faults.clipped(chunk.beat, hs.start[r], hs.start[f] + hs.length[f] - hs.start[r], info.full_scale,
-                          backend.clip_flags(chunk.beat, faults.CLIP_BLOCK, info.full_scale))
+    counts = backend.clip_counts(chunk.beat, faults.CLIP_BLOCK, info.full_scale + 1)     # 2^(bits-1)
+    span = hs.start[f] + hs.length[f] - hs.start[r]
+    share = faults.clipped_share(hs.start[r], span, counts, chunk.beat.size)
+    clip = share >= faults.CLIP_SHARE
+    # the core's clipped codes, counted once over the capture
+    core = slice((chunk.core_start - chunk.start) // faults.CLIP_BLOCK,
+                 -(-(chunk.core_stop - chunk.start) // faults.CLIP_BLOCK))
+    clipped_codes = int(counts[core].sum(dtype=np.int64))
     alias = np.zeros(r.size, bool)
     if plan.check is not None and r.size:
         alias = _beyond_range(plan, chunk.beat, hs, r, f, sel, backend)
     reason = faults.reasons(sel.valid, sel.heard, clip, alias, sel.continuous)
     sel.valid[:] = reason == faults.OK
     survey = _survey(plan, backend, (xr, xf), (t_r, t_f), res, np.flatnonzero(own))
-    return _Pairs(t_r[own], t_f[own], sel, reason, survey)
+    return _Pairs(t_r[own], t_f[own], sel, reason, survey, clipped_codes)
 
 
 SURVEY_KEYS = ("time_s", "ratio", "distance_m", "found")
@@ -439,15 +451,9 @@ def process(path, options: Options | None = None, backend=None,
     backend = backend or NumpyBackend()
     started = time.perf_counter()
     with Capture(path) as cap:
-        # the first chunk is read while the plan is made (the delay's stretches are read
-        # into slot 1); a chirp calibration's plan converts stretches itself (refine)
-        ahead = None if options.chirp else read_chunks(cap, fit_chunks(options, cap.info, backend))
-        try:
-            plan = make_plan(cap, options, backend=backend)
-            parts = capture_parts(cap, plan, backend, progress=progress, chunks=ahead)
-        finally:
-            if ahead is not None:
-                ahead.close()
+        # the plan converts stretches itself (the delay's refinement), in the chunks' slots
+        plan = make_plan(cap, options, backend=backend)
+        parts = capture_parts(cap, plan, backend, progress=progress)
         track = assemble(plan, parts, backend, time.perf_counter() - started)
         choice = choose_target(plan, track)
         if choice.band_m != band_of(plan.options):          # the target alone in its band: again
@@ -568,16 +574,37 @@ def process_each(paths, options: Options | None = None, backend=None, workers: i
         pool.shutdown(wait=True, cancel_futures=True)
 
 
-def check_tuning(cap: Capture, plan: Plan, track: Track, backend=None) -> None:
+# peaks this much wider than the window's own: the chirp is so far from its table that no
+# distance is vouched for (a jump under 5 us of thermal lag: 2.24, distances to 96 mm off;
+# under 2 us: 1.26 once the delay is refined, 0.72 mm at worst; a matching table: 1.02)
+UNCALIBRATED_RATIO = 1.5
+DELAY_BOUND_MPS = 0.002   # a refined delay whose velocity uncertainty is beyond this is warned of
+
+
+def delay_reliable(plan: Plan) -> bool:
+    """Whether the sync delay biases velocities by less than DELAY_BOUND_MPS (1 sigma):
+    refined on the target and that certain, or, where no target run allowed it, a clean
+    intensity triangle."""
+    if plan.lag_refined:
+        return bool(plan.lag_sigma_mps <= DELAY_BOUND_MPS)
+    return bool(plan.lag_misfit <= sync.CLEAN_MISFIT)
+
+
+def check_tuning(cap: Capture, plan: Plan, track: Track, backend) -> None:
     """Record how much wider than the window's own the peaks of the stillest stretch
     are (`tuning_peak_width_ratio`; `tuning_matches` is false beyond WIDTH_LIMIT): the
     sign that the laser's real chirp has left its G(I) table or its calibration."""
-    from .refine import WIDTH_LIMIT, peak_width_ratio, stillest
-
     ratio = peak_width_ratio(cap, plan, stillest(track.time_s, track.velocity_mps),
                              track.time_s, track.velocity_mps, backend)
     track.attrs["tuning_peak_width_ratio"] = ratio
     track.attrs["tuning_matches"] = bool(not ratio > WIDTH_LIMIT)
+    track.attrs["uncalibrated_ratio"] = UNCALIBRATED_RATIO
+    if ratio > UNCALIBRATED_RATIO and plan.options.dechirp:
+        # distances cm off pass every neighbour test when all are off alike: none is valid
+        track.reason[track.reason == faults.OK] = faults.UNCALIBRATED
+        track.sweep_reason[track.sweep_reason == faults.OK] = faults.UNCALIBRATED
+        track.valid[:] = False
+        track.attrs["invalid_uncalibrated"] = int(np.sum(track.reason == faults.UNCALIBRATED))
 
 
 def assemble(plan: Plan, parts: list[_Pairs], backend, seconds: float,
@@ -666,12 +693,20 @@ def assemble(plan: Plan, parts: list[_Pairs], backend, seconds: float,
         "reason_codes": ", ".join(f"{k} {v}" for k, v in faults.REASONS.items()),
         **{f"invalid_{name}": int(np.sum(reason == code)) for code, name in faults.REASONS.items() if code},
         "refractive_index": info.refractive_index,
+        "clipped_codes": int(sum(p.clipped_codes for p in parts)),
+        "clip_share_limit": faults.CLIP_SHARE,
         "sync_delay_samples": plan.lag,
         "sync_delay_periods_used": plan.lag_periods,
         "sync_delay_misfit": plan.lag_misfit,
-        "sync_delay_reliable": bool(plan.lag_misfit <= sync.CLEAN_MISFIT or plan.lag_refined),
+        "sync_delay_reliable": delay_reliable(plan),
         "sync_delay_refined": bool(plan.lag_refined),
         "sync_delay_mismatch_mps": float(plan.lag_mismatch_mps),
+        "sync_delay_intensity_samples": float(plan.lag_intensity),
+        "sync_delay_uncertainty_samples": float(plan.lag_sigma_samples),
+        "sync_delay_velocity_uncertainty_mps": float(plan.lag_sigma_mps),
+        "sync_delay_distance_uncertainty_m": float(plan.lag_sigma_m),
+        "sync_delay_refined_at_m": float(plan.lag_at_m),
+        "sync_delay_velocity_bound_mps": DELAY_BOUND_MPS,
         "chirp": str(Path(options.chirp).resolve()) if options.chirp else "",
         "acceleration_smoothing": f"Savitzky-Golay derivative, order {kinematics.POLYORDER}, "
                                   f"{kinematics.WINDOW_PAIRS} pairs",

@@ -1,18 +1,24 @@
-"""Per-capture refinement of the sync delay when a chirp calibration is used.
+"""The sync delay refined on every capture's own target, and the tuning check.
 
-A calibrated LUT is tied to the timing of its calibration capture. In another capture
-the sync may sit a few samples differently against the optics (cables, and the paper's
-intensity-based estimate is biased when a beat passes 0 Hz at the late optical turning
-points). A delay error shifts the resampling instants along a nonlinear chirp, which
-moves the rising and falling peaks in opposite directions: a velocity appears that the
-distance does not show. So the delay is chosen where the velocity integrates to the
-change of distance (kinematic consistency), over a few stretches of the capture, by
-secant steps.
+The intensity triangle in the low-passed beat gives a first estimate of how far the
+sync lags the optics (`stages.sync`); a lab's weak triangle under noise leaves it a few
+samples off in 50 ms. A delay error shifts the resampling instants along the nonlinear
+chirp, which moves the rising and falling peaks in opposite directions: a velocity
+appears that the distance does not show. So the delay is moved to where the track is
+kinematically consistent: over a few stretches of the capture, the distance less the
+integral of the velocity must not drift (its least-squares slope, the *mismatch*, is
+zero), found by secant steps from the intensity estimate.
+
+The mismatch's standard error (from the runs' residuals, or the stretches' spread where
+that is larger) over its slope against the delay is the delay's uncertainty; in
+velocity it is the standard error itself, in distance the delay's uncertainty times how
+far the stretches' mean distance moves per sample. A capture whose stretches hold no
+valid run of MIN_RUN pairs keeps the intensity estimate.
 """
 
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -28,17 +34,37 @@ MAX_EVALUATIONS = 6
 MIN_RUN = 60              # pairs of a valid run used
 
 
-def mismatch(cap: Capture, plan, lag: float, backend=None) -> float:
-    """Mean over stretches of (integral of velocity - change of distance) / duration (m/s);
-    NaN when no stretch has a long valid run. `backend`: the stages' (default numpy)."""
-    from .engine import NumpyBackend, capture_parts
+@dataclass(frozen=True)
+class Mismatch:
+    """Kinematic inconsistency of a trial delay: `mps`, the drift of distance less the
+    integrated velocity (m/s, mean over stretches; NaN when none could be measured),
+    `sigma_mps` its standard error, `distance_m` the stretches' mean distance."""
 
-    backend = backend or NumpyBackend()
+    mps: float
+    sigma_mps: float
+    distance_m: float
+
+
+def drift(t: np.ndarray, d: np.ndarray, v: np.ndarray) -> tuple[float, float]:
+    """Least-squares slope (m/s) of d - integral of v over one run, and its standard
+    error: zero for consistent kinematics, whatever the motion."""
+    travelled = np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * np.diff(t))])
+    r = d - travelled
+    tc = t - t.mean()
+    slope = float(np.dot(tc, r - r.mean()) / np.dot(tc, tc))
+    resid = r - r.mean() - slope * tc
+    se = float(np.sqrt(np.dot(resid, resid) / max(1, t.size - 2) / np.dot(tc, tc)))
+    return slope, se
+
+
+def mismatch(cap: Capture, plan, lag: float, capture_parts, backend) -> Mismatch:
+    """The kinematic inconsistency of `plan` at `lag` over STRETCHES stretches, each
+    converted by `capture_parts(cap, plan, backend, start, stop)` (engine's)."""
     info = cap.info
     p = replace(plan, lag=lag, check=None)
     length = int(STRETCH_PERIODS * info.samples_per_period)
     starts = np.linspace(0, max(0, info.samples - length), STRETCHES).astype(np.int64)
-    out = []
+    slopes, errors, dist = [], [], []
     for a in np.unique(starts):
         parts = capture_parts(cap, p, backend, int(a), int(a) + length)
         if not parts:
@@ -50,37 +76,52 @@ def mismatch(cap: Capture, plan, lag: float, backend=None) -> float:
         i, j = max(runs(ok), key=lambda r: r[1] - r[0], default=(0, 0))
         if j - i < MIN_RUN:
             continue
-        tt, dd, vv = t[i:j], d[i:j], v[i:j]
-        # the trapezoid rule (scipy.integrate's costs half a second to import)
-        travelled = float(np.sum(0.5 * (vv[1:] + vv[:-1]) * np.diff(tt)))
-        out.append((travelled - (dd[-1] - dd[0])) / (tt[-1] - tt[0]))
-    return float(np.mean(out)) if out else float("nan")
+        slope, se = drift(t[i:j], d[i:j], v[i:j])
+        slopes.append(slope)
+        errors.append(se)
+        dist.append(float(np.mean(d[i:j])))
+    if not slopes:
+        return Mismatch(float("nan"), float("nan"), float("nan"))
+    # the standard error of the mean: from the runs' residuals, or from the stretches'
+    # spread where that is larger (the residuals of d - integral of v are not white)
+    n = len(slopes)
+    sigma = float(np.sqrt(np.sum(np.square(errors)))) / n
+    if n > 1:
+        sigma = max(sigma, float(np.std(slopes, ddof=1)) / np.sqrt(n))
+    return Mismatch(float(np.mean(slopes)), sigma, float(np.mean(dist)))
 
 
-def refine_lag(cap: Capture, plan, backend=None):
+def refine_lag(cap: Capture, plan, capture_parts, backend):
     """The plan with its lag moved to where the track is kinematically consistent
-    (trial stretches converted by `backend`, default numpy).
+    (trial stretches converted by `capture_parts` with `backend`), with the delay's
+    uncertainty (samples) and what it means in velocity (m/s) and distance (m).
 
-    Keeps the estimate (and marks it unreliable through lag_misfit = inf) when no
-    stretch can be measured."""
+    Keeps the estimate (lag_refined False) when no stretch can be measured."""
     lag0 = plan.lag
     xs = [lag0, lag0 + STEP_SAMPLES]
-    ms = [mismatch(cap, plan, x, backend) for x in xs]
-    while len(xs) < MAX_EVALUATIONS and np.isfinite(ms[-1]) and np.isfinite(ms[-2]):
-        slope = (ms[-1] - ms[-2]) / (xs[-1] - xs[-2])
-        if slope == 0:
+    ms = [mismatch(cap, plan, x, capture_parts, backend) for x in xs]
+    if not (np.isfinite(ms[0].mps) and np.isfinite(ms[1].mps)) or ms[1].mps == ms[0].mps:
+        return plan
+    # d(mismatch)/d(lag) and d(distance)/d(lag) from the first step: smooth in the lag
+    slope = (ms[1].mps - ms[0].mps) / STEP_SAMPLES
+    moves = (ms[1].distance_m - ms[0].distance_m) / STEP_SAMPLES
+    while len(xs) < MAX_EVALUATIONS and np.isfinite(ms[-1].mps) and np.isfinite(ms[-2].mps):
+        step = (ms[-1].mps - ms[-2].mps) / (xs[-1] - xs[-2])
+        if step == 0:
             break
-        nxt = float(np.clip(xs[-1] - ms[-1] / slope, lag0 - MAX_SHIFT_SAMPLES, lag0 + MAX_SHIFT_SAMPLES))
+        nxt = float(np.clip(xs[-1] - ms[-1].mps / step, lag0 - MAX_SHIFT_SAMPLES, lag0 + MAX_SHIFT_SAMPLES))
         done = abs(nxt - xs[-1]) < TOLERANCE_SAMPLES
         xs.append(nxt)
-        ms.append(mismatch(cap, plan, nxt, backend))
+        ms.append(mismatch(cap, plan, nxt, capture_parts, backend))
         if done:
             break
-    good = [k for k, m in enumerate(ms) if np.isfinite(m)]
-    if not good:
-        return replace(plan, lag_misfit=float("inf"))
-    best = min(good, key=lambda k: abs(ms[k]))
-    return replace(plan, lag=xs[best], lag_refined=True, lag_mismatch_mps=abs(ms[best]))
+    good = [k for k, m in enumerate(ms) if np.isfinite(m.mps)]
+    best = min(good, key=lambda k: abs(ms[k].mps))
+    sigma_mps = ms[best].sigma_mps
+    sigma_lag = sigma_mps / abs(slope)
+    return replace(plan, lag=xs[best], lag_refined=True, lag_mismatch_mps=abs(ms[best].mps),
+                   lag_sigma_samples=sigma_lag, lag_sigma_mps=sigma_mps,
+                   lag_sigma_m=abs(moves) * sigma_lag, lag_at_m=ms[best].distance_m)
 
 
 WIDTH_PERIODS = 100       # periods whose peaks are measured by the tuning check
@@ -118,8 +159,8 @@ def stillest(time_s: np.ndarray, velocity_mps: np.ndarray, pairs: int = WIDTH_PE
     return float(time_s[int(np.argmin(run))])
 
 
-def peak_width_ratio(cap: Capture, plan, t0_s: float, time_s: np.ndarray | None = None,
-                     velocity_mps: np.ndarray | None = None, backend=None) -> float:
+def peak_width_ratio(cap: Capture, plan, t0_s: float, time_s: np.ndarray | None,
+                     velocity_mps: np.ndarray | None, backend) -> float:
     """Median half-power width of the peaks of WIDTH_PERIODS periods from `t0_s`, over
     that of the window's own peak: about 1 when the LUT matches the laser's real chirp,
     more when the tuning has moved away from the table or calibration.
@@ -129,12 +170,10 @@ def peak_width_ratio(cap: Capture, plan, t0_s: float, time_s: np.ndarray | None 
     `velocity_mps`: a capture of a take-off alone), each half-sweep is de-chirped at its
     pair's velocity first, so that the Doppler term does not widen its peak; a tuning
     error still does, a little less where it has biased the velocity itself.
-    `backend`: the stages' (default numpy).
+    `backend`: the stages'.
     """
-    from .engine import NumpyBackend
     from .stages import resample, sync
 
-    backend = backend or NumpyBackend()
     info = cap.info
     spp = info.samples_per_period
     a = max(0, int(t0_s * info.sample_rate_hz - spp))

@@ -73,11 +73,19 @@ def test_jump_takeoff(setup):
 
 
 def test_without_calibration_the_lag_hurts(tmp_path):
-    """The effect is real: 2 us of lag with the static table biases a still target's velocity."""
+    """The effect is real: 2 us of lag with the static table. The delay's refinement
+    takes the velocity's bias out by moving the delay far from the intensity estimate
+    (the lag looks like a delay to the velocity), but the distance stays biased and the
+    peaks smeared: the tuning check gives it away."""
     cap = lagged(tmp_path / "st.h5", static(0.02, 0.3), 0.02, 5, 2.0)
     track = process(cap)
-    assert abs(np.nanmedian(track.velocity_mps)) > 0.1
-    assert not track.attrs["tuning_matches"]          # the smeared peaks give it away
+    a = track.attrs
+    assert abs(np.nanmedian(track.velocity_mps)) < 0.01
+    assert abs(a["sync_delay_samples"] - a["sync_delay_intensity_samples"]) > 50
+    assert abs(np.median(track.distance_m) - 0.3) > 0.3e-3
+    assert not a["tuning_matches"]
+    if a["tuning_peak_width_ratio"] > 1.5:                 # so far off that nothing is vouched for
+        assert not track.valid.any() and a["invalid_uncalibrated"] > 0
 
 
 def test_opencl_with_a_chirp_equals_numpy(tmp_path):
@@ -149,3 +157,19 @@ def test_calibration_at_minus_10_db_and_behind_a_stronger_wall(tmp_path):
     simulate_capture(cal, static(0.1, 0.3), 0.1, seed=79, config=dark)
     with pytest.raises(CaptureError, match=r"too noisy to calibrate: the target's SNR is -1\d\.\d dB"):
         measure_chirp(cal, 0.3)
+
+
+def test_a_chirp_far_from_its_table_leaves_no_valid_pair(tmp_path, fmcw):
+    """The jump under 5 us of thermal lag, converted with the static table: its peaks are
+    twice the window's width and its distances centimetres off, smooth enough to pass
+    every neighbour test. None may be valid: they are marked uncalibrated, and the
+    warning says what calibrating gives."""
+    from fmcw_cl.stages import faults
+
+    path = lagged(tmp_path / "lag5.h5", jump(0.3), 0.3, 165, 5.0)
+    track = process(path)
+    assert track.attrs["tuning_peak_width_ratio"] > 1.5 and not track.valid.any()
+    assert track.attrs["invalid_uncalibrated"] > 1000
+    assert (track.reason == faults.UNCALIBRATED).sum() == track.attrs["invalid_uncalibrated"]
+    proc = fmcw("process", path, "-o", tmp_path / "o")
+    assert "pairs marked uncalibrated: a chirp calibrated on a static target" in proc.stderr

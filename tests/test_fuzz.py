@@ -164,9 +164,10 @@ def test_pairing(pairs, kind, bin_, seed, dechirp):
        clips=st.lists(st.tuples(st.integers(0, 2999), st.sampled_from([-8192, -8191, 8190, 8191])),
                       max_size=6),
        spans=st.lists(st.tuples(st.floats(-100, 3100), st.floats(0, 900)), min_size=1, max_size=30))
-def test_clipping_from_block_flags(n, block, clips, spans):
-    """The clipping check through block flags (what a device computes) is exactly the
-    plain definition: a clipped code anywhere in [floor(start), ceil(start + length)]."""
+def test_clipped_share_from_block_counts(n, block, clips, spans):
+    """The clipped share through block counts (what a device computes) is the plain
+    definition, clipped codes in [floor(start), ceil(start + length)] over its length, to
+    within the two partial blocks at the span's ends (taken pro rata)."""
     codes = np.zeros(n, np.int16)
     for at, value in clips:
         if at < n:
@@ -175,5 +176,9 @@ def test_clipping_from_block_flags(n, block, clips, spans):
     hit = np.flatnonzero((codes <= -8192) | (codes >= 8191))      # 8190, -8191: near misses
     a = np.clip(np.floor(starts).astype(np.int64), 0, n)
     b = np.clip(np.ceil(starts + lengths).astype(np.int64) + 1, 0, n)
-    want = np.searchsorted(hit, b) > np.searchsorted(hit, a)
-    assert np.array_equal(faults.clipped(codes, starts, lengths, 8192, block=block), want)
+    exact = np.searchsorted(hit, b) - np.searchsorted(hit, a)
+    got = faults.clipped_share(starts, lengths, faults.clip_counts(codes, block, 8192), n, block)
+    counts = got * np.maximum(b - a, 1)
+    assert np.all(np.abs(counts - exact) <= 2 * min(block, len(clips)) + 1e-9)
+    if block == 1:                                                # no partial blocks: exact
+        np.testing.assert_allclose(counts, exact, atol=1e-9)

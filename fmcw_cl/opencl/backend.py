@@ -86,8 +86,8 @@ class OpenCLBackend(pairing.SpectrumOps):
     def resample_each(self, codes, jobs, win):
         return k_resample.resample_each(self.rt, self.bufs, codes, jobs, win)
 
-    def clip_flags(self, codes, block, full_scale):
-        return k_faults.clip_flags(self.rt, self.bufs, codes, block, full_scale)
+    def clip_counts(self, codes, block, full_scale):
+        return k_faults.clip_counts(self.rt, self.bufs, codes, block, full_scale)
 
     def _host(self, x):
         """x on the host, for a transform larger than the device's local memory (the

@@ -98,8 +98,8 @@ def stream(be, beat, sync_codes, fs, hp, rng) -> None:
 
     clipped = beat.copy()
     clipped[[5, 700, beat.size - 1]] = [-8192, 8191, 8190]
-    close("clipping flags (clip_blocks)", be.clip_flags(clipped, 256, 8192),
-          faults.clip_flags(clipped, 256, 8192), 0)
+    close("clipping counts (clip_blocks)", be.clip_counts(clipped, 256, 8192),
+          faults.clip_counts(clipped, 256, 8192), 0)
 
     points, sweeps = 61, 5                                   # small: the simulator is slow
     u = np.sort(rng.uniform(0, 1, points))

@@ -2,7 +2,7 @@
 
 from .laser import DfbLaser, paper_dfb
 from .scene import DURATIONS_S, SCENARIOS, Trajectory, jump, rail, static
-from .writer import SimulationConfig, simulate_capture
+from .writer import LAB, SimulationConfig, simulate_capture
 
 __all__ = ["DfbLaser", "paper_dfb", "Trajectory", "static", "rail", "jump", "SCENARIOS", "DURATIONS_S",
-           "SimulationConfig", "simulate_capture"]
+           "SimulationConfig", "LAB", "simulate_capture"]

@@ -64,6 +64,8 @@ class SimulationConfig:
     movers: tuple[tuple[Trajectory, float], ...] = ()  # other moving echoes: (trajectory, amplitude codes)
     speckle_s: float = 0.0          # correlation time of the target's speckle fading (0: none)
     rin_db_hz: float | None = None  # laser relative intensity noise, one-sided (dB/Hz)
+    headroom: float | None = HEADROOM  # the gain keeps the noise's rms this far below full scale;
+                                       # None: no gain setting, noise peaks reach full scale
 
     def echo_amplitude(self, distance_m):
         """Beat amplitude (codes, at 320 mA) of the target at `distance_m`: falls as 1/R
@@ -175,8 +177,8 @@ def simulate_capture(path, trajectory: Trajectory, duration_s: float, seed: int 
     tau_lens = 2 * cfg.lens_distance_m * n_idx / C
     noise = cfg.beat_noise_codes
     # below about -11 dB at 0.3 m the noise would clip the ADC: the whole beat is scaled
-    # down as a lab's gain setting would (1.0 otherwise: the codes are unchanged)
-    gain = min(1.0, 2 ** (cfg.bits - 1) / (HEADROOM * max(noise, 1e-9)))
+    # down as a lab's gain setting would (1.0 otherwise, or with no headroom kept)
+    gain = 1.0 if cfg.headroom is None else min(1.0, 2 ** (cfg.bits - 1) / (cfg.headroom * max(noise, 1e-9)))
     speckle = speckle_field(duration_s, cfg.speckle_s, rng) if cfg.speckle_s > 0 else None
     walls = [(2 * d * n_idx / C, a, rng.uniform(0, 2 * np.pi)) for d, a in cfg.reflectors]
     movers = [(trj, a, rng.uniform(0, 2 * np.pi)) for trj, a in cfg.movers]
@@ -238,3 +240,9 @@ def simulate_capture(path, trajectory: Trajectory, duration_s: float, seed: int 
         writer.write_truth(Truth(tt, *trajectory.at(tt + start_s)))
         writer._file.attrs["sim_seed"] = int(seed)
     return {"sync_delay_samples": float(delay), "start_phase": float(phase0)}
+
+
+# a lab's instrument, far less kind than the defaults: an intensity triangle of +-150
+# codes under 600 codes rms of noise (about -1 dB per sample at 0.3 m), a G(I) table of
+# 25 points with 20 MHz rms scatter (an OSA's resolution)
+LAB = SimulationConfig(leak_codes=150.0, noise_codes=600.0, table_noise_hz=20e6)
