@@ -18,8 +18,10 @@ from numpy.polynomial.polynomial import polyvander
 
 from ..errors import FmcwError
 from ..physics import C, range_resolution, unambiguous_range
+from .resample import window
 
 MAX_DEGREE = 7
+BIC_MARGIN = 6.0     # a higher degree must lower the BIC by this much ("strong" evidence)
 
 
 @dataclass(frozen=True)
@@ -53,6 +55,18 @@ class TuningFit:
         d = (self._basis(i1) - self._basis(i0))[0]
         return float(np.sqrt(max(d @ self.cov @ d, 0.0)))
 
+    def scale_std(self, current: np.ndarray, weights: np.ndarray, bandwidth_hz: float) -> float:
+        """Relative standard deviation of the distance scale that the fit's errors leave,
+        shape included: the resampled beat's phase follows the true G at the LUT's
+        `current` instants, so the fit's error dG_j there adds a phase slope; the peak
+        (a weighted least-squares slope of the phase over the points, `weights` the
+        window's power) moves by -slope(dG) N / B of itself. Its variance is a C a'
+        with a from the basis at the instants and C the coefficients' covariance."""
+        n = current.size
+        j = np.arange(n) - np.sum(weights * np.arange(n)) / np.sum(weights)
+        a = -(weights * j) @ self._basis(current) / np.sum(weights * j * j) * n / bandwidth_hz
+        return float(np.sqrt(max(a @ self.cov @ a, 0.0)))
+
 
 def _frozen(*arrays: np.ndarray) -> tuple[bytes, ...]:
     """Hashable keys of float arrays (the cache of fits and LUTs below)."""
@@ -68,13 +82,15 @@ def fit_tuning(current_a: np.ndarray, frequency_hz: np.ndarray) -> TuningFit:
     """Least-squares polynomial fit of the offline G(I) table (one fit per table: the
     N- and 2N-point LUTs and a batch of captures with one table share it).
 
-    The degree (2 to 7, at most M - 3) minimises the Bayesian information criterion,
-    M ln(RSS / M) + (degree + 1) ln M. Leave-one-out error, used before, picks higher
-    degrees on a noisy table, and an overfitted polynomial errs most at the curve's ends,
-    which set the bandwidth: on 300 tables of 25 points with 20 MHz rms scatter the
-    bandwidth's p99 error was 210 ppm by leave-one-out, 172 ppm by BIC (0.15 against
-    0.12 mm at 0.7 m), and BIC stays right for a laser with a cubic term, where a fixed
-    quadratic errs by 1000 ppm. A smoothing spline was rejected because its curvature
+    The degree (2 to 7, at most M - 3) is the lowest whose Bayesian information
+    criterion, M ln(RSS / M) + (degree + 1) ln M, lies within BIC_MARGIN of the least:
+    a higher degree must earn its terms. An overfitted polynomial errs most at the
+    curve's ends and in its shape, beyond what its covariance states: on 300 tables of
+    25 points with 20 MHz rms scatter the plain minimum chose degrees 4-7 for 26 of them,
+    whose distance scale erred 2-3x their stated uncertainty (rms 121 ppm, 93 % within 2
+    sigma); within 6 it chose 2 for 295 (rms 84 ppm, 96 % within 2 sigma), and a laser
+    with a cubic term still got degree 3 in 98 of 100, where a fixed quadratic errs by
+    1000 ppm. A smoothing spline was rejected because its curvature
     penalty shrinks a DFB's (real) curvature and biases the bandwidth.
     """
     return _fit_tuning(*_frozen(current_a, frequency_hz))
@@ -85,13 +101,13 @@ def _fit_tuning(current: bytes, frequency: bytes) -> TuningFit:
     x = np.frombuffer(current)
     y = np.frombuffer(frequency)
     ref = float(np.mean(y))
-    best, best_bic = None, np.inf
+    fits = []
     for deg in range(2, min(MAX_DEGREE, x.size - 3) + 1):
         poly = Polynomial.fit(x, y - ref, deg)
         rss = float(np.sum(((y - ref) - poly(x)) ** 2))
-        bic = x.size * np.log(max(rss, 1e-300) / x.size) + (deg + 1) * np.log(x.size)
-        if bic < best_bic:
-            best, best_bic = poly, bic
+        fits.append((x.size * np.log(max(rss, 1e-300) / x.size) + (deg + 1) * np.log(x.size), poly))
+    least = min(bic for bic, _ in fits)
+    best = next(poly for bic, poly in fits if bic <= least + BIC_MARGIN)
     deg = best.degree()
     scatter = float(np.sqrt(np.sum(((y - ref) - best(x)) ** 2) / max(x.size - deg - 1, 1)))
     off, scl = best.mapparms()
@@ -113,8 +129,10 @@ class Lut:
     bandwidth_hz : |G(I_max) - G(I_min)| (Hz).
     refractive_index : n of the medium.
     bandwidth_std_hz : the bandwidth's standard deviation from the table's scatter (Hz;
-        NaN when unknown): distances scale as 1/B, so this over B is their scale's
-        relative uncertainty.
+        NaN when unknown).
+    scale_std : the distance scale's relative standard deviation from the fit's errors,
+        their shape between the table's points included (TuningFit.scale_std; NaN when
+        unknown).
     fit_degree, table_scatter_hz : the G(I) fit's degree and the table's rms scatter.
     """
 
@@ -127,11 +145,12 @@ class Lut:
     bandwidth_std_hz: float = float("nan")
     fit_degree: int = 0
     table_scatter_hz: float = float("nan")
+    scale_std: float = float("nan")
 
     @property
     def scale_ppm(self) -> float:
-        """Relative uncertainty of the distance scale (ppm) from the G(I) table."""
-        return 1e6 * self.bandwidth_std_hz / self.bandwidth_hz
+        """Relative uncertainty of the distance scale (ppm, 1 sigma) from the G(I) table."""
+        return 1e6 * self.scale_std
 
     @property
     def range_resolution_m(self) -> float:
@@ -190,5 +209,7 @@ def _build_lut(current: bytes, frequency: bytes, current_min_a: float, current_m
         d = (g(cur + h) - g(cur - h)) / (2 * h)
         cur = cur - (g(cur) - nu) / d
     u_rise = (cur - current_min_a) / (current_max_a - current_min_a)
+    power = window(points) ** 2              # the peak weighs each point's phase by its power
     return Lut(points, _read_only(u_rise), _read_only(1.0 - u_rise), _read_only(nu), float(bandwidth),
-               refractive_index, g.span_std_hz(current_min_a, current_max_a), g.degree, g.scatter_hz)
+               refractive_index, g.span_std_hz(current_min_a, current_max_a), g.degree, g.scatter_hz,
+               g.scale_std(cur, power, bandwidth))
