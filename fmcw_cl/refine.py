@@ -129,10 +129,10 @@ WIDTH_LIMIT = 1.1         # peaks this much wider than the window's own say: tun
 STILL_MPS = 0.05          # a stretch this slow is measured from plain peaks
 
 
-def _widths(power: np.ndarray, lo: int) -> np.ndarray:
-    """Width (bins) of each row's highest peak beyond `lo` at half its power, the
+def _widths(power: np.ndarray, lo: int, hi: int | None = None) -> np.ndarray:
+    """Width (bins) of each row's highest peak in bins [lo, hi) at half its power, the
     crossings interpolated linearly between bins (NaN where a side never falls below)."""
-    band = power[:, lo:]
+    band = power[:, lo:hi]
     rows, cols = np.arange(band.shape[0]), np.arange(band.shape[1])
     k = np.argmax(band, axis=1)
     half = 0.5 * band[rows, k]
@@ -198,7 +198,8 @@ def peak_width_ratio(cap: Capture, plan, t0_s: float, time_s: np.ndarray | None,
             t = (a + hs.centre[sel]) / info.sample_rate_hz
             v = np.interp(t, time_s[known], velocity_mps[known])
             beta = plan.model.beta_rise if rising else plan.model.beta_fall
-        widths.append(_widths(backend.power(x, beta, v, nfft), plan.search.lo))
+        # in the target's band: a wall left out of it is not the target's peak
+        widths.append(_widths(backend.power(x, beta, v, nfft), plan.search.lo, plan.search.hi))
     if not widths:
         return float("nan")
     j = np.arange(plan.lut.points)

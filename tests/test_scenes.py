@@ -3,6 +3,8 @@ speckle fading, a landing at close range, and the echoes a track lists."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from conftest import realistic
@@ -228,3 +230,18 @@ def test_a_wide_target_peak_is_not_taken_for_another_echo(tmp_path, jump_capture
     lagged = process(path)
     assert not lagged.attrs["tuning_matches"]         # the tuning warning says what is wrong
     assert np.isnan(lagged.attrs["rival_echo_m"])
+
+
+def test_a_wall_left_out_does_not_pass_for_a_chirp_off_its_table(tmp_path):
+    """Lab conditions, the take-off behind which a wall (1500 codes) outshines the foot,
+    speckle: the tuning check measures the target's peaks in its band, not the wall's
+    (once read 1.5x wide, so that every pair was marked uncalibrated)."""
+    from fmcw_cl.simulator import LAB, jump
+
+    path = tmp_path / "takeoff_wall.h5"
+    cfg = replace(LAB, reflectors=((0.42, 1500.0),), speckle_s=3e-3)
+    simulate_capture(path, jump(0.3), 0.05, seed=2, config=cfg, start_s=0.06)
+    track = process(path)
+    with Capture(path) as cap:
+        assert wrong(track, cap.truth()) == 0
+    assert track.attrs["invalid_uncalibrated"] == 0 and track.valid.mean() >= 0.5
