@@ -32,6 +32,7 @@ MAX_SHIFT_SAMPLES = 200.0
 TOLERANCE_SAMPLES = 0.02
 MAX_EVALUATIONS = 6
 MIN_RUN = 60              # pairs of a valid run used
+SETTLED = 0.25            # a mismatch this many of its standard errors from zero is the root
 
 
 @dataclass(frozen=True)
@@ -113,7 +114,9 @@ def refine_lag(cap: Capture, plan, capture_parts, backend):
         done = abs(nxt - xs[-1]) < TOLERANCE_SAMPLES
         xs.append(nxt)
         ms.append(mismatch(cap, plan, nxt, capture_parts, backend))
-        if done:
+        # converged, or what is left is small against its own uncertainty: a further
+        # trial conversion would move the delay by a fraction of its sigma
+        if done or abs(ms[-1].mps) <= SETTLED * ms[-1].sigma_mps:
             break
     good = [k for k, m in enumerate(ms) if np.isfinite(m.mps)]
     best = min(good, key=lambda k: abs(ms[k].mps))
