@@ -186,7 +186,8 @@ def command(ctx, captures, outdir, skip_existing, scheduler, as_json, quiet, **o
     options = engine_options(values)
     output_folder(outdir)
     existing = [c for c in captures if track_path(outdir, c).exists()]
-    todo = [c for c in captures if not (skip_existing and c in existing)]
+    skip = set(existing) if skip_existing else set()
+    todo = [c for c in captures if c not in skip]
     results: list[dict] = []
     if existing and not quiet:
         what = "skipping" if skip_existing else "overwriting"

@@ -185,6 +185,31 @@ def hidden(plain: np.ndarray, dechirped: np.ndarray, lo: int, tracked_bin: np.nd
     return ratio, centroid, found
 
 
+def _histograms(key: np.ndarray, dist: np.ndarray, groups: int):
+    """Each group's distance histogram (HIST_M bins, a bin of margin at each end): the
+    bins of the detections, and sums over three neighbouring bins per group (of counts,
+    or of `weights`)."""
+    idx = np.floor(dist / HIST_M).astype(np.int64)
+    idx -= idx.min() - 1
+    nb = int(idx.max() + 2)
+    flat = key * nb + idx
+
+    def windowed(weights=None) -> np.ndarray:
+        h = np.bincount(flat, weights, minlength=groups * nb).reshape(groups, nb)
+        return h + np.pad(h[:, :-1], ((0, 0), (1, 0))) + np.pad(h[:, 1:], ((0, 0), (0, 1)))
+
+    return idx, windowed
+
+
+def _peaks(window: np.ndarray, sweeps: np.ndarray, present: float) -> tuple[np.ndarray, np.ndarray]:
+    """(group, bin) of the local maxima of each group's three-bin counts seen in at least
+    `present` of its `sweeps` half-sweeps."""
+    left = np.pad(window[:, :-1], ((0, 0), (1, 0)), constant_values=-1)
+    right = np.pad(window[:, 1:], ((0, 0), (0, 1)), constant_values=-1)
+    return np.nonzero((window >= present * np.asarray(sweeps)[:, None]) & (window > left)
+                      & (window >= right) & (window > 0))
+
+
 def keyed_clusters(key: np.ndarray, dist: np.ndarray, snr: np.ndarray, sweeps: np.ndarray,
                    present: float = PRESENT) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """`clusters` of many groups at once: the detections of group `key` (0..K-1) among
@@ -192,21 +217,9 @@ def keyed_clusters(key: np.ndarray, dist: np.ndarray, snr: np.ndarray, sweeps: n
     dB) over its three histogram bins, by group, then distance."""
     if dist.size == 0:
         return np.zeros(0, np.int64), np.zeros(0), np.zeros(0)
-    idx = np.floor(dist / HIST_M).astype(np.int64)
-    base = idx.min() - 1
-    nb = int(idx.max() - base + 2)
-    flat = key * nb + idx - base
-    shape = (sweeps.size, nb)
-
-    def windowed(weights=None):                 # sums over three neighbouring bins, per group
-        h = np.bincount(flat, weights, minlength=sweeps.size * nb).reshape(shape)
-        return h + np.pad(h[:, :-1], ((0, 0), (1, 0))) + np.pad(h[:, 1:], ((0, 0), (0, 1)))
-
+    _, windowed = _histograms(key, dist, sweeps.size)
     window = windowed()
-    left = np.pad(window[:, :-1], ((0, 0), (1, 0)), constant_values=-1)
-    right = np.pad(window[:, 1:], ((0, 0), (0, 1)), constant_values=-1)
-    g, b = np.nonzero((window >= present * sweeps[:, None]) & (window > left) & (window >= right)
-                      & (window > 0))
+    g, b = _peaks(window, sweeps, present)
     n = window[g, b]
     return g, windowed(dist)[g, b] / n, windowed(snr)[g, b] / n
 
@@ -217,12 +230,7 @@ def clusters(dist: np.ndarray, snr: np.ndarray, sweeps: int, present: float = PR
     bins."""
     if dist.size == 0 or dist.size < present * sweeps:
         return
-    idx = np.floor(dist / HIST_M).astype(np.int64)
-    base = idx.min() - 1
-    counts = np.bincount(idx - base, minlength=idx.max() - base + 2).astype(np.int64)
-    window = counts + np.r_[0, counts[:-1]] + np.r_[counts[1:], 0]
-    left = np.r_[-1, window[:-1]]
-    right = np.r_[window[1:], -1]
-    for b in np.flatnonzero((window >= present * sweeps) & (window > left) & (window >= right)):
-        near = np.abs(idx - base - b) <= 1
+    idx, windowed = _histograms(np.zeros(dist.size, np.int64), dist, 1)
+    for b in _peaks(windowed(), np.array([sweeps]), present)[1]:
+        near = np.abs(idx - b) <= 1
         yield median(dist[near]), median(snr[near]), float(near.sum() / sweeps)

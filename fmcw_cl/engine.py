@@ -147,8 +147,8 @@ def estimate_capture_delay(cap: Capture, backend=None) -> tuple[float, int, floa
     length = int(DELAY_STRETCH_PERIODS * info.samples_per_period)
     starts = np.unique(np.linspace(0, max(0, info.samples - length), DELAY_STRETCHES).astype(np.int64))
     length = min(length, info.samples)
-    # the stretches as rows (in the slot the second chunk uses next: the first may be
-    # read meanwhile), low-passed by one launch a channel
+    # the stretches as rows (in a chunk slot, free until the chunks are read), low-passed
+    # by one launch a channel
     beat, sy = (x.reshape(starts.size, length) for x in cap.slot(1, starts.size * length))
     for a, b, s in zip(starts, beat, sy, strict=True):
         cap.read_into(a, a + length, b, s)
@@ -420,13 +420,11 @@ def read_chunks(cap: Capture, options: Options, start: int = 0, stop: int | None
 
 
 def capture_parts(cap: Capture, plan: Plan, backend, start: int = 0, stop: int | None = None,
-                  progress: Callable[[int, int, float], None] | None = None,
-                  chunks: ReadAhead | None = None) -> list[_Pairs]:
+                  progress: Callable[[int, int, float], None] | None = None) -> list[_Pairs]:
     """The owned pairs of every chunk whose core lies in samples [start, stop)
-    (`start` a multiple of `core_samples`), from `chunks` when given (`read_chunks` of
-    the same range and plan.options, already reading)."""
+    (`start` a multiple of `core_samples`), read ahead (`read_chunks`)."""
     parts: list[_Pairs] = []
-    with chunks or read_chunks(cap, plan.options, start, stop) as ahead:
+    with read_chunks(cap, plan.options, start, stop) as ahead:
         for chunk in ahead:
             got = _chunk_pairs(plan, chunk, backend)
             if got is not None:
@@ -604,7 +602,9 @@ def check_tuning(cap: Capture, plan: Plan, track: Track, backend) -> None:
         track.reason[track.reason == faults.OK] = faults.UNCALIBRATED
         track.sweep_reason[track.sweep_reason == faults.OK] = faults.UNCALIBRATED
         track.valid[:] = False
-        track.attrs["invalid_uncalibrated"] = int(np.sum(track.reason == faults.UNCALIBRATED))
+        # the tracked span assemble took from the valid pairs: none is left
+        track.attrs.update(invalid_uncalibrated=int(np.sum(track.reason == faults.UNCALIBRATED)),
+                           target_tracked_m=np.full(2, np.nan))
 
 
 def assemble(plan: Plan, parts: list[_Pairs], backend, seconds: float,

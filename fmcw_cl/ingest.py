@@ -103,7 +103,7 @@ class TdmsChannels:
             self.file.close()
             raise
 
-    def names(self, channel) -> str:
+    def _name(self, channel) -> str:
         return f"{channel.group_name}/{channel.name}"
 
     def _channel(self, name: str | None, k: int):
@@ -126,7 +126,7 @@ class TdmsChannels:
     def _is_raw(self, channel, nptdms) -> bool:
         """Whether the channel holds ADC codes: integers, or DAQmx raw data (read through
         its one raw scaler, never its scale); refuses what is not a number."""
-        where = self.names(channel)
+        where = self._name(channel)
         if channel.data_type is nptdms.types.DaqMxRawData:
             kinds = [np.dtype(getattr(x, "nptype", x)) for x in channel.scaler_data_types.values()]
             if len(kinds) != 1 or kinds[0].kind not in "iu":
@@ -145,7 +145,7 @@ class TdmsChannels:
 
     def _codes_per_unit(self, channel, full_scale_volts: float | None, bits: int) -> float:
         if not full_scale_volts:
-            raise CaptureError(self.path, f"{self.names(channel)} holds scaled values "
+            raise CaptureError(self.path, f"{self._name(channel)} holds scaled values "
                                           f"({channel.dtype}): give the ADC's input range "
                                           "(--full-scale-volts)")
         return 2 ** (bits - 1) / full_scale_volts

@@ -69,3 +69,11 @@ def runs(mask: np.ndarray) -> np.ndarray:
     (R, 2) array (stop exclusive)."""
     edges = np.flatnonzero(np.diff(np.r_[0, np.asarray(mask, bool).astype(np.int8), 0]))
     return edges.reshape(-1, 2)
+
+
+def nearest(sorted_a: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """Index of the element of `sorted_a` (ascending, not empty) nearest to each of
+    `x`; on a tie the lower one."""
+    j = np.searchsorted(sorted_a, x)
+    below, above = np.clip(j - 1, 0, sorted_a.size - 1), np.clip(j, 0, sorted_a.size - 1)
+    return np.where(np.abs(sorted_a[below] - x) <= np.abs(sorted_a[above] - x), below, above)

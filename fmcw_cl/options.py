@@ -19,6 +19,11 @@ from .errors import FmcwError
 _SPELLING = {"flags": False}
 
 
+def flag_of(name: str) -> str:
+    """The command-line flag of keyword `name`: max_range -> --max-range."""
+    return "--" + name.replace("_", "-")
+
+
 def use_flags() -> None:
     """Name options as command-line flags in errors from now on (the CLI's entry)."""
     _SPELLING["flags"] = True
@@ -28,7 +33,7 @@ def said(name: str, value=None) -> str:
     """Option `name` (a keyword, e.g. "max_range") as the user spells it, with `value`
     when given: "--max-range 5" or "max_range=5"."""
     flags = _SPELLING["flags"]
-    key = "--" + name.replace("_", "-") if flags else name
+    key = flag_of(name) if flags else name
     if value is None:
         return key
     shown = f"{value:g}" if isinstance(value, float) else str(value) if flags else repr(value)
@@ -53,7 +58,7 @@ class Opt:
 
     @property
     def flag(self) -> str:
-        return "--" + self.name.replace("_", "-")
+        return flag_of(self.name)
 
     def check(self, value, where: str = "") -> object:
         """`value` converted to the option's type; an FmcwError naming the numbers when

@@ -43,6 +43,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import echoes
+from .numeric import nearest
 from .options import said
 from .stages import faults
 
@@ -125,9 +126,7 @@ def fixed_echoes(e: echoes.Echoes, level_db: float) -> tuple[np.ndarray, np.ndar
     r_at, r_d, r_s = at[rise], d[rise], snr[rise]
     if f_at.size == 0 or r_at.size == 0:
         return np.zeros(0), np.zeros(0)
-    j = np.searchsorted(f_at, r_at)
-    below, above = np.clip(j - 1, 0, f_at.size - 1), np.clip(j, 0, f_at.size - 1)
-    j = np.where(np.abs(f_at[below] - r_at) <= np.abs(f_at[above] - r_at), below, above)
+    j = nearest(f_at, r_at)
     pair = np.abs(f_at[j] - r_at) <= GATE_M
     found_d = 0.5 * (r_d[pair] + f_d[j[pair]])
     found_s = np.minimum(r_s[pair], f_s[j[pair]])
@@ -182,9 +181,7 @@ def moving_spans(time_s, distance_m, velocity_mps, valid, e: echoes.Echoes,
 def _together(a: np.ndarray, b: np.ndarray) -> bool:
     """Whether some time of `a` lies within TOGETHER_S of one of `b` (s)."""
     a = np.sort(a)
-    i = np.clip(np.searchsorted(a, b), 1, a.size - 1) if a.size > 1 else np.zeros(b.size, int)
-    near = np.minimum(np.abs(a[i] - b), np.abs(a[np.maximum(i - 1, 0)] - b))
-    return bool(np.any(near < TOGETHER_S))
+    return bool(np.any(np.abs(a[nearest(a, b)] - b) < TOGETHER_S))
 
 
 def _objects(fixed: np.ndarray, time_s, distance_m, valid, e: echoes.Echoes) -> np.ndarray:

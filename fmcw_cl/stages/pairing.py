@@ -294,9 +294,9 @@ def _anchored(t, dist, vel, ok, unsupported) -> None:
     """Runs of valid pairs (no gap wider than NEIGHBOURS pairs, each pair predicting the
     next as below) shorter than ANCHOR_PAIRS vouch for each other only: such a run stays
     valid where the anchor run nearest on either side predicts its end across the gap,
-    distance within
-    JUMP_MAX_M + ACCEL_MAX dt^2 / 8 and velocity within ACCEL_MAX dt; else every pair
-    of it is unsupported (a wrong echo followed for a few pairs is self-consistent)."""
+    distance within JUMP_MAX_M + ACCEL_MAX dt^2 / 8 and velocity within ACCEL_MAX dt;
+    else every pair of it is unsupported (a wrong echo followed for a few pairs is
+    self-consistent)."""
     idx = np.flatnonzero(ok)
     if idx.size == 0:
         return
