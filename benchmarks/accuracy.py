@@ -27,8 +27,9 @@ import numpy as np
 from fmcw_cl.calibration import measure_chirp
 from fmcw_cl.capture import Capture
 from fmcw_cl.chirp import write_chirp
-from fmcw_cl.engine import Options, process
+from fmcw_cl.engine import process
 from fmcw_cl.evaluate import accuracy
+from fmcw_cl.options import Options
 from fmcw_cl.simulator import SimulationConfig, jump, rail, simulate_capture, static
 
 ROWS = [  # (label, scenario factory, duration s, points, dechirp)
@@ -44,7 +45,7 @@ SCENES = [  # (label, trajectory factory, duration s, SimulationConfig fields, O
     ("jump, 0 dB", jump, 0.3, {}, {}),
     ("jump + wall 0.42 m, 0 dB", jump, 0.3, {"reflectors": ((0.42, 800.0),)}, {}),
     ("jump + wall 0.42 m, 0 dB, --max-range 0.40", jump, 0.3, {"reflectors": ((0.42, 800.0),)},
-     {"max_range_m": 0.40}),
+     {"max_range": 0.40}),
     ("jump, 0 dB, speckle 3 ms", jump, 0.3, {"speckle_s": 3e-3}, {}),
     ("jump, -3 dB, speckle 3 ms", jump, 0.3, {"speckle_s": 3e-3, "snr_db": -3.0}, {}),
     ("jump landing at 0.06 m, 0 dB", lambda T: jump(T, ground_m=0.06), 0.3, {}, {}),

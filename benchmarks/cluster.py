@@ -15,7 +15,9 @@ import time
 from pathlib import Path
 
 from fmcw_cl.cluster import connect, run_batch
-from fmcw_cl.engine import NumpyBackend, Options, process
+from fmcw_cl.engine import process
+from fmcw_cl.options import Options
+from fmcw_cl.processor import NumpyProcessor
 from fmcw_cl.simulator import simulate_capture, static
 from fmcw_cl.track import track_path, write_track
 
@@ -39,7 +41,7 @@ def main() -> None:
         out.mkdir()
         t0 = time.perf_counter()
         for p in caps:
-            write_track(track_path(out, p), process(p, options, NumpyBackend()))
+            write_track(track_path(out, p), process(p, options, NumpyProcessor()))
         base = time.perf_counter() - t0
         rows = [("one process, no Dask", 0.0, base)]
         for n in args.workers:

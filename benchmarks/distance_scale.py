@@ -18,9 +18,11 @@ from pathlib import Path
 
 import numpy as np
 
+from fmcw_cl.backend import make_processor
 from fmcw_cl.capture import Capture
-from fmcw_cl.engine import Options, make_backend, process
+from fmcw_cl.engine import process
 from fmcw_cl.evaluate import accuracy
+from fmcw_cl.options import Options
 from fmcw_cl.simulator import SimulationConfig, simulate_capture, static
 
 
@@ -30,7 +32,7 @@ def main() -> None:
     ap.add_argument("--table-noise-mhz", type=float, default=20.0)
     args = ap.parse_args()
     tmp = Path(tempfile.mkdtemp(prefix="fmcw-scale-"))
-    be = make_backend("auto")
+    be = make_processor("auto")
     cfg = SimulationConfig(table_noise_hz=args.table_noise_mhz * 1e6)
     bias, sigma, dist = [], [], []
     for seed in range(args.tables):

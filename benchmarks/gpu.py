@@ -7,7 +7,7 @@ benchmarks/README.md: on one device,
 2. `fmcw-cl bench`'s table for numpy and the device (per stage, end to end, host CPU
    per second of capture, launches and copies per chunk);
 3. a batch: `--batch` captures of the guide rail, `--seconds` each, converted by one
-   warm backend as `fmcw-cl process` does (engine.process_each), one at a time and two
+   warm backend as `fmcw-cl process` does (batch.process_each), one at a time and two
    at once: the aggregate multiple of real time, file to track (page cache). The backend
    warms up on captures of its own, so every capture of the batch is one it has not
    seen (where a kernel build waits for a new size, it shows: `benchmarks/README.md`,
@@ -25,22 +25,24 @@ import tempfile
 import time
 from pathlib import Path
 
+from fmcw_cl.backend import make_processor
+from fmcw_cl.batch import process_each
 from fmcw_cl.bench import run
-from fmcw_cl.engine import Options, make_backend, process_each
 from fmcw_cl.opencl.selftest import check
+from fmcw_cl.options import Options
 from fmcw_cl.simulator import rail, simulate_capture
 
 
 def batch(device: str | None, seconds: float, count: int, tmp: Path) -> list[dict]:
     """Aggregate throughput of `count` captures of `seconds` converted by
-    engine.process_each (`fmcw-cl process`), one at a time and two at once (the device's
+    batch.process_each (`fmcw-cl process`), one at a time and two at once (the device's
     own choice is the backend's `batch_workers`): a row each."""
     paths = []
     for k in range(count + 2):
         path = tmp / f"rail{k}.h5"
         simulate_capture(path, rail(seconds + 0.1), seconds, seed=100 + k, start_s=0.1)
         paths.append(path)
-    be = make_backend("opencl", device)
+    be = make_processor("opencl", device)
     # warm: programs built, both workers' buffers sized, on captures of their own
     list(process_each(paths[count:], Options(), be, workers=2))
     best: dict[int, dict] = {}

@@ -17,7 +17,9 @@ import tempfile
 import time
 from pathlib import Path
 
-from fmcw_cl.engine import Options, make_backend, process
+from fmcw_cl.backend import make_processor
+from fmcw_cl.engine import process
+from fmcw_cl.options import Options
 from fmcw_cl.simulator import jump, rail, simulate_capture, static
 
 
@@ -34,7 +36,7 @@ def main() -> None:
                                                         ("static", static, 0.5)), 1):
             captures.append(tmp / f"{name}.h5")
             simulate_capture(captures[-1], scene(seconds), seconds, seed=seed)
-    be = make_backend(args.backend)
+    be = make_processor(args.backend)
     print("| capture | device | host CPU ms per s of capture |\n|---|---|---|")
     for path in captures:
         process(path, Options(), be)                 # warm: programs built, caches filled

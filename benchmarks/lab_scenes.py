@@ -18,8 +18,9 @@ from pathlib import Path
 
 import numpy as np
 
+from fmcw_cl.backend import make_processor
 from fmcw_cl.capture import Capture
-from fmcw_cl.engine import make_backend, process
+from fmcw_cl.engine import process
 from fmcw_cl.evaluate import truth_at
 from fmcw_cl.simulator import LAB, jump, rail, simulate_capture, static
 from fmcw_cl.stages import faults
@@ -28,7 +29,7 @@ parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
 parser.add_argument("--out", default=None, help="folder for the captures (default: a temporary one)")
 out = Path(parser.parse_args().out or tempfile.mkdtemp(prefix="fmcw-lab-"))
 out.mkdir(parents=True, exist_ok=True)
-be = make_backend("auto")
+be = make_processor("auto")
 scenes = []
 for s in (1, 2, 3):
     scenes += [("static 0.30 m, lab", static(0.05, 0.30), 0.05, 0.0, s, LAB),
@@ -53,7 +54,7 @@ for i, (name, traj, dur, start, seed, cfg) in enumerate(scenes):
     path = out / f"c{i}.h5"
     simulate_capture(path, traj, dur, seed=seed, config=cfg, start_s=start)
     try:
-        t = process(path, backend=be)
+        t = process(path, processor=be)
     except Exception as exc:  # noqa: BLE001 - a scene that cannot be converted is a row too
         print(f"| {name} | {seed} | error: {exc} | | | |")
         continue

@@ -25,8 +25,9 @@ from pathlib import Path
 import numpy as np
 
 from fmcw_cl.capture import Capture
-from fmcw_cl.engine import Options, process
+from fmcw_cl.engine import process
 from fmcw_cl.evaluate import crb_pair_m, truth_at
+from fmcw_cl.options import Options
 from fmcw_cl.physics import C
 from fmcw_cl.simulator import SimulationConfig, simulate_capture, static
 

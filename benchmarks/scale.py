@@ -28,9 +28,10 @@ from fmcw_cl.simulator import simulate_capture, static
 # simulated capture.
 CHILD = """
 import json, resource, sys, time
-from fmcw_cl.engine import make_backend, process
+from fmcw_cl.engine import process
+from fmcw_cl.backend import make_processor
 t = time.perf_counter()
-track = process(sys.argv[1], backend=make_backend(sys.argv[2]))
+track = process(sys.argv[1], processor=make_processor(sys.argv[2]))
 try:
     status = open("/proc/self/status").read()
     peak_kb = int(status.split("VmHWM:")[1].split()[0])

@@ -8,8 +8,9 @@ import click
 import numpy as np
 
 from fmcw_cl.capture import Capture
-from fmcw_cl.engine import Options, Plan, make_plan
 from fmcw_cl.errors import FmcwError
+from fmcw_cl.options import Options
+from fmcw_cl.plan import Plan, make_plan
 from fmcw_cl.stages import faults
 from fmcw_cl.stages.lut import build_lut
 from fmcw_cl.stages.sync import CLEAN_MISFIT

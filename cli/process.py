@@ -10,9 +10,9 @@ import click
 import numpy as np
 
 from fmcw_cl import options as opts
-from fmcw_cl.api import engine_options
 from fmcw_cl.atomic import output_folder
-from fmcw_cl.engine import make_backend, process_each
+from fmcw_cl.backend import make_processor
+from fmcw_cl.batch import process_each
 from fmcw_cl.errors import FmcwError
 from fmcw_cl.progress import Progress
 from fmcw_cl.stages import faults
@@ -113,7 +113,7 @@ def report(s: dict, attrs: dict, quiet: bool, as_json: bool) -> None:
 
 def run_local(captures, outdir, options, stages, quiet, debug):
     """Yield {capture, track, attrs, valid} or {capture, error} per capture, in order.
-    Captures convert as many at a time as the backend wants (engine.process_each); the
+    Captures convert as many at a time as the backend wants (batch.process_each); the
     bar shows the first one not yet reported."""
     captures = list(captures)
     bars: dict[int, Progress] = {}
@@ -162,7 +162,7 @@ def run_cluster(captures, outdir, options, backend, device, scheduler, quiet):
 @click.argument("captures", nargs=-1, required=True, type=click.Path(path_type=Path))
 @click.option("-o", "--outdir", required=True, type=click.Path(file_okay=False, path_type=Path),
               help="Folder for the <capture stem>.track.h5 files.")
-@opts.click_options(opts.PROCESS)
+@opts.click_options(opts.PROCESS + opts.RUN)
 @click.option("--skip-existing", is_flag=True, help="Leave captures whose track exists.")
 @click.option("--scheduler", default=None,
               help="Run on a Dask cluster: a scheduler address (tcp://host:8786), or local:N for N "
@@ -181,9 +181,7 @@ def command(ctx, captures, outdir, skip_existing, scheduler, as_json, quiet, **o
       fmcw-cl process runs/*.h5 -o tracks/ --scheduler local:2
       fmcw-cl process wall.h5 -o tracks/ --max-range 0.40
     """
-    values = opts.check(options)          # every check before any work
-    backend, device = values["backend"], values["device"]
-    options = engine_options(values)
+    options, backend, device = opts.from_keywords(options)     # every check before any work
     output_folder(outdir)
     existing = [c for c in captures if track_path(outdir, c).exists()]
     skip = set(existing) if skip_existing else set()
@@ -198,7 +196,7 @@ def command(ctx, captures, outdir, skip_existing, scheduler, as_json, quiet, **o
     if scheduler:
         runs = run_cluster(todo, outdir, options, backend, device, scheduler, quiet)
     else:
-        stages = make_backend(backend, device, warn=lambda m: click.echo(m, err=True))
+        stages = make_processor(backend, device, warn=lambda m: click.echo(m, err=True))
         runs = run_local(todo, outdir, options, stages, quiet, ctx.obj.get("debug"))
     failed = 0
     for got in runs:

@@ -24,13 +24,6 @@ PathLike = str | os.PathLike
 __all__ = ["process", "read_track", "write_track", "open_capture", "simulate", "calibrate", "Track"]
 
 
-def engine_options(values: dict):
-    """engine.Options from checked option values (see `fmcw_cl.options.FIELDS`)."""
-    from .engine import Options
-
-    return Options(**{field: values[name] for name, field in opts.FIELDS.items()})
-
-
 def process(path: PathLike, *, progress: Callable[[int, int, float], None] | None = None,
             warn: Callable[[str], None] | None = None, **options) -> Track:
     """Convert one capture into a track (not written; see `write_track`).
@@ -52,8 +45,8 @@ def process(path: PathLike, *, progress: Callable[[int, int, float], None] | Non
     """
     from .engine import process as run
 
-    backend, values = _backend(options, warn)
-    return run(Path(path), engine_options(values), backend, progress)
+    config, processor = _configured(options, warn)
+    return run(Path(path), config, processor, progress)
 
 
 def process_each(paths, *, progress: Callable[[int, int, int, float], None] | None = None,
@@ -66,25 +59,23 @@ def process_each(paths, *, progress: Callable[[int, int, int, float], None] | No
     paths : the capture files.
     progress : callable(index, samples_done, samples_total, sample_rate_hz), optional.
     warn, **options : as for `process`.
-    workers : captures at once (None: the backend's choice; see engine.process_each).
+    workers : captures at once (None: the backend's choice; see batch.process_each).
 
     Yields
     ------
     (path, Track), or (path, FmcwError) for a capture that cannot be converted.
     """
-    from .engine import process_each as run
+    from .batch import process_each as run
 
-    backend, values = _backend(options, warn)
-    yield from run(paths, engine_options(values), backend, workers, progress)
+    config, processor = _configured(options, warn)
+    yield from run(paths, config, processor, workers, progress)
 
 
-def _backend(options: dict, warn):
-    """The checked option values and the backend they name."""
-    from .engine import make_backend
-
-    values = opts.check(options)
-    return make_backend(values["backend"], values["device"],
-                        warn=warn or (lambda m: warnings.warn(m, stacklevel=4))), values
+def _configured(keywords: dict, warn):
+    """The validated Options of `keywords` and the chunk processor they name."""
+    from .backend import make_processor
+    config, backend, device = opts.from_keywords(keywords)
+    return config, make_processor(backend, device, warn=warn or (lambda m: warnings.warn(m, stacklevel=4)))
 
 
 def open_capture(path: PathLike) -> Capture:

@@ -16,8 +16,11 @@ from pathlib import Path
 
 import numpy as np
 
+from .backend import make_processor
 from .capture import Capture
-from .engine import Options, core_samples, fit_chunks, make_backend, make_plan, process
+from .engine import process
+from .options import Options
+from .plan import make_plan
 from .simulator import jump, rail, simulate_capture, static
 from .stages import resample, sync
 
@@ -44,8 +47,9 @@ def _stage_rows(be, path: Path, opts: Options, seconds: float, scenes: dict[str,
     on the `scenes` (name: (path, seconds))."""
     with Capture(path) as cap:
         info = cap.info
-        plan = make_plan(cap, opts, backend=be)
+        plan = make_plan(cap, opts, processor=be)
         beat, sy = cap.read(0, info.samples)
+    be.open(plan)
     hp = info.samples_per_period / 2
     hs = sync.half_sweeps(sync.sync_turning_points(sy, hp), plan.lag)
     ok = resample.inside(hs.start, hs.length, plan.lut, beat.size)
@@ -54,7 +58,7 @@ def _stage_rows(be, path: Path, opts: Options, seconds: float, scenes: dict[str,
     m = plan.model
     x = be.resample(beat, starts, lengths, plan.lut.u_fall, plan.window)
     v = np.full(sweeps, 1.0)
-    finish = getattr(be, "finish", lambda: None)
+    finish = be.finish
 
     def read():
         with Capture(path) as c:
@@ -77,14 +81,13 @@ def _stage_rows(be, path: Path, opts: Options, seconds: float, scenes: dict[str,
         "end to end (file to track)": lambda: process(path, opts, be),
     }
     rows = []
-    chunks = -(-info.samples // core_samples(info, plan.options))
     for stage, fn in stages.items():
         end = stage.startswith("end")
         secs = _timed(fn, finish, repeat=1 if end else 3)
         rows.append({"backend": be.name, "device": be.device, "stage": stage, "seconds": secs,
                      "half_sweeps_per_s": sweeps / secs, "msamples_per_s": info.samples / secs / 1e6,
                      "real_time_multiple": seconds / secs,
-                     **(_where_time_goes(be, fn, finish, seconds, chunks) if end else {})})
+                     **(_where_time_goes(be, fn, finish, seconds) if end else {})})
     # shares of the file-to-track time: its parts (which do not overlap) and itself; the
     # combined kernels row and the paper's method are wholes of their own
     whole = rows[-1]["seconds"]
@@ -94,36 +97,37 @@ def _stage_rows(be, path: Path, opts: Options, seconds: float, scenes: dict[str,
     for name, (scene, length) in scenes.items():       # other scenes, end to end (not in the shares)
         with Capture(scene) as cap:
             n, periods = cap.info.samples, cap.info.periods
-            count = -(-n // core_samples(cap.info, fit_chunks(opts, cap.info, be)))
         fn = functools.partial(process, scene, opts, be)
         secs = _timed(fn, finish, repeat=1)
         rows.append({"backend": be.name, "device": be.device, "stage": f"end to end, {name}", "seconds": secs,
                      "half_sweeps_per_s": 2 * periods / secs, "msamples_per_s": n / secs / 1e6,
                      "real_time_multiple": length / secs, "share_of_end_to_end": float("nan"),
-                     **_where_time_goes(be, fn, finish, length, count)})
+                     **_where_time_goes(be, fn, finish, length)})
     return rows
 
 
-def _where_time_goes(be, fn, finish, seconds: float, chunks: int) -> dict:
+def _where_time_goes(be, fn, finish, seconds: float) -> dict:
     """One more run of an end-to-end row, instrumented: the calling thread's CPU time
     per second of capture (on PoCL a wait sleeps, so this is the host work that bounds
     a GPU's end to end), its share of the wall time (the rest the host waits for the
-    device or the reads), and per chunk the kernel launches and the copies each way."""
-    rt = getattr(be, "rt", None)
-    before = {k: v for k, v in vars(rt.traffic).items() if isinstance(v, int)} if rt is not None else {}
-    if rt is not None:
-        rt.traffic.events = []
+    device or the reads), the chunks processed (the delay's trial conversions and a
+    second pass in the target's band included) and per chunk the kernel launches and
+    the copies each way."""
+    before, chunks = be.traffic(), be.chunks
+    be.profile(True)
     wall, cpu = time.perf_counter(), time.thread_time()
     fn()
     finish()
     wall, cpu = time.perf_counter() - wall, time.thread_time() - cpu
+    chunks = be.chunks - chunks
     got = {"host_cpu_ms_per_s": 1e3 * cpu / seconds, "host_share_of_wall": cpu / wall, "chunks": chunks}
-    if rt is not None:
-        for key, value in before.items():
-            got[f"{key}_per_chunk"] = (getattr(rt.traffic, key) - value) / chunks
-        got["device_busy_share"] = rt.traffic.busy_seconds() / wall
-        rt.traffic.events = None
+    for key, value in be.traffic().items():
+        got[f"{key}_per_chunk"] = (value - before[key]) / max(chunks, 1)
+    busy = be.profile(False)
+    if busy is not None:
+        got["device_busy_share"] = busy / wall
     return got
+
 
 
 def run(seconds: float = 0.2, points: int = 1000, backends=("numpy", "opencl"),
@@ -142,5 +146,5 @@ def run(seconds: float = 0.2, points: int = 1000, backends=("numpy", "opencl"),
         simulate_capture(scenes["static target"][0], static(seconds, 0.3), seconds, seed=2, progress=progress)
         simulate_capture(Path(tmp) / "jump.h5", jump(JUMP_S), min(seconds, JUMP_S), seed=3, progress=progress)
         for name in backends:
-            rows += _stage_rows(make_backend(name, device), path, Options(points=points), seconds, scenes)
+            rows += _stage_rows(make_processor(name, device), path, Options(points=points), seconds, scenes)
     return rows

@@ -34,9 +34,10 @@ import scipy.fft
 from . import __version__
 from .capture import Capture
 from .chirp import Chirp, Direction
-from .engine import Options, make_plan
 from .errors import CaptureError
+from .options import Options
 from .physics import C
+from .plan import make_plan
 from .stages import sync
 from .stages.lut import fit_tuning
 

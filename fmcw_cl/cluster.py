@@ -3,7 +3,7 @@
 Two levels of parallelism:
 - one task per capture: the worker reads the capture, converts it and writes its
   track (atomically) to the shared output folder;
-- a long capture is cut into ranges of whole chunks (`engine.split_ranges`): a worker
+- a long capture is cut into ranges of whole chunks (`chunks.split_ranges`): a worker
   task makes the plan once (G(I), LUT, sync delay), range tasks convert their chunks
   with it, and the client stitches the pairs and writes the track. Because the ranges
   are whole chunks of the one-machine pass, the track equals the one-machine track.
@@ -19,23 +19,15 @@ import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
+from .assemble import assemble
+from .backend import make_processor
 from .capture import Capture
-from .engine import (
-    NumpyBackend,
-    Options,
-    assemble,
-    band_of,
-    capture_parts,
-    check_tuning,
-    choose_target,
-    make_backend,
-    make_plan,
-    process,
-    split_ranges,
-    with_band,
-    with_choice,
-)
+from .chunks import capture_parts, split_ranges
+from .engine import check_tuning, choose_target, process, with_choice
 from .errors import FmcwError
+from .options import Options
+from .plan import make_plan
+from .processor import NumpyProcessor
 from .track import track_path, write_track
 
 TASK_SECONDS = 1.0      # capture seconds per range task of a long capture
@@ -47,7 +39,7 @@ _BACKENDS: dict = {}    # per worker process: (name, device) -> backend
 def _backend(name: str, device: str | None):
     key = (name, device)
     if key not in _BACKENDS:
-        _BACKENDS[key] = make_backend(name, device)
+        _BACKENDS[key] = make_processor(name, device)
     return _BACKENDS[key]
 
 
@@ -101,7 +93,7 @@ def _convert(capture: str, out: str, options: Options, backend: str, device: str
 def _plan(capture: str, options: Options, task_seconds: float, backend: str, device: str | None):
     """Task: the plan of a long capture and its ranges."""
     with Capture(capture) as cap:
-        plan = make_plan(cap, options, backend=_backend(backend, device))
+        plan = make_plan(cap, options, processor=_backend(backend, device))
         return plan, split_ranges(cap.info, plan.options, task_seconds)
 
 
@@ -199,12 +191,12 @@ def _collect(client, jobs: dict, samples: dict, refused: list, backend: str, dev
             track = assemble(plan, parts, made, time.perf_counter() - started, choice)
             if choice is None:                    # the first pass: which echo is the target
                 choice = choose_target(plan, track)
-                if choice.band_m != band_of(plan.options):    # its band: the ranges again
-                    submit_ranges(cap, out, with_band(plan, choice.band_m), cuts, choice)
+                if choice.band_m != plan.options.band_m:    # its band: the ranges again
+                    submit_ranges(cap, out, plan.with_band(choice.band_m), cuts, choice)
                     continue
                 track = with_choice(plan, parts, made, time.perf_counter() - started, track, choice)
             with Capture(cap) as c:
-                check_tuning(c, plan, track, NumpyBackend())
+                check_tuning(c, plan, track, NumpyProcessor())
             value = _written(str(cap), out, track)
         n, fs = samples[str(cap)]
         done += n

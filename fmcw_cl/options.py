@@ -1,16 +1,19 @@
-"""The options of a conversion, defined once for the command line and the Python API.
+"""The options of a conversion, defined once for the command line, the Python API and
+the engine.
 
-`fmcw-cl process --max-range 0.4` and `fmcw_cl.process(path, max_range=0.4)` are the
-same option: its name, default, help, type and valid range live in one `Opt` here;
-`click_options` makes the command line's flags from them (a boolean `name` is
-`--name/--no-name`) and `check` validates keyword arguments with errors that carry the
-numbers. Importing this module costs nothing (no numpy).
+`fmcw-cl process --max-range 0.4`, `fmcw_cl.process(path, max_range=0.4)` and
+`Options(max_range=0.4)` are the same option: its name, default, help, type and valid
+range live in one `Opt` here. `Options` is the one validated configuration every
+conversion runs on: frozen, each field checked at construction, then the rules between
+fields (the checks that need the capture's bandwidth, such as the unambiguous range, run
+when the plan is made). `click_options` makes the command line's flags from the specs
+(a boolean `name` is `--name/--no-name`). Importing this module costs nothing (no numpy).
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 from .errors import FmcwError
 
@@ -105,19 +108,62 @@ PROCESS = (
         "unless the single half-sweeps are too weak.", lo=1, hi=32, why=", the most half-sweeps integrated"),
     Opt("chirp", None, str, "A chirp calibration (fmcw-cl calibrate) to use instead of the G(I) table.",
         metavar="FILE"),
+)
+
+# fields of Options that are not on the command line: the engine's own settings, which
+# benchmarks and tests vary
+ENGINE = (
+    Opt("iterations", 6, int, "De-chirp passes of the tracker.", lo=1, hi=50),
+    Opt("chunk_periods", None, int, "Modulation periods per chunk core (default: the processor's, as "
+        "many as its device holds).", lo=1, hi=10**7),
+    Opt("context_periods", 64, int, "Periods of context on each side of a chunk's core (continuity "
+        "across chunk boundaries).", lo=1, hi=4096),
+)
+
+# where a conversion runs, not what it computes: not part of Options
+RUN = (
     Opt("backend", "auto", str, "Stage implementation; auto: OpenCL if a device is there, else numpy.",
         choices=("auto", "opencl", "numpy")),
     Opt("device", None, str, "OpenCL device: index P or P:D, or a name substring (default: PYOPENCL_CTX, "
         "else the first GPU, else the first device); see `fmcw-cl devices`."),
 )
 
-# engine.Options field each processing option sets (backend and device choose where it runs)
-FIELDS = {"points": "points", "min_range": "min_range_m", "max_range": "max_range_m", "dechirp": "dechirp",
-          "range_check": "range_check", "chirp": "chirp", "integrate": "integrate", "target": "target",
-          "target_near": "target_near_m"}
+RANGE_GAP_M = 0.01   # --max-range above --min-range by at least this much
 
 
-def check(options: dict, spec: tuple[Opt, ...] = PROCESS, where: str = "") -> dict:
+@dataclass(frozen=True)
+class Options:
+    """What a conversion computes: every field of PROCESS and ENGINE (distances in m),
+    each validated at construction (`Opt.check`), then the rules between fields."""
+
+    points: int = 1000
+    min_range: float = 0.03
+    max_range: float | None = None
+    target: str = "auto"
+    target_near: float | None = None
+    dechirp: bool = True
+    range_check: bool = True
+    integrate: int | None = None
+    chirp: str | None = None
+    iterations: int = 6
+    chunk_periods: int | None = None
+    context_periods: int = 64
+
+    def __post_init__(self) -> None:
+        specs = {o.name: o for o in PROCESS + ENGINE}
+        for f in fields(self):
+            object.__setattr__(self, f.name, specs[f.name].check(getattr(self, f.name)))
+        if self.max_range is not None and self.max_range < self.min_range + RANGE_GAP_M:
+            raise FmcwError(f"{said('max_range', self.max_range)} m must exceed "
+                            f"{said('min_range', self.min_range)} m by at least {RANGE_GAP_M:g} m")
+
+    @property
+    def band_m(self) -> tuple[float, float | None]:
+        """[min_range, max_range) (m; None: to the end of the spectrum)."""
+        return self.min_range, self.max_range
+
+
+def check(options: dict, spec: tuple[Opt, ...] = PROCESS + RUN, where: str = "") -> dict:
     """Every option of `spec`, from `options` (keywords) or its default, validated."""
     known = {o.name: o for o in spec}
     unknown = sorted(set(options) - set(known))
@@ -127,7 +173,14 @@ def check(options: dict, spec: tuple[Opt, ...] = PROCESS, where: str = "") -> di
     return {name: o.check(options.get(name, o.default), where) for name, o in known.items()}
 
 
-def click_options(spec: tuple[Opt, ...] = PROCESS) -> Callable:
+def from_keywords(keywords: dict) -> tuple[Options, str, str | None]:
+    """The Options, backend and device of a conversion's keywords (the command line's
+    flags or the API's keywords), each validated before any work."""
+    values = check(keywords)
+    return Options(**{o.name: values[o.name] for o in PROCESS}), values["backend"], values["device"]
+
+
+def click_options(spec: tuple[Opt, ...] = PROCESS + RUN) -> Callable:
     """Decorator adding the command-line flags of `spec` to a click command."""
     import click
 

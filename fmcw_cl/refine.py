@@ -62,7 +62,7 @@ def mismatch(cap: Capture, plan, lag: float, capture_parts, backend) -> Mismatch
     """The kinematic inconsistency of `plan` at `lag` over STRETCHES stretches, each
     converted by `capture_parts(cap, plan, backend, start, stop)` (engine's)."""
     info = cap.info
-    p = replace(plan, lag=lag, check=None)
+    p = replace(plan, lag=lag, check=None, survey=False)     # distances and velocities alone
     length = int(STRETCH_PERIODS * info.samples_per_period)
     starts = np.linspace(0, max(0, info.samples - length), STRETCHES).astype(np.int64)
     slopes, errors, dist = [], [], []

@@ -8,8 +8,9 @@ from __future__ import annotations
 import pytest
 
 from fmcw_cl.capture import Capture
-from fmcw_cl.engine import Options, process
+from fmcw_cl.engine import process
 from fmcw_cl.evaluate import accuracy
+from fmcw_cl.options import Options
 from fmcw_cl.simulator import rail, simulate_capture, static
 from fmcw_cl.track import read_track
 

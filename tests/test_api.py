@@ -45,17 +45,48 @@ def test_process_takes_the_command_line_options_by_name():
 
 
 def test_every_process_option_of_the_command_line_is_in_the_api():
-    """One definition: the command's flags are those of fmcw_cl.options.PROCESS, plus
-    the batch's own (output, resume, cluster, printing)."""
+    """One definition: the command's flags are those of fmcw_cl.options.PROCESS (the
+    Options fields a user sets) and RUN (where it runs), plus the batch's own (output,
+    resume, cluster, printing)."""
     import click
     from fmcw_cl.cli.main import cli
 
-    from fmcw_cl.options import PROCESS
+    from fmcw_cl.options import PROCESS, RUN
 
     cmd = cli.get_command(click.Context(cli), "process")
     batch = {"captures", "outdir", "skip_existing", "scheduler", "as_json", "quiet"}
     names = {p.name for p in cmd.params} - batch
-    assert names == {o.name for o in PROCESS}
+    assert names == {o.name for o in PROCESS + RUN}
+
+
+def test_one_validated_configuration():
+    """Options is the one configuration: its fields are the specs' (PROCESS and the
+    engine's own), each checked when it is made, with the numbers in the message, and
+    the rule between fields; the API's keywords make the same object."""
+    from dataclasses import FrozenInstanceError, fields
+
+    from fmcw_cl.errors import FmcwError
+    from fmcw_cl.options import ENGINE, PROCESS, Options, from_keywords
+
+    assert [f.name for f in fields(Options)] == [o.name for o in PROCESS + ENGINE]
+    assert all(getattr(Options(), o.name) == o.default for o in PROCESS + ENGINE)
+    for bad, words in (({"points": 8}, "points=8 is below 16"),
+                       ({"iterations": 0}, "iterations=0 is below 1"),
+                       ({"context_periods": 2.5}, "not a whole number"),
+                       ({"dechirp": "no"}, "True or False"),
+                       ({"target": "loudest"}, "not one of auto"),
+                       ({"chunk_periods": -3}, "below 1"),
+                       ({"min_range": 0.3, "max_range": 0.305}, "max_range=0.305 m must exceed")):
+        with pytest.raises(FmcwError, match=words):
+            Options(**bad)
+    opts = Options(points=1024.0, max_range=1)          # converted to the field's type
+    assert type(opts.points) is int and type(opts.max_range) is float
+    with pytest.raises(FrozenInstanceError):
+        opts.points = 2
+    config, backend, device = from_keywords({"max_range": 0.4, "backend": "numpy"})
+    assert config == Options(max_range=0.4) and (backend, device) == ("numpy", None)
+    with pytest.raises(FmcwError, match="unknown option iterationz"):
+        from_keywords({"iterationz": 3})
 
 
 def test_tables_and_labelled_arrays(jump_track):

@@ -11,9 +11,10 @@ import pytest
 from fmcw_cl.calibration import measure_chirp
 from fmcw_cl.capture import Capture
 from fmcw_cl.chirp import read_chirp, write_chirp
-from fmcw_cl.engine import Options, process
+from fmcw_cl.engine import process
 from fmcw_cl.errors import CaptureError
 from fmcw_cl.evaluate import accuracy
+from fmcw_cl.options import Options
 from fmcw_cl.simulator import SimulationConfig, jump, simulate_capture, static
 from fmcw_cl.simulator.writer import thermal_offset
 
@@ -89,12 +90,11 @@ def test_without_calibration_the_lag_hurts(tmp_path):
 
 
 def test_opencl_with_a_chirp_equals_numpy(tmp_path):
-    from fmcw_cl.engine import make_backend
-
+    from fmcw_cl.backend import make_processor
     cap = lagged(tmp_path / "cal.h5", static(0.02, 0.3), 0.02, 7, 2.0)
     chirp = str(write_chirp(tmp_path / "chirp.h5", measure_chirp(cap, 0.3)))
     a = process(cap, Options(chirp=chirp))
-    b = process(cap, Options(chirp=chirp), make_backend("opencl"))
+    b = process(cap, Options(chirp=chirp), make_processor("opencl"))
     # the refinement's trial conversions run on each backend (float32 on the device):
     # its secant steps stop within TOLERANCE_SAMPLES of the root, on either side
     from fmcw_cl.refine import TOLERANCE_SAMPLES

@@ -61,9 +61,9 @@ def test_keeps_the_nearest_max_echoes():
 
 @pytest.fixture(scope="module")
 def backend():
-    from fmcw_cl.opencl.backend import OpenCLBackend
+    from fmcw_cl.opencl.processor import OpenCLProcessor
 
-    return OpenCLBackend()
+    return OpenCLProcessor()
 
 
 @pytest.mark.parametrize("rows,nfft,lo,hi", [(41, 2048, LO, None), (40, 2048, 200, 900), (7, 4096, 130, None),

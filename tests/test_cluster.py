@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 from fmcw_cl.cluster import connect, run_batch
-from fmcw_cl.engine import Options, process
+from fmcw_cl.engine import process
+from fmcw_cl.options import Options
 from fmcw_cl.simulator import simulate_capture, static
 from fmcw_cl.track import read_track
 

@@ -7,7 +7,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fmcw_cl.engine import Options, process
+from fmcw_cl.engine import process
+from fmcw_cl.options import Options
 
 # a lab: an intensity triangle of +-150 codes under 600 codes rms, a 20 MHz G(I) table
 from fmcw_cl.simulator import LAB, SimulationConfig, simulate_capture, static

@@ -7,8 +7,9 @@ import numpy as np
 import pytest
 
 from fmcw_cl.capture import Capture, CaptureWriter
-from fmcw_cl.engine import Options, process
+from fmcw_cl.engine import process
 from fmcw_cl.errors import FmcwError
+from fmcw_cl.options import Options
 from fmcw_cl.stages import faults
 
 
@@ -25,23 +26,23 @@ def test_chunk_size_does_not_change_the_track(static_capture):
 def test_chunks_fit_the_device_memory(static_capture):
     """A backend whose device holds 300 periods gets chunks of 300 - 2 x 64 context
     - 2; the track matches the default chunks'."""
-    from fmcw_cl.engine import NumpyBackend
+    from fmcw_cl.processor import NumpyProcessor
 
-    class Small(NumpyBackend):
-        def chunk_periods(self, samples_per_period, points):
+    class Small(NumpyProcessor):
+        def chunk_limit(self, samples_per_period, points):
             return 300
 
     a = process(static_capture, Options())
     b = process(static_capture, Options(), Small())
     np.testing.assert_array_equal(a.valid, b.valid)
     np.testing.assert_allclose(a.distance_m, b.distance_m, rtol=0, atol=1e-7)
-    from fmcw_cl.engine import fit_chunks
+    from fmcw_cl.plan import fit_chunks
 
     with Capture(static_capture) as cap:
         assert fit_chunks(Options(), cap.info, Small()).chunk_periods == 300 - 128 - 2
-        assert fit_chunks(Options(), cap.info, NumpyBackend()).chunk_periods == 1024
+        assert fit_chunks(Options(), cap.info, NumpyProcessor()).chunk_periods == 1024
 
-        class Device(NumpyBackend):       # a device's own chunk size, unless one is asked for
+        class Device(NumpyProcessor):       # a device's own chunk size, unless one is asked for
             chunk_default = 8192
 
         assert fit_chunks(Options(), cap.info, Device()).chunk_periods == 8192
@@ -74,14 +75,15 @@ def test_dropped_samples_split_the_stream(tmp_path, static_capture):
 
 def test_min_range_beyond_the_unambiguous_range_is_refused(static_capture):
     with pytest.raises(FmcwError, match="unambiguous range"):
-        process(static_capture, Options(points=100, min_range_m=0.1))
+        process(static_capture, Options(points=100, min_range=0.1))
 
 
 def test_process_each_keeps_order_and_reports_bad_files(tmp_path, static_capture):
     """A batch converted two at a time: results in the order given, each equal to the
     capture converted alone, a bad file reported as its error without stopping the
     others, and each capture's progress under its own index (zeros when it starts)."""
-    from fmcw_cl.engine import NumpyBackend, process_each
+    from fmcw_cl.batch import process_each
+    from fmcw_cl.processor import NumpyProcessor
 
     bad = tmp_path / "bad.h5"
     bad.write_bytes(b"not a capture")
@@ -91,7 +93,7 @@ def test_process_each_keeps_order_and_reports_bad_files(tmp_path, static_capture
     def progress(i, done, total, fs):
         (seen if total else started).add(i)
 
-    got = list(process_each(paths, backend=NumpyBackend(), workers=2, progress=progress))
+    got = list(process_each(paths, processor=NumpyProcessor(), workers=2, progress=progress))
     assert [p for p, _ in got] == paths
     assert isinstance(got[1][1], FmcwError) and str(bad) in str(got[1][1])
     alone = process(static_capture)
@@ -104,7 +106,8 @@ def test_process_each_keeps_order_and_reports_bad_files(tmp_path, static_capture
 def test_process_each_stops_on_an_exception(static_capture):
     """An exception other than a capture's error (here Ctrl-C seen by a progress report)
     ends the batch: it reaches the caller, and no later capture is started."""
-    from fmcw_cl.engine import NumpyBackend, process_each
+    from fmcw_cl.batch import process_each
+    from fmcw_cl.processor import NumpyProcessor
 
     started = set()
 
@@ -114,7 +117,7 @@ def test_process_each_stops_on_an_exception(static_capture):
             raise KeyboardInterrupt
 
     with pytest.raises(KeyboardInterrupt):
-        list(process_each([static_capture] * 5, backend=NumpyBackend(), workers=2, progress=progress))
+        list(process_each([static_capture] * 5, processor=NumpyProcessor(), workers=2, progress=progress))
     assert started <= {0, 1}
 
 
@@ -124,7 +127,7 @@ def test_read_ahead_starts_at_once_and_close_waits():
     flight has ended (its slot must not be handed on mid-read)."""
     import threading
 
-    from fmcw_cl.engine import ReadAhead
+    from fmcw_cl.chunks import ReadAhead
 
     assert list(ReadAhead(iter([1, 2, 3]))) == [1, 2, 3]
     started, release, finished = threading.Event(), threading.Event(), threading.Event()

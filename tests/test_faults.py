@@ -16,8 +16,9 @@ import numpy as np
 import pytest
 
 from fmcw_cl.capture import Capture
-from fmcw_cl.engine import Options, process
+from fmcw_cl.engine import process
 from fmcw_cl.errors import CaptureError
+from fmcw_cl.options import Options
 from fmcw_cl.simulator import SimulationConfig, simulate_capture, static
 from fmcw_cl.stages import faults
 
@@ -182,7 +183,7 @@ def test_truncated_file(tmp_path, static_capture, fmcw):
 def test_ctrl_c_stops_cleanly(tmp_path, jump_capture, backend):
     """Ctrl-C in the middle of a batch: exit 130 with one line, the tracks already
     finished are whole, and the interrupted one leaves nothing (not even a .part); also
-    where two captures convert at once (numpy: engine.process_each's workers)."""
+    where two captures convert at once (numpy: batch.process_each's workers)."""
     from fmcw_cl.track import read_track
 
     caps = [shutil.copy(jump_capture, tmp_path / f"cap{k}.h5") for k in range(8)]

@@ -11,8 +11,9 @@ from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
 from fmcw_cl.capture import Capture
-from fmcw_cl.engine import Options, process
+from fmcw_cl.engine import process
 from fmcw_cl.errors import FmcwError
+from fmcw_cl.options import Options
 from fmcw_cl.simulator.laser import paper_dfb
 from fmcw_cl.stages import faults, pairing, resample, spectrum, sync
 from fmcw_cl.stages.lut import build_lut

@@ -27,11 +27,11 @@ def test_kernels_are_package_data():
     assert '"fmcw_cl.kernels" = ["*.cl"]' in text
     from fmcw_cl.kernels import files_of
 
-    from fmcw_cl.opencl.backend import OpenCLBackend
+    from fmcw_cl.opencl.processor import OpenCLProcessor
 
     # every .cl file is part of a program the backend builds, and every program's file ships
     shipped = {p.stem for p in (ROOT / "kernels").glob("*.cl")}
-    built = {f for program in OpenCLBackend.programs for f in files_of(program)}
+    built = {f for program in OpenCLProcessor.programs for f in files_of(program)}
     assert shipped == built
     assert {"lpf", "sync", "resample", "fft", "peak"} <= shipped       # the method's stages
 

@@ -10,8 +10,9 @@ import pytest
 from conftest import realistic
 
 from fmcw_cl.capture import Capture
-from fmcw_cl.engine import Options, process
+from fmcw_cl.engine import process
 from fmcw_cl.evaluate import accuracy, truth_at
+from fmcw_cl.options import Options
 from fmcw_cl.simulator import SimulationConfig, simulate_capture, static
 from fmcw_cl.stages import faults
 from fmcw_cl.track import read_track, track_path
@@ -49,7 +50,7 @@ def test_the_moving_target_is_tracked_past_a_stronger_wall(wall_capture, tmp_pat
     _, strongest = scored(wall_capture, target="strongest")
     assert np.sum(np.abs(strongest.distance_m[strongest.valid] - 0.42) < 2e-3) > 1000
     # with the band closed by hand: the pipeline's figures
-    acc, track = scored(wall_capture, max_range_m=0.40)
+    acc, track = scored(wall_capture, max_range=0.40)
     assert acc["valid_share"] >= 0.98
     assert acc["distance_p95_m"] <= 0.5e-3
     assert acc["velocity_p95_mps"] <= 0.02
@@ -112,7 +113,7 @@ def test_two_static_reflectors_are_ambiguous_until_the_user_chooses(tmp_path, fm
     assert -8 < track.attrs["rival_echo_db"] < -2
     # each rule that names one: that one
     for opts, want in (({"target": "nearest"}, 0.21), ({"target": "strongest"}, 0.21),
-                       ({"target_near_m": 0.36}, 0.37)):
+                       ({"target_near": 0.36}, 0.37)):
         got = process(path, Options(**opts))
         assert got.valid.mean() >= 0.98, opts
         assert np.all(np.abs(got.distance_m[got.valid] - want) < 0.5e-3), opts
@@ -138,7 +139,7 @@ def test_two_moving_echoes_are_ambiguous_until_the_user_chooses(tmp_path, fmcw):
     assert spans.shape == (2, 2) and spans[0, 1] < 0.31 and 0.37 < spans[1, 0] < spans[1, 1] < 0.43
     proc = fmcw("process", path, "-o", tmp_path / "out", "--backend", "numpy")
     assert "pairs ambiguous: the moving echoes at 0.0" in proc.stderr and "--target-near" in proc.stderr
-    for opts in ({"target": "nearest"}, {"target_near_m": 0.2}):
+    for opts in ({"target": "nearest"}, {"target_near": 0.2}):
         got = process(path, Options(**opts))
         assert wrong(got, truth) == 0 and got.valid.mean() >= 0.90, opts
         assert 0.31 < got.attrs["target_band_m"][1] < 0.37

@@ -136,6 +136,11 @@ class Traffic:
     download_bytes: int = 0
     events: list | None = None
 
+    def counts(self) -> dict[str, int]:
+        """Launches, copies and bytes so far."""
+        return {k: getattr(self, k) for k in ("launches", "uploads", "downloads", "upload_bytes",
+                                              "download_bytes")}
+
     def busy_seconds(self) -> float:
         """Seconds the device spent in the collected launches (they do not overlap on
         one in-order queue)."""

@@ -16,9 +16,9 @@ import sys
 
 import numpy as np
 
-from fmcw_cl.opencl.backend import OpenCLBackend
 from fmcw_cl.opencl.buffers import DeviceRows
 from fmcw_cl.opencl.context import cl
+from fmcw_cl.opencl.processor import OpenCLProcessor
 from fmcw_cl.stages import faults, integrate, lpf, pairing, resample, sync
 from fmcw_cl.stages.spectrum import Search
 
@@ -37,14 +37,14 @@ GROUPS = ("stream", "spectrum", "integrate", "survey")
 
 def check(selector: str | None, groups: tuple[str, ...] = GROUPS) -> None:
     """Run the groups of stages on the device `selector` against their twins."""
-    be = OpenCLBackend(selector)
+    be = OpenCLProcessor(selector)
     print(f"device: {be.device}, GPU work-groups: {be.rt.group_size(0, 1) == 1}", flush=True)
     for group in groups:
         _group(be, group)
     print("all kernels match their twins", flush=True)
 
 
-def _group(be: OpenCLBackend, group: str) -> None:
+def _group(be: OpenCLProcessor, group: str) -> None:
     rng = np.random.default_rng(0)
     fs, hp = 100e6, 2500.0
     n = 13_337                                               # odd, partial periods

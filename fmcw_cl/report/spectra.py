@@ -14,8 +14,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..capture import Capture
-from ..engine import Options, make_plan
+from ..options import Options
 from ..physics import C
+from ..plan import make_plan
 from ..stages import resample, spectrum, sync
 
 

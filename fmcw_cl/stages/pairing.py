@@ -146,7 +146,7 @@ def measure(x: np.ndarray, beta: np.ndarray, v: np.ndarray | None, model: Dopple
 
 class SpectrumOps:
     """The spectrum steps of the tracker in numpy; a backend swaps in its own
-    (opencl.backend.OpenCLBackend), with the same arguments and results."""
+    (opencl.processor.OpenCLProcessor), with the same arguments and results."""
 
     def measure(self, x, beta, v, model: DopplerModel, search: Search, rows=None) -> tuple:
         return measure(x, beta, v, model, search, rows)

@@ -1,5 +1,5 @@
-"""The OpenCL backend: the low-pass, the sync delay's per-period fits, the sync's block
-sums, their band changes and line fits, the clipping flags, resampling, and the
+"""The OpenCL chunk processor: the low-pass, the sync delay's per-period fits, the sync's
+block sums, their band changes and line fits, the clipping counts, resampling, and the
 de-chirp/FFT/peak/echo stage on a device.
 The resampled half-sweeps stay on the device across the tracker's passes; only the sync's
 sparse changes and sums, clipping flags and peaks come back. The band-state flips, the
@@ -13,7 +13,9 @@ import functools
 
 import numpy as np
 
+from ..processor import ChunkProcessor
 from ..stages import pairing, sync
+from ..stages.spectrum import fft_length
 from . import delay as k_delay
 from . import faults as k_faults
 from . import integrate as k_integrate
@@ -26,8 +28,14 @@ from .buffers import Buffers, DeviceRows
 from .context import Runtime, runtime
 
 
-class OpenCLBackend(pairing.SpectrumOps):
-    """Same interface as engine.NumpyBackend."""
+class OpenCLProcessor(ChunkProcessor):
+    """The chunk processor on an OpenCL device (processor.ChunkProcessor's life cycle).
+
+    Spectra are taken on the device where their transform fits its local memory, else
+    by the numpy twins: rows resampled to a length whose transform does not fit come
+    down once, as host arrays, and every spectrum step of theirs runs on the host (a
+    GPU's 48 KB and the 8192-point range check of --points 2048).
+    """
 
     name = "opencl"
     # periods a chunk: a chunk's launches, copies and host steps cost about the same
@@ -36,6 +44,7 @@ class OpenCLBackend(pairing.SpectrumOps):
     programs = ("lpf", "delay", "sync", "resample", "spectrum", "integrate", "survey", "faults")
 
     def __init__(self, selector: str | None = None, rt: Runtime | None = None) -> None:
+        super().__init__()
         self.rt = rt or runtime(selector)
         for program in self.programs:      # build now: a failure must surface before any work
             self.rt.program(program)
@@ -44,20 +53,24 @@ class OpenCLBackend(pairing.SpectrumOps):
         self._coarse = functools.partial(k_sync.coarse, self.rt, self.bufs)
         self._sums = functools.partial(k_sync.line_fit_sums, self.rt, self.bufs)
 
+    def _fits(self, nfft: int) -> bool:
+        """Whether an nfft-point transform runs on this device (its local memory)."""
+        return k_spectrum.fits(self.rt, nfft)
+
     @property
     def batch_workers(self) -> int:
-        """Captures a batch converts at once (engine.process_each). A GPU waits on the
+        """Captures a batch converts at once (batch.process_each). A GPU waits on the
         host for most of a capture: two overlap one's host steps with the other's
         kernels. A CPU device's kernels already keep its cores busy (PoCL, 2 cores: 1.75
         of them), and a second capture cost more CPU than it filled: one."""
         return 1 if self.rt.zero_copy else 2
 
-    def fork(self) -> OpenCLBackend:
-        """The same device for another thread (engine.process_each): its own queue,
+    def fork(self) -> OpenCLProcessor:
+        """The same device for another thread (batch.process_each): its own queue,
         kernels and buffers; the programs are built once."""
-        return OpenCLBackend(rt=self.rt.stream())
+        return OpenCLProcessor(rt=self.rt.stream())
 
-    def chunk_periods(self, samples_per_period: float, points: int) -> int:
+    def chunk_limit(self, samples_per_period: float, points: int) -> int:
         """Modulation periods of one chunk that fit in a quarter of the device's memory
         (and each buffer in its largest allocation): the two int16 channels, the
         resampled rows of both directions and the range check's (2N points, a quarter
@@ -71,6 +84,15 @@ class OpenCLBackend(pairing.SpectrumOps):
         """Wait for the device (the launches are asynchronous)."""
         self.rt.queue.finish()
 
+    def traffic(self) -> dict[str, int]:
+        return self.rt.traffic.counts()
+
+    def profile(self, on: bool) -> float | None:
+        traffic = self.rt.traffic
+        busy = None if on else traffic.busy_seconds()
+        traffic.events = [] if on else None
+        return busy
+
     def intensity(self, codes, sample_rate_hz):
         return k_lpf.intensity(self.rt, self.bufs, codes, sample_rate_hz)
 
@@ -80,19 +102,12 @@ class OpenCLBackend(pairing.SpectrumOps):
     def turning_points(self, codes, half_period):
         return sync.sync_turning_points(codes, half_period, self._coarse, self._sums)
 
-    def resample(self, codes, starts, lengths, u, win):
-        return k_resample.resample(self.rt, self.bufs, codes, starts, lengths, u, win)
-
     def resample_each(self, codes, jobs, win):
-        return k_resample.resample_each(self.rt, self.bufs, codes, jobs, win)
+        rows = k_resample.resample_each(self.rt, self.bufs, codes, jobs, win)
+        return rows if self._fits(fft_length(win.size)) else [x.get() for x in rows]
 
     def clip_counts(self, codes, block, full_scale):
         return k_faults.clip_counts(self.rt, self.bufs, codes, block, full_scale)
-
-    def _host(self, x):
-        """x on the host, for a transform larger than the device's local memory (the
-        numpy twin runs it)."""
-        return x.get(self.rt.queue) if isinstance(x, DeviceRows) else x
 
     def measure(self, x, beta, v, model, search, rows=None):
         return self.measure_each([x], [beta], v, model, search, rows)[0]
@@ -101,8 +116,8 @@ class OpenCLBackend(pairing.SpectrumOps):
         """Twin: pairing.SpectrumOps.measure_each; one upload of the rows and velocities,
         one download of every result."""
         pairs = list(zip(xs, betas, strict=True))
-        if not k_spectrum.fits(self.rt, model.nfft):
-            return [pairing.measure(self._host(x), b, v, model, search, rows) for x, b in pairs]
+        if not self._fits(model.nfft):
+            return pairing.NUMPY.measure_each(xs, betas, v, model, search, rows)
         got = k_spectrum.measure_each(self.rt, self.bufs, [(x, b, None) for x, b in pairs], v, model.nfft,
                                       search.lo, search.hi, index=rows, echoes=search.echoes)
         return [(pk.bin * model.metres_per_bin, pk.snr_db, *([det] if search.echoes else []))
@@ -110,16 +125,16 @@ class OpenCLBackend(pairing.SpectrumOps):
 
     def power(self, x, beta, v, nfft, rows=None):
         """Power spectra of rows of x (plain, or de-chirped at v); twin: pairing.power."""
-        if not k_spectrum.fits(self.rt, nfft):
-            return pairing.power(self._host(x), beta, v, nfft, rows)
+        if not self._fits(nfft):
+            return pairing.NUMPY.power(x, beta, v, nfft, rows)
         _, spec, _ = k_spectrum.measure(self.rt, self.bufs, x, beta, v, nfft, 1, keep_power=True, index=rows)
         return spec
 
     def spectra(self, x, beta, v, nfft, rows=None, store=None):
         """`store` (DeviceRows of power spectra, new when None) with the rows `rows`
         replaced by their power spectra; twin: pairing.SpectrumOps.spectra."""
-        if not k_spectrum.fits(self.rt, nfft):
-            return super().spectra(self._host(x), beta, v, nfft, rows, self._host(store))
+        if not self._fits(nfft):
+            return pairing.NUMPY.spectra(x, beta, v, nfft, rows, store)
         if store is None:
             store = DeviceRows(self.bufs, x.shape[0], nfft // 2)
         k_spectrum.measure(self.rt, self.bufs, x, beta, v, nfft, 1, index=rows, store=store)
@@ -131,9 +146,8 @@ class OpenCLBackend(pairing.SpectrumOps):
     def survey_each(self, xs, betas, v, nfft, rows, lo, tracked_bins, plain_bins, others):
         """Twin: pairing.SpectrumOps.survey_each; the spectra stay on the device, the rows
         and velocities go up once, the bins once, the results come back once."""
-        if not k_spectrum.fits(self.rt, nfft):
-            return super().survey_each([self._host(x) for x in xs], betas, v, nfft, rows, lo, tracked_bins,
-                                       plain_bins, others)
+        if not self._fits(nfft):
+            return pairing.NUMPY.survey_each(xs, betas, v, nfft, rows, lo, tracked_bins, plain_bins, others)
         # each direction plain (de-chirped at v along a zero basis: the phase is 0), then
         # de-chirped at v
         jobs, spectra = [], []
@@ -146,6 +160,6 @@ class OpenCLBackend(pairing.SpectrumOps):
         return k_survey.hidden_each(self.rt, self.bufs, [(*sp, tb, pb, o) for sp, tb, pb, o in per], lo)
 
     def integrated_peaks(self, store, disp, k, search):
-        if isinstance(store, np.ndarray):       # a transform the device could not hold
-            return super().integrated_peaks(store, disp, k, search)
+        if not self._fits(2 * store.shape[1]):       # (pairs, nfft / 2) power spectra
+            return pairing.NUMPY.integrated_peaks(store, disp, k, search)
         return k_integrate.peaks(self.rt, self.bufs, store, disp, k, search)

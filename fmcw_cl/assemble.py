@@ -1,0 +1,149 @@
+"""Pairs -> track: the owned pairs of all chunks in capture order, missing periods
+filled, validity verified, acceleration, and the attributes that say how the track was
+made."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from . import __version__, echoes, target
+from .errors import CaptureError
+from .plan import DELAY_BOUND_MPS, Plan, delay_reliable
+from .processor import SURVEY_KEYS, ChunkMeasurements, ChunkProcessor
+from .stages import cfar, faults, kinematics, pairing
+from .stages.cfar import Detections
+from .track import Track
+
+NEAR_LIMIT = 0.95             # distances beyond this share of the unambiguous range may be aliased
+
+
+def _fill_gaps(t_mid: np.ndarray, period: float) -> np.ndarray:
+    """Times of whole periods missing between consecutive pairs (dropped sync)."""
+    gaps = np.diff(t_mid)
+    fill = [t_mid[i] + period * np.arange(1, int(round(gaps[i] / period)))
+            for i in np.flatnonzero(gaps > 1.5 * period)]
+    return np.concatenate(fill) if fill else np.zeros(0)
+
+
+def assemble(plan: Plan, parts: list[ChunkMeasurements], processor: ChunkProcessor, seconds: float,
+             choice: target.Choice | None = None) -> Track:
+    """The track from the owned pairs of all chunks, in capture order: missing periods
+    filled as invalid, pairs on an echo the target cannot be told from (`choice`)
+    ambiguous, validity verified (faults.verified), acceleration, attributes.
+    `seconds`: the processing time."""
+    info, options = plan.info, plan.options
+    if not parts:
+        raise CaptureError(info.path, "no complete modulation period found in the sync channel")
+    t_r = np.concatenate([p.t_rise for p in parts])
+    t_f = np.concatenate([p.t_fall for p in parts])
+    res = vars(pairing.PairResult.concat([p.result for p in parts]))
+    t_mid = 0.5 * (t_r + t_f)
+    period_s = info.modulation.period_s
+    missing = _fill_gaps(t_mid, period_s)
+    n_missing = missing.size
+    times = np.concatenate([t_mid, missing])
+    order = np.argsort(times, kind="stable")
+
+    def with_gaps(x, fill):
+        return np.concatenate([x, np.full(n_missing, fill, dtype=np.asarray(x).dtype)])[order]
+
+    reason_owned = np.concatenate([p.reason for p in parts])
+    if choice is not None:
+        reason_owned = target.ambiguous(reason_owned, res["distance"], choice)
+    if options.dechirp:         # the paper's method (--no-dechirp) is reported as the paper did
+        reason_owned = faults.verified(t_mid, res["distance"], res["velocity"], reason_owned)
+    res["valid"] = reason_owned == faults.OK
+    valid = with_gaps(res["valid"], False)
+    reason = with_gaps(reason_owned, faults.SYNC_GAP)
+    dist = with_gaps(res["distance"], np.nan)
+    vel = with_gaps(res["velocity"], np.nan)
+    dist[~valid] = np.nan
+    vel[~valid] = np.nan
+    acc = kinematics.acceleration(vel, valid, period_s)
+    integrated = with_gaps(res["integrated"], 0)
+    varies = np.unique(integrated[valid]).size > 1
+
+    def interleave(rise, fall):
+        return np.stack([res[rise], res[fall]], axis=1).ravel()
+
+    sweep_t = np.stack([t_r, t_f], axis=1).ravel()
+    sweep_rising = np.tile([True, False], t_r.size)
+    seen = echoes.table(sweep_t, sweep_rising, interleave("dist_rise", "dist_fall"),
+                        interleave("dechirped_snr_rise", "dechirped_snr_fall"),
+                        Detections.interleave(res["echoes_rise"], res["echoes_fall"]),
+                        plan.model.metres_per_bin,
+                        np.inf if options.max_range is None else options.max_range,
+                        {k: np.concatenate([p.survey[k] for p in parts]) for k in SURVEY_KEYS})
+    lut = plan.lut
+    attrs = {
+        "points": options.points,
+        "fft_length": plan.model.nfft,
+        "window": "hann",
+        "dechirp": bool(options.dechirp),
+        "dechirp_iterations": options.iterations if options.dechirp else 0,
+        "min_range_m": options.min_range,
+        "max_range_m": float("nan") if options.max_range is None else options.max_range,
+        "cfar": f"cell-averaging, guard {cfar.GUARD} and {cfar.TRAIN} training bins a side, "
+                f"false-alarm probability {cfar.PFA:g} per cell",
+        **seen.attrs(),
+        **(choice.attrs() if choice is not None else {}),
+        "target_tracked_m": np.percentile(dist[valid], [1, 99]) if valid.any() else np.full(2, np.nan),
+        "bandwidth_hz": lut.bandwidth_hz,
+        "tuning": "chirp calibration" if options.chirp else "static G(I) table",
+        "range_resolution_m": lut.range_resolution_m,
+        # the distance scale is as good as the bandwidth: its uncertainty from the G(I)
+        # table's scatter (NaN with a chirp calibration: as good as its distance)
+        "tuning_fit_degree": int(lut.fit_degree),
+        "tuning_table_scatter_hz": float(lut.table_scatter_hz),
+        "scale_uncertainty_ppm": float(lut.scale_ppm),
+        "scale_uncertainty_m": float(lut.scale_ppm * 1e-6 * np.median(dist[valid])) if valid.any()
+        else float("nan"),
+        "unambiguous_range_m": lut.unambiguous_range_m,
+        "near_range_limit_pairs": int(np.sum(dist[valid] > NEAR_LIMIT * lut.unambiguous_range_m)),
+        "range_check": bool(options.range_check),
+        "chunk_periods": int(options.chunk_periods),
+        # integration of weak echoes (stages.integrate): K half-sweeps of a direction per
+        # output, an output every period all the same; its time resolution is K periods
+        "modulation_period_s": period_s,
+        "integration": "auto" if options.integrate is None else str(options.integrate),
+        "integrated_sweeps_max": int(integrated.max(initial=1)),
+        "time_resolution_s": period_s * float(integrated[valid].max(initial=1)),
+        "reason_codes": ", ".join(f"{k} {v}" for k, v in faults.REASONS.items()),
+        **{f"invalid_{name}": int(np.sum(reason == code)) for code, name in faults.REASONS.items() if code},
+        "refractive_index": info.refractive_index,
+        "clipped_codes": int(sum(p.clipped_codes for p in parts)),
+        "clip_share_limit": faults.CLIP_SHARE,
+        "sync_delay_samples": plan.lag,
+        "sync_delay_periods_used": plan.lag_periods,
+        "sync_delay_misfit": plan.lag_misfit,
+        "sync_delay_reliable": delay_reliable(plan),
+        "sync_delay_refined": bool(plan.lag_refined),
+        "sync_delay_mismatch_mps": float(plan.lag_mismatch_mps),
+        "sync_delay_intensity_samples": float(plan.lag_intensity),
+        "sync_delay_uncertainty_samples": float(plan.lag_sigma_samples),
+        "sync_delay_velocity_uncertainty_mps": float(plan.lag_sigma_mps),
+        "sync_delay_distance_uncertainty_m": float(plan.lag_sigma_m),
+        "sync_delay_refined_at_m": float(plan.lag_at_m),
+        "sync_delay_velocity_bound_mps": DELAY_BOUND_MPS,
+        "chirp": str(Path(options.chirp).resolve()) if options.chirp else "",
+        "acceleration_smoothing": f"Savitzky-Golay derivative, order {kinematics.POLYORDER}, "
+                                  f"{kinematics.WINDOW_PAIRS} pairs",
+        "backend": processor.name,
+        "device": processor.device,
+        "software": f"fmcw-cl {__version__}",
+        "source": str(Path(info.path).resolve()),
+        "capture_duration_s": info.duration_s,
+        "processing_time_s": seconds,
+    }
+    return Track(
+        sweep_time_s=sweep_t,
+        sweep_rising=sweep_rising, echoes=seen,
+        sweep_distance_m=interleave("dist_rise", "dist_fall"),
+        sweep_snr_db=interleave("snr_rise", "snr_fall"),
+        sweep_distance_dechirped_m=interleave("dechirped_rise", "dechirped_fall"),
+        sweep_snr_dechirped_db=interleave("dechirped_snr_rise", "dechirped_snr_fall"),
+        time_s=times[order], distance_m=dist, velocity_mps=vel, acceleration_mps2=acc,
+        valid=valid, attrs=attrs, reason=reason, sweep_reason=np.repeat(reason_owned, 2),
+        integrated=integrated if varies else None, period_s=period_s)

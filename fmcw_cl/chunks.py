@@ -1,0 +1,87 @@
+"""Capture -> chunks: whole modulation periods read ahead into two slots, and the
+chunk processor run over them.
+
+A chunk's core is `chunk_periods` periods; a margin of context periods on each side lets
+the tracker's continuity reach across chunk boundaries, and each pair is owned by the
+chunk whose core holds its first turning point. Memory is bounded by the chunk, not the
+capture.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator
+from concurrent.futures import ThreadPoolExecutor
+from typing import TYPE_CHECKING
+
+from .capture import Capture, CaptureInfo
+from .options import Options
+from .stages import sync
+
+if TYPE_CHECKING:
+    from .plan import Plan
+    from .processor import ChunkMeasurements, ChunkProcessor
+
+
+class ReadAhead:
+    """The items of `chunks`, the next one read by a thread while this one is processed
+    (HDF5 reads and the kernels' waits release the GIL). The first read starts at once.
+    `close` (or leaving the `with`) waits for a read in flight, so that its slot is not
+    handed on mid-read."""
+
+    def __init__(self, chunks: Iterator) -> None:
+        self._chunks, self._pool = chunks, ThreadPoolExecutor(1)
+        self._ahead = self._pool.submit(next, chunks, None)
+
+    def __iter__(self) -> Iterator:
+        while (item := self._ahead.result()) is not None:
+            self._ahead = self._pool.submit(next, self._chunks, None)
+            yield item
+
+    def close(self) -> None:
+        self._pool.shutdown(wait=True, cancel_futures=True)
+
+    def __enter__(self) -> ReadAhead:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+def core_samples(info: CaptureInfo, options: Options) -> int:
+    """Samples in the core of one chunk (chunks start at multiples of this)."""
+    return max(1, round(options.chunk_periods * info.samples_per_period))
+
+
+def split_ranges(info: CaptureInfo, options: Options, seconds: float) -> list[tuple[int, int]]:
+    """The capture cut into ranges of about `seconds` made of whole chunks, so that
+    processing them apart gives exactly the chunks (and the track) of one pass."""
+    core = core_samples(info, options)
+    per = max(1, round(seconds * info.sample_rate_hz / core)) * core
+    return [(a, min(a + per, info.samples)) for a in range(0, info.samples, per)]
+
+
+def read_chunks(cap: Capture, options: Options, start: int = 0, stop: int | None = None) -> ReadAhead:
+    """The chunks of `options` whose cores lie in samples [start, stop), read ahead into
+    the capture's slots 0 and 1: a chunk's results keep none of its samples, and its
+    kernels are done when the next one starts."""
+    info = cap.info
+    margin = int((options.context_periods + 1) * info.samples_per_period + sync.MAX_DELAY_SAMPLES + 8)
+    return ReadAhead(cap.chunks(options.chunk_periods, margin, start, stop, slots=2))
+
+
+def capture_parts(cap: Capture, plan: Plan, processor: ChunkProcessor, start: int = 0,
+                  stop: int | None = None, progress: Callable[[int, int, float], None] | None = None
+                  ) -> list[ChunkMeasurements]:
+    """The measurements of every chunk whose core lies in samples [start, stop)
+    (`start` a multiple of `core_samples`), read ahead (`read_chunks`), by `processor`
+    opened with `plan`."""
+    parts = []
+    processor.open(plan)
+    with read_chunks(cap, plan.options, start, stop) as ahead:
+        for chunk in ahead:
+            got = processor.process(chunk)
+            if got is not None:
+                parts.append(got)
+            if progress:
+                progress(chunk.core_stop, cap.info.samples, cap.info.sample_rate_hz)
+    return parts

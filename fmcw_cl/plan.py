@@ -1,0 +1,187 @@
+"""The plan of one capture: everything fixed before its samples are converted.
+
+The G(I) table's fit (or a chirp calibration) gives the LUT and the Doppler model; the
+options give the peak search's band and the chunk size; the sync's period is checked;
+the sync delay is estimated from the intensity triangle and refined on the target's own
+kinematics (`refine`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from .capture import Capture, CaptureInfo
+from .chunks import capture_parts
+from .errors import CaptureError, FmcwError
+from .options import Options, said
+from .processor import ChunkProcessor, NumpyProcessor
+from .refine import refine_lag
+from .stages import pairing, resample, spectrum, sync
+from .stages.lut import Lut, build_lut
+from .stages.spectrum import Search
+
+DELAY_STRETCHES = 6           # stretches of the capture used to estimate the sync delay
+DELAY_STRETCH_PERIODS = 200
+PERIOD_TOLERANCE = 0.03      # sync period against /modulation frequency_hz
+DELAY_BOUND_MPS = 0.002   # a refined delay whose velocity uncertainty is beyond this is warned of
+
+
+@dataclass(frozen=True)
+class Plan:
+    """Everything fixed for one capture before its samples are touched."""
+
+    info: CaptureInfo
+    options: Options
+    lut: Lut
+    window: np.ndarray
+    model: pairing.DopplerModel
+    search: Search      # the band and rule of the tracked peak
+    lag: float          # samples the sync lags the optics
+    lag_periods: int    # periods that voted for it
+    lag_misfit: float   # rms misfit of those periods' triangles (clean: < 0.2)
+    check: tuple | None = None   # (LUT, window, model) at 2N points for the range check
+    survey: bool = True          # survey hidden echoes (a trial conversion of `refine` does not)
+    lag_refined: bool = False    # moved to kinematic consistency (refine)
+    lag_mismatch_mps: float = float("nan")   # what remains of the inconsistency there
+    lag_sigma_samples: float = float("nan")  # the refined delay's standard uncertainty
+    lag_sigma_mps: float = float("nan")      # ... as a velocity bias (m/s)
+    lag_sigma_m: float = float("nan")        # ... as a distance bias (m)
+    lag_intensity: float = float("nan")      # the first estimate, from the intensity triangle
+    lag_at_m: float = float("nan")           # the target's mean distance where it was refined
+
+    def with_band(self, band: tuple[float, float | None]) -> Plan:
+        """The plan with the peak search in `band` (m)."""
+        options = replace(self.options, min_range=band[0], max_range=band[1])
+        return replace(self, options=options, search=make_search(options, self.lut, self.model))
+
+
+def estimate_capture_delay(cap: Capture, processor: ChunkProcessor | None = None) -> tuple[float, int, float]:
+    """Sync lag (samples) pooled over stretches spread through the capture.
+
+    Returns (lag, periods used, misfit); see `sync.combine_delays`. `processor` runs the
+    low-pass and the per-period fit (default numpy).
+    """
+    processor = processor or NumpyProcessor()
+    info = cap.info
+    hp = info.samples_per_period / 2
+    length = int(DELAY_STRETCH_PERIODS * info.samples_per_period)
+    starts = np.unique(np.linspace(0, max(0, info.samples - length), DELAY_STRETCHES).astype(np.int64))
+    length = min(length, info.samples)
+    # the stretches as rows (in a chunk slot, free until the chunks are read), low-passed
+    # by one launch a channel
+    beat, sy = (x.reshape(starts.size, length) for x in cap.slot(1, starts.size * length))
+    for a, b, s in zip(starts, beat, sy, strict=True):
+        cap.read_into(a, a + length, b, s)
+    return sync.combine_delays(*sync.period_delays(beat, sy, info.sample_rate_hz, hp, processor.intensity,
+                                                   processor.fit_periods))
+
+
+def make_lut(info: CaptureInfo, points: int, chirp=None) -> Lut:
+    """The LUT at `points`: from the capture's G(I), or from a chirp calibration."""
+    lut = build_lut(info.tuning_current_a, info.tuning_frequency_hz, info.modulation.current_min_a,
+                    info.modulation.current_max_a, points, info.refractive_index)
+    if chirp is None:
+        return lut
+    from .chirp import chirp_lut
+    return chirp_lut(chirp, points, float(np.mean(lut.nu_hz)), info.refractive_index)
+
+
+def make_plan(cap: Capture, options: Options, lag: float | None = None,
+              processor: ChunkProcessor | None = None) -> Plan:
+    """Fit G(I) (or read the chirp calibration), build the LUT and the Doppler model,
+    estimate the sync delay (from the intensity triangle, refined on the target: `refine`).
+
+    A known `lag` (samples the sync lags the optics, e.g. from a track) skips the
+    estimate; `processor` runs the delay's stages and trial conversions (default numpy).
+    """
+    processor = processor or NumpyProcessor()
+    info = cap.info
+    chirp = None
+    if options.chirp:
+        from .chirp import check_chirp, read_chirp
+        chirp = read_chirp(options.chirp)
+        check_chirp(chirp, info, options.chirp)
+    lut = make_lut(info, options.points, chirp)
+    win = resample.window(options.points)
+    nfft = spectrum.fft_length(options.points)
+    model = pairing.doppler_model(lut, info.modulation.period_s / 2, nfft, win)
+    search = make_search(options, lut, model)
+    check_sync_period(cap)
+    options = fit_chunks(options, info, processor)
+    known = lag is not None
+    lag, votes, misfit = estimate_capture_delay(cap, processor) if lag is None else (lag, 0, 0.0)
+    if not np.isfinite(lag):
+        raise CaptureError(info.path, "no laser intensity triangle in the beat channel: "
+                                      "cannot align the sync to the optics")
+    check = None
+    if options.range_check:
+        lut2 = make_lut(info, 2 * options.points, chirp)
+        win2 = resample.window(2 * options.points)
+        check = (lut2, win2, pairing.doppler_model(lut2, info.modulation.period_s / 2,
+                                                   spectrum.fft_length(2 * options.points), win2))
+    plan = Plan(info, options, lut, win, model, search, lag, votes, misfit, check, lag_intensity=lag)
+    if not known and options.dechirp:          # the paper's method (--no-dechirp) as published
+        plan = refine_lag(cap, plan, capture_parts, processor)
+    return plan
+
+
+def make_search(options: Options, lut: Lut, model: pairing.DopplerModel) -> Search:
+    """The band [min_range, max_range) in padded bins (the tracked peak is its
+    strongest); the plain pass lists every echo of the band. The band must lie inside
+    the unambiguous range of this capture's bandwidth."""
+    unamb = lut.unambiguous_range_m
+    lo, top = options.band_m
+    if not lo < 0.9 * unamb:
+        raise FmcwError(f"{said('min_range', lo)} m is not below the unambiguous range "
+                        f"{unamb:.3f} m of {said('points', options.points)}")
+    if top is not None and top > unamb:
+        raise FmcwError(f"{said('max_range', top)} m lies beyond the unambiguous range {unamb:.3f} m of "
+                        f"{said('points', options.points)}: a target there would alias (raise "
+                        f"{said('points')})")
+    half = model.nfft // 2
+    lo = max(1, int(np.ceil(lo / model.metres_per_bin)))
+    hi = half if top is None else min(half, int(np.floor(top / model.metres_per_bin)) + 1)
+    return Search(lo, hi, echoes=True)
+
+
+def fit_chunks(options: Options, info: CaptureInfo, processor: ChunkProcessor) -> Options:
+    """The options with chunks of the processor's size unless given (`chunk_default`:
+    per-chunk costs are fixed, so a device wants large ones), no larger than the
+    processor's device holds (`chunk_limit`)."""
+    wanted = options.chunk_periods or processor.chunk_default
+    limit = processor.chunk_limit(info.samples_per_period, options.points)
+    if limit is not None:
+        wanted = min(wanted, max(16, limit - 2 * options.context_periods - 2))
+    return replace(options, chunk_periods=wanted)
+
+
+def check_sync_period(cap: Capture, periods: int = 40) -> None:
+    """The sync must be a triangle at the modulation frequency: a flat or saturated
+    channel, or a period off `frequency_hz` by more than PERIOD_TOLERANCE, is refused."""
+    info = cap.info
+    hp = info.samples_per_period / 2
+    a = max(0, info.samples // 2 - int(periods * hp))
+    _, sy = cap.read(a, min(info.samples, a + int(2 * periods * hp)))
+    cr = sync.crossings(sy, hp)
+    alternate = cr.direction[1:] != cr.direction[:-1]
+    whole = alternate[1:] & alternate[:-1]            # two crossings apart: one period
+    if np.ptp(sy) < 64 or whole.sum() < 3:
+        raise CaptureError(info.path, "no turning points in the sync channel (flat, saturated "
+                                      "or not a triangle)")
+    measured = float(np.median((cr.time[2:] - cr.time[:-2])[whole])) / info.sample_rate_hz
+    nominal = info.modulation.period_s
+    if abs(measured / nominal - 1) > PERIOD_TOLERANCE:
+        raise CaptureError(info.path, f"the sync repeats every {measured * 1e6:.2f} us but /modulation "
+                                      f"frequency_hz ({info.modulation.frequency_hz:g} Hz) says "
+                                      f"{nominal * 1e6:.2f} us")
+
+
+def delay_reliable(plan: Plan) -> bool:
+    """Whether the sync delay biases velocities by less than DELAY_BOUND_MPS (1 sigma):
+    refined on the target and that certain, or, where no target run allowed it, a clean
+    intensity triangle."""
+    if plan.lag_refined:
+        return bool(plan.lag_sigma_mps <= DELAY_BOUND_MPS)
+    return bool(plan.lag_misfit <= sync.CLEAN_MISFIT)

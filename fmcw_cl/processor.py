@@ -1,0 +1,252 @@
+"""The chunk processor: one chunk of raw codes in, its measurements out.
+
+A processor has one life cycle whatever runs it (the model is OCT's streaming
+processors): `open(plan)` binds a capture's plan (a device uploads its constants once),
+`process(chunk)` turns each chunk into `ChunkMeasurements`, `fork()` gives another
+thread its own (queue, kernels, buffers), `close()` lets the plan go. `NumpyProcessor`
+runs every stage in numpy/scipy and is the reference; `opencl.processor.OpenCLProcessor`
+runs the same steps on a device. What the steps are, in order (`process`):
+
+1. the sync's turning points, shifted by the plan's delay: the half-sweeps;
+2. each pair's rising and falling half-sweeps resampled at uniform optical frequency;
+3. the tracker's passes (plain FFT, de-chirp, regularisation; `stages.pairing`);
+4. ownership: the pairs whose first turning point lies in the chunk's core;
+5. clipping by its effect, the 2N-point range check, the survey of hidden echoes.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from . import echoes
+from .errors import FmcwError
+from .stages import faults, lpf, pairing, resample, sync
+from .stages.spectrum import Search
+
+if TYPE_CHECKING:
+    from .capture import Chunk
+    from .plan import Plan
+
+CHECK_STRIDE = 4             # the 2N-point range check runs on every 4th pair near the limit,
+CHECK_STRIDE_FAR = 16        # ... every 16th where every distance of the chunk is below
+CHECK_NEAR = 0.75            # this share of the unambiguous range
+SURVEY_KEYS = ("time_s", "ratio", "distance_m", "found")
+
+
+@dataclass
+class ChunkMeasurements:
+    """The owned pairs of one chunk (absolute times in s): per pair both half-sweeps'
+    apparent, de-chirped and Doppler-free distances, velocity and echoes (`result`), why
+    it is invalid (`reason`, stages.faults), the survey of hidden echoes, and the beat
+    codes at full scale in the chunk's core."""
+
+    t_rise: np.ndarray
+    t_fall: np.ndarray
+    result: pairing.PairResult
+    reason: np.ndarray
+    survey: dict          # echoes.hidden of every SURVEY_STRIDE-th pair's half-sweeps
+    clipped_codes: int = 0  # beat codes at full scale in the chunk's core (to a block at its edges)
+
+
+class ChunkProcessor(pairing.SpectrumOps):
+    """The life cycle and the steps of a chunk processor; a subclass supplies the stage
+    operations (low-pass, the delay's per-period fits, turning points, resampling,
+    clipping counts, and the spectrum operations of pairing.SpectrumOps) and its sizes.
+
+    Attributes
+    ----------
+    name, device : what runs it, as the track records it.
+    chunk_default : modulation periods a chunk, unless the options say.
+    batch_workers : captures a batch converts at once (batch.process_each).
+    chunks : chunks processed so far.
+    """
+
+    name = ""
+    device = ""
+    chunk_default = 1024
+    batch_workers = 1
+
+    def __init__(self) -> None:
+        self.plan: Plan | None = None
+        self.chunks = 0
+
+    # -- life cycle --
+    def open(self, plan: Plan) -> None:
+        """Bind the capture's plan (its LUT, window and search) for `process`."""
+        self.plan = plan
+
+    def close(self) -> None:
+        """Let the plan go (a device processor also returns its pooled buffers)."""
+        self.plan = None
+
+    def fork(self) -> ChunkProcessor:
+        """A processor of the same kind for another thread."""
+        raise NotImplementedError
+
+    def chunk_limit(self, samples_per_period: float, points: int) -> int | None:
+        """The most periods a chunk may hold (a device's memory), None: no limit."""
+        return None
+
+    def finish(self) -> None:
+        """Wait for work in flight (a device's launches are asynchronous)."""
+
+    def traffic(self) -> dict[str, int]:
+        """Copies each way, their bytes and the launches so far (a device's)."""
+        return {}
+
+    def profile(self, on: bool) -> float | None:
+        """Start timing the device's work (`on`), or stop and return its busy seconds
+        since (None: no device)."""
+        return None
+
+    # -- stage operations, each a twin of a stages/ function --
+    def intensity(self, codes, sample_rate_hz):
+        raise NotImplementedError
+
+    def fit_periods(self, y, z, shift, period, span):
+        raise NotImplementedError
+
+    def turning_points(self, codes, half_period):
+        raise NotImplementedError
+
+    def resample_each(self, codes, jobs, win):
+        """`resample` of each (starts, lengths, u) of `jobs` (a device: one upload)."""
+        raise NotImplementedError
+
+    def resample(self, codes, starts, lengths, u, win):
+        return self.resample_each(codes, [(starts, lengths, u)], win)[0]
+
+    def clip_counts(self, codes, block, full_scale):
+        raise NotImplementedError
+
+    # -- the chunk --
+    def process(self, chunk: Chunk) -> ChunkMeasurements | None:
+        """The owned pairs of `chunk` under the open plan (None: no pair in it)."""
+        plan = self.plan
+        if plan is None:
+            raise FmcwError("a chunk processor must be opened with a plan before it processes")
+        self.chunks += 1
+        info = plan.info
+        hp = info.samples_per_period / 2
+        hs = sync.half_sweeps(self.turning_points(chunk.sync, hp), plan.lag)
+        fits = resample.inside(hs.start, hs.length, plan.lut, chunk.beat.size)
+        r = np.flatnonzero(hs.rising[:-1] & ~hs.rising[1:] & (hs.segment[:-1] == hs.segment[1:])
+                           & fits[:-1] & fits[1:])
+        if r.size == 0:
+            return None
+        f = r + 1
+        xr, xf = self.resample_each(chunk.beat, [(hs.start[r], hs.length[r], plan.lut.u_rise),
+                                                 (hs.start[f], hs.length[f], plan.lut.u_fall)], plan.window)
+        fs = info.sample_rate_hz
+        t_r = (chunk.start + hs.centre[r]) / fs
+        t_f = (chunk.start + hs.centre[f]) / fs
+        res = pairing.track_pairs(xr, xf, t_r, t_f, plan.model, plan.search, plan.options.iterations,
+                                  plan.options.dechirp, self, plan.options.integrate)
+        first = chunk.start + hs.start[r] + plan.lag      # sync time of the pair's first turn
+        own = (first >= chunk.core_start) & (first < chunk.core_stop)
+        sel = res.take(own)
+        r, f = r[own], f[own]
+        # the falling half-sweep starts where the rising one ends: one span per pair
+        counts = self.clip_counts(chunk.beat, faults.CLIP_BLOCK, info.full_scale + 1)     # 2^(bits-1)
+        span = hs.start[f] + hs.length[f] - hs.start[r]
+        clip = faults.clipped_share(hs.start[r], span, counts, chunk.beat.size) >= faults.CLIP_SHARE
+        # the core's clipped codes, counted once over the capture
+        core = slice((chunk.core_start - chunk.start) // faults.CLIP_BLOCK,
+                     -(-(chunk.core_stop - chunk.start) // faults.CLIP_BLOCK))
+        clipped_codes = int(counts[core].sum(dtype=np.int64))
+        alias = np.zeros(r.size, bool)
+        if plan.check is not None and r.size:
+            alias = self._beyond_range(chunk.beat, hs, r, f, sel)
+        reason = faults.reasons(sel.valid, sel.heard, clip, alias, sel.continuous)
+        sel.valid[:] = reason == faults.OK
+        survey = self._survey((xr, xf), (t_r, t_f), res, np.flatnonzero(own)) if plan.survey else None
+        return ChunkMeasurements(t_r[own], t_f[own], sel, reason, survey or no_survey(), clipped_codes)
+
+    def _survey(self, rows: tuple, times: tuple, res: pairing.PairResult, own: np.ndarray) -> dict | None:
+        """The energy no sharp echo explains (echoes.hidden) in both half-sweeps of every
+        SURVEY_STRIDE-th owned pair: their plain spectra and those de-chirped at the
+        pair's velocity."""
+        plan = self.plan
+        m = plan.model
+        idx = own[:: echoes.SURVEY_STRIDE]
+        dets = (res.echoes_rise, res.echoes_fall)
+        if idx.size == 0 or dets[0] is None:
+            return None
+        dists, others = (res.dist_rise, res.dist_fall), []
+        for dist, det in zip(dists, dets, strict=True):
+            o = det.take(idx).bin.copy()
+            o[echoes.is_tracked(o * m.metres_per_bin, dist[idx, None])] = np.nan
+            others.append(o)
+        got = self.survey_each(rows, (m.beta_rise, m.beta_fall), res.velocity[idx], m.nfft, idx,
+                               plan.search.lo,
+                               [d[idx] / m.metres_per_bin for d in (res.dechirped_rise, res.dechirped_fall)],
+                               [d[idx] / m.metres_per_bin for d in dists], others)
+        return {"time_s": np.concatenate([t[idx] for t in times]),
+                "ratio": np.concatenate([g[0] for g in got]),
+                "distance_m": np.concatenate([g[1] * m.metres_per_bin for g in got]),
+                "found": np.concatenate([g[2] for g in got])}
+
+    def _beyond_range(self, beat: np.ndarray, hs, r: np.ndarray, f: np.ndarray,
+                      res: pairing.PairResult) -> np.ndarray:
+        """The 2N-point range check of pairs (r, f) with the tracker's results `res`, on
+        the plain spectra (a target whose Doppler-shifted plain peak folds is flagged too:
+        the plain pass that starts the tracker cannot measure it), run on every
+        CHECK_STRIDE-th pair; a pair is flagged when a checked pair on either side of it
+        is (a target crosses the range limit within a few pairs, where the N-point
+        distance is ambiguous anyway). A target only crosses the limit through N-point
+        distances near it: in a chunk whose plain and Doppler-free distances all stay
+        below CHECK_NEAR of it, every CHECK_STRIDE_FAR-th pair is checked (a target
+        beyond the range from the start is still found)."""
+        plan = self.plan
+        lut2, win2, model2 = plan.check
+        seen = np.concatenate([res.dist_rise, res.dist_fall, res.dechirped_rise, res.dechirped_fall,
+                               res.distance])
+        near = np.any(seen > CHECK_NEAR * plan.lut.unambiguous_range_m)
+        stride = CHECK_STRIDE if near else CHECK_STRIDE_FAR
+        checked = np.unique(np.r_[np.arange(0, r.size, stride), r.size - 1])
+        sides = ((r[checked], lut2.u_rise), (f[checked], lut2.u_fall))
+        xs = self.resample_each(beat, [(hs.start[idx], hs.length[idx], u) for idx, u in sides], win2)
+        got = self.measure_each(xs, (None, None), None, model2, Search(plan.search.lo, model2.nfft // 2))
+        beyond = np.zeros(checked.size, bool)
+        for (d2, s2), dn in zip(got, (res.dist_rise[checked], res.dist_fall[checked]), strict=True):
+            beyond |= faults.beyond_range(d2, s2, plan.lut.unambiguous_range_m, pairing.SNR_MIN_DB, dn)
+        right = np.searchsorted(checked, np.arange(r.size))          # first checked pair >= i
+        left = np.searchsorted(checked, np.arange(r.size), side="right") - 1
+        return beyond[right] | beyond[np.maximum(left, 0)]
+
+
+def no_survey() -> dict:
+    """The survey of a chunk that surveyed nothing."""
+    return {k: np.zeros(0, bool if k == "found" else float) for k in SURVEY_KEYS}
+
+
+class NumpyProcessor(ChunkProcessor):
+    """The reference processor: every stage in numpy/scipy (`stages/`)."""
+
+    name = "numpy"
+    device = "numpy (CPU)"
+    chunk_default = 1024       # periods a chunk: peak memory about 0.35 GB
+    # numpy's steps run on one core each: two workers made 4 x 1 s captures 1.5-1.6x
+    # faster on two cores
+    batch_workers = 2
+
+    def fork(self) -> NumpyProcessor:
+        return NumpyProcessor()
+
+    def intensity(self, codes, sample_rate_hz):
+        return lpf.intensity(codes, sample_rate_hz)
+
+    def fit_periods(self, y, z, shift, period, span):
+        return sync.fit_periods(y, z, shift, period, span)
+
+    def turning_points(self, codes, half_period):
+        return sync.sync_turning_points(codes, half_period)
+
+    def resample_each(self, codes, jobs, win):
+        return [resample.resample(codes, starts, lengths, u, win) for starts, lengths, u in jobs]
+
+    def clip_counts(self, codes, block, full_scale):
+        return faults.clip_counts(codes, block, full_scale)
