@@ -65,15 +65,15 @@ def process_each(paths, options: Options | None = None, processor: ChunkProcesso
             if progress:
                 progress(i, done, total, fs)
 
-        stages = free.get()
+        worker = free.get()
         try:
             if progress:
                 progress(i, 0, 0, 0.0)          # started (its rate counts from here)
-            return process(paths[i], options, stages, tick)
+            return process(paths[i], options, worker, tick)
         except FmcwError as exc:
             return exc
         finally:
-            free.put(stages)
+            free.put(worker)
 
     if workers <= 1:
         for i, path in enumerate(paths):

@@ -29,6 +29,7 @@ JUMP_S = 0.3      # the jump scenario's length (take-off to landing)
 
 WHOLES = ("resample + FFT + peak + echoes", "end to end, paper's method")   # not parts of file to track
 
+
 def _timed(fn, finish, repeat: int = 3) -> float:
     fn()  # warm-up: kernel builds, caches
     finish()
@@ -127,7 +128,6 @@ def _where_time_goes(be, fn, finish, seconds: float) -> dict:
     if busy is not None:
         got["device_busy_share"] = busy / wall
     return got
-
 
 
 def run(seconds: float = 0.2, points: int = 1000, backends=("numpy", "opencl"),

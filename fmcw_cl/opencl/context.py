@@ -16,7 +16,7 @@ from __future__ import annotations
 import copy
 import os
 import tempfile
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 
 import numpy as np
@@ -137,9 +137,8 @@ class Traffic:
     events: list | None = None
 
     def counts(self) -> dict[str, int]:
-        """Launches, copies and bytes so far."""
-        return {k: getattr(self, k) for k in ("launches", "uploads", "downloads", "upload_bytes",
-                                              "download_bytes")}
+        """Launches, copies and bytes so far (every counter; not the events)."""
+        return {f.name: getattr(self, f.name) for f in fields(self) if f.name != "events"}
 
     def busy_seconds(self) -> float:
         """Seconds the device spent in the collected launches (they do not overlap on

@@ -115,10 +115,10 @@ class OpenCLProcessor(ChunkProcessor):
     def measure_each(self, xs, betas, v, model, search, rows=None):
         """Twin: pairing.SpectrumOps.measure_each; one upload of the rows and velocities,
         one download of every result."""
-        pairs = list(zip(xs, betas, strict=True))
         if not self._fits(model.nfft):
             return pairing.NUMPY.measure_each(xs, betas, v, model, search, rows)
-        got = k_spectrum.measure_each(self.rt, self.bufs, [(x, b, None) for x, b in pairs], v, model.nfft,
+        jobs = [(x, b, None) for x, b in zip(xs, betas, strict=True)]
+        got = k_spectrum.measure_each(self.rt, self.bufs, jobs, v, model.nfft,
                                       search.lo, search.hi, index=rows, echoes=search.echoes)
         return [(pk.bin * model.metres_per_bin, pk.snr_db, *([det] if search.echoes else []))
                 for pk, _, det in got]

@@ -11,17 +11,12 @@ from .context import Runtime, cl
 GPU_LOCAL = 128     # work-items of `resample`'s groups (a half-sweep each)
 
 
-def resample(rt: Runtime, bufs: Buffers, codes: np.ndarray, starts: np.ndarray,
-             lengths: np.ndarray, u: np.ndarray, win: np.ndarray) -> DeviceRows:
-    """Resampled, mean-removed, windowed half-sweeps, (S, N) float32 left on the device
-    (see the numpy twin). The codes are uploaded once for all launches on one array."""
-    return resample_each(rt, bufs, codes, [(starts, lengths, u)], win)[0]
-
-
 def resample_each(rt: Runtime, bufs: Buffers, codes: np.ndarray, jobs: list, win: np.ndarray
                   ) -> list[DeviceRows]:
-    """`resample` of each (starts, lengths, u) of `jobs` (a pair's rising and falling
-    half-sweeps) from the same codes: one upload of all their positions."""
+    """Resampled, mean-removed, windowed half-sweeps of each (starts, lengths, u) of `jobs`
+    (a pair's rising and falling half-sweeps), (S, N) float32 each, left on the device
+    (twin: stages.resample.resample). The codes are uploaded once for all launches on
+    one array, the positions of every job by one copy."""
     d_codes = bufs.upload_once("codes", codes if codes.dtype == np.int16 else codes.astype(np.int16))
     parts, values = [], []
     for starts, lengths, u in jobs:
