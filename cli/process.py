@@ -83,12 +83,20 @@ def report(s: dict, attrs: dict, quiet: bool, as_json: bool) -> None:
                    "target would alias: raise --points", err=True)
     if not attrs["sync_delay_reliable"]:
         click.echo(f"warning: {cap}: {delay_doubt(attrs)}", err=True)
+    if attrs.get("rest_calibration") == "made":
+        span = attrs["rest_calibration_span_s"]
+        click.echo(f"note: {cap}: the laser's chirp is far from its G(I) table (peaks "
+                   f"{attrs['table_peak_width_ratio']:.1f}x the window's): calibrated on its own rest "
+                   f"({span[0]:.3f}-{span[1]:.3f} s at {attrs['rest_calibration_distance_m']:.4f} m), the "
+                   f"distance scale set by its motion (+-{attrs['scale_uncertainty_ppm']:.0f} ppm)", err=True)
     if attrs.get("tuning_matches") is False:
         source = "chirp calibration" if attrs.get("chirp") else "G(I) table"
         marked = int(attrs.get("invalid_uncalibrated", 0))
         what = (f"; {marked} pairs marked uncalibrated: a chirp calibrated on a static target (fmcw-cl "
                 "calibrate, then --chirp) gives them back at the usual precision" if marked
                 else " (fmcw-cl calibrate)")
+        if attrs.get("rest_calibration", "made") != "made":
+            what += f" (not calibrated on its own rest: {attrs['rest_calibration']})"
         click.echo(f"warning: {cap}: its peaks are {attrs['tuning_peak_width_ratio']:.1f}x wider than the "
                    f"window's own: the laser's chirp does not match the {source}{what}", err=True)
     target_lines(cap, attrs)

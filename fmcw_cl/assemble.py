@@ -91,10 +91,11 @@ def assemble(plan: Plan, parts: list[ChunkMeasurements], processor: ChunkProcess
         **(choice.attrs() if choice is not None else {}),
         "target_tracked_m": np.percentile(dist[valid], [1, 99]) if valid.any() else np.full(2, np.nan),
         "bandwidth_hz": lut.bandwidth_hz,
-        "tuning": "chirp calibration" if options.chirp else "static G(I) table",
+        "tuning": plan.tuning,
         "range_resolution_m": lut.range_resolution_m,
         # the distance scale is as good as the bandwidth: its uncertainty from the G(I)
-        # table's scatter (NaN with a chirp calibration: as good as its distance)
+        # table's fit, or from the motion that scaled a chirp calibrated on the capture's
+        # own rest (NaN with a given chirp calibration: as good as its distance)
         "tuning_fit_degree": int(lut.fit_degree),
         "tuning_table_scatter_hz": float(lut.table_scatter_hz),
         "scale_uncertainty_ppm": float(lut.scale_ppm),

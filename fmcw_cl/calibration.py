@@ -29,7 +29,6 @@ its measured SNR.
 from __future__ import annotations
 
 import numpy as np
-import scipy.fft
 
 from . import __version__
 from .capture import Capture
@@ -51,6 +50,8 @@ OTHER_ECHO = 0.3         # isolate where the low-pass removes this share of the 
 
 def _analytic(x: np.ndarray, fs: float, f_lo: float, f_hi: float) -> np.ndarray:
     """Analytic signal of x restricted to [f_lo, f_hi] (Hz)."""
+    import scipy.fft  # here: a conversion that calibrates nothing imports no scipy
+
     n = x.size
     spec = scipy.fft.fft(x - x.mean(), workers=-1)
     f = scipy.fft.fftfreq(n, 1 / fs)
@@ -73,7 +74,16 @@ def measure_chirp(path, distance_m: float, periods: int = 2000) -> Chirp:
         spp = info.samples_per_period
         n = int(min(info.samples, periods * spp + 4 * spp))
         a = max(0, (info.samples - n) // 2)
-        beat, sy = cap.read(a, a + n)
+        return chirp_of(cap, plan, distance_m, a, a + n)
+
+
+def chirp_of(cap: Capture, plan, distance_m: float, start: int, stop: int) -> Chirp:
+    """The chirp measured on samples [start, stop) of `cap`, where a static target
+    stands at `distance_m` (m); `plan` (a static G(I) table's) gives the half-sweeps'
+    delay and the beat frequencies to expect."""
+    info = cap.info
+    spp = info.samples_per_period
+    beat, sy = cap.read(start, stop)
     fs, nidx = info.sample_rate_hz, info.refractive_index
     tau = 2 * distance_m * nidx / C
     if not 0.02 < distance_m < 0.9 * plan.lut.unambiguous_range_m * 4:

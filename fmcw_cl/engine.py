@@ -3,7 +3,9 @@
 `process` makes the capture's plan (`plan`), streams its chunks through a chunk
 processor (`chunks`, `processor`), assembles the track (`assemble`), chooses the target
 and, where the target is alone in a band of its own, converts once more in that band;
-last it checks that the laser's chirp still matches its table (`refine`).
+last it checks that the laser's chirp still matches its table (`refine`) and, where it
+is far off, converts once more with a chirp calibrated on the capture's own rest
+(`rest_calibration`), or marks every pair uncalibrated.
 """
 
 from __future__ import annotations
@@ -13,14 +15,14 @@ from collections.abc import Callable
 
 import numpy as np
 
-from . import target
+from . import rest_calibration, target
 from .assemble import assemble
 from .capture import Capture
 from .chunks import capture_parts
 from .errors import CaptureError
 from .numeric import median
 from .options import Options
-from .plan import Plan, make_plan
+from .plan import TABLE, Plan, make_plan
 from .processor import ChunkMeasurements, ChunkProcessor, NumpyProcessor
 from .refine import WIDTH_LIMIT, peak_width_ratio, stillest
 from .stages import faults
@@ -59,7 +61,8 @@ def process(path, options: Options | None = None, processor: ChunkProcessor | No
                 track = assemble(plan, parts, processor, time.perf_counter() - started, choice)
             else:
                 track = with_choice(plan, parts, processor, time.perf_counter() - started, track, choice)
-            check_tuning(cap, plan, track, processor)
+            if check_tuning(cap, plan, track, processor) > UNCALIBRATED_RATIO and plan.options.dechirp:
+                track = calibrated_on_rest(cap, plan, track, processor, choice, started, progress)
     finally:
         processor.close()
     return track
@@ -86,20 +89,49 @@ def choose_target(plan: Plan, track: Track) -> target.Choice:
         raise CaptureError(plan.info.path, str(exc)) from None
 
 
-def check_tuning(cap: Capture, plan: Plan, track: Track, processor: ChunkProcessor) -> None:
+def check_tuning(cap: Capture, plan: Plan, track: Track, processor: ChunkProcessor) -> float:
     """Record how much wider than the window's own the peaks of the stillest stretch
-    are (`tuning_peak_width_ratio`; `tuning_matches` is false beyond WIDTH_LIMIT): the
-    sign that the laser's real chirp has left its G(I) table or its calibration."""
+    are (`tuning_peak_width_ratio`, returned; `tuning_matches` is false beyond
+    WIDTH_LIMIT): the sign that the laser's real chirp has left its G(I) table or its
+    calibration."""
     ratio = peak_width_ratio(cap, plan, stillest(track.time_s, track.velocity_mps),
                              track.time_s, track.velocity_mps, processor)
     track.attrs["tuning_peak_width_ratio"] = ratio
     track.attrs["tuning_matches"] = bool(not ratio > WIDTH_LIMIT)
     track.attrs["uncalibrated_ratio"] = UNCALIBRATED_RATIO
-    if ratio > UNCALIBRATED_RATIO and plan.options.dechirp:
-        # distances cm off pass every neighbour test when all are off alike: none is valid
-        track.reason[track.reason == faults.OK] = faults.UNCALIBRATED
-        track.sweep_reason[track.sweep_reason == faults.OK] = faults.UNCALIBRATED
-        track.valid[:] = False
-        # the tracked span assemble took from the valid pairs: none is left
-        track.attrs.update(invalid_uncalibrated=int(np.sum(track.reason == faults.UNCALIBRATED)),
-                           target_tracked_m=np.full(2, np.nan))
+    return ratio
+
+
+def calibrated_on_rest(cap: Capture, plan: Plan, track: Track, processor: ChunkProcessor,
+                       choice: target.Choice, started: float, progress=None) -> Track:
+    """A track whose chirp is far from its G(I) table converted again with a chirp
+    calibrated on the capture's own rest (`rest_calibration`) where that can be made
+    and its peaks then match; else `track` with every valid pair marked uncalibrated
+    (a given chirp calibration is not replaced)."""
+    if plan.tuning != TABLE:
+        return uncalibrated(track, {"rest_calibration": "not tried: a chirp calibration was given"})
+    own, attrs = rest_calibration.calibrate(cap, plan, track, processor)
+    if own is None:
+        return uncalibrated(track, attrs)
+    before = track.attrs["tuning_peak_width_ratio"]
+    parts = capture_parts(cap, own, processor, progress=progress)
+    calibrated = assemble(own, parts, processor, time.perf_counter() - started, choice)
+    calibrated.attrs.update(attrs, table_peak_width_ratio=before)
+    ratio = check_tuning(cap, own, calibrated, processor)
+    if ratio > UNCALIBRATED_RATIO:
+        return uncalibrated(calibrated, {"rest_calibration": f"made on its rest, but its peaks are still "
+                                                             f"{ratio:.2f}x the window's"})
+    return calibrated
+
+
+def uncalibrated(track: Track, attrs: dict) -> Track:
+    """`track` with `attrs` and no valid pair: the chirp is so far from its table that
+    distances cm off pass every neighbour test when all are off alike."""
+    track.attrs.update(attrs)
+    track.reason[track.reason == faults.OK] = faults.UNCALIBRATED
+    track.sweep_reason[track.sweep_reason == faults.OK] = faults.UNCALIBRATED
+    track.valid[:] = False
+    # the tracked span assemble took from the valid pairs: none is left
+    track.attrs.update(invalid_uncalibrated=int(np.sum(track.reason == faults.UNCALIBRATED)),
+                       target_tracked_m=np.full(2, np.nan))
+    return track

@@ -71,6 +71,12 @@ def runs(mask: np.ndarray) -> np.ndarray:
     return edges.reshape(-1, 2)
 
 
+def travelled(t: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """The distance travelled (m) from t[0] at velocities v (m/s) at times t (s): the
+    trapezoidal integral."""
+    return np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * np.diff(t))])
+
+
 def nearest(sorted_a: np.ndarray, x: np.ndarray) -> np.ndarray:
     """Index of the element of `sorted_a` (ascending, not empty) nearest to each of
     `x`; on a tie the lower one."""

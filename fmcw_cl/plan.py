@@ -13,6 +13,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .capture import Capture, CaptureInfo
+from .chirp import Chirp, check_chirp, chirp_lut, read_chirp
 from .chunks import capture_parts
 from .errors import CaptureError, FmcwError
 from .options import Options, said
@@ -26,6 +27,7 @@ DELAY_STRETCHES = 6           # stretches of the capture used to estimate the sy
 DELAY_STRETCH_PERIODS = 200
 PERIOD_TOLERANCE = 0.03      # sync period against /modulation frequency_hz
 DELAY_BOUND_MPS = 0.002   # a refined delay whose velocity uncertainty is beyond this is warned of
+TABLE, CALIBRATION, OWN_REST = "static G(I) table", "chirp calibration", "chirp calibrated on its own rest"
 
 
 @dataclass(frozen=True)
@@ -50,11 +52,20 @@ class Plan:
     lag_sigma_m: float = float("nan")        # ... as a distance bias (m)
     lag_intensity: float = float("nan")      # the first estimate, from the intensity triangle
     lag_at_m: float = float("nan")           # the target's mean distance where it was refined
+    tuning: str = TABLE                      # where the LUT comes from: TABLE, CALIBRATION or OWN_REST
 
     def with_band(self, band: tuple[float, float | None]) -> Plan:
         """The plan with the peak search in `band` (m)."""
         options = replace(self.options, min_range=band[0], max_range=band[1])
         return replace(self, options=options, search=make_search(options, self.lut, self.model))
+
+    def with_chirp(self, chirp: Chirp, tuning: str, scale_std: float = float("nan")) -> Plan:
+        """The plan resampled on `chirp` (its sync delay kept: a chirp is measured
+        against half-sweeps at a delay), the distance scale's relative uncertainty
+        `scale_std` (1 sigma)."""
+        parts = tuned(self.info, self.options, chirp)
+        parts["lut"] = replace(parts["lut"], scale_std=scale_std)
+        return replace(self, **parts, tuning=tuning)
 
 
 def estimate_capture_delay(cap: Capture, processor: ChunkProcessor | None = None) -> tuple[float, int, float]:
@@ -84,7 +95,6 @@ def make_lut(info: CaptureInfo, points: int, chirp=None) -> Lut:
                     info.modulation.current_max_a, points, info.refractive_index)
     if chirp is None:
         return lut
-    from .chirp import chirp_lut
     return chirp_lut(chirp, points, float(np.mean(lut.nu_hz)), info.refractive_index)
 
 
@@ -100,14 +110,9 @@ def make_plan(cap: Capture, options: Options, lag: float | None = None,
     info = cap.info
     chirp = None
     if options.chirp:
-        from .chirp import check_chirp, read_chirp
         chirp = read_chirp(options.chirp)
         check_chirp(chirp, info, options.chirp)
-    lut = make_lut(info, options.points, chirp)
-    win = resample.window(options.points)
-    nfft = spectrum.fft_length(options.points)
-    model = pairing.doppler_model(lut, info.modulation.period_s / 2, nfft, win)
-    search = make_search(options, lut, model)
+    parts = tuned(info, options, chirp)
     check_sync_period(cap)
     options = fit_chunks(options, info, processor)
     known = lag is not None
@@ -115,16 +120,27 @@ def make_plan(cap: Capture, options: Options, lag: float | None = None,
     if not np.isfinite(lag):
         raise CaptureError(info.path, "no laser intensity triangle in the beat channel: "
                                       "cannot align the sync to the optics")
+    plan = Plan(info, options, lag=lag, lag_periods=votes, lag_misfit=misfit, lag_intensity=lag,
+                tuning=TABLE if chirp is None else CALIBRATION, **parts)
+    if not known and options.dechirp:          # the paper's method (--no-dechirp) as published
+        plan = refine_lag(cap, plan, capture_parts, processor)
+    return plan
+
+
+def tuned(info: CaptureInfo, options: Options, chirp: Chirp | None) -> dict:
+    """The Plan's fields that follow from the tuning (the G(I) table, or `chirp`): the
+    LUT, window, Doppler model, peak search and the range check's 2N-point versions."""
+    lut = make_lut(info, options.points, chirp)
+    win = resample.window(options.points)
+    model = pairing.doppler_model(lut, info.modulation.period_s / 2, spectrum.fft_length(options.points), win)
     check = None
     if options.range_check:
         lut2 = make_lut(info, 2 * options.points, chirp)
         win2 = resample.window(2 * options.points)
         check = (lut2, win2, pairing.doppler_model(lut2, info.modulation.period_s / 2,
                                                    spectrum.fft_length(2 * options.points), win2))
-    plan = Plan(info, options, lut, win, model, search, lag, votes, misfit, check, lag_intensity=lag)
-    if not known and options.dechirp:          # the paper's method (--no-dechirp) as published
-        plan = refine_lag(cap, plan, capture_parts, processor)
-    return plan
+    return {"lut": lut, "window": win, "model": model, "search": make_search(options, lut, model),
+            "check": check}
 
 
 def make_search(options: Options, lut: Lut, model: pairing.DopplerModel) -> Search:

@@ -23,7 +23,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .capture import Capture
-from .numeric import runs
+from .numeric import runs, travelled
 
 STRETCHES = 3
 STRETCH_PERIODS = 240
@@ -49,8 +49,7 @@ class Mismatch:
 def drift(t: np.ndarray, d: np.ndarray, v: np.ndarray) -> tuple[float, float]:
     """Least-squares slope (m/s) of d - integral of v over one run, and its standard
     error: zero for consistent kinematics, whatever the motion."""
-    travelled = np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * np.diff(t))])
-    r = d - travelled
+    r = d - travelled(t, v)
     tc = t - t.mean()
     slope = float(np.dot(tc, r - r.mean()) / np.dot(tc, tc))
     resid = r - r.mean() - slope * tc
@@ -70,10 +69,7 @@ def mismatch(cap: Capture, plan, lag: float, capture_parts, backend) -> Mismatch
         parts = capture_parts(cap, p, backend, int(a), int(a) + length)
         if not parts:
             continue
-        t = np.concatenate([0.5 * (q.t_rise + q.t_fall) for q in parts])
-        d = np.concatenate([q.result.distance for q in parts])
-        v = np.concatenate([q.result.velocity for q in parts])
-        ok = np.concatenate([q.reason == 0 for q in parts])
+        t, d, v, ok = pairs_of(parts)
         i, j = max(runs(ok), key=lambda r: r[1] - r[0], default=(0, 0))
         if j - i < MIN_RUN:
             continue
@@ -90,6 +86,15 @@ def mismatch(cap: Capture, plan, lag: float, capture_parts, backend) -> Mismatch
     if n > 1:
         sigma = max(sigma, float(np.std(slopes, ddof=1)) / np.sqrt(n))
     return Mismatch(float(np.mean(slopes)), sigma, float(np.mean(dist)))
+
+
+def pairs_of(parts) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Time (s), distance (m), velocity (m/s) and validity of the pairs of converted
+    chunks (processor.ChunkMeasurements)."""
+    return (np.concatenate([0.5 * (q.t_rise + q.t_fall) for q in parts]),
+            np.concatenate([q.result.distance for q in parts]),
+            np.concatenate([q.result.velocity for q in parts]),
+            np.concatenate([q.reason == 0 for q in parts]))
 
 
 def refine_lag(cap: Capture, plan, capture_parts, backend):

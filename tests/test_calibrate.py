@@ -159,17 +159,67 @@ def test_calibration_at_minus_10_db_and_behind_a_stronger_wall(tmp_path):
         measure_chirp(cal, 0.3)
 
 
-def test_a_chirp_far_from_its_table_leaves_no_valid_pair(tmp_path, fmcw):
-    """The jump under 5 us of thermal lag, converted with the static table: its peaks are
-    twice the window's width and its distances centimetres off, smooth enough to pass
-    every neighbour test. None may be valid: they are marked uncalibrated, and the
-    warning says what calibrating gives."""
-    from fmcw_cl.stages import faults
-
+def test_a_chirp_far_from_its_table_is_calibrated_on_its_own_rest(tmp_path, fmcw):
+    """The jump under 5 us of thermal lag: with the static table its peaks are twice the
+    window's width and its distances centimetres off, smooth enough to pass every
+    neighbour test. Its foot rests before and after the jump: the chirp is calibrated
+    there (at the table's rough distance, 12 % short) and scaled by the motion, and the
+    pairs are valid again at a calibration's precision; the CLI says what was done. The
+    OpenCL processor takes the same path."""
     path = lagged(tmp_path / "lag5.h5", jump(0.3), 0.3, 165, 5.0)
     track = process(path)
+    a = track.attrs
+    with Capture(path) as cap:
+        acc = accuracy(track, cap.truth())
+    assert a["rest_calibration"] == "made" and a["tuning"] == "chirp calibrated on its own rest"
+    assert a["table_peak_width_ratio"] > 1.5 and a["tuning_peak_width_ratio"] < 1.1
+    assert 0.85 < a["rest_calibration_scale"] < 0.9                  # the rough distance's error
+    assert abs(a["rest_calibration_distance_m"] - 0.07) < 0.2e-3
+    assert a["scale_uncertainty_ppm"] < 1000 and a["invalid_uncalibrated"] == 0
+    assert acc["valid_share"] >= 0.99
+    assert acc["distance_p95_m"] <= 0.3e-3 and acc["distance_max_m"] <= 0.6e-3
+    assert acc["velocity_p95_mps"] <= 0.01
+    proc = fmcw("process", path, "-o", tmp_path / "o", "--backend", "opencl")
+    assert "calibrated on its own rest" in proc.stderr and "warning" not in proc.stderr
+    import h5py
+    with h5py.File(tmp_path / "o" / "lag5.track.h5") as f:
+        assert f.attrs["rest_calibration"] == "made" and f["track/valid"][()].mean() >= 0.99
+
+
+def test_a_chirp_far_from_its_table_without_motion_leaves_no_valid_pair(tmp_path, fmcw):
+    """A still target under 5 us of lag: a rest to calibrate on, but no motion to set the
+    chirp's scale. None of its centimetre-biased distances may be valid: they are marked
+    uncalibrated, and the warning says why and what calibrating gives."""
+    from fmcw_cl.stages import faults
+
+    path = lagged(tmp_path / "still5.h5", static(0.05, 0.07), 0.05, 170, 5.0)
+    track = process(path)
     assert track.attrs["tuning_peak_width_ratio"] > 1.5 and not track.valid.any()
-    assert track.attrs["invalid_uncalibrated"] > 1000
+    assert track.attrs["invalid_uncalibrated"] > 500
     assert (track.reason == faults.UNCALIBRATED).sum() == track.attrs["invalid_uncalibrated"]
+    assert "moves less than 20 mm" in track.attrs["rest_calibration"]
     proc = fmcw("process", path, "-o", tmp_path / "o")
     assert "pairs marked uncalibrated: a chirp calibrated on a static target" in proc.stderr
+    assert f"not calibrated on its own rest: {track.attrs['rest_calibration']}" in proc.stderr
+
+
+def test_rest_and_scale_estimates():
+    """The rest is the longest steady run of blocks; the scale is distance over
+    integrated velocity, with an uncertainty that covers its noise, and none without
+    motion."""
+    from fmcw_cl.rest_calibration import kinematic_scale, rest_stretch
+
+    rng = np.random.default_rng(3)
+    t = np.arange(4000) * 50e-6
+    v = np.where(t < 0.05, 0.0, 2.0 * np.sin(2 * np.pi * 10 * (t - 0.05)))
+    d = 0.2 + np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * np.diff(t))])
+    noisy = 0.9 * d + rng.normal(0, 20e-6, t.size)
+    i, j = rest_stretch(noisy)
+    assert i == 0 and 950 <= j <= 1100
+    gaps = noisy.copy()
+    gaps[2000:2100] = np.nan
+    ok = np.isfinite(gaps)
+    k, sigma = kinematic_scale(t, gaps, v + rng.normal(0, 1e-3, t.size), ok)
+    assert abs(k - 0.9) < 3 * sigma and sigma < 1e-3
+    still = np.full(t.size, 0.2) + rng.normal(0, 20e-6, t.size)
+    assert np.isnan(kinematic_scale(t, still, np.zeros(t.size), np.ones(t.size, bool))[0])

@@ -1,0 +1,139 @@
+"""The chirp calibrated on a capture's own rest, where the G(I) table no longer holds.
+
+When the tuning check finds peaks far wider than the window's own (a laser whose thermal
+tuning lags the current), a stretch where the target rests (a foot before a jump) is a
+calibration target (`calibration.chirp_of`), but at a distance that the smeared peaks
+give only roughly. The chirp so measured has the right *shape* (the resampling
+instants) and a scale (its bandwidth) off by the rough distance's error: every
+distance then reads too far or too near by that factor.
+
+The target's motion sets the scale. The Doppler velocity, 2 v / lambda with lambda from
+the table's mean frequency, does not depend on the bandwidth (the apparent shift per m/s,
+`DopplerModel.k_*`, scales with the distances it is read from); the distance does. So
+over the runs where the target moves, the distance travelled over the integrated
+velocity is the chirp's scale: segments of SEGMENT_PAIRS pairs are regressed and their
+spread gives the scale's standard uncertainty, which the distance scale then states.
+
+The sync delay stays that of the first conversion: the chirp is measured against
+half-sweeps at that delay, and at rest the directions agree by construction. A capture
+is left uncalibrated (its pairs `uncalibrated`, `rest_calibration` saying why) where it
+holds no rest of REST_PERIODS periods, does not move MIN_TRAVEL_M, its rest is too noisy
+to calibrate on, or its motion fixes the scale no better than SCALE_SIGMA_MAX.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from .calibration import chirp_of
+from .capture import Capture
+from .chirp import Chirp, Direction
+from .chunks import capture_parts
+from .errors import CaptureError
+from .numeric import runs, travelled
+from .plan import OWN_REST, Plan
+from .processor import ChunkProcessor
+from .refine import pairs_of
+from .track import Track
+
+REST_BLOCK = 50          # pairs whose median distance is one step of the rest
+REST_M = 0.3e-3          # a rest's blocks stay this close to its first (m)
+REST_PERIODS = 200       # the shortest rest calibrated on
+MIN_TRAVEL_M = 0.02      # a target that moves less cannot set the scale
+SEGMENT_PAIRS = 200      # pairs of a segment of the scale's regression
+SCALE_SIGMA_MAX = 1e-3   # the scale must be known this well (relative, 1 sigma)
+
+
+def rest_stretch(distance_m: np.ndarray, block: int = REST_BLOCK, tol: float = REST_M) -> tuple[int, int]:
+    """Pairs [i, j) of the longest rest: consecutive blocks of `block` pairs whose
+    median distance stays within `tol` (m) of the first block's ((0, 0) if none)."""
+    nb = distance_m.size // block
+    blocks = distance_m[:nb * block].reshape(nb, block)
+    heard = np.isfinite(blocks).sum(axis=1) > block // 4
+    med = np.full(nb, np.nan)
+    med[heard] = np.nanmedian(blocks[heard], axis=1)
+    best, k = (0, 0), 0
+    while k < nb:
+        m = k + 1
+        while m < nb and abs(med[m] - med[k]) < tol:      # False for NaN: a silent block ends it
+            m += 1
+        if np.isfinite(med[k]) and m - k > best[1] - best[0]:
+            best = (k, m)
+        k = m
+    return best[0] * block, best[1] * block
+
+
+def kinematic_scale(t: np.ndarray, d: np.ndarray, v: np.ndarray, ok: np.ndarray,
+                    segment: int = SEGMENT_PAIRS) -> tuple[float, float]:
+    """The distance scale against the Doppler velocity's, and its standard uncertainty.
+
+    The scale is the least-squares slope of distance (m) on travelled distance
+    (integrated velocity, m) over each valid run of `ok`, pooled: a run's whole travel
+    is the longest baseline. Its uncertainty is that of the same slope pooled from
+    segments of `segment` pairs, from their scatter. (NaN, NaN) with fewer than 3
+    segments."""
+    def moments(pieces):
+        num, den = [], []
+        for a, b in pieces:
+            x = travelled(t[a:b], v[a:b])
+            x, y = x - x.mean(), d[a:b] - d[a:b].mean()
+            num.append(float(x @ y))
+            den.append(float(x @ x))
+        return np.array(num), np.array(den)
+
+    spans = [(int(i), int(j)) for i, j in runs(ok) if j - i >= segment // 2]
+    pieces = [(a, min(j, a + segment)) for i, j in spans for a in range(i, j - segment // 2, segment)]
+    num, den = moments(pieces)
+    moved = den > 0
+    if moved.sum() < 3:
+        return float("nan"), float("nan")
+    slopes = num[moved] / den[moved]
+    pooled = num.sum() / den.sum()
+    # the pooled segments' error from their scatter, weighted as they are pooled
+    sigma = np.sqrt(np.sum(den[moved] * (slopes - pooled) ** 2) / den.sum() / (moved.sum() - 1))
+    num, den = moments(spans)
+    return float(num.sum() / den.sum()), float(sigma)
+
+
+def scaled(chirp: Chirp, factor: float) -> Chirp:
+    """`chirp` with its optical frequencies (and so its bandwidth) times `factor`."""
+    return Chirp(Direction(chirp.rising.s, chirp.rising.nu_hz * factor),
+                 Direction(chirp.falling.s, chirp.falling.nu_hz * factor), chirp.attrs)
+
+
+def calibrate(cap: Capture, plan: Plan, track: Track, processor: ChunkProcessor) -> tuple[Plan | None, dict]:
+    """The plan resampled on a chirp calibrated on the capture's own rest (`track`: its
+    first conversion with the G(I) table), or None where none can be made; and the
+    track attributes that say which (`rest_calibration`: "made" or why not)."""
+    info = cap.info
+    i, j = rest_stretch(track.distance_m)
+    if j - i < REST_PERIODS:
+        return None, {"rest_calibration": f"no rest of {REST_PERIODS} periods to calibrate on"}
+    moved = track.distance_m[np.isfinite(track.distance_m)]
+    if np.ptp(moved) < MIN_TRAVEL_M:
+        return None, {"rest_calibration": f"the target moves less than {MIN_TRAVEL_M * 1e3:g} mm: nothing "
+                                          "sets the distance scale"}
+    rough = float(np.nanmedian(track.distance_m[i:j]))
+    half = info.samples_per_period / 2
+    start = max(0, int(track.time_s[i] * info.sample_rate_hz - half))
+    stop = min(info.samples, int(track.time_s[j - 1] * info.sample_rate_hz + half))
+    try:
+        shape = chirp_of(cap, plan, rough, start, stop)
+    except CaptureError as exc:
+        return None, {"rest_calibration": f"its rest cannot be calibrated on: {exc.problem}"}
+    # the scale from the motion, on a trial conversion of distances and velocities alone
+    trial = replace(plan.with_chirp(shape, OWN_REST), survey=False)
+    k, sigma = kinematic_scale(*pairs_of(capture_parts(cap, trial, processor)))
+    if not sigma <= SCALE_SIGMA_MAX:
+        return None, {"rest_calibration": f"its motion sets the distance scale to +-{sigma * 1e6:.0f} ppm "
+                                          f"only (at most {SCALE_SIGMA_MAX * 1e6:.0f})"}
+    return plan.with_chirp(scaled(shape, k), OWN_REST, sigma), {
+        "rest_calibration": "made",
+        "rest_calibration_span_s": np.array([track.time_s[i], track.time_s[j - 1]]),
+        "rest_calibration_periods": int(shape.attrs["periods_used"]),
+        "rest_calibration_distance_m": rough / k,
+        "rest_calibration_scale": k,
+        "rest_calibration_residual_phase_rad": float(shape.attrs["residual_phase_rad"]),
+    }
