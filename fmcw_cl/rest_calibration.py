@@ -11,8 +11,9 @@ The target's motion sets the scale. The Doppler velocity, 2 v / lambda with lamb
 the table's mean frequency, does not depend on the bandwidth (the apparent shift per m/s,
 `DopplerModel.k_*`, scales with the distances it is read from); the distance does. So
 over the runs where the target moves, the distance travelled over the integrated
-velocity is the chirp's scale: segments of SEGMENT_PAIRS pairs are regressed and their
-spread gives the scale's standard uncertainty, which the distance scale then states.
+velocity is the chirp's scale (regressed over whole runs, the longest baselines);
+segments of SEGMENT_PAIRS pairs regressed alike give, from their spread, the scale's
+standard uncertainty, which the distance scale then states.
 
 The sync delay stays that of the first conversion: the chirp is measured against
 half-sweeps at that delay, and at rest the directions agree by construction. A capture
@@ -123,7 +124,7 @@ def calibrate(cap: Capture, plan: Plan, track: Track, processor: ChunkProcessor)
         shape = chirp_of(cap, plan, rough, start, stop)
     except CaptureError as exc:
         return None, {"rest_calibration": f"its rest cannot be calibrated on: {exc.problem}"}
-    # the scale from the motion, on a trial conversion of distances and velocities alone
+    # the scale from the motion, on a trial conversion without the survey of hidden echoes
     trial = replace(plan.with_chirp(shape, OWN_REST), survey=False)
     k, sigma = kinematic_scale(*pairs_of(capture_parts(cap, trial, processor)))
     if not sigma <= SCALE_SIGMA_MAX:
