@@ -147,4 +147,4 @@ def assemble(plan: Plan, parts: list[ChunkMeasurements], processor: ChunkProcess
         sweep_snr_dechirped_db=interleave("dechirped_snr_rise", "dechirped_snr_fall"),
         time_s=times[order], distance_m=dist, velocity_mps=vel, acceleration_mps2=acc,
         valid=valid, attrs=attrs, reason=reason, sweep_reason=np.repeat(reason_owned, 2),
-        integrated=integrated if varies else None, period_s=period_s)
+        integrated=integrated if varies else None, period_s=period_s, chirp=plan.chirp)

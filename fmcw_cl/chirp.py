@@ -58,13 +58,25 @@ def write_chirp(path: str | os.PathLike, chirp: Chirp) -> Path:
     """Write atomically (a temporary name renamed when complete)."""
     path = Path(path)
     with atomic_hdf5(path, FORMAT, FORMAT_VERSION, chirp.attrs) as f:
-        for name in ("rising", "falling"):
-            d: Direction = getattr(chirp, name)
-            g = f.create_group(name)
-            g.create_dataset("s", data=d.s)
-            g.create_dataset("nu_hz", data=d.nu_hz)
-            g.attrs["bandwidth_hz"] = d.bandwidth_hz
+        write_directions(f, chirp)
     return path
+
+
+def write_directions(group: h5py.Group, chirp: Chirp) -> None:
+    """The two directions' curves as `rising/` and `falling/` of `group` (a chirp file's
+    root, or a track's `/chirp`)."""
+    for name in ("rising", "falling"):
+        d: Direction = getattr(chirp, name)
+        g = group.create_group(name)
+        g.create_dataset("s", data=d.s)
+        g.create_dataset("nu_hz", data=d.nu_hz)
+        g.attrs["bandwidth_hz"] = d.bandwidth_hz
+
+
+def read_directions(group: h5py.Group) -> tuple[Direction, Direction]:
+    """The curves `write_directions` wrote (KeyError where one is missing)."""
+    return tuple(Direction(np.asarray(group[n]["s"][()], float), np.asarray(group[n]["nu_hz"][()], float))
+                 for n in ("rising", "falling"))
 
 
 def read_chirp(path: str | os.PathLike) -> Chirp:
@@ -76,8 +88,7 @@ def read_chirp(path: str | os.PathLike) -> Chirp:
         with h5py.File(path, "r") as f:
             if f.attrs.get("fmcw_format") not in (FORMAT, FORMAT.encode()):
                 raise CaptureError(path, "not a chirp file (fmcw_format is not 'chirp')")
-            dirs = [Direction(np.asarray(f[n]["s"][()], float), np.asarray(f[n]["nu_hz"][()], float))
-                    for n in ("rising", "falling")]
+            dirs = read_directions(f)
             attrs = {k: (v.decode() if isinstance(v, bytes) else v) for k, v in f.attrs.items()}
     except (OSError, KeyError) as exc:
         raise CaptureError(path, f"not a readable chirp file ({exc})") from None

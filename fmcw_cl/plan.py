@@ -53,6 +53,7 @@ class Plan:
     lag_intensity: float = float("nan")      # the first estimate, from the intensity triangle
     lag_at_m: float = float("nan")           # the target's mean distance where it was refined
     tuning: str = TABLE                      # where the LUT comes from: TABLE, CALIBRATION or OWN_REST
+    chirp: Chirp | None = None               # the chirp of CALIBRATION or OWN_REST
 
     def with_band(self, band: tuple[float, float | None]) -> Plan:
         """The plan with the peak search in `band` (m)."""
@@ -129,7 +130,8 @@ def make_plan(cap: Capture, options: Options, lag: float | None = None,
 
 def tuned(info: CaptureInfo, options: Options, chirp: Chirp | None) -> dict:
     """The Plan's fields that follow from the tuning (the G(I) table, or `chirp`): the
-    LUT, window, Doppler model, peak search and the range check's 2N-point versions."""
+    LUT, window, Doppler model, peak search, the range check's 2N-point versions and the
+    chirp itself."""
     lut = make_lut(info, options.points, chirp)
     win = resample.window(options.points)
     model = pairing.doppler_model(lut, info.modulation.period_s / 2, spectrum.fft_length(options.points), win)
@@ -140,7 +142,7 @@ def tuned(info: CaptureInfo, options: Options, chirp: Chirp | None) -> dict:
         check = (lut2, win2, pairing.doppler_model(lut2, info.modulation.period_s / 2,
                                                    spectrum.fft_length(2 * options.points), win2))
     return {"lut": lut, "window": win, "model": model, "search": make_search(options, lut, model),
-            "check": check}
+            "check": check, "chirp": chirp}
 
 
 def make_search(options: Options, lut: Lut, model: pairing.DopplerModel) -> Search:

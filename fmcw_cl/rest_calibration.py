@@ -40,28 +40,52 @@ from .refine import pairs_of
 from .track import Track
 
 REST_BLOCK = 50          # pairs whose median distance is one step of the rest
-REST_M = 0.3e-3          # a rest's blocks stay this close to its first (m)
+REST_M = 0.3e-3          # a rest's blocks stay this close to its median distance (m)
+REST_MPS = 0.02          # ... and velocity (m/s: 0.05 mm over a block)
+# ... times the first of these that finds a rest: at a lab's SNR an uncalibrated chirp's
+# block medians wander by 0.7 mm and 0.03 m/s at rest
+REST_LOOSEN = (1, 2, 4)
 REST_PERIODS = 200       # the shortest rest calibrated on
 MIN_TRAVEL_M = 0.02      # a target that moves less cannot set the scale
 SEGMENT_PAIRS = 200      # pairs of a segment of the scale's regression
 SCALE_SIGMA_MAX = 1e-3   # the scale must be known this well (relative, 1 sigma)
 
 
-def rest_stretch(distance_m: np.ndarray, block: int = REST_BLOCK, tol: float = REST_M) -> tuple[int, int]:
-    """Pairs [i, j) of the longest rest: consecutive blocks of `block` pairs whose
-    median distance stays within `tol` (m) of the first block's ((0, 0) if none)."""
+def rest_stretch(distance_m: np.ndarray, velocity_mps: np.ndarray, block: int = REST_BLOCK,
+                 tol: float = REST_M, tol_v: float = REST_MPS) -> tuple[int, int]:
+    """Pairs [i, j) of the longest rest ((0, 0) if none).
+
+    A rest is a run of consecutive blocks of `block` pairs whose median distance stays
+    within `tol` (m), and median velocity within `tol_v` (m/s) but for single blocks, of
+    the run's median so far: the velocity sees a take-off's first tenths of a millimetre,
+    which the distance's noise hides (an uncalibrated chirp leaves the velocity biased
+    but steady at rest, hence relative). A block is trimmed off each end that borders
+    motion, where the motion's onset is still below both tolerances."""
     nb = distance_m.size // block
-    blocks = distance_m[:nb * block].reshape(nb, block)
-    heard = np.isfinite(blocks).sum(axis=1) > block // 4
-    med = np.full(nb, np.nan)
-    med[heard] = np.nanmedian(blocks[heard], axis=1)
+    med = np.full((2, nb), np.nan)
+    for row, x in enumerate((distance_m, velocity_mps)):
+        blocks = x[:nb * block].reshape(nb, block)
+        heard = np.isfinite(blocks).sum(axis=1) > block // 4
+        med[row, heard] = np.nanmedian(blocks[heard], axis=1)
+
+    def within(m: int, ref: np.ndarray) -> np.ndarray:      # False for NaN: a silent block ends it
+        return np.abs(med[:, m] - ref) < [tol, tol_v]
+
     best, k = (0, 0), 0
     while k < nb:
         m = k + 1
-        while m < nb and abs(med[m] - med[k]) < tol:      # False for NaN: a silent block ends it
+        while m < nb:
+            ref = np.median(med[:, k:m], axis=1)
+            ok = within(m, ref)
+            # the velocity must leave for two blocks running: an uncalibrated chirp's
+            # velocity wanders by about the tolerance from block to block
+            if not (ok[0] and (ok[1] or (m + 1 < nb and within(m + 1, ref)[1]))):
+                break
             m += 1
-        if np.isfinite(med[k]) and m - k > best[1] - best[0]:
-            best = (k, m)
+        if np.all(np.isfinite(med[:, k])):
+            a, b = k + (k > 0), m - (m < nb)
+            if b - a > best[1] - best[0]:
+                best = (a, b)
         k = m
     return best[0] * block, best[1] * block
 
@@ -109,8 +133,12 @@ def calibrate(cap: Capture, plan: Plan, track: Track, processor: ChunkProcessor)
     first conversion with the G(I) table), or None where none can be made; and the
     track attributes that say which (`rest_calibration`: "made" or why not)."""
     info = cap.info
-    i, j = rest_stretch(track.distance_m)
-    if j - i < REST_PERIODS:
+    for loosen in REST_LOOSEN:          # the tightest tolerances that find a rest
+        i, j = rest_stretch(track.distance_m, track.velocity_mps, tol=REST_M * loosen,
+                            tol_v=REST_MPS * loosen)
+        if j - i >= REST_PERIODS:
+            break
+    else:
         return None, {"rest_calibration": f"no rest of {REST_PERIODS} periods to calibrate on"}
     moved = track.distance_m[np.isfinite(track.distance_m)]
     if np.ptp(moved) < MIN_TRAVEL_M:
@@ -133,6 +161,7 @@ def calibrate(cap: Capture, plan: Plan, track: Track, processor: ChunkProcessor)
     return plan.with_chirp(scaled(shape, k), OWN_REST, sigma), {
         "rest_calibration": "made",
         "rest_calibration_span_s": np.array([track.time_s[i], track.time_s[j - 1]]),
+        "rest_calibration_tolerance": np.array([REST_M * loosen, REST_MPS * loosen]),
         "rest_calibration_periods": int(shape.attrs["periods_used"]),
         "rest_calibration_distance_m": rough / k,
         "rest_calibration_scale": k,

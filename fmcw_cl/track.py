@@ -10,6 +10,7 @@ import h5py
 import numpy as np
 
 from .atomic import atomic_hdf5
+from .chirp import Chirp, read_directions, write_directions
 from .echoes import Echoes
 
 FORMAT = "track"
@@ -37,6 +38,7 @@ class Track:
     echoes: Echoes | None = None              # every CFAR echo, and the persistent ones
     integrated: np.ndarray | None = None      # per pair, half-sweeps of a direction summed (when K varies)
     period_s: float | None = None             # modulation period (s): time resolution of one half-sweep pair
+    chirp: Chirp | None = None                # the chirp that replaced the G(I) table, if one did
 
     @property
     def time_resolution_s(self) -> np.ndarray | None:
@@ -108,6 +110,8 @@ def write_track(path: str | os.PathLike, track: Track) -> Path:
             t.create_dataset("time_resolution_s", data=np.asarray(track.time_resolution_s, np.float64))
         if track.echoes is not None:
             _write_echoes(f.create_group("echoes"), track.echoes)
+        if track.chirp is not None:
+            write_directions(f.create_group("chirp"), track.chirp)
     return path
 
 
@@ -148,6 +152,8 @@ def read_track(path: str | os.PathLike) -> Track:
             optional["period_s"] = float(attrs["modulation_period_s"])
         if "echoes" in f:
             optional["echoes"] = _read_echoes(f["echoes"])
+        if "chirp" in f:
+            optional["chirp"] = Chirp(*read_directions(f["chirp"]))
         return Track(s["time_s"][()], s["current_rising"][()], s["distance_m"][()],
                      s["snr_db"][()], t["time_s"][()], t["distance_m"][()],
                      t["velocity_mps"][()], t["acceleration_mps2"][()], t["valid"][()], attrs,

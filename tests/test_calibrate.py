@@ -17,6 +17,7 @@ from fmcw_cl.evaluate import accuracy
 from fmcw_cl.options import Options
 from fmcw_cl.simulator import SimulationConfig, jump, simulate_capture, static
 from fmcw_cl.simulator.writer import thermal_offset
+from fmcw_cl.track import read_track
 
 LAGS_US = (0.5, 2.0, 5.0)
 
@@ -125,7 +126,7 @@ def test_report_spectra_use_the_tracks_chirp(setup):
     cal = d / "cal.h5"
     track = process(cal, Options(chirp=str(chirp)))
     sp = stretch_spectra(cal, 0.009, 0.011, 1000, float(track.attrs["sync_delay_samples"]),
-                         chirp=track.attrs["chirp"])
+                         chirp=track.chirp)
     i = sp.distance_m.searchsorted(0.05)
     peak = sp.distance_m[i + np.argmax(sp.corrected_db[:, i:], axis=1)]
     np.testing.assert_allclose(peak, 0.3, atol=0.5e-3)                  # a bin is ~0.5 mm
@@ -181,9 +182,19 @@ def test_a_chirp_far_from_its_table_is_calibrated_on_its_own_rest(tmp_path, fmcw
     assert acc["velocity_p95_mps"] <= 0.01
     proc = fmcw("process", path, "-o", tmp_path / "o", "--backend", "opencl")
     assert "calibrated on its own rest" in proc.stderr and "warning" not in proc.stderr
-    import h5py
-    with h5py.File(tmp_path / "o" / "lag5.track.h5") as f:
-        assert f.attrs["rest_calibration"] == "made" and f["track/valid"][()].mean() >= 0.99
+    back = read_track(tmp_path / "o" / "lag5.track.h5")
+    assert back.attrs["rest_calibration"] == "made" and back.valid.mean() >= 0.99
+    # the track keeps its chirp, and the report's "after" spectra are made with it:
+    # sharp at the foot's rest (0.07 m), where the table's smear over centimetres
+    assert abs(back.chirp.bandwidth_hz / track.chirp.bandwidth_hz - 1) < 1e-3
+    from fmcw_cl.report.spectra import stretch_spectra
+    for chirp, sharp in ((back.chirp, True), (None, False)):
+        sp = stretch_spectra(path, 0.28, 0.282, 1000, float(back.attrs["sync_delay_samples"]), chirp=chirp)
+        i = sp.distance_m.searchsorted(0.03)
+        for row in sp.corrected_db[:, i:]:
+            assert (np.ptp(sp.distance_m[i:][row >= -6]) < 5e-3) == sharp
+            if sharp:
+                assert abs(sp.distance_m[i + np.argmax(row)] - 0.07) < 1e-3
 
 
 def test_a_chirp_far_from_its_table_without_motion_leaves_no_valid_pair(tmp_path, fmcw):
@@ -204,7 +215,8 @@ def test_a_chirp_far_from_its_table_without_motion_leaves_no_valid_pair(tmp_path
 
 
 def test_rest_and_scale_estimates():
-    """The rest is the longest steady run of blocks; the scale is distance over
+    """The rest is the longest steady run of blocks, in distance and velocity, less the
+    block that borders the motion; the scale is distance over
     integrated velocity, with an uncertainty that covers its noise, and none without
     motion."""
     from fmcw_cl.rest_calibration import kinematic_scale, rest_stretch
@@ -214,8 +226,17 @@ def test_rest_and_scale_estimates():
     v = np.where(t < 0.05, 0.0, 2.0 * np.sin(2 * np.pi * 10 * (t - 0.05)))
     d = 0.2 + np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * np.diff(t))])
     noisy = 0.9 * d + rng.normal(0, 20e-6, t.size)
-    i, j = rest_stretch(noisy)
-    assert i == 0 and 950 <= j <= 1100
+    i, j = rest_stretch(noisy, v + 0.06 + rng.normal(0, 5e-3, t.size))    # a biased velocity
+    assert i == 0 and 900 <= j <= 1000          # its last block, bordering the motion, trimmed
+    # a slow onset from 0.05 s, 0.15 mm by 0.06 s: the distance's tolerance alone sees it
+    # 0.3 mm on, the velocity's before 0.05 mm
+    creep = np.where(t < 0.05, 0.0, 0.03 * np.minimum((t - 0.05) / 0.01, 1.0))
+    d = 0.2 + np.concatenate([[0.0], np.cumsum(0.5 * (creep[1:] + creep[:-1]) * np.diff(t))])
+    d += rng.normal(0, 20e-6, t.size)
+    creep += rng.normal(0, 5e-3, t.size)
+    i, j = rest_stretch(d, creep)
+    assert i == 0 and j <= 1150 and abs(d[j] - d[0]) < 0.05e-3
+    assert rest_stretch(d, creep, tol_v=np.inf)[1] >= 1250
     gaps = noisy.copy()
     gaps[2000:2100] = np.nan
     ok = np.isfinite(gaps)

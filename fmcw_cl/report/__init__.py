@@ -135,7 +135,7 @@ def make_report(track_file: str | os.PathLike, outdir: str | os.PathLike,
                     else 0.5 * (t0 + t1))
         sp = stretch_spectra(src, at_s - span_s / 2, at_s + span_s / 2, int(track.attrs["points"]),
                              float(track.attrs["sync_delay_samples"]), float(track.attrs["min_range_m"]),
-                             track.attrs.get("chirp") or None)
+                             track.chirp)
         chosen = int(np.argmin(np.abs(sp.time_s - at_s)))
         with atomic_path(out / "spectra.png") as tmp:
             figures.spectra(sp, tmp, chosen, float(track.attrs["unambiguous_range_m"]))

@@ -14,9 +14,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..capture import Capture
+from ..chirp import Chirp
 from ..options import Options
 from ..physics import C
-from ..plan import make_plan
+from ..plan import CALIBRATION, make_plan
 from ..stages import resample, spectrum, sync
 
 
@@ -51,7 +52,7 @@ def _db(power: np.ndarray, axis_m: np.ndarray, min_range_m: float) -> np.ndarray
 
 def stretch_spectra(path, t0_s: float, t1_s: float, points: int = 1000,
                     lag: float | None = None, min_range_m: float = 0.03,
-                    chirp: str | None = None) -> Spectra:
+                    chirp: Chirp | None = None) -> Spectra:
     """Spectra of every half-sweep whose centre lies in [t0_s, t1_s) (s).
 
     Parameters
@@ -62,12 +63,14 @@ def stretch_spectra(path, t0_s: float, t1_s: float, points: int = 1000,
     lag : samples the sync lags the optics (the track's ``sync_delay_samples``);
         estimated from the capture when None.
     min_range_m : the dB scale of each spectrum is its peak beyond this distance (m).
-    chirp : the track's chirp calibration, if it was made with one (the "after"
-        spectra use the LUT the track used).
+    chirp : the chirp the track was made with, if one replaced the G(I) table (the
+        "after" spectra use the LUT the track used).
     """
     with Capture(path) as cap:
         info = cap.info
-        plan = make_plan(cap, Options(points=points, chirp=chirp), lag)
+        plan = make_plan(cap, Options(points=points), lag)
+        if chirp is not None:
+            plan = plan.with_chirp(chirp, CALIBRATION)
         fs = info.sample_rate_hz
         hp = info.samples_per_period / 2
         margin = int(2 * info.samples_per_period + sync.MAX_DELAY_SAMPLES)

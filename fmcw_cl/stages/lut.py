@@ -35,6 +35,9 @@ class TuningFit:
     degree : the polynomial's degree.
     scatter_hz : rms of the table about the fit (residuals over n - k).
     cov : covariance of the coefficients (scatter^2 (X'X)^-1).
+    dof : the residuals' degrees of freedom, n - k.
+    leave_one_out : the fits of the table less each point in turn, the degree chosen anew
+        (the jackknife of the whole fit).
     """
 
     poly: Polynomial
@@ -42,6 +45,8 @@ class TuningFit:
     degree: int
     scatter_hz: float
     cov: np.ndarray
+    dof: int
+    leave_one_out: tuple[TuningFit, ...] = ()
 
     def __call__(self, current):
         return self.ref + self.poly(current)
@@ -57,15 +62,36 @@ class TuningFit:
 
     def scale_std(self, current: np.ndarray, weights: np.ndarray, bandwidth_hz: float) -> float:
         """Relative standard deviation of the distance scale that the fit's errors leave,
-        shape included: the resampled beat's phase follows the true G at the LUT's
-        `current` instants, so the fit's error dG_j there adds a phase slope; the peak
-        (a weighted least-squares slope of the phase over the points, `weights` the
-        window's power) moves by -slope(dG) N / B of itself. Its variance is a C a'
-        with a from the basis at the instants and C the coefficients' covariance."""
+        shape included.
+
+        The resampled beat's phase follows the true G at the LUT's `current` instants, so
+        the fit's error dG_j there adds a phase slope; the peak (a weighted least-squares
+        slope of the phase over the points, `weights` the window's power) moves by
+        -slope(dG) N / B of itself, a linear functional a of the coefficients. Two
+        estimates of its spread, the larger stated:
+
+        - the covariance, a C a', times dof / (dof - 2): the scatter is itself estimated
+          from the table, so the error over the stated sigma is Student's t, whose
+          variance that is (GUM Supplement 1, 6.4.9);
+        - the leave-one-out jackknife of the same functional, the degree chosen anew each
+          time: the covariance assumes the degree was given, and a degree chosen because
+          the scatter happened to look like a higher term errs far beyond it.
+
+        NaN (unknown) under 3 degrees of freedom: Student's t has no variance there.
+        """
         n = current.size
         j = np.arange(n) - np.sum(weights * np.arange(n)) / np.sum(weights)
-        a = -(weights * j) @ self._basis(current) / np.sum(weights * j * j) * n / bandwidth_hz
-        return float(np.sqrt(max(a @ self.cov @ a, 0.0)))
+        slope = -(weights * j) / np.sum(weights * j * j) * n / bandwidth_hz
+
+        if self.dof <= 2:
+            return float("nan")
+        a = slope @ self._basis(current)
+        var = max(a @ self.cov @ a, 0.0) * self.dof / (self.dof - 2)
+        here = self(current)
+        moved = np.array([slope @ (g(current) - here) for g in self.leave_one_out])
+        if moved.size:
+            var = max(var, (moved.size - 1) / moved.size * np.sum((moved - moved.mean()) ** 2))
+        return float(np.sqrt(var))
 
 
 def _frozen(*arrays: np.ndarray) -> tuple[bytes, ...]:
@@ -87,11 +113,12 @@ def fit_tuning(current_a: np.ndarray, frequency_hz: np.ndarray) -> TuningFit:
     a higher degree must earn its terms. An overfitted polynomial errs most at the
     curve's ends and in its shape, beyond what its covariance states: on 300 tables of
     25 points with 20 MHz rms scatter the plain minimum chose degrees 4-7 for 26 of them,
-    whose distance scale erred 2-3x their stated uncertainty (rms 121 ppm, 93 % within 2
-    sigma); within 6 it chose 2 for 295 (rms 84 ppm, 96 % within 2 sigma), and a laser
-    with a cubic term still got degree 3 in 98 of 100, where a fixed quadratic errs by
-    1000 ppm. A smoothing spline was rejected because its curvature
-    penalty shrinks a DFB's (real) curvature and biases the bandwidth.
+    whose distance scale erred 2-3x their stated uncertainty (rms 121 ppm); within 6 it
+    chose 2 for 295 (rms 84 ppm), and a laser with a cubic term still got degree 3 in 98
+    of 100, where a fixed quadratic errs by 1000 ppm. The few degrees still chosen too
+    high are what the leave-one-out fits (TuningFit.scale_std) are for. A smoothing
+    spline was rejected because its curvature penalty shrinks a DFB's (real) curvature
+    and biases the bandwidth.
     """
     return _fit_tuning(*_frozen(current_a, frequency_hz))
 
@@ -100,20 +127,27 @@ def fit_tuning(current_a: np.ndarray, frequency_hz: np.ndarray) -> TuningFit:
 def _fit_tuning(current: bytes, frequency: bytes) -> TuningFit:
     x = np.frombuffer(current)
     y = np.frombuffer(frequency)
+    keep = ~np.eye(x.size, dtype=bool)
+    return _fit(x, y, tuple(_fit(x[k], y[k]) for k in keep))
+
+
+def _fit(x: np.ndarray, y: np.ndarray, leave_one_out: tuple[TuningFit, ...] = ()) -> TuningFit:
+    """The polynomial of the degree the BIC margin chooses (fit_tuning), with its covariance."""
     ref = float(np.mean(y))
     fits = []
-    for deg in range(2, min(MAX_DEGREE, x.size - 3) + 1):
+    for deg in range(2, max(2, min(MAX_DEGREE, x.size - 3)) + 1):
         poly = Polynomial.fit(x, y - ref, deg)
         rss = float(np.sum(((y - ref) - poly(x)) ** 2))
         fits.append((x.size * np.log(max(rss, 1e-300) / x.size) + (deg + 1) * np.log(x.size), poly))
     least = min(bic for bic, _ in fits)
     best = next(poly for bic, poly in fits if bic <= least + BIC_MARGIN)
     deg = best.degree()
-    scatter = float(np.sqrt(np.sum(((y - ref) - best(x)) ** 2) / max(x.size - deg - 1, 1)))
+    dof = x.size - deg - 1
+    scatter = float(np.sqrt(np.sum(((y - ref) - best(x)) ** 2) / max(dof, 1)))
     off, scl = best.mapparms()
     design = polyvander(off + scl * x, deg)
     cov = scatter**2 * np.linalg.pinv(design.T @ design)
-    return TuningFit(best, ref, deg, scatter, _read_only(cov))
+    return TuningFit(best, ref, deg, scatter, _read_only(cov), dof, leave_one_out)
 
 
 @dataclass(frozen=True)
@@ -131,8 +165,8 @@ class Lut:
     bandwidth_std_hz : the bandwidth's standard deviation from the table's scatter (Hz;
         NaN when unknown).
     scale_std : the distance scale's relative standard deviation from the fit's errors,
-        their shape between the table's points included (TuningFit.scale_std; NaN when
-        unknown).
+        their shape between the table's points included and the degree's choice
+        (TuningFit.scale_std; NaN when unknown).
     fit_degree, table_scatter_hz : the G(I) fit's degree and the table's rms scatter.
     """
 
