@@ -42,10 +42,13 @@ from .track import Track
 REST_BLOCK = 50          # pairs whose median distance is one step of the rest
 REST_M = 0.3e-3          # a rest's blocks stay this close to its median distance (m)
 REST_MPS = 0.02          # ... and velocity (m/s: 0.05 mm over a block)
-# ... times the first of these that finds a rest: at a lab's SNR an uncalibrated chirp's
-# block medians wander by 0.7 mm and 0.03 m/s at rest
-REST_LOOSEN = (1, 2, 4)
+# ... times the first of these that finds a rest of REST_PERIODS_WANTED, else the first
+# that finds one of REST_PERIODS: at a lab's SNR an uncalibrated chirp's block medians
+# wander by 0.7 mm and 0.03 m/s at rest, and a chirp measured on 250 periods there left
+# the jump a 0.17 mm bias, on 900 none
+REST_LOOSEN = (1, 2, 3, 4)
 REST_PERIODS = 200       # the shortest rest calibrated on
+REST_PERIODS_WANTED = 600
 MIN_TRAVEL_M = 0.02      # a target that moves less cannot set the scale
 SEGMENT_PAIRS = 200      # pairs of a segment of the scale's regression
 SCALE_SIGMA_MAX = 1e-3   # the scale must be known this well (relative, 1 sigma)
@@ -88,6 +91,16 @@ def rest_stretch(distance_m: np.ndarray, velocity_mps: np.ndarray, block: int = 
                 best = (a, b)
         k = m
     return best[0] * block, best[1] * block
+
+
+def choose_rest(distance_m: np.ndarray, velocity_mps: np.ndarray) -> tuple[int, int, float] | None:
+    """The rest calibrated on: pairs [i, j) and the factor on the tolerances (the
+    tightest of REST_LOOSEN that finds REST_PERIODS_WANTED, else REST_PERIODS), or None."""
+    found = [(*rest_stretch(distance_m, velocity_mps, tol=REST_M * loosen, tol_v=REST_MPS * loosen), loosen)
+             for loosen in REST_LOOSEN]
+    usable = ([f for f in found if f[1] - f[0] >= REST_PERIODS_WANTED]
+              or [f for f in found if f[1] - f[0] >= REST_PERIODS])
+    return usable[0] if usable else None
 
 
 def kinematic_scale(t: np.ndarray, d: np.ndarray, v: np.ndarray, ok: np.ndarray,
@@ -133,13 +146,10 @@ def calibrate(cap: Capture, plan: Plan, track: Track, processor: ChunkProcessor)
     first conversion with the G(I) table), or None where none can be made; and the
     track attributes that say which (`rest_calibration`: "made" or why not)."""
     info = cap.info
-    for loosen in REST_LOOSEN:          # the tightest tolerances that find a rest
-        i, j = rest_stretch(track.distance_m, track.velocity_mps, tol=REST_M * loosen,
-                            tol_v=REST_MPS * loosen)
-        if j - i >= REST_PERIODS:
-            break
-    else:
+    rest = choose_rest(track.distance_m, track.velocity_mps)
+    if rest is None:
         return None, {"rest_calibration": f"no rest of {REST_PERIODS} periods to calibrate on"}
+    i, j, loosen = rest
     moved = track.distance_m[np.isfinite(track.distance_m)]
     if np.ptp(moved) < MIN_TRAVEL_M:
         return None, {"rest_calibration": f"the target moves less than {MIN_TRAVEL_M * 1e3:g} mm: nothing "

@@ -219,7 +219,7 @@ def test_rest_and_scale_estimates():
     block that borders the motion; the scale is distance over
     integrated velocity, with an uncertainty that covers its noise, and none without
     motion."""
-    from fmcw_cl.rest_calibration import kinematic_scale, rest_stretch
+    from fmcw_cl.rest_calibration import choose_rest, kinematic_scale, rest_stretch
 
     rng = np.random.default_rng(3)
     t = np.arange(4000) * 50e-6
@@ -237,6 +237,17 @@ def test_rest_and_scale_estimates():
     i, j = rest_stretch(d, creep)
     assert i == 0 and j <= 1150 and abs(d[j] - d[0]) < 0.05e-3
     assert rest_stretch(d, creep, tol_v=np.inf)[1] >= 1250
+    # a lab's SNR: block medians wandering by 0.5 mm; a short rest (300 periods) is taken
+    # only where no long one (900) is found within looser tolerances
+    wander = np.repeat(rng.normal(0, 0.25e-3, 80), 50)
+    moving = 0.2 + 0.05 * np.sin(2 * np.pi * 30 * t)
+    rests = (t < 0.015) | (t >= 0.155)
+    lab_d = np.where(t < 0.015, 0.2, np.where(t >= 0.155, moving[3100], moving)) + wander
+    lab_v = np.where(rests, 0.0, np.gradient(moving, t)) + rng.normal(0, 5e-3, t.size)
+    i, j, loosen = choose_rest(lab_d, lab_v)
+    assert i >= 3050 and j == 4000 and loosen > 1
+    assert choose_rest(lab_d[:3000], lab_v[:3000])[1] <= 300
+    assert choose_rest(moving[:3000], lab_v[:3000]) is None
     gaps = noisy.copy()
     gaps[2000:2100] = np.nan
     ok = np.isfinite(gaps)
