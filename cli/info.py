@@ -62,11 +62,13 @@ def command(capture, points):
             f"{i.tuning_current_a[0] * 1e3:g}-{i.tuning_current_a[-1] * 1e3:g} mA",
             f"sweep          {lut.bandwidth_hz / 1e9:.3f} GHz, range resolution "
             f"{lut.range_resolution_m * 1e3:.3f} mm, n = {i.refractive_index:g}",
-            f"distance scale +-{lut.scale_ppm:.0f} ppm (1 sigma) from the G(I) fit's errors, shape included "
-            f"({lut.table_scatter_hz / 1e6:.1f} MHz rms about a degree-{lut.fit_degree} fit): "
-            f"+-{lut.scale_ppm * 1e-3 * 0.3:.3f} mm at 0.3 m, "
-            f"+-{lut.scale_ppm * 1e-3 * lut.unambiguous_range_m:.3f} mm at the range's end; "
-            "calibrate (fmcw-cl calibrate) where that is too much",
+            (f"distance scale +-{lut.scale_ppm:.0f} ppm (1 sigma) from the G(I) fit's errors, shape included "
+             f"({lut.table_scatter_hz / 1e6:.1f} MHz rms about a degree-{lut.fit_degree} fit): "
+             f"+-{lut.scale_ppm * 1e-3 * 0.3:.3f} mm at 0.3 m, "
+             f"+-{lut.scale_ppm * 1e-3 * lut.unambiguous_range_m:.3f} mm at the range's end; "
+             "calibrate (fmcw-cl calibrate) where that is too much") if np.isfinite(lut.scale_ppm) else
+            (f"distance scale unknown: {i.tuning_current_a.size} G(I) points about a degree-{lut.fit_degree} "
+             "fit leave under 3 degrees of freedom to judge its errors; calibrate (fmcw-cl calibrate)"),
             f"unambiguous    {lut.unambiguous_range_m:.4f} m at --points {points}",
             f"sync delay     {delay}",
             f"beat level     rms {beat.std():.0f} codes, peak {np.abs(beat.astype(np.int32)).max()} of "

@@ -42,6 +42,8 @@ from .track import Track
 REST_BLOCK = 50          # pairs whose median distance is one step of the rest
 REST_M = 0.3e-3          # a rest's blocks stay this close to its median distance (m)
 REST_MPS = 0.02          # ... and velocity (m/s: 0.05 mm over a block)
+REST_TRIM = 4            # blocks cut off a rest's ends that border motion (a take-off's onset
+#                          reads 0.003-0.05 m/s over the 10 ms before the tolerances see it)
 # ... times the first of these that finds a rest of REST_PERIODS_WANTED, else the first
 # that finds one of REST_PERIODS: at a lab's SNR an uncalibrated chirp's block medians
 # wander by 0.7 mm and 0.03 m/s at rest, and a chirp measured on 250 periods there left
@@ -55,15 +57,17 @@ SCALE_SIGMA_MAX = 1e-3   # the scale must be known this well (relative, 1 sigma)
 
 
 def rest_stretch(distance_m: np.ndarray, velocity_mps: np.ndarray, block: int = REST_BLOCK,
-                 tol: float = REST_M, tol_v: float = REST_MPS) -> tuple[int, int]:
+                 tol: float = REST_M, tol_v: float = REST_MPS, trim: int = REST_TRIM) -> tuple[int, int]:
     """Pairs [i, j) of the longest rest ((0, 0) if none).
 
     A rest is a run of consecutive blocks of `block` pairs whose median distance stays
     within `tol` (m), and median velocity within `tol_v` (m/s) but for single blocks, of
     the run's median so far: the velocity sees a take-off's first tenths of a millimetre,
     which the distance's noise hides (an uncalibrated chirp leaves the velocity biased
-    but steady at rest, hence relative). A block is trimmed off each end that borders
-    motion, where the motion's onset is still below both tolerances."""
+    but steady at rest, hence relative). `trim` blocks are cut off each end that borders
+    motion, where the motion's onset is still below both tolerances: a foot's Doppler
+    bends the chirp measured there (0.02 m/s: 0.65 cycles over a half-sweep, 0.9 % of
+    the beat's at 0.07 m)."""
     nb = distance_m.size // block
     med = np.full((2, nb), np.nan)
     for row, x in enumerate((distance_m, velocity_mps)):
@@ -86,7 +90,7 @@ def rest_stretch(distance_m: np.ndarray, velocity_mps: np.ndarray, block: int = 
                 break
             m += 1
         if np.all(np.isfinite(med[:, k])):
-            a, b = k + (k > 0), m - (m < nb)
+            a, b = k + trim * (k > 0), m - trim * (m < nb)
             if b - a > best[1] - best[0]:
                 best = (a, b)
         k = m

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import re
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -42,6 +43,24 @@ def test_simulate_info_process(tmp_path, fmcw):
     track = read_track(track_file)
     assert np.all(np.abs(track.distance_m - 0.2) < 1e-4)
     assert np.all(np.diff(track.time_s) > 0)
+
+
+def test_a_g_of_i_table_of_few_points(tmp_path, static_capture, fmcw):
+    """The contract's least G(I) table, 4 points: converted, its distance scale's
+    uncertainty unknown (NaN), and `info` says so rather than print a number."""
+    few = tmp_path / "few.h5"
+    shutil.copy(static_capture, few)
+    with h5py.File(few, "r+") as f:
+        cur, freq = f["laser/tuning_current_a"][()], f["laser/tuning_frequency_hz"][()]
+        pick = np.linspace(0, cur.size - 1, 4).round().astype(int)
+        for name, x in (("tuning_current_a", cur[pick]), ("tuning_frequency_hz", freq[pick])):
+            del f["laser/" + name]
+            f["laser/" + name] = x
+    info = fmcw("info", few).stdout
+    assert "distance scale unknown: 4 G(I) points" in info and "nan" not in info
+    fmcw("process", few, "-o", tmp_path / "o", "-q")
+    track = read_track(tmp_path / "o" / "few.track.h5")
+    assert track.valid.mean() > 0.9 and np.isnan(track.attrs["scale_uncertainty_ppm"])
 
 
 def test_bad_capture_one_line_and_others_still_converted(tmp_path, static_capture, fmcw):
