@@ -59,7 +59,7 @@ def drift(t: np.ndarray, d: np.ndarray, v: np.ndarray) -> tuple[float, float]:
 
 def mismatch(cap: Capture, plan, lag: float, capture_parts, backend) -> Mismatch:
     """The kinematic inconsistency of `plan` at `lag` over STRETCHES stretches, each
-    converted by `capture_parts(cap, plan, backend, start, stop)` (engine's)."""
+    converted by `capture_parts(cap, plan, backend, start, stop)` (chunks')."""
     info = cap.info
     p = replace(plan, lag=lag, check=None, survey=False)     # distances and velocities alone
     length = int(STRETCH_PERIODS * info.samples_per_period)

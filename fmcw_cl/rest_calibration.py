@@ -24,6 +24,7 @@ to calibrate on, or its motion fixes the scale no better than SCALE_SIGMA_MAX.
 
 from __future__ import annotations
 
+import bisect
 from dataclasses import replace
 
 import numpy as np
@@ -56,6 +57,28 @@ SEGMENT_PAIRS = 200      # pairs of a segment of the scale's regression
 SCALE_SIGMA_MAX = 1e-3   # the scale must be known this well (relative, 1 sigma)
 
 
+class _GrowingMedian:
+    """np.median of a growing set of numbers (NaN once one is NaN), each added in
+    O(log n) comparisons: a rest of a minute's capture is 24 000 blocks long."""
+
+    def __init__(self, first: float) -> None:
+        self.values: list[float] = []
+        self.nan = False
+        self.add(first)
+
+    def add(self, value: float) -> None:
+        if np.isnan(value):
+            self.nan = True
+        else:
+            bisect.insort(self.values, float(value))
+
+    def median(self) -> float:
+        n = len(self.values)
+        if self.nan:
+            return float("nan")
+        return self.values[n // 2] if n % 2 else (self.values[n // 2 - 1] + self.values[n // 2]) / 2
+
+
 def rest_stretch(distance_m: np.ndarray, velocity_mps: np.ndarray, block: int = REST_BLOCK,
                  tol: float = REST_M, tol_v: float = REST_MPS, trim: int = REST_TRIM) -> tuple[int, int]:
     """Pairs [i, j) of the longest rest ((0, 0) if none).
@@ -81,13 +104,16 @@ def rest_stretch(distance_m: np.ndarray, velocity_mps: np.ndarray, block: int = 
     best, k = (0, 0), 0
     while k < nb:
         m = k + 1
+        run = [_GrowingMedian(med[0, k]), _GrowingMedian(med[1, k])]
         while m < nb:
-            ref = np.median(med[:, k:m], axis=1)
+            ref = np.array([r.median() for r in run])
             ok = within(m, ref)
             # the velocity must leave for two blocks running: an uncalibrated chirp's
             # velocity wanders by about the tolerance from block to block
             if not (ok[0] and (ok[1] or (m + 1 < nb and within(m + 1, ref)[1]))):
                 break
+            for r, value in zip(run, med[:, m], strict=True):
+                r.add(value)
             m += 1
         if np.all(np.isfinite(med[:, k])):
             a, b = k + trim * (k > 0), m - trim * (m < nb)

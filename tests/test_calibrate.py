@@ -219,19 +219,20 @@ def test_rest_and_scale_estimates():
     block that borders the motion; the scale is distance over
     integrated velocity, with an uncertainty that covers its noise, and none without
     motion."""
+    from fmcw_cl.numeric import travelled
     from fmcw_cl.rest_calibration import choose_rest, kinematic_scale, rest_stretch
 
     rng = np.random.default_rng(3)
     t = np.arange(4000) * 50e-6
     v = np.where(t < 0.05, 0.0, 2.0 * np.sin(2 * np.pi * 10 * (t - 0.05)))
-    d = 0.2 + np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * np.diff(t))])
+    d = 0.2 + travelled(t, v)
     noisy = 0.9 * d + rng.normal(0, 20e-6, t.size)
     i, j = rest_stretch(noisy, v + 0.06 + rng.normal(0, 5e-3, t.size))    # a biased velocity
     assert i == 0 and 700 <= j <= 800           # its last 4 blocks, bordering the motion, trimmed
     # a slow onset from 0.05 s (pair 1000), 0.15 mm by 0.06 s: the distance's tolerance
     # alone sees it 0.3 mm on; the velocity's, trimmed, ends the rest before it
     creep = np.where(t < 0.05, 0.0, 0.03 * np.minimum((t - 0.05) / 0.01, 1.0))
-    d = 0.2 + np.concatenate([[0.0], np.cumsum(0.5 * (creep[1:] + creep[:-1]) * np.diff(t))])
+    d = 0.2 + travelled(t, creep)
     d += rng.normal(0, 20e-6, t.size)
     creep += rng.normal(0, 5e-3, t.size)
     i, j = rest_stretch(d, creep)
