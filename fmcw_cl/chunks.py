@@ -13,7 +13,7 @@ from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
 from typing import TYPE_CHECKING
 
-from .capture import Capture, CaptureInfo
+from .capture import Capture, CaptureInfo, Chunk
 from .options import Options
 from .stages import sync
 
@@ -60,13 +60,24 @@ def split_ranges(info: CaptureInfo, options: Options, seconds: float) -> list[tu
     return [(a, min(a + per, info.samples)) for a in range(0, info.samples, per)]
 
 
+def margin_samples(info: CaptureInfo, options: Options) -> int:
+    """Samples read on each side of a chunk's core: the context periods, one more for
+    the half-sweep that starts in the core, and the largest sync delay."""
+    return int((options.context_periods + 1) * info.samples_per_period + sync.MAX_DELAY_SAMPLES + 8)
+
+
 def read_chunks(cap: Capture, options: Options, start: int = 0, stop: int | None = None) -> ReadAhead:
     """The chunks of `options` whose cores lie in samples [start, stop), read ahead into
     the capture's slots 0 and 1: a chunk's results keep none of its samples, and its
     kernels are done when the next one starts."""
-    info = cap.info
-    margin = int((options.context_periods + 1) * info.samples_per_period + sync.MAX_DELAY_SAMPLES + 8)
+    margin = margin_samples(cap.info, options)
     return ReadAhead(cap.chunks(options.chunk_periods, margin, start, stop, slots=2))
+
+
+def held_chunks(cap: Capture, options: Options, start: int, stop: int) -> list[Chunk]:
+    """The chunks of `options` whose cores lie in samples [start, stop), each in arrays
+    of its own: for a caller that converts the same samples more than once."""
+    return list(cap.chunks(options.chunk_periods, margin_samples(cap.info, options), start, stop))
 
 
 def capture_parts(cap: Capture, plan: Plan, processor: ChunkProcessor, start: int = 0,

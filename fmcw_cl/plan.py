@@ -14,7 +14,6 @@ import numpy as np
 
 from .capture import Capture, CaptureInfo
 from .chirp import Chirp, check_chirp, chirp_lut, read_chirp
-from .chunks import capture_parts
 from .errors import CaptureError, FmcwError
 from .options import Options, said
 from .processor import ChunkProcessor, NumpyProcessor
@@ -124,7 +123,7 @@ def make_plan(cap: Capture, options: Options, lag: float | None = None,
     plan = Plan(info, options, lag=lag, lag_periods=votes, lag_misfit=misfit, lag_intensity=lag,
                 tuning=TABLE if chirp is None else CALIBRATION, **parts)
     if not known and options.dechirp:          # the paper's method (--no-dechirp) as published
-        plan = refine_lag(cap, plan, capture_parts, processor)
+        plan = refine_lag(cap, plan, processor)
     return plan
 
 

@@ -123,15 +123,19 @@ class ChunkProcessor(pairing.SpectrumOps):
         raise NotImplementedError
 
     # -- the chunk --
-    def process(self, chunk: Chunk) -> ChunkMeasurements | None:
-        """The owned pairs of `chunk` under the open plan (None: no pair in it)."""
+    def process(self, chunk: Chunk, turns: sync.TurningPoints | None = None) -> ChunkMeasurements | None:
+        """The owned pairs of `chunk` under the open plan (None: no pair in it);
+        `turns`: its sync's turning points where already known (the delay's trial
+        conversions repeat a chunk at other delays)."""
         plan = self.plan
         if plan is None:
             raise FmcwError("a chunk processor must be opened with a plan before it processes")
         self.chunks += 1
         info = plan.info
         hp = info.samples_per_period / 2
-        hs = sync.half_sweeps(self.turning_points(chunk.sync, hp), plan.lag)
+        if turns is None:
+            turns = self.turning_points(chunk.sync, hp)
+        hs = sync.half_sweeps(turns, plan.lag)
         fits = resample.inside(hs.start, hs.length, plan.lut, chunk.beat.size)
         r = np.flatnonzero(hs.rising[:-1] & ~hs.rising[1:] & (hs.segment[:-1] == hs.segment[1:])
                            & fits[:-1] & fits[1:])

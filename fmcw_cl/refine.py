@@ -23,6 +23,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .capture import Capture
+from .chunks import held_chunks
 from .numeric import runs, travelled
 
 STRETCHES = 3
@@ -57,16 +58,27 @@ def drift(t: np.ndarray, d: np.ndarray, v: np.ndarray) -> tuple[float, float]:
     return slope, se
 
 
-def mismatch(cap: Capture, plan, lag: float, capture_parts, backend) -> Mismatch:
-    """The kinematic inconsistency of `plan` at `lag` over STRETCHES stretches, each
-    converted by `capture_parts(cap, plan, backend, start, stop)` (chunks')."""
+def stretches(cap: Capture, plan, processor) -> list[list[tuple]]:
+    """The trial stretches of `plan`'s capture, STRETCHES of STRETCH_PERIODS spread
+    through it: their chunks read once, each with its sync's turning points (the trial
+    conversions move only the delay)."""
     info = cap.info
-    p = replace(plan, lag=lag, check=None, survey=False)     # distances and velocities alone
     length = int(STRETCH_PERIODS * info.samples_per_period)
-    starts = np.linspace(0, max(0, info.samples - length), STRETCHES).astype(np.int64)
+    starts = np.unique(np.linspace(0, max(0, info.samples - length), STRETCHES).astype(np.int64))
+    hp = info.samples_per_period / 2
+    return [[(c, processor.turning_points(c.sync, hp))
+             for c in held_chunks(cap, plan.options, int(a), int(a) + length)] for a in starts]
+
+
+def mismatch(held: list[list[tuple]], plan, lag: float, processor) -> Mismatch:
+    """The kinematic inconsistency of `plan` at `lag` over the trial stretches `held`
+    (`stretches`), each converted by `processor` (no range check or survey: distances
+    and velocities alone)."""
+    p = replace(plan, lag=lag, check=None, survey=False)
+    processor.open(p)
     slopes, errors, dist = [], [], []
-    for a in np.unique(starts):
-        parts = capture_parts(cap, p, backend, int(a), int(a) + length)
+    for chunks in held:
+        parts = [got for c, turns in chunks if (got := processor.process(c, turns)) is not None]
         if not parts:
             continue
         t, d, v, ok = pairs_of(parts)
@@ -97,15 +109,16 @@ def pairs_of(parts) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
             np.concatenate([q.reason == 0 for q in parts]))
 
 
-def refine_lag(cap: Capture, plan, capture_parts, backend):
+def refine_lag(cap: Capture, plan, processor):
     """The plan with its lag moved to where the track is kinematically consistent
-    (trial stretches converted by `capture_parts` with `backend`), with the delay's
-    uncertainty (samples) and what it means in velocity (m/s) and distance (m).
+    (trial stretches converted by `processor`), with the delay's uncertainty (samples)
+    and what it means in velocity (m/s) and distance (m).
 
     Keeps the estimate (lag_refined False) when no stretch can be measured."""
     lag0 = plan.lag
+    held = stretches(cap, plan, processor)
     xs = [lag0, lag0 + STEP_SAMPLES]
-    ms = [mismatch(cap, plan, x, capture_parts, backend) for x in xs]
+    ms = [mismatch(held, plan, x, processor) for x in xs]
     if not (np.isfinite(ms[0].mps) and np.isfinite(ms[1].mps)) or ms[1].mps == ms[0].mps:
         return plan
     # d(mismatch)/d(lag) and d(distance)/d(lag) from the first step: smooth in the lag
@@ -118,7 +131,7 @@ def refine_lag(cap: Capture, plan, capture_parts, backend):
         nxt = float(np.clip(xs[-1] - ms[-1].mps / step, lag0 - MAX_SHIFT_SAMPLES, lag0 + MAX_SHIFT_SAMPLES))
         done = abs(nxt - xs[-1]) < TOLERANCE_SAMPLES
         xs.append(nxt)
-        ms.append(mismatch(cap, plan, nxt, capture_parts, backend))
+        ms.append(mismatch(held, plan, nxt, processor))
         # converged, or what is left is small against its own uncertainty: a further
         # trial conversion would move the delay by a fraction of its sigma
         if done or abs(ms[-1].mps) <= SETTLED * ms[-1].sigma_mps:

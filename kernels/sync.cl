@@ -2,8 +2,20 @@
 // (and an evenly spaced sample of them, from which the host takes the level and the
 // swing), then where their 3-block median changes its band or its side of the level:
 // a few entries a half-period, which the host turns into crossings. The crossings are
-// then timed by line fits on the full-rate codes. Twins: fmcw_cl.stages.sync.block_sums,
-// changes and line_fit_sums.
+// then timed by line fits on the full-rate codes, twice in one launch (the second centred
+// on the first one's crossing). Twins: fmcw_cl.stages.sync.block_sums, changes and
+// line_fits.
+
+// The second fit's centre is the first fit's crossing rounded: in double precision where
+// the device has it, as numpy (the same centres); without it, in float (a centre may
+// differ by one sample where the crossing lies within a float's precision of a half sample).
+#pragma OPENCL FP_CONTRACT OFF
+#if defined(cl_khr_fp64)
+#pragma OPENCL EXTENSION cl_khr_fp64 : enable
+typedef double real;
+#else
+typedef float real;
+#endif
 
 // The integer sum of block j of `factor` codes, kept in `sampled` too when j is a
 // multiple of `stride`.
@@ -126,19 +138,32 @@ void despike(__global const short *x, const int c, const int first, const int hw
     }
 }
 
-__kernel void line_fit(__global const short *x,
-                       __global const int *centre,
-                       const int hw,             // half-width of the window
-                       const int spike,          // codes
-                       const int flush,          // samples per int32 partial sum
-                       __global long *sums,      // (sum x, sum (i - c) x) per centre
-                       __local long *l0,
-                       __local long *l1)
+// The centre of the second fit from the first one's sums at centre c (twin:
+// sync.line_fit_crossing, rounded): -1 where the crossing is not finite or its window
+// would leave the codes [0, n).
+int next_centre(const long s0, const long s1, const int c, const int hw, const real level, const int n)
 {
-    const int g = get_group_id(0);
+    const real m = (real)(2 * hw + 1);
+    const real s2 = (real)((long)hw * (hw + 1) * (2 * hw + 1)) / (real)3.0;
+    const real d = ((real)s0 / m - level) / ((real)s1 / s2);
+#if defined(cl_khr_fp64)
+    const real g = (real)c - d;         // numpy's order of operations
+    if (!isfinite(g)) return -1;
+    const real r = rint(g);
+#else
+    if (!isfinite(d)) return -1;        // a float holds a centre exactly only below 2^24
+    const real r = (real)c - rint(d);
+#endif
+    return r - hw >= 2 && r + hw < n - 2 ? (int)r : -1;
+}
+
+// The group's sums of x and (i - c) x over the window of centre c into l0[0], l1[0]
+// (every work-item of the group calls it).
+void group_sums(__global const short *x, const int c, const int hw, const int spike, const int flush,
+                __local long *l0, __local long *l1)
+{
     const int lid = get_local_id(0);
     const int lsz = get_local_size(0);
-    const int c = centre[g];
     // int32 partial sums, flushed into 64-bit ones every `flush` samples (|k x| < 2^31
     // / flush): int64 arithmetic in the inner loop is slow on CPUs
     long a0 = 0;
@@ -164,6 +189,7 @@ __kernel void line_fit(__global const short *x,
     a0 += b0;
     a1 += b1;
     if (candidates) despike(x, c, lid - hw, hw, lsz, spike, &a0, &a1);
+    barrier(CLK_LOCAL_MEM_FENCE);       // the previous call's totals are read
     l0[lid] = a0;
     l1[lid] = a1;
     barrier(CLK_LOCAL_MEM_FENCE);
@@ -174,9 +200,38 @@ __kernel void line_fit(__global const short *x,
         }
         barrier(CLK_LOCAL_MEM_FENCE);
     }
-    if (lid == 0) {
-        sums[2 * g] = l0[0];
-        sums[2 * g + 1] = l1[0];
+}
+
+// Both line fits of each crossing, a work-group each: the sums at the first centre,
+// then, where the first fit's crossing rounds to another centre, at that one. out =
+// (centre, sum x, sum (i - c) x) of the last fit per crossing, centre -1 where the
+// crossing left the codes (dropped).
+__kernel void line_fit(__global const short *x,
+                       __global const int *centre,
+                       const int hw,             // half-width of the window
+                       const int spike,          // codes
+                       const int flush,          // samples per int32 partial sum
+                       const real level,         // the crossing level (codes)
+                       const int n,              // codes in x
+                       __global long *out,
+                       __local long *l0,
+                       __local long *l1)
+{
+    const int g = get_group_id(0);
+    const int c = centre[g];
+    group_sums(x, c, hw, spike, flush, l0, l1);
+    const long s0 = l0[0], s1 = l1[0];
+    const int c2 = next_centre(s0, s1, c, hw, level, n);
+    long t0 = s0, t1 = s1;
+    if (c2 >= 0 && c2 != c) {           // the same for the whole group: uniform barriers
+        group_sums(x, c2, hw, spike, flush, l0, l1);
+        t0 = l0[0];
+        t1 = l1[0];
+    }
+    if (get_local_id(0) == 0) {
+        out[3 * g] = c2;
+        out[3 * g + 1] = t0;
+        out[3 * g + 2] = t1;
     }
 }
 
@@ -231,19 +286,13 @@ __kernel void crossing_changes_span(__global const int *sums,
     }
 }
 
-// line_fit on CPU devices: one work-item a centre, eight codes a step in the lanes of an
-// int8 (PoCL vectorises no work-item loop that holds a loop, see fft_lanes.cl; wider
+// line_fit on CPU devices: one work-item a crossing, eight codes a step in the lanes of
+// an int8 (PoCL vectorises no work-item loop that holds a loop, see fft_lanes.cl; wider
 // vectors than AVX2's change its builtins' ABI); the same sums, flushed every `flush`
 // steps (each lane takes one code a step).
-__kernel void line_fit_lanes(__global const short *x,
-                             __global const int *centre,
-                             const int hw,
-                             const int spike,
-                             const int flush,
-                             __global long *sums)
+void lane_sums(__global const short *x, const int c, const int hw, const int spike, const int flush,
+               long *s0, long *s1)
 {
-    const int g = get_global_id(0);
-    const int c = centre[g];
     const int8 lane = (int8)(0, 1, 2, 3, 4, 5, 6, 7);
     long a0 = 0;
     long a1 = 0;
@@ -272,6 +321,26 @@ __kernel void line_fit_lanes(__global const short *x,
         candidates |= (abs(v - x[i - 1]) > spike) | (abs(v - x[i + 1]) > spike);
     }
     if (candidates) despike(x, c, -hw, hw, 1, spike, &a0, &a1);
-    sums[2 * g] = a0;
-    sums[2 * g + 1] = a1;
+    *s0 = a0;
+    *s1 = a1;
+}
+
+__kernel void line_fit_lanes(__global const short *x,
+                             __global const int *centre,
+                             const int hw,
+                             const int spike,
+                             const int flush,
+                             const real level,
+                             const int n,
+                             __global long *out)
+{
+    const int g = get_global_id(0);
+    const int c = centre[g];
+    long s0, s1;
+    lane_sums(x, c, hw, spike, flush, &s0, &s1);
+    const int c2 = next_centre(s0, s1, c, hw, level, n);
+    if (c2 >= 0 && c2 != c) lane_sums(x, c2, hw, spike, flush, &s0, &s1);
+    out[3 * g] = c2;
+    out[3 * g + 1] = s0;
+    out[3 * g + 2] = s1;
 }

@@ -164,7 +164,8 @@ def sync_codes(n, half, t0, noise, seed, spikes=0):
                                            (50_003, 1234.5, 7), (9_999, 300.0, 3)])
 def test_sync_kernels_match_numpy(backend, kernel_variant, n, half, spikes):
     """Block sums, their band and side changes and the despiked line-fit sums are exact
-    integers on both sides, so the coarse crossings and the turning points are bitwise
+    integers on both sides, and the second fit's centre is rounded in double precision as
+    numpy does, so the coarse crossings, both fits and the turning points are bitwise
     equal; odd lengths and partial periods at both ends."""
     from fmcw_cl.opencl import sync as k_sync
 
@@ -176,10 +177,17 @@ def test_sync_kernels_match_numpy(backend, kernel_variant, n, half, spikes):
     np.testing.assert_array_equal(got.direction, want.direction)
     assert (got.level, got.swing) == (want.level, want.swing)
     hw = sync.fit_half_width(half)
-    centre = np.random.default_rng(1).integers(hw + 2, n - hw - 2, 33)
-    got = backend._sums(x, centre, hw, 300.0)
-    for a, b in zip(got, sync.line_fit_sums(x, centre, hw, 300.0), strict=True):
+    # both fits: random centres (their crossings mostly far off: dropped), centres a few
+    # samples off the real crossings (a second fit elsewhere) and on the window's reach
+    fine = sync.crossings(x, half).time
+    centre = np.r_[np.random.default_rng(1).integers(hw + 2, n - hw - 2, 33), np.rint(fine) + 3,
+                   np.rint(fine), hw + 2, n - hw - 3].astype(np.int64)
+    got = backend._line_fits(x, centre, hw, 300.0, want.level)
+    ref = sync.line_fits(x, centre, hw, 300.0, want.level)
+    for a, b in zip(got, ref, strict=True):
         np.testing.assert_array_equal(a, b)
+    moved = (ref[0] >= 0) & (ref[0] != centre)
+    assert moved.sum() >= fine.size and (ref[0] < 0).any() and (ref[0] == centre).any()
     ref = sync.sync_turning_points(x, half)
     got = backend.turning_points(x, half)
     assert ref.time.size > 2

@@ -217,6 +217,11 @@ class Runtime:
         return describe(self.device)
 
     @property
+    def fp64(self) -> bool:
+        """Whether the device computes in double precision (cl_khr_fp64)."""
+        return "cl_khr_fp64" in self.device.extensions
+
+    @property
     def zero_copy(self) -> bool:
         """Whether a buffer over host memory is the host memory (a real CPU device)."""
         return rank(self.device) == CPU

@@ -51,7 +51,7 @@ class OpenCLProcessor(ChunkProcessor):
         self.bufs = Buffers(self.rt)
         self.device = self.rt.name
         self._coarse = functools.partial(k_sync.coarse, self.rt, self.bufs)
-        self._sums = functools.partial(k_sync.line_fit_sums, self.rt, self.bufs)
+        self._line_fits = functools.partial(k_sync.line_fits, self.rt, self.bufs)
 
     def _fits(self, nfft: int) -> bool:
         """Whether an nfft-point transform runs on this device (its local memory)."""
@@ -100,7 +100,7 @@ class OpenCLProcessor(ChunkProcessor):
         return k_delay.fit_periods(self.rt, self.bufs, y, z, shift, period, span)
 
     def turning_points(self, codes, half_period):
-        return sync.sync_turning_points(codes, half_period, self._coarse, self._sums)
+        return sync.sync_turning_points(codes, half_period, self._coarse, self._line_fits)
 
     def resample_each(self, codes, jobs, win):
         rows = k_resample.resample_each(self.rt, self.bufs, codes, jobs, win)

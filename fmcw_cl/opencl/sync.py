@@ -1,5 +1,5 @@
 """Launchers of kernels/sync.cl (twins: fmcw_cl.stages.sync.block_sums, changes,
-coarse_from_codes and line_fit_sums)."""
+coarse_from_codes and line_fits)."""
 
 from __future__ import annotations
 
@@ -65,21 +65,24 @@ def coarse(rt: Runtime, bufs: Buffers, x: np.ndarray, factor: int, level: float 
     return sync.coarse_crossings(ch, lv, factor)
 
 
-def line_fit_sums(rt: Runtime, bufs: Buffers, x: np.ndarray, centre: np.ndarray, half: int,
-                  spike: float) -> tuple[np.ndarray, np.ndarray]:
-    """Sums of x and (i - c) x around each centre, spikes replaced (see the twin; codes
-    are integers, so `|d| > spike` is `|d| > floor(spike)`)."""
+def line_fits(rt: Runtime, bufs: Buffers, x: np.ndarray, centre: np.ndarray, half: int, spike: float,
+              level: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Both line fits of each crossing in one launch: the last fit's centre (-1:
+    dropped) and its sums of x and (i - c) x, spikes replaced (see the twin; codes are
+    integers, so `|d| > spike` is `|d| > floor(spike)`)."""
     n = centre.size
-    s = np.empty((n, 2), np.int64)
+    out = np.empty((n, 3), np.int64)
     if n:
-        d = bufs.get("fit_sums", s.nbytes)
+        d = bufs.get("fit_sums", out.nbytes)
+        real = np.float64 if rt.fp64 else np.float32
         args = (_codes(bufs, x), bufs.upload("fit_centre", centre.astype(np.int32)), np.int32(half),
-                np.int32(np.floor(spike)), np.int32(max(1, (2**31 - 1) // (max(half, 1) * 32768 + 32768))), d)
+                np.int32(np.floor(spike)), np.int32(max(1, (2**31 - 1) // (max(half, 1) * 32768 + 32768))),
+                real(level), np.int32(x.size), d)
         if rt.lanes:
-            rt.kernel("sync", "line_fit_lanes")(rt.queue, (n,), (1,), *args)   # a work-item a centre
+            rt.kernel("sync", "line_fit_lanes")(rt.queue, (n,), (1,), *args)   # a work-item a crossing
         else:
             lsz = rt.group_size(16, 128)
             rt.kernel("sync", "line_fit")(rt.queue, (n * lsz,), (lsz,), *args, cl.LocalMemory(8 * lsz),
                                           cl.LocalMemory(8 * lsz))
-        rt.copy(s, d)
-    return s[:, 0].astype(np.float64), s[:, 1].astype(np.float64)
+        rt.copy(out, d)
+    return out[:, 0], out[:, 1].astype(np.float64), out[:, 2].astype(np.float64)

@@ -188,8 +188,7 @@ def line_fit_sums(x: np.ndarray, centre: np.ndarray, half: int, spike: float
     spikes (samples more than `spike` codes off the median of their 5-sample
     neighbourhood) replaced by that median first. Exact for integer codes.
 
-    Requires 2 <= c - half and c + half < x.size - 2. The numpy twin of the
-    `line_fit` kernel (kernels/sync.cl).
+    Requires 2 <= c - half and c + half < x.size - 2.
     """
     w = sliding_window_view(np.asarray(x), 2 * half + 5)[centre - half - 2].astype(np.float64)
     # a spike is more than `spike` off at least 3 of its 4 neighbours, so off one of
@@ -216,8 +215,38 @@ def line_fit_crossing(s0: np.ndarray, s1: np.ndarray, centre: np.ndarray, half: 
         return centre - (s0 / m - level) / (s1 / s2)
 
 
+def reaches(centre: np.ndarray, half: int, size: int) -> np.ndarray:
+    """Whether the fit window of each centre lies within codes [0, size) with the two
+    codes either side that the despiking reads."""
+    return (centre - half >= 2) & (centre + half < size - 2)
+
+
+def rounded(guess: np.ndarray, size: int) -> np.ndarray:
+    """Crossing times (samples; NaN: none) rounded to fit centres, -1 or `size` where
+    none or beyond the codes."""
+    return np.rint(np.clip(np.nan_to_num(guess, nan=-1.0), -1, size)).astype(np.int64)
+
+
+def line_fits(x: np.ndarray, centre: np.ndarray, half: int, spike: float, level: float
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Both line fits of each crossing: `line_fit_sums` at `centre` (within reach),
+    then, where that fit's crossing rounds to another centre, at that one.
+
+    Returns the last fit's centre (-1 where the first fit's crossing is not finite or
+    its window would leave x: the crossing is dropped) and its two sums. The numpy
+    twin of the `line_fit` kernel (kernels/sync.cl).
+    """
+    s0, s1 = line_fit_sums(x, centre, half, spike)
+    c2 = rounded(line_fit_crossing(s0, s1, centre, half, level), x.size)
+    ok = reaches(c2, half, x.size)           # NaN and inf round to -1 or x.size: out of reach
+    redo = ok & (c2 != centre)
+    if np.any(redo):
+        s0[redo], s1[redo] = line_fit_sums(x, c2[redo], half, spike)
+    return np.where(ok, c2, -1), s0, s1
+
+
 def crossings(x: np.ndarray, half_period: float, level: float | None = None,
-              coarse=coarse_from_codes, sums=line_fit_sums) -> Crossings:
+              coarse=coarse_from_codes, fits=line_fits) -> Crossings:
     """Mid-level crossings of a triangle-like signal.
 
     Found in block sums (`block_length`, `coarse_from_sums`), then each timed by a
@@ -232,8 +261,8 @@ def crossings(x: np.ndarray, half_period: float, level: float | None = None,
         Nominal half-period in samples of `x`.
     level : float, optional
         Crossing level; default the middle of the swing.
-    coarse, sums : the coarse crossings of `x` in blocks of a length (`coarse_from_codes`)
-        and the line-fit step (the OpenCL backend swaps in its kernels).
+    coarse, fits : the coarse crossings of `x` in blocks of a length (`coarse_from_codes`)
+        and both line fits (`line_fits`; the OpenCL backend swaps in its kernels).
 
     Returns
     -------
@@ -246,20 +275,13 @@ def crossings(x: np.ndarray, half_period: float, level: float | None = None,
         return none
     factor = block_length(half_period)
     co = coarse(x, factor, level)
-    guess = co.block * factor + 0.5 * (factor - 1)
-    fitted = np.full(guess.size, -1)        # centre of each crossing's last fit
-    for _ in range(2):
-        # no guess (NaN) or one beyond the channel is out of the fit's reach: -1
-        centre = np.rint(np.clip(np.nan_to_num(guess, nan=-1.0), -1, x.size)).astype(np.int64)
-        ok = np.isfinite(guess) & (centre - half >= 2) & (centre + half < x.size - 2)
-        guess[~ok] = np.nan
-        redo = ok & (centre != fitted)       # a fit on the same centre would repeat itself
-        if np.any(redo):
-            s0, s1 = sums(x, centre[redo], half, SPIKE * co.swing)
-            guess[redo] = line_fit_crossing(s0, s1, centre[redo], half, co.level)
-            fitted[redo] = centre[redo]
-    keep = np.isfinite(guess)
-    return Crossings(guess[keep], co.direction[keep])
+    centre = rounded(co.block * factor + 0.5 * (factor - 1), x.size)
+    first = np.flatnonzero(reaches(centre, half, x.size))
+    c, s0, s1 = fits(x, centre[first], half, SPIKE * co.swing, co.level)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        guess = line_fit_crossing(s0, s1, c, half, co.level)
+    keep = (c >= 0) & np.isfinite(guess)
+    return Crossings(guess[keep], co.direction[first][keep])
 
 
 @dataclass(frozen=True)
@@ -317,10 +339,10 @@ def turning_points(cr: Crossings, half_period: float) -> TurningPoints:
 
 
 def sync_turning_points(sync: np.ndarray, half_period: float, coarse=coarse_from_codes,
-                        sums=line_fit_sums) -> TurningPoints:
+                        fits=line_fits) -> TurningPoints:
     """Turning points of the sync channel (higher code = higher current); `coarse` and
-    `sums` as in `crossings`."""
-    return turning_points(crossings(sync, half_period, coarse=coarse, sums=sums), half_period)
+    `fits` as in `crossings`."""
+    return turning_points(crossings(sync, half_period, coarse=coarse, fits=fits), half_period)
 
 
 MAX_DELAY_SAMPLES = 400  # search range of the sync-to-optics delay
