@@ -79,12 +79,11 @@ class TuningFit:
 
         NaN (unknown) under 3 degrees of freedom: Student's t has no variance there.
         """
+        if self.dof <= 2:
+            return float("nan")
         n = current.size
         j = np.arange(n) - np.sum(weights * np.arange(n)) / np.sum(weights)
         slope = -(weights * j) / np.sum(weights * j * j) * n / bandwidth_hz
-
-        if self.dof <= 2:
-            return float("nan")
         a = slope @ self._basis(current)
         var = max(a @ self.cov @ a, 0.0) * self.dof / (self.dof - 2)
         here = self(current)

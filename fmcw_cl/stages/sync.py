@@ -278,8 +278,7 @@ def crossings(x: np.ndarray, half_period: float, level: float | None = None,
     centre = rounded(co.block * factor + 0.5 * (factor - 1), x.size)
     first = np.flatnonzero(reaches(centre, half, x.size))
     c, s0, s1 = fits(x, centre[first], half, SPIKE * co.swing, co.level)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        guess = line_fit_crossing(s0, s1, c, half, co.level)
+    guess = line_fit_crossing(s0, s1, c, half, co.level)
     keep = (c >= 0) & np.isfinite(guess)
     return Crossings(guess[keep], co.direction[first][keep])
 
