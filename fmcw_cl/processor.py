@@ -51,6 +51,21 @@ class ChunkMeasurements:
     clipped_codes: int = 0  # beat codes at full scale in the chunk's core (to a block at its edges)
 
 
+def clipping(chunk: Chunk, info) -> tuple:
+    """`clip_counts`' arguments for a chunk's beat (`info`: its CaptureInfo): blocks of
+    faults.CLIP_BLOCK codes, full scale 2^(bits - 1)."""
+    return chunk.beat, faults.CLIP_BLOCK, info.full_scale + 1
+
+
+@dataclass(frozen=True)
+class Prepared:
+    """What a chunk's codes say whatever the delay: its sync's turning points and how
+    many beat codes of each faults.CLIP_BLOCK are at full scale."""
+
+    turns: sync.TurningPoints
+    clip_counts: np.ndarray
+
+
 class ChunkProcessor(pairing.SpectrumOps):
     """The life cycle and the steps of a chunk processor; a subclass supplies the stage
     operations (low-pass, the delay's per-period fits, turning points, resampling,
@@ -123,19 +138,23 @@ class ChunkProcessor(pairing.SpectrumOps):
         raise NotImplementedError
 
     # -- the chunk --
-    def process(self, chunk: Chunk, turns: sync.TurningPoints | None = None) -> ChunkMeasurements | None:
+    def prepare(self, chunk: Chunk, info) -> Prepared:
+        """What `chunk`'s codes say whatever the delay (`info`: its capture's CaptureInfo)."""
+        return Prepared(self.turning_points(chunk.sync, info.samples_per_period / 2),
+                        self.clip_counts(*clipping(chunk, info)))
+
+    def process(self, chunk: Chunk, prepared: Prepared | None = None) -> ChunkMeasurements | None:
         """The owned pairs of `chunk` under the open plan (None: no pair in it);
-        `turns`: its sync's turning points where already known (the delay's trial
+        `prepared`: what `prepare` found in it, where already known (the delay's trial
         conversions repeat a chunk at other delays)."""
         plan = self.plan
         if plan is None:
             raise FmcwError("a chunk processor must be opened with a plan before it processes")
         self.chunks += 1
         info = plan.info
-        hp = info.samples_per_period / 2
-        if turns is None:
-            turns = self.turning_points(chunk.sync, hp)
-        hs = sync.half_sweeps(turns, plan.lag)
+        if prepared is None:
+            prepared = self.prepare(chunk, info)
+        hs = sync.half_sweeps(prepared.turns, plan.lag)
         fits = resample.inside(hs.start, hs.length, plan.lut, chunk.beat.size)
         r = np.flatnonzero(hs.rising[:-1] & ~hs.rising[1:] & (hs.segment[:-1] == hs.segment[1:])
                            & fits[:-1] & fits[1:])
@@ -154,7 +173,7 @@ class ChunkProcessor(pairing.SpectrumOps):
         sel = res.take(own)
         r, f = r[own], f[own]
         # the falling half-sweep starts where the rising one ends: one span per pair
-        counts = self.clip_counts(chunk.beat, faults.CLIP_BLOCK, info.full_scale + 1)     # 2^(bits-1)
+        counts = prepared.clip_counts
         span = hs.start[f] + hs.length[f] - hs.start[r]
         clip = faults.clipped_share(hs.start[r], span, counts, chunk.beat.size) >= faults.CLIP_SHARE
         # the core's clipped codes, counted once over the capture

@@ -60,13 +60,12 @@ def drift(t: np.ndarray, d: np.ndarray, v: np.ndarray) -> tuple[float, float]:
 
 def stretches(cap: Capture, plan, processor) -> list[list[tuple]]:
     """The trial stretches of `plan`'s capture, STRETCHES of STRETCH_PERIODS spread
-    through it: their chunks read once, each with its sync's turning points (the trial
-    conversions move only the delay)."""
+    through it: their chunks read once, each with what `processor.prepare` finds in it
+    (the trial conversions move only the delay)."""
     info = cap.info
     length = int(STRETCH_PERIODS * info.samples_per_period)
     starts = np.unique(np.linspace(0, max(0, info.samples - length), STRETCHES).astype(np.int64))
-    hp = info.samples_per_period / 2
-    return [[(c, processor.turning_points(c.sync, hp))
+    return [[(c, processor.prepare(c, info))
              for c in held_chunks(cap, plan.options, int(a), int(a) + length)] for a in starts]
 
 
@@ -78,7 +77,7 @@ def mismatch(held: list[list[tuple]], plan, lag: float, processor) -> Mismatch:
     processor.open(p)
     slopes, errors, dist = [], [], []
     for chunks in held:
-        parts = [got for c, turns in chunks if (got := processor.process(c, turns)) is not None]
+        parts = [got for c, prep in chunks if (got := processor.process(c, prep)) is not None]
         if not parts:
             continue
         t, d, v, ok = pairs_of(parts)

@@ -1,10 +1,10 @@
-// Stage 2: the sync channel's crossings, three kernels. The coarse search: block sums
-// (and an evenly spaced sample of them, from which the host takes the level and the
-// swing), then where their 3-block median changes its band or its side of the level:
-// a few entries a half-period, which the host turns into crossings. The crossings are
-// then timed by line fits on the full-rate codes, twice in one launch (the second centred
-// on the first one's crossing). Twins: fmcw_cl.stages.sync.block_sums, changes and
-// line_fits.
+// Stage 2: the sync channel's crossings, four kernels. The coarse search: block sums
+// (and an evenly spaced sample of them), the level and the swing from the sample's
+// percentiles, then where the sums' 3-block median changes its band or its side of the
+// level: a few entries a half-period, which the host turns into crossings. The
+// crossings are then timed by line fits on the full-rate codes, twice in one launch (the
+// second centred on the first one's crossing). Twins: fmcw_cl.stages.sync.block_sums,
+// levels, changes and line_fits.
 
 // The second fit's centre is the first fit's crossing rounded: in double precision where
 // the device has it, as numpy (the same centres); without it, in float (a centre may
@@ -30,6 +30,10 @@ void sum_block(__global const short *x, const int factor, const int stride, cons
     if (q * stride == j) sampled[q] = s;
 }
 
+// crossing_changes' output: a header (the counts of its two lists, then sync_levels'
+// 20 factor lo, 20 factor hi, and the thresholds high, low, mid), then the lists.
+#define HEADER 8
+
 // Integer sums of whole blocks of `factor` int16 codes, and every `stride`-th of them;
 // work-item 0 also zeroes crossing_changes' two counters (this kernel always runs first).
 __kernel void block_sum(__global const short *x,
@@ -46,6 +50,75 @@ __kernel void block_sum(__global const short *x,
     if (j == 0) {
         counters[0] = 0;
         counters[1] = 0;
+    }
+}
+
+// The level and the hysteresis band from the percentiles of the sampled block sums, on
+// the device so that no copy waits between block_sum and crossing_changes: one
+// work-group. The 5 and 95 percentiles interpolate order statistics of ranks (n - 1) / 20
+// and 19 (n - 1) / 20 (numpy's linear percentile) with weights in twentieths, so
+// 20 factor lo and 20 factor hi are integers (a, b), and so are the thresholds on a sum:
+// high = floor((7a + 11b) / 360) + 1, low = ceil((11a + 7b) / 360), mid = floor((a + b) /
+// 40) + 1 (see the twin, stages.sync.levels).
+#define LEVEL_BITS 11                      // two radix passes over 22-bit values
+#define LEVEL_BINS (1 << LEVEL_BITS)
+#define LEVEL_OFFSET (1 << 21)             // |a sum of 64 int16 codes| <= 2^21: offset, >= 0
+
+// The k-th smallest (from 0) of s[0 .. n), by a radix select: a histogram of the upper 11
+// bits finds the bin holding rank k, a histogram of the lower 11 bits of that bin's values
+// the value. hist: LEVEL_BINS + 2 ints of local memory.
+int kth_smallest(__global const int *s, const int n, const int k, __local int *hist)
+{
+    const int lid = get_local_id(0), lsz = get_local_size(0);
+    int prefix = 0;
+    int rank = k;
+    for (int pass = 0; pass < 2; ++pass) {
+        const int shift = pass == 0 ? LEVEL_BITS : 0;
+        for (int b = lid; b < LEVEL_BINS; b += lsz) hist[b] = 0;
+        barrier(CLK_LOCAL_MEM_FENCE);
+        for (int q = lid; q < n; q += lsz) {
+            const int u = s[q] + LEVEL_OFFSET;
+            if (pass == 0 || (u >> LEVEL_BITS) == prefix) atomic_inc(hist + ((u >> shift) & (LEVEL_BINS - 1)));
+        }
+        barrier(CLK_LOCAL_MEM_FENCE);
+        if (lid == 0) {                    // the bin of the rank: 2048 steps, one work-item
+            int below = 0, b = 0;
+            while (b < LEVEL_BINS - 1 && below + hist[b] <= rank) below += hist[b++];
+            hist[LEVEL_BINS] = b;
+            hist[LEVEL_BINS + 1] = rank - below;
+        }
+        barrier(CLK_LOCAL_MEM_FENCE);
+        prefix = (prefix << LEVEL_BITS) | hist[LEVEL_BINS];
+        rank = hist[LEVEL_BINS + 1];
+        barrier(CLK_LOCAL_MEM_FENCE);      // hist is cleared next
+    }
+    return prefix - LEVEL_OFFSET;
+}
+
+long floor_div(const long x, const long d)   // d > 0
+{
+    return x >= 0 ? x / d : -((-x + d - 1) / d);
+}
+
+// out[2 .. 6] = a, b, high, low, mid of the n >= 1 sampled sums (one work-group).
+__kernel void sync_levels(__global const int *sampled,
+                          const int n,
+                          __global int *out,
+                          __local int *hist)
+{
+    const int last = n - 1;
+    const int i = last / 20, r = last - 20 * i;
+    const int j = 19 * last / 20, t = 19 * last - 20 * j;
+    const long a = (long)kth_smallest(sampled, n, i, hist) * (20 - r)
+                   + (long)kth_smallest(sampled, n, min(i + 1, last), hist) * r;
+    const long b = (long)kth_smallest(sampled, n, j, hist) * (20 - t)
+                   + (long)kth_smallest(sampled, n, min(j + 1, last), hist) * t;
+    if (get_local_id(0) == 0) {
+        out[2] = (int)a;
+        out[3] = (int)b;
+        out[4] = (int)(floor_div(7 * a + 11 * b, 360) + 1);
+        out[5] = (int)(-floor_div(-11 * a - 7 * b, 360));
+        out[6] = (int)(floor_div(a + b, 40) + 1);
     }
 }
 
@@ -68,8 +141,8 @@ int band(const int b, const int high, const int low)
 
 // Where the filtered sums change band (+1 at or above `high`, -1 below `low`; block 0
 // always) and side of the level (`mid`), appended in any order through counters that
-// block_sum zeroed: out = [events, sides, (block, band) x cap_events, (block, before,
-// after) x cap_sides]; past a capacity only the count grows (the host then redoes it).
+// block_sum zeroed: out = [header, (block, band) x cap_events, (block, before, after) x
+// cap_sides]; past a capacity only the count grows (the host then redoes it).
 // Block i's entries, from its filtered sum b and the previous block's a (i = 0: its own).
 void record_changes(const int i, const int a, const int b, const int high, const int low, const int mid,
                     const int cap_events, const int cap_sides, __global int *out)
@@ -78,14 +151,14 @@ void record_changes(const int i, const int a, const int b, const int high, const
     if (i == 0 || e != band(a, high, low)) {
         const int k = atomic_inc(out);
         if (k < cap_events) {
-            out[2 + 2 * k] = i;
-            out[3 + 2 * k] = e;
+            out[HEADER + 2 * k] = i;
+            out[HEADER + 1 + 2 * k] = e;
         }
     }
     if (i > 0 && (b >= mid) != (a >= mid)) {
         const int k = atomic_inc(out + 1);
         if (k < cap_sides) {
-            __global int *o = out + 2 + 2 * cap_events + 3 * k;
+            __global int *o = out + HEADER + 2 * cap_events + 3 * k;
             o[0] = i;
             o[1] = a;
             o[2] = b;
@@ -95,9 +168,6 @@ void record_changes(const int i, const int a, const int b, const int high, const
 
 __kernel void crossing_changes(__global const int *sums,
                                const int m,
-                               const int high,
-                               const int low,
-                               const int mid,
                                const int cap_events,
                                const int cap_sides,
                                __global int *out)
@@ -105,7 +175,8 @@ __kernel void crossing_changes(__global const int *sums,
     const int i = get_global_id(0);
     if (i >= m) return;
     const int b = filtered(sums, m, i);
-    record_changes(i, i > 0 ? filtered(sums, m, i - 1) : b, b, high, low, mid, cap_events, cap_sides, out);
+    record_changes(i, i > 0 ? filtered(sums, m, i - 1) : b, b, out[4], out[5], out[6], cap_events, cap_sides,
+                   out);
 }
 
 // Integer sums of x and (i - c) x over x[c - hw .. c + hw], one work-group per
@@ -267,9 +338,6 @@ __kernel void block_sum_span(__global const short *x,
 
 __kernel void crossing_changes_span(__global const int *sums,
                                     const int m,
-                                    const int high,
-                                    const int low,
-                                    const int mid,
                                     const int cap_events,
                                     const int cap_sides,
                                     const int span,
@@ -278,6 +346,7 @@ __kernel void crossing_changes_span(__global const int *sums,
     const int i0 = get_global_id(0) * span;
     if (i0 >= m) return;
     const int i1 = i0 + span < m ? i0 + span : m;
+    const int high = out[4], low = out[5], mid = out[6];
     int a = filtered(sums, m, i0 > 0 ? i0 - 1 : 0);
     for (int i = i0; i < i1; ++i) {
         const int b = filtered(sums, m, i);

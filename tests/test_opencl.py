@@ -196,6 +196,30 @@ def test_sync_kernels_match_numpy(backend, kernel_variant, n, half, spikes):
     assert k_sync.capacities(n // f)[0] > 4 * ref.time.size     # the lists were not cut
 
 
+@pytest.mark.parametrize("n", [1, 2, 19, 21, 4097, 8191])
+def test_sync_level_kernel_matches_numpy(backend, kernel_variant, n):
+    """The percentiles of the sampled sums (a radix select on the device) and the band's
+    thresholds are numpy's integers: sums at both extremes of 64 int16 codes, ties,
+    negative values, sizes at and between the twentieths of the ranks."""
+    from fmcw_cl.opencl import sync as k_sync
+
+    rng = np.random.default_rng(n)
+    for sampled in (rng.integers(-2**21, 2**21 - 63, n), rng.integers(-1, 2, n) * 64 * 32767,
+                    rng.integers(-40_000, 90_000, n)):
+        sampled = sampled.astype(np.int32)
+        sampled[: min(n, 2)] = [-2**21, 64 * 32767][: min(n, 2)]
+        rt, bufs = backend.rt, backend.bufs
+        out = np.zeros(k_sync.HEADER, np.int32)
+        d_out = bufs.upload("level_test_out", out)
+        k_sync.levels(rt, bufs.upload("level_test_in", sampled), n, d_out)
+        rt.copy(out, d_out)
+        a, b = sync.percentile_sums(sampled)
+        lv = sync.levels(sampled, 64)
+        assert list(out[2:7]) == [a, b, lv.high, lv.low, lv.mid]
+        lo, hi = np.percentile(sampled.astype(np.float64), [5.0, 95.0])
+        assert abs(a / 20 - lo) <= 1e-9 * abs(lo) + 1e-6 and abs(b / 20 - hi) <= 1e-9 * abs(hi) + 1e-6
+
+
 def test_sync_changes_beyond_capacity_are_redone_on_the_host(backend, monkeypatch):
     """More band or side changes than the kernel's lists hold (a sync that is no
     triangle): the host redoes the changes from the sums, with the same crossings."""
@@ -247,6 +271,32 @@ def test_clip_kernel_matches_numpy(backend, n, block):
     got = backend.clip_counts(codes, block, 8192)
     assert want.any() == (n > 0) and got.dtype == np.uint16
     np.testing.assert_array_equal(got, want)
+
+
+def test_prepared_chunk_equals_numpy(backend, static_capture, monkeypatch):
+    """What a chunk's codes say whatever the delay: the turning points and the clipping
+    counts, which ride on the sync's first download (no copy of their own), or where the
+    sync is too short for a crossing search come down by themselves."""
+    from fmcw_cl.capture import Capture, Chunk
+    from fmcw_cl.opencl import faults as k_faults
+    from fmcw_cl.processor import NumpyProcessor
+
+    own = []
+    monkeypatch.setattr(k_faults, "clip_counts", lambda *a, real=k_faults.clip_counts: own.append(1) or real(*a))
+    with Capture(static_capture) as cap:
+        info = cap.info
+        beat, sy = cap.read(1234, 1234 + 40_001)
+    beat = beat.copy()
+    beat[[0, 4095, 4096, 17_000, 40_000]] = [-info.full_scale - 1, info.full_scale, -info.full_scale - 1,
+                                            info.full_scale, info.full_scale]
+    for n, copies in ((beat.size, 0), (300, 1)):
+        chunk = Chunk(1234, beat[:n], sy[:n], 1234, 1234 + n)
+        got, want = backend.prepare(chunk, info), NumpyProcessor().prepare(chunk, info)
+        assert len(own) == copies
+        assert (want.turns.time.size > 10) == (n > 300) and want.clip_counts.sum() == (5 if n > 300 else 1)
+        for a, b in ((got.turns.time, want.turns.time), (got.turns.is_max, want.turns.is_max),
+                     (got.turns.segment, want.turns.segment), (got.clip_counts, want.clip_counts)):
+            np.testing.assert_array_equal(a, b)
 
 
 @pytest.mark.parametrize("name", ["static_capture", "jump_capture"])

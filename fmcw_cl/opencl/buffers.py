@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import weakref
 from collections import OrderedDict
+from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -107,30 +109,51 @@ class DeviceRows:
         return out
 
 
+@dataclass
+class Rider:
+    """A small result that crosses with another step's download instead of by a copy of
+    its own: `launch(buffer)` enqueues the kernel that writes its `count` values of
+    `dtype` into the buffer it is given; `value` is a host copy after that download
+    (None until then, or when the step made none)."""
+
+    dtype: type
+    count: int
+    launch: Callable
+    value: np.ndarray | None = None
+
+
 class Packed:
     """Small arrays that cross together: one device buffer, each array an aligned
     sub-buffer of it (what a kernel argument takes), moved by a single copy each way.
 
     `parts` are (dtype, count) in order; `views` are the host arrays after `download`
-    (or to fill before `upload`), all in one host block.
+    (or to fill before `upload`), all in one host block. `riders` (`Rider`) get parts
+    after those, are launched at once, and come down with the parts.
     """
 
-    def __init__(self, bufs: Buffers, name: str, parts: list[tuple[type, int]]) -> None:
+    def __init__(self, bufs: Buffers, name: str, parts: list[tuple[type, int]], riders: tuple = ()) -> None:
         self._rt = bufs.rt
         align = max(bufs.rt.device.mem_base_addr_align // 8, 16)
         spans, size = [], 0                                  # (offset, dtype, bytes) of each part
-        for dtype, count in parts:
+        for dtype, count in [*parts, *((r.dtype, r.count) for r in riders)]:
             nbytes = np.dtype(dtype).itemsize * int(count)
             spans.append((size, np.dtype(dtype), nbytes))
             size += -(-max(nbytes, 4) // align) * align
         self._host = np.empty(size, np.uint8)
         self._parent = bufs.get(name, size)
-        self.views = [self._host[o: o + n].view(d) for o, d, n in spans]
-        self.buffers = [self._parent.get_sub_region(o, max(n, 4)) for o, _, n in spans]
+        views = [self._host[o: o + n].view(d) for o, d, n in spans]
+        buffers = [self._parent.get_sub_region(o, max(n, 4)) for o, _, n in spans]
+        self.views, self.buffers = views[: len(parts)], buffers[: len(parts)]
+        self._riders = list(zip(riders, views[len(parts):], strict=True))
+        for rider, buffer in zip(riders, buffers[len(parts):], strict=True):
+            rider.launch(buffer)
 
     def download(self) -> list[np.ndarray]:
-        """Every part, by one copy (waits for the kernels that wrote them)."""
+        """Every part, by one copy (waits for the kernels that wrote them); the riders'
+        values too."""
         self._rt.copy(self._host, self._parent)
+        for rider, view in self._riders:
+            rider.value = view.copy()
         return self.views
 
     def upload(self, *arrays: np.ndarray) -> list:

@@ -2,7 +2,7 @@
 block sums, their band changes and line fits, the clipping counts, resampling, and the
 de-chirp/FFT/peak/echo stage on a device.
 The resampled half-sweeps stay on the device across the tracker's passes; only the sync's
-sparse changes and sums, clipping flags and peaks come back. The band-state flips, the
+sparse changes (the clipping counts riding with them) and fit sums, and peaks come back. The band-state flips, the
 turning-point grid, pairing and the tracker's regularisation stay on the host
 (docs/pipeline.md). CPU devices get the lanes variants of the kernels that have two.
 """
@@ -13,7 +13,7 @@ import functools
 
 import numpy as np
 
-from ..processor import ChunkProcessor
+from ..processor import ChunkProcessor, Prepared, clipping
 from ..stages import pairing, sync
 from ..stages.spectrum import fft_length
 from . import delay as k_delay
@@ -102,6 +102,14 @@ class OpenCLProcessor(ChunkProcessor):
     def turning_points(self, codes, half_period):
         return sync.sync_turning_points(codes, half_period, self._coarse, self._line_fits)
 
+    def prepare(self, chunk, info):
+        """ChunkProcessor.prepare, the clipping counts coming down with the sync's coarse
+        crossings (by a copy of their own where the sync is too short for a search)."""
+        clip = k_faults.clip_rider(self.rt, self.bufs, *clipping(chunk, info))
+        coarse = functools.partial(k_sync.coarse, self.rt, self.bufs, riders=(clip,))
+        turns = sync.sync_turning_points(chunk.sync, info.samples_per_period / 2, coarse, self._line_fits)
+        return Prepared(turns, self.clip_counts(*clipping(chunk, info)) if clip.value is None else clip.value)
+
     def resample_each(self, codes, jobs, win):
         rows = k_resample.resample_each(self.rt, self.bufs, codes, jobs, win)
         return rows if self._fits(fft_length(win.size)) else [x.get() for x in rows]
@@ -144,8 +152,8 @@ class OpenCLProcessor(ChunkProcessor):
         return self.survey_each([x], [beta], v, nfft, rows, lo, [tracked_bin], [plain_bin], [others])[0]
 
     def survey_each(self, xs, betas, v, nfft, rows, lo, tracked_bins, plain_bins, others):
-        """Twin: pairing.SpectrumOps.survey_each; the spectra stay on the device, the rows
-        and velocities go up once, the bins once, the results come back once."""
+        """Twin: pairing.SpectrumOps.survey_each; the spectra stay on the device, the rows,
+        velocities and bins go up in one copy, the results come back in one."""
         if not self._fits(nfft):
             return pairing.NUMPY.survey_each(xs, betas, v, nfft, rows, lo, tracked_bins, plain_bins, others)
         # each direction plain (de-chirped at v along a zero basis: the phase is 0), then
@@ -155,9 +163,12 @@ class OpenCLProcessor(ChunkProcessor):
             both = [DeviceRows(self.bufs, np.size(rows), nfft // 2) for _ in range(2)]
             jobs += [(x, k_spectrum.zeros(x.shape[1]), both[0]), (x, beta, both[1])]
             spectra.append(both)
-        k_spectrum.measure_each(self.rt, self.bufs, jobs, v, nfft, 1, index=rows, scatter=False)
-        per = zip(spectra, tracked_bins, plain_bins, others, strict=True)
-        return k_survey.hidden_each(self.rt, self.bufs, [(*sp, tb, pb, o) for sp, tb, pb, o in per], lo)
+        bins = list(zip(tracked_bins, plain_bins, others, strict=True))
+        d_in = k_survey.upload(self.bufs, bins, (np.asarray(rows, np.int32), np.asarray(v, np.float32)))
+        k_spectrum.measure_each(self.rt, self.bufs, jobs, v, nfft, 1, index=rows, scatter=False,
+                                picked=d_in[:2])
+        per = [(*sp, *b) for sp, b in zip(spectra, bins, strict=True)]
+        return k_survey.hidden_each(self.rt, self.bufs, per, lo, d_in[2:])
 
     def integrated_peaks(self, store, disp, k, search):
         if not self._fits(2 * store.shape[1]):       # (pairs, nfft / 2) power spectra

@@ -100,10 +100,11 @@ def measure(rt: Runtime, bufs: Buffers, rows, beta: np.ndarray | None,
 
 def measure_each(rt: Runtime, bufs: Buffers, jobs: list, velocity: np.ndarray | None, nfft: int, lo: int,
                  hi: int | None = None, keep_power: bool = False, index: np.ndarray | None = None,
-                 echoes: bool = False, scatter: bool = True) -> list[tuple]:
+                 echoes: bool = False, scatter: bool = True, picked: tuple | None = None) -> list[tuple]:
     """`measure` of each (rows, beta, store) of `jobs` (rows of one shape: a pair's
     rising and falling half-sweeps) with the same picked rows, velocities and band: the
-    picked rows and velocities go up once and every result comes back by one download."""
+    picked rows and velocities go up once (`picked`: their device buffers, already up,
+    int32 and float32) and every result comes back by one download."""
     up = {id(rows): as_device(bufs, rows) for rows, _, _ in jobs}      # a host array goes up once
     rows_of = [up[id(rows)] for rows, _, _ in jobs]
     sweeps, points = rows_of[0].shape
@@ -119,9 +120,11 @@ def measure_each(rt: Runtime, bufs: Buffers, jobs: list, velocity: np.ndarray | 
                  cfar.Detections.empty() if echoes else None)] * len(jobs)
     twr, twi, perm = tables(nfft)
     dechirp = velocity is not None
-    if index is not None:          # the rows picked and their velocities: one upload
-        picked = Packed(bufs, "picked", [(np.int32, sweeps), (np.float32, sweeps)])
-        d_index, d_v = picked.upload(index, velocity)
+    if picked is not None:
+        d_index, d_v = picked
+    elif index is not None:        # the rows picked and their velocities: one upload
+        parts = [(np.int32, sweeps), (np.float32, sweeps)]
+        d_index, d_v = Packed(bufs, "picked", parts).upload(index, velocity)
     else:
         d_index = bufs.constant("index0", zeros(1), np.int32)
         d_v = (bufs.upload("velocity", np.asarray(velocity, np.float32)) if dechirp

@@ -16,17 +16,27 @@ def hidden(rt: Runtime, bufs: Buffers, plain: DeviceRows, dechirped: DeviceRows,
     return hidden_each(rt, bufs, [(plain, dechirped, tracked_bin, plain_bin, others)], lo)[0]
 
 
-def hidden_each(rt: Runtime, bufs: Buffers, jobs: list, lo: int) -> list[tuple]:
+def upload(bufs: Buffers, bins: list, head: tuple = ()) -> list:
+    """The arrays of `head`, then each (tracked_bin, plain_bin, others) of `bins` (float32),
+    up by one copy: their sub-buffers in that order (`hidden_each`'s `inputs` after the
+    head's)."""
+    parts, values = [(a.dtype, a.size) for a in head], list(head)
+    for tracked_bin, plain_bin, others in bins:
+        parts += [(np.float32, np.size(a)) for a in (tracked_bin, plain_bin, others)]
+        values += [tracked_bin, plain_bin, np.ravel(others)]
+    return Packed(bufs, "survey_in", parts).upload(*values)
+
+
+def hidden_each(rt: Runtime, bufs: Buffers, jobs: list, lo: int, inputs: list | None = None) -> list[tuple]:
     """`hidden` of each (plain, dechirped, tracked_bin, plain_bin, others) of `jobs` (a
-    pair's two directions): their inputs go up in one copy, their results come back in
-    one."""
-    inputs, outputs, values = [], [], []
-    for plain, _, tracked_bin, plain_bin, others in jobs:
-        rows, m = plain.shape[0], others.shape[1]
-        inputs += [(np.float32, rows), (np.float32, rows), (np.float32, rows * m)]
+    pair's two directions): their inputs go up in one copy (`inputs`: already up, from
+    `upload`), their results come back in one."""
+    if inputs is None:
+        inputs = upload(bufs, [job[2:] for job in jobs])
+    outputs = []
+    for plain, _, _, _, _ in jobs:
+        rows = plain.shape[0]
         outputs += [(np.float32, rows), (np.float32, rows), (np.int32, rows)]
-        values += [tracked_bin, plain_bin, others.ravel()]
-    d_in = Packed(bufs, "survey_in", inputs).upload(*values)
     out = Packed(bufs, "survey_out", outputs)
     lsz = rt.group_size(16, 256)
     rules = (np.int32(echoes.EXPLAIN_BINS), np.float32(echoes.SHARP),
@@ -35,7 +45,7 @@ def hidden_each(rt: Runtime, bufs: Buffers, jobs: list, lo: int) -> list[tuple]:
         (rows, half), m = plain.shape, others.shape[1]
         if rows == 0:
             continue
-        d_tracked, d_plain_bin, d_others = d_in[3 * i: 3 * i + 3]
+        d_tracked, d_plain_bin, d_others = inputs[3 * i: 3 * i + 3]
         results = out.buffers[3 * i: 3 * i + 3]
         band = half - lo
         if rt.lanes:

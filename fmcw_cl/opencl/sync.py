@@ -1,12 +1,12 @@
-"""Launchers of kernels/sync.cl (twins: fmcw_cl.stages.sync.block_sums, changes,
-coarse_from_codes and line_fits)."""
+"""Launchers of kernels/sync.cl (twins: fmcw_cl.stages.sync.block_sums, levels,
+changes, coarse_from_codes and line_fits)."""
 
 from __future__ import annotations
 
 import numpy as np
 
 from ..stages import sync
-from .buffers import Buffers
+from .buffers import Buffers, Packed
 from .context import Runtime, cl
 
 
@@ -25,37 +25,50 @@ def capacities(blocks: int) -> tuple[int, int]:
     return blocks // 8 + 64, blocks // 16 + 64
 
 
-def coarse(rt: Runtime, bufs: Buffers, x: np.ndarray, factor: int, level: float | None = None) -> sync.Coarse:
-    """sync.coarse_from_codes with the block sums and their changes on the device: what
-    comes back is a sample of the sums (the level) and the sparse changes."""
+HEADER = 8      # ints before the lists of crossing_changes' output (kernels/sync.cl)
+LEVEL_LOCAL = 4 * (2048 + 2)    # sync_levels' histogram
+
+
+def levels(rt: Runtime, d_sampled, n: int, d_out) -> None:
+    """Launch sync_levels: 20 factor times the 5 and 95 percentiles of the n >= 1 sampled
+    sums and the band's thresholds into out[2:7] (twin: sync.percentile_sums, levels)."""
+    lsz = 1 if rt.lanes else rt.group_size(16, 256)    # PoCL: one item loops without barriers' cost
+    rt.kernel("sync", "sync_levels")(rt.queue, (lsz,), (lsz,), d_sampled, np.int32(n), d_out,
+                                     cl.LocalMemory(LEVEL_LOCAL))
+
+
+def coarse(rt: Runtime, bufs: Buffers, x: np.ndarray, factor: int, riders: tuple = ()) -> sync.Coarse:
+    """sync.coarse_from_codes with the block sums, the level and their changes on the
+    device: what comes back, by one copy, is the level's percentiles and the sparse
+    changes, and `riders` (buffers.Rider: another step's small results, such as the
+    chunk's clipping counts; not launched where x holds no block)."""
     m = x.size // factor
     if m == 0:
-        return sync.coarse_from_sums(np.zeros(0), factor, level)
+        return sync.coarse_from_sums(np.zeros(0), factor)
     stride = sync.level_stride(m)
-    sampled = np.empty(-(-m // stride), np.int32)
+    n = -(-m // stride)
     cap_e, cap_s = capacities(m)
-    out = np.empty(2 + 2 * cap_e + 3 * cap_s, np.int32)
-    d_sums, d_sampled = bufs.get("block_sums", 4 * m), bufs.get("block_sampled", sampled.nbytes)
-    d_out = bufs.get("crossing_changes", out.nbytes)        # its counters zeroed by block_sum
+    packed = Packed(bufs, "crossing_changes", [(np.int32, HEADER + 2 * cap_e + 3 * cap_s)], riders)
+    d_out = packed.buffers[0]                               # its counters zeroed by block_sum
+    d_sums, d_sampled = bufs.get("block_sums", 4 * m), bufs.get("block_sampled", 4 * n)
     if rt.lanes:                        # CPUs: a work-item a span of blocks (the span an argument)
         suffix, sizes, span = "_span", ((-(-m // SPAN),), (1,)), (np.int32(SPAN),)
     else:
         suffix, sizes, span = "", rt.items(m), ()
     rt.kernel("sync", "block_sum" + suffix)(rt.queue, *sizes, _codes(bufs, x), np.int32(factor), np.int32(m),
                                             np.int32(stride), *span, d_sums, d_sampled, d_out)
-    rt.copy(sampled, d_sampled)
-    lv = sync.levels(sampled.astype(np.float64), factor, level)
-    rt.kernel("sync", "crossing_changes" + suffix)(rt.queue, *sizes, d_sums, np.int32(m), np.int32(lv.high),
-                                                   np.int32(lv.low), np.int32(lv.mid), np.int32(cap_e),
+    levels(rt, d_sampled, n, d_out)
+    rt.kernel("sync", "crossing_changes" + suffix)(rt.queue, *sizes, d_sums, np.int32(m), np.int32(cap_e),
                                                    np.int32(cap_s), *span, d_out)
-    rt.copy(out, d_out)
+    out = packed.download()[0]
     n_e, n_s = int(out[0]), int(out[1])
+    lv = sync.levels_of(int(out[2]), int(out[3]), factor)
     if n_e > cap_e or n_s > cap_s:      # not a triangle's changes: the host redoes them
         sums = np.empty(m, np.int32)
         rt.copy(sums, d_sums)
         return sync.coarse_crossings(sync.changes(sums.astype(np.float64), lv), lv, factor)
-    events = out[2: 2 + 2 * n_e].reshape(n_e, 2)
-    sides = out[2 + 2 * cap_e: 2 + 2 * cap_e + 3 * n_s].reshape(n_s, 3)
+    events = out[HEADER: HEADER + 2 * n_e].reshape(n_e, 2)
+    sides = out[HEADER + 2 * cap_e: HEADER + 2 * cap_e + 3 * n_s].reshape(n_s, 3)
     # appended in any order, nearly sorted (a block each, blocks run in order): merge sort
     # of the runs is twice as fast as quicksort
     events = events[np.argsort(events[:, 0], kind="stable")]

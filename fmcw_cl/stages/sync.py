@@ -71,32 +71,39 @@ class Levels:
     mid: int
 
 
-def levels(sampled: np.ndarray, factor: int, level: float | None = None) -> Levels:
-    """Level (the middle of the swing unless given) and swing from a sample of block
-    sums, with a hysteresis of 10 % of the swing.
+def percentile_sums(sampled: np.ndarray) -> tuple[int, int]:
+    """20 times the 5 and 95 percentiles of integer block sums (numpy's linear
+    percentile at rank q (n - 1) / 100, in integers: exact). The numpy twin of the
+    `sync_levels` kernel's first step (kernels/sync.cl)."""
+    last = sampled.size - 1
+    i, r = divmod(last, 20)
+    j, t = divmod(19 * last, 20)
+    ranks = [i, min(i + 1, last), j, min(j + 1, last)]
+    s = np.partition(np.asarray(sampled, np.int64), sorted(set(ranks)))[ranks]
+    return int(s[0] * (20 - r) + s[1] * r), int(s[2] * (20 - t) + s[3] * t)
+
+
+def levels(sampled: np.ndarray, factor: int) -> Levels:
+    """The middle of the swing, the swing and a hysteresis of 10 % of it, from a sample
+    of integer block sums.
 
     A triangle's values are uniform between its extremes: the 5 and 95 percentiles give
     its middle and swing, and unlike the extremes they are not rounded off by the block
     averaging at the corners; a few thousand evenly spaced blocks estimate them to a
     fraction of a percent (the turning points, midpoints of two crossings, do not depend
-    on the level).
+    on the level). With a = 20 factor lo and b = 20 factor hi (`percentile_sums`), the
+    thresholds factor (level +- swing / 10) are (7a + 11b) / 360 and (11a + 7b) / 360, and
+    factor level is (a + b) / 40: integer divisions, as the `sync_levels` kernel does.
     """
     if sampled.size == 0:
         return Levels(0.0, 0.0, 1, 0, 1)
-    lo, hi = np.percentile(sampled / factor, [5.0, 95.0])
-    level = 0.5 * (lo + hi) if level is None else level
-    swing = (hi - lo) / 0.9
-    hyst = 0.1 * swing
-    big = 2.0**30                     # any sum of int16 blocks is far inside
+    return levels_of(*percentile_sums(sampled), factor)
 
-    def above(value: float) -> int:   # the least integer S with S > value
-        return int(np.floor(np.clip(value, -big, big))) + 1
 
-    def below(value: float) -> int:   # the least integer S with S >= value: S < value iff S < it
-        return int(np.ceil(np.clip(value, -big, big)))
-
-    return Levels(float(level), float(swing), above(factor * (level + hyst)), below(factor * (level - hyst)),
-                  above(factor * level))
+def levels_of(a: int, b: int, factor: int) -> Levels:
+    """`levels` from a = 20 factor lo and b = 20 factor hi."""
+    return Levels((a + b) / (40 * factor), (b - a) / (18 * factor), (7 * a + 11 * b) // 360 + 1,
+                  -((-11 * a - 7 * b) // 360), (a + b) // 40 + 1)
 
 
 @dataclass(frozen=True)
@@ -166,15 +173,16 @@ def coarse_crossings(ch: Changes, lv: Levels, factor: int) -> Coarse:
     return Coarse(ch.sign_at[k] - 1 + np.nan_to_num(frac), state, lv.level, lv.swing)
 
 
-def coarse_from_sums(sums: np.ndarray, factor: int, level: float | None = None) -> Coarse:
-    """coarse_crossings of block sums, all in numpy: the reference of the device's steps."""
-    lv = levels(sums[:: level_stride(sums.size)], factor, level)
+def coarse_from_sums(sums: np.ndarray, factor: int) -> Coarse:
+    """coarse_crossings of integer block sums, all in numpy: the reference of the
+    device's steps."""
+    lv = levels(sums[:: level_stride(sums.size)], factor)
     return coarse_crossings(changes(sums, lv), lv, factor)
 
 
-def coarse_from_codes(x: np.ndarray, factor: int, level: float | None = None) -> Coarse:
+def coarse_from_codes(x: np.ndarray, factor: int) -> Coarse:
     """coarse_from_sums of the blocks of `factor` samples of x."""
-    return coarse_from_sums(block_sums(x, factor), factor, level)
+    return coarse_from_sums(block_sums(x, factor), factor)
 
 
 def fit_half_width(half_period: float) -> int:
@@ -245,8 +253,7 @@ def line_fits(x: np.ndarray, centre: np.ndarray, half: int, spike: float, level:
     return np.where(ok, c2, -1), s0, s1
 
 
-def crossings(x: np.ndarray, half_period: float, level: float | None = None,
-              coarse=coarse_from_codes, fits=line_fits) -> Crossings:
+def crossings(x: np.ndarray, half_period: float, coarse=coarse_from_codes, fits=line_fits) -> Crossings:
     """Mid-level crossings of a triangle-like signal.
 
     Found in block sums (`block_length`, `coarse_from_sums`), then each timed by a
@@ -259,8 +266,6 @@ def crossings(x: np.ndarray, half_period: float, level: float | None = None,
         The signal (ADC codes).
     half_period : float
         Nominal half-period in samples of `x`.
-    level : float, optional
-        Crossing level; default the middle of the swing.
     coarse, fits : the coarse crossings of `x` in blocks of a length (`coarse_from_codes`)
         and both line fits (`line_fits`; the OpenCL backend swaps in its kernels).
 
@@ -274,7 +279,7 @@ def crossings(x: np.ndarray, half_period: float, level: float | None = None,
     if x.size < 2 * half + 6:          # too short for a single crossing fit
         return none
     factor = block_length(half_period)
-    co = coarse(x, factor, level)
+    co = coarse(x, factor)
     centre = rounded(co.block * factor + 0.5 * (factor - 1), x.size)
     first = np.flatnonzero(reaches(centre, half, x.size))
     c, s0, s1 = fits(x, centre[first], half, SPIKE * co.swing, co.level)
