@@ -208,11 +208,12 @@ def peak_width_ratio(cap: Capture, plan, t0_s: float, time_s: np.ndarray | None,
             known = None
     nfft = plan.model.nfft
     widths = []
-    for rising in (True, False):
-        sel = fits & (hs.rising == rising)
+    directions = (True, False)
+    sels = [fits & (hs.rising == rising) for rising in directions]
+    jobs = [(hs.start[s], hs.length[s], plan.lut.u(up)) for s, up in zip(sels, directions, strict=True)]
+    for sel, rising, x in zip(sels, directions, backend.resample_each(beat, jobs, plan.window), strict=True):
         if not sel.any():
             continue
-        x = backend.resample(beat, hs.start[sel], hs.length[sel], plan.lut.u(rising), plan.window)
         beta = v = None
         if known is not None and known.any():
             t = (a + hs.centre[sel]) / info.sample_rate_hz

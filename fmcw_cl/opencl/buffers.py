@@ -160,5 +160,9 @@ class Packed:
         """`arrays` into the parts, by one copy; their sub-buffers."""
         for view, a in zip(self.views, arrays, strict=True):
             view[...] = a
+        return self.send()
+
+    def send(self) -> list:
+        """The parts as their views hold them, up by one copy; their sub-buffers."""
         self._rt.copy(self._parent, self._host)
         return self.buffers

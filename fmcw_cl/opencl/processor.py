@@ -1,10 +1,11 @@
 """The OpenCL chunk processor: the low-pass, the sync delay's per-period fits, the sync's
-block sums, their band changes and line fits, the clipping counts, resampling, and the
+block sums, level, band changes and line fits, the clipping counts, resampling, and the
 de-chirp/FFT/peak/echo stage on a device.
 The resampled half-sweeps stay on the device across the tracker's passes; only the sync's
-sparse changes (the clipping counts riding with them) and fit sums, and peaks come back. The band-state flips, the
-turning-point grid, pairing and the tracker's regularisation stay on the host
-(docs/pipeline.md). CPU devices get the lanes variants of the kernels that have two.
+sparse changes (the clipping counts riding with them) and fit sums, and peaks come back.
+The band-state flips, the turning-point grid, pairing and the tracker's regularisation
+stay on the host (docs/pipeline.md). CPU devices get the lanes variants of the kernels
+that have two.
 """
 
 from __future__ import annotations
