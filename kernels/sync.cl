@@ -1,14 +1,15 @@
-// Stage 2: the sync channel's crossings, four kernels. The coarse search: block sums
-// (and an evenly spaced sample of them), the level and the swing from the sample's
-// percentiles, then where the sums' 3-block median changes its band or its side of the
-// level: a few entries a half-period, which the host turns into crossings. The
+// Stage 2: the sync channel's crossings, from the codes to both line fits of each, with
+// no copy between. The coarse search: block sums (and an evenly spaced sample of them),
+// the level and the swing from the sample's percentiles, then the hysteresis on the sums'
+// 3-block median over spans of blocks, which writes each crossing's fit centre. The
 // crossings are then timed by line fits on the full-rate codes, twice in one launch (the
 // second centred on the first one's crossing). Twins: fmcw_cl.stages.sync.block_sums,
-// levels, changes and line_fits.
+// levels, changes, coarse_crossings and line_fits (together sync.fitted).
 
-// The second fit's centre is the first fit's crossing rounded: in double precision where
-// the device has it, as numpy (the same centres); without it, in float (a centre may
-// differ by one sample where the crossing lies within a float's precision of a half sample).
+// The fit centres (the coarse crossing's and the second fit's, the first fit's crossing
+// rounded) are rounded in double precision where the device has it, as numpy (the same
+// centres); without it, in float (a centre may differ by one sample where a crossing
+// lies within a float's precision of a half sample).
 #pragma OPENCL FP_CONTRACT OFF
 #if defined(cl_khr_fp64)
 #pragma OPENCL EXTENSION cl_khr_fp64 : enable
@@ -30,31 +31,25 @@ void sum_block(__global const short *x, const int factor, const int stride, cons
     if (q * stride == j) sampled[q] = s;
 }
 
-// crossing_changes' output: a header (the counts of its two lists, then sync_levels'
-// 20 factor lo, 20 factor hi, and the thresholds high, low, mid), then the lists.
+// The search's header (ints): sync_levels' 20 factor lo, 20 factor hi and the thresholds
+// high, low, mid on a block sum.
 #define HEADER 8
 
-// Integer sums of whole blocks of `factor` int16 codes, and every `stride`-th of them;
-// work-item 0 also zeroes crossing_changes' two counters (this kernel always runs first).
+// Integer sums of whole blocks of `factor` int16 codes, and every `stride`-th of them.
 __kernel void block_sum(__global const short *x,
                         const int factor,
                         const int m,              // blocks
                         const int stride,
                         __global int *out,
-                        __global int *sampled,
-                        __global int *counters)
+                        __global int *sampled)
 {
     const int j = get_global_id(0);
     if (j >= m) return;
     sum_block(x, factor, stride, j, out, sampled);
-    if (j == 0) {
-        counters[0] = 0;
-        counters[1] = 0;
-    }
 }
 
 // The level and the hysteresis band from the percentiles of the sampled block sums, on
-// the device so that no copy waits between block_sum and crossing_changes: one
+// the device so that no copy waits between the block sums and the hysteresis: one
 // work-group. The 5 and 95 percentiles interpolate order statistics of ranks (n - 1) / 20
 // and 19 (n - 1) / 20 (numpy's linear percentile) with weights in twentieths, so
 // 20 factor lo and 20 factor hi are integers (a, b), and so are the thresholds on a sum:
@@ -100,10 +95,10 @@ long floor_div(const long x, const long d)   // d > 0
     return x >= 0 ? x / d : -((-x + d - 1) / d);
 }
 
-// out[2 .. 6] = a, b, high, low, mid of the n >= 1 sampled sums (one work-group).
+// head[0 .. 4] = a, b, high, low, mid of the n >= 1 sampled sums (one work-group).
 __kernel void sync_levels(__global const int *sampled,
                           const int n,
-                          __global int *out,
+                          __global int *head,
                           __local int *hist)
 {
     const int last = n - 1;
@@ -114,11 +109,11 @@ __kernel void sync_levels(__global const int *sampled,
     const long b = (long)kth_smallest(sampled, n, j, hist) * (20 - t)
                    + (long)kth_smallest(sampled, n, min(j + 1, last), hist) * t;
     if (get_local_id(0) == 0) {
-        out[2] = (int)a;
-        out[3] = (int)b;
-        out[4] = (int)(floor_div(7 * a + 11 * b, 360) + 1);
-        out[5] = (int)(-floor_div(-11 * a - 7 * b, 360));
-        out[6] = (int)(floor_div(a + b, 40) + 1);
+        head[0] = (int)a;
+        head[1] = (int)b;
+        head[2] = (int)(floor_div(7 * a + 11 * b, 360) + 1);
+        head[3] = (int)(-floor_div(-11 * a - 7 * b, 360));
+        head[4] = (int)(floor_div(a + b, 40) + 1);
     }
 }
 
@@ -139,44 +134,128 @@ int band(const int b, const int high, const int low)
     return b >= high ? 1 : (b < low ? -1 : 0);
 }
 
-// Where the filtered sums change band (+1 at or above `high`, -1 below `low`; block 0
-// always) and side of the level (`mid`), appended in any order through counters that
-// block_sum zeroed: out = [header, (block, band) x cap_events, (block, before, after) x
-// cap_sides]; past a capacity only the count grows (the host then redoes it).
-// Block i's entries, from its filtered sum b and the previous block's a (i = 0: its own).
-void record_changes(const int i, const int a, const int b, const int high, const int low, const int mid,
-                    const int cap_events, const int cap_sides, __global int *out)
+// The hysteresis, in three launches over spans of `span` blocks (a work-item each): the
+// band's state flips where the filtered sums leave the band on the side opposite to the
+// one they last left (block i with band e != 0 whose last nonzero band before it is -e),
+// and the crossing is the last change of side of the level at or before the flip,
+// interpolated between the two blocks around it (twin: stages.sync.changes and
+// coarse_crossings). span_ends takes each span's last nonzero band and last change of
+// side; span_carries what the spans before each leave (one work-item, in order);
+// span_crossings replays each span from its carry and writes its crossings' fit centres
+// and directions, in order, into `cap` slots of its own.
+
+// A change of side carried across spans: its block (-1: none yet) and the filtered sums
+// either side of it.
+typedef struct { int last; int at; int before; int after; } Carry;
+
+void span_walk(__global const int *sums, const int m, const int i0, const int i1, __global const int *head,
+               Carry *c, const int emit, const int factor, const int hw, const int n, const int cap,
+               __global int *centre, __global int *direction)
 {
-    const int e = band(b, high, low);
-    if (i == 0 || e != band(a, high, low)) {
-        const int k = atomic_inc(out);
-        if (k < cap_events) {
-            out[HEADER + 2 * k] = i;
-            out[HEADER + 1 + 2 * k] = e;
+    const int high = head[2], low = head[3], mid = head[4];
+    const real level = (real)((long)head[0] + head[1]) / (real)(40 * factor);
+    int a = filtered(sums, m, i0 > 0 ? i0 - 1 : 0);
+    int found = 0;
+    for (int i = i0; i < i1; ++i) {
+        const int b = filtered(sums, m, i);
+        if (i > 0 && (b >= mid) != (a >= mid)) {
+            c->at = i;
+            c->before = a;
+            c->after = b;
         }
+        const int e = band(b, high, low);
+        if (e != 0) {
+            if (emit && c->last == -e && c->at >= 0) {
+                if (found < cap) {
+                    // numpy's order of operations (FP contraction off): the crossing in
+                    // blocks, the fit centre in samples, rounded half to even, its reach
+                    const real xa = (real)c->before / (real)factor - level;
+                    const real xb = (real)c->after / (real)factor - level;
+                    const real q = xa / (xa - xb);
+                    const real frac = isnan(q) ? (real)0 : (q < (real)0 ? (real)0 : (q > (real)1 ? (real)1 : q));
+                    const real block = (real)(c->at - 1) + frac;
+                    real pos = block * (real)factor + (real)0.5 * (real)(factor - 1);
+                    pos = pos < (real)-1 ? (real)-1 : (pos > (real)n ? (real)n : pos);
+                    const int r = (int)rint(pos);
+                    centre[found] = r - hw >= 2 && r + hw < n - 2 ? r : -1;
+                    direction[found] = e;
+                }
+                ++found;
+            }
+            c->last = e;
+        }
+        a = b;
     }
-    if (i > 0 && (b >= mid) != (a >= mid)) {
-        const int k = atomic_inc(out + 1);
-        if (k < cap_sides) {
-            __global int *o = out + HEADER + 2 * cap_events + 3 * k;
-            o[0] = i;
-            o[1] = a;
-            o[2] = b;
-        }
+    if (emit) {
+        for (int k = found; k < cap; ++k) centre[k] = -1;   // the empty slots: no fit
+        direction[cap] = found;                             // the count (past cap: overflow)
     }
 }
 
-__kernel void crossing_changes(__global const int *sums,
-                               const int m,
-                               const int cap_events,
-                               const int cap_sides,
-                               __global int *out)
+__kernel void span_ends(__global const int *sums,
+                        const int m,
+                        const int span,
+                        __global const int *head,
+                        __global int *ends)       // (spans, 4): a Carry each
 {
-    const int i = get_global_id(0);
-    if (i >= m) return;
-    const int b = filtered(sums, m, i);
-    record_changes(i, i > 0 ? filtered(sums, m, i - 1) : b, b, out[4], out[5], out[6], cap_events, cap_sides,
-                   out);
+    const int s = get_global_id(0);
+    const int i0 = s * span;
+    if (i0 >= m) return;
+    Carry c = {0, -1, 0, 0};
+    span_walk(sums, m, i0, min(i0 + span, m), head, &c, 0, 1, 0, 0, 0, 0, 0);
+    ends[4 * s] = c.last;
+    ends[4 * s + 1] = c.at;
+    ends[4 * s + 2] = c.before;
+    ends[4 * s + 3] = c.after;
+}
+
+// In place: each span's ends become what the spans before it leave. One work-item; also
+// the line fits' parameters (level and spike threshold, codes) from the header.
+__kernel void span_carries(__global int *ends,
+                           const int spans,
+                           __global const int *head,
+                           const int factor,
+                           const real spike_share,
+                           __global real *params)
+{
+    Carry c = {0, -1, 0, 0};
+    for (int s = 0; s < spans; ++s) {
+        const Carry e = {ends[4 * s], ends[4 * s + 1], ends[4 * s + 2], ends[4 * s + 3]};
+        ends[4 * s] = c.last;
+        ends[4 * s + 1] = c.at;
+        ends[4 * s + 2] = c.before;
+        ends[4 * s + 3] = c.after;
+        if (e.last != 0) c.last = e.last;
+        if (e.at >= 0) {
+            c.at = e.at;
+            c.before = e.before;
+            c.after = e.after;
+        }
+    }
+    params[0] = (real)((long)head[0] + head[1]) / (real)(40 * factor);
+    params[1] = spike_share * ((real)((long)head[1] - head[0]) / (real)(18 * factor));
+}
+
+// Slots of span s: centre[s cap ..] (-1: empty or out of reach), direction[s (cap + 1) ..],
+// the span's count last.
+__kernel void span_crossings(__global const int *sums,
+                             const int m,
+                             const int span,
+                             __global const int *head,
+                             __global const int *carries,
+                             const int factor,
+                             const int hw,
+                             const int n,
+                             const int cap,
+                             __global int *centre,
+                             __global int *direction)
+{
+    const int s = get_global_id(0);
+    const int i0 = s * span;
+    if (i0 >= m) return;
+    Carry c = {carries[4 * s], carries[4 * s + 1], carries[4 * s + 2], carries[4 * s + 3]};
+    span_walk(sums, m, i0, min(i0 + span, m), head, &c, 1, factor, hw, n, cap, centre + (size_t)s * cap,
+              direction + (size_t)s * (cap + 1));
 }
 
 // Integer sums of x and (i - c) x over x[c - hw .. c + hw], one work-group per
@@ -276,13 +355,12 @@ void group_sums(__global const short *x, const int c, const int hw, const int sp
 // Both line fits of each crossing, a work-group each: the sums at the first centre,
 // then, where the first fit's crossing rounds to another centre, at that one. out =
 // (centre, sum x, sum (i - c) x) of the last fit per crossing, centre -1 where the
-// crossing left the codes (dropped).
+// crossing left the codes or there was none (a centre of -1: an empty slot; dropped).
 __kernel void line_fit(__global const short *x,
                        __global const int *centre,
                        const int hw,             // half-width of the window
-                       const int spike,          // codes
+                       __global const real *params,  // the crossing level, the spike threshold (codes)
                        const int flush,          // samples per int32 partial sum
-                       const real level,         // the crossing level (codes)
                        const int n,              // codes in x
                        __global long *out,
                        __local long *l0,
@@ -290,14 +368,20 @@ __kernel void line_fit(__global const short *x,
 {
     const int g = get_group_id(0);
     const int c = centre[g];
-    group_sums(x, c, hw, spike, flush, l0, l1);
-    const long s0 = l0[0], s1 = l1[0];
-    const int c2 = next_centre(s0, s1, c, hw, level, n);
-    long t0 = s0, t1 = s1;
-    if (c2 >= 0 && c2 != c) {           // the same for the whole group: uniform barriers
-        group_sums(x, c2, hw, spike, flush, l0, l1);
+    int c2 = -1;
+    long t0 = 0, t1 = 0;
+    if (c >= 0) {                       // the same for the whole group: uniform barriers
+        const real level = params[0];   // (PoCL hangs where a group returns before them)
+        const int spike = (int)floor(params[1]);
+        group_sums(x, c, hw, spike, flush, l0, l1);
         t0 = l0[0];
         t1 = l1[0];
+        c2 = next_centre(t0, t1, c, hw, level, n);
+        if (c2 >= 0 && c2 != c) {
+            group_sums(x, c2, hw, spike, flush, l0, l1);
+            t0 = l0[0];
+            t1 = l1[0];
+        }
     }
     if (get_local_id(0) == 0) {
         out[3 * g] = c2;
@@ -311,48 +395,21 @@ long hsum8(const int8 v)
     return (long)v.s0 + v.s1 + v.s2 + v.s3 + v.s4 + v.s5 + v.s6 + v.s7;
 }
 
-// block_sum and crossing_changes on CPU devices: a work-item a span of `span` blocks
-// in order (PoCL vectorises no work-item loop that holds a loop, and the one-block
-// kernels hold one or branch to atomics; a span's codes are contiguous, which the
-// compiler vectorises itself: 2x, where int8 loads were slower than one block an item).
-// crossing_changes_span carries the previous block's filtered sum, so each median is
-// taken once. The same entries; the host sorts them.
+// block_sum on CPU devices: a work-item a span of `span` blocks in order (PoCL
+// vectorises no work-item loop that holds a loop; a span's codes are contiguous, which
+// the compiler vectorises itself: 2x, where int8 loads were slower than one block an item).
 __kernel void block_sum_span(__global const short *x,
                              const int factor,
                              const int m,
                              const int stride,
                              const int span,
                              __global int *out,
-                             __global int *sampled,
-                             __global int *counters)
+                             __global int *sampled)
 {
     const int j0 = get_global_id(0) * span;
     if (j0 >= m) return;
     const int j1 = j0 + span < m ? j0 + span : m;
-    if (j0 == 0) {
-        counters[0] = 0;
-        counters[1] = 0;
-    }
     for (int j = j0; j < j1; ++j) sum_block(x, factor, stride, j, out, sampled);
-}
-
-__kernel void crossing_changes_span(__global const int *sums,
-                                    const int m,
-                                    const int cap_events,
-                                    const int cap_sides,
-                                    const int span,
-                                    __global int *out)
-{
-    const int i0 = get_global_id(0) * span;
-    if (i0 >= m) return;
-    const int i1 = i0 + span < m ? i0 + span : m;
-    const int high = out[4], low = out[5], mid = out[6];
-    int a = filtered(sums, m, i0 > 0 ? i0 - 1 : 0);
-    for (int i = i0; i < i1; ++i) {
-        const int b = filtered(sums, m, i);
-        record_changes(i, a, b, high, low, mid, cap_events, cap_sides, out);
-        a = b;
-    }
 }
 
 // line_fit on CPU devices: one work-item a crossing, eight codes a step in the lanes of
@@ -397,14 +454,19 @@ void lane_sums(__global const short *x, const int c, const int hw, const int spi
 __kernel void line_fit_lanes(__global const short *x,
                              __global const int *centre,
                              const int hw,
-                             const int spike,
+                             __global const real *params,
                              const int flush,
-                             const real level,
                              const int n,
                              __global long *out)
 {
     const int g = get_global_id(0);
     const int c = centre[g];
+    if (c < 0) {
+        out[3 * g] = -1;
+        return;
+    }
+    const real level = params[0];
+    const int spike = (int)floor(params[1]);
     long s0, s1;
     lane_sums(x, c, hw, spike, flush, &s0, &s1);
     const int c2 = next_centre(s0, s1, c, hw, level, n);

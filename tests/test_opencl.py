@@ -160,22 +160,31 @@ def sync_codes(n, half, t0, noise, seed, spikes=0):
     return np.clip(np.rint(x), -32768, 32767).astype(np.int16)
 
 
+def assert_fitted_equal(got: sync.Fitted, want: sync.Fitted) -> None:
+    for key in ("centre", "s0", "s1", "direction"):
+        np.testing.assert_array_equal(getattr(got, key), getattr(want, key))
+
+
+@pytest.mark.parametrize("span", [512, 5])
 @pytest.mark.parametrize("n,half,spikes", [(200_001, 2500.0, 0), (123_457, 2500.0, 40),
                                            (50_003, 1234.5, 7), (9_999, 300.0, 3)])
-def test_sync_kernels_match_numpy(backend, kernel_variant, n, half, spikes):
-    """Block sums, their band and side changes and the despiked line-fit sums are exact
-    integers on both sides, and the second fit's centre is rounded in double precision as
-    numpy does, so the coarse crossings, both fits and the turning points are bitwise
-    equal; odd lengths and partial periods at both ends."""
+def test_sync_kernels_match_numpy(backend, kernel_variant, monkeypatch, span, n, half, spikes):
+    """Block sums, the level's thresholds, the hysteresis's band and side changes and the
+    despiked line-fit sums are exact integers on both sides, and the crossings' centres
+    and the second fit's centre are rounded in double precision as numpy does, so both
+    fits of every crossing and the turning points are bitwise equal: odd lengths, partial
+    periods at both ends, a sync that stops for longer than a span, and spans of 5 blocks
+    (every state the hysteresis carries from span to span)."""
     from fmcw_cl.opencl import sync as k_sync
 
+    monkeypatch.setattr(k_sync, "SPAN", span)
     x = sync_codes(n, half, t0=0.37 * half, noise=5.0, seed=n, spikes=spikes)
-    f = sync.block_length(half)
-    got, want = backend._coarse(x, f), sync.coarse_from_codes(x, f)
-    assert want.block.size > 2
-    np.testing.assert_array_equal(got.block, want.block)
-    np.testing.assert_array_equal(got.direction, want.direction)
-    assert (got.level, got.swing) == (want.level, want.swing)
+    if spikes == 40:
+        x[60_000:100_000] = x[60_000]                      # the sync stops: no crossing
+    got, want = backend._fitted(x, half), sync.fitted(x, half)
+    assert want.centre.size > 2 and (want.centre >= 0).sum() > 2
+    assert_fitted_equal(got, want)
+    assert got.level == want.level
     hw = sync.fit_half_width(half)
     # both fits: random centres (their crossings mostly far off: dropped), centres a few
     # samples off the real crossings (a second fit elsewhere) and on the window's reach
@@ -193,7 +202,6 @@ def test_sync_kernels_match_numpy(backend, kernel_variant, n, half, spikes):
     assert ref.time.size > 2
     np.testing.assert_array_equal(got.time, ref.time)
     np.testing.assert_array_equal(got.segment, ref.segment)
-    assert k_sync.capacities(n // f)[0] > 4 * ref.time.size     # the lists were not cut
 
 
 @pytest.mark.parametrize("n", [1, 2, 19, 21, 4097, 8191])
@@ -215,26 +223,24 @@ def test_sync_level_kernel_matches_numpy(backend, kernel_variant, n):
         rt.copy(out, d_out)
         a, b = sync.percentile_sums(sampled)
         lv = sync.levels(sampled, 64)
-        assert list(out[2:7]) == [a, b, lv.high, lv.low, lv.mid]
+        assert list(out[:5]) == [a, b, lv.high, lv.low, lv.mid]
         lo, hi = np.percentile(sampled.astype(np.float64), [5.0, 95.0])
         assert abs(a / 20 - lo) <= 1e-9 * abs(lo) + 1e-6 and abs(b / 20 - hi) <= 1e-9 * abs(hi) + 1e-6
 
 
-def test_sync_changes_beyond_capacity_are_redone_on_the_host(backend, monkeypatch):
-    """More band or side changes than the kernel's lists hold (a sync that is no
-    triangle): the host redoes the changes from the sums, with the same crossings."""
+def test_sync_crossings_beyond_the_slots_are_redone_on_the_host(backend, monkeypatch):
+    """More crossings in a span than its slots hold (a sync that is no triangle): the
+    host redoes the search from the sums, with the same fits."""
     from fmcw_cl.opencl import sync as k_sync
 
     x = sync_codes(60_001, 2500.0, t0=100.0, noise=5.0, seed=7)
-    f = sync.block_length(2500.0)
-    want = sync.coarse_from_codes(x, f)
+    want = sync.fitted(x, 2500.0)
     redone = []
-    monkeypatch.setattr(k_sync, "capacities", lambda blocks: (8, 4))
+    monkeypatch.setattr(k_sync, "slots", lambda factor, half_period: 1)
     monkeypatch.setattr(sync, "changes", lambda *a, real=sync.changes: redone.append(1) or real(*a))
-    got = backend._coarse(x, f)
-    assert redone and want.block.size > 8
-    np.testing.assert_array_equal(got.block, want.block)
-    np.testing.assert_array_equal(got.direction, want.direction)
+    got = backend._fitted(x, 2500.0)
+    assert redone and want.centre.size > 8
+    assert_fitted_equal(got, want)
 
 
 def test_coarse_crossings_of_a_triangle():
@@ -346,8 +352,8 @@ def test_every_kernel_launches_with_one_local_size(static_capture, monkeypatch):
     be = make_processor("opencl")
     for periods in (97, 160):         # cores and the last partial chunk of other lengths
         process(static_capture, Options(chunk_periods=periods), be)
-    assert {"resample_lanes", "spectrum_lanes", "block_sum_span", "crossing_changes_span", "line_fit_lanes",
-            "clip_blocks", "cic_decimate", "fir_same"} <= set(seen)
+    assert {"resample_lanes", "spectrum_lanes", "block_sum_span", "sync_levels", "span_ends", "span_carries",
+            "span_crossings", "line_fit_lanes", "clip_blocks", "cic_decimate", "fir_same"} <= set(seen)
     assert all(len(sizes) == 1 and None not in sizes for sizes in seen.values()), seen
 
 

@@ -1,11 +1,10 @@
 """The OpenCL chunk processor: the low-pass, the sync delay's per-period fits, the sync's
-block sums, level, band changes and line fits, the clipping counts, resampling, and the
+block sums, level, hysteresis and line fits, the clipping counts, resampling, and the
 de-chirp/FFT/peak/echo stage on a device.
 The resampled half-sweeps stay on the device across the tracker's passes; only the sync's
-sparse changes (the clipping counts riding with them) and fit sums, and peaks come back.
-The band-state flips, the turning-point grid, pairing and the tracker's regularisation
-stay on the host (docs/pipeline.md). CPU devices get the lanes variants of the kernels
-that have two.
+line fits (the clipping counts riding with them) and peaks come back. The turning-point
+grid, pairing and the tracker's regularisation stay on the host (docs/pipeline.md). CPU
+devices get the lanes variants of the kernels that have two.
 """
 
 from __future__ import annotations
@@ -51,7 +50,7 @@ class OpenCLProcessor(ChunkProcessor):
             self.rt.program(program)
         self.bufs = Buffers(self.rt)
         self.device = self.rt.name
-        self._coarse = functools.partial(k_sync.coarse, self.rt, self.bufs)
+        self._fitted = functools.partial(k_sync.fitted, self.rt, self.bufs)
         self._line_fits = functools.partial(k_sync.line_fits, self.rt, self.bufs)
 
     def _fits(self, nfft: int) -> bool:
@@ -101,14 +100,14 @@ class OpenCLProcessor(ChunkProcessor):
         return k_delay.fit_periods(self.rt, self.bufs, y, z, shift, period, span)
 
     def turning_points(self, codes, half_period):
-        return sync.sync_turning_points(codes, half_period, self._coarse, self._line_fits)
+        return sync.sync_turning_points(codes, half_period, self._fitted)
 
     def prepare(self, chunk, info):
-        """ChunkProcessor.prepare, the clipping counts coming down with the sync's coarse
-        crossings (by a copy of their own where the sync is too short for a search)."""
+        """ChunkProcessor.prepare, the clipping counts coming down with the sync's line
+        fits (by a copy of their own where the sync is too short for a search)."""
         clip = k_faults.clip_rider(self.rt, self.bufs, *clipping(chunk, info))
-        coarse = functools.partial(k_sync.coarse, self.rt, self.bufs, riders=(clip,))
-        turns = sync.sync_turning_points(chunk.sync, info.samples_per_period / 2, coarse, self._line_fits)
+        fit = functools.partial(self._fitted, riders=(clip,))
+        turns = sync.sync_turning_points(chunk.sync, info.samples_per_period / 2, fit)
         return Prepared(turns, self.clip_counts(*clipping(chunk, info)) if clip.value is None else clip.value)
 
     def resample_each(self, codes, jobs, win):

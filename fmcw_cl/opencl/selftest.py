@@ -94,7 +94,7 @@ def stream(be, beat, sync_codes, fs, hp, rng) -> None:
     close("sync delay fit, misfit", got[1][ok], want[1][ok], 1e-3)
     got = be.turning_points(sync_codes, hp)
     want = sync.sync_turning_points(sync_codes, hp)
-    close("sync (block_sum, line_fit)", got.time, want.time, 1e-9)
+    close("sync (block_sum, sync_levels, span_*, line_fit)", got.time, want.time, 1e-9)
 
     clipped = beat.copy()
     clipped[[5, 700, beat.size - 1]] = [-8192, 8191, 8190]

@@ -1,7 +1,9 @@
 """Launchers of kernels/sync.cl (twins: fmcw_cl.stages.sync.block_sums, levels,
-changes, coarse_from_codes and line_fits)."""
+changes and coarse_crossings, line_fits: together sync.fitted)."""
 
 from __future__ import annotations
+
+import functools
 
 import numpy as np
 
@@ -16,86 +18,109 @@ def _codes(bufs: Buffers, x: np.ndarray):
     return bufs.upload_once("sync_codes", x)
 
 
-SPAN = 512     # blocks a work-item of the span kernels (CPU devices)
-
-
-def capacities(blocks: int) -> tuple[int, int]:
-    """Entries kept of the band and side changes: a triangle of at least 40 blocks a
-    half-period changes band twice and side once per crossing, well within these."""
-    return blocks // 8 + 64, blocks // 16 + 64
-
-
-HEADER = 8      # ints before the lists of crossing_changes' output (kernels/sync.cl)
+SPAN = 512      # blocks a work-item of the span kernels
+HEADER = 8      # ints of the search's header (kernels/sync.cl)
 LEVEL_LOCAL = 4 * (2048 + 2)    # sync_levels' histogram
 
 
-def levels(rt: Runtime, d_sampled, n: int, d_out) -> None:
+def slots(factor: int, half_period: float) -> int:
+    """Crossings kept per span of SPAN blocks: a triangle crosses its level once a
+    half-period, twice the most a span can hold and some (more: the host redoes the
+    search)."""
+    return 2 * int(np.ceil(SPAN * factor / half_period)) + 8
+
+
+def levels(rt: Runtime, d_sampled, n: int, d_head) -> None:
     """Launch sync_levels: 20 factor times the 5 and 95 percentiles of the n >= 1 sampled
-    sums and the band's thresholds into out[2:7] (twin: sync.percentile_sums, levels)."""
+    sums and the band's thresholds into head[0:5] (twin: sync.percentile_sums, levels)."""
     lsz = 1 if rt.lanes else rt.group_size(16, 256)    # PoCL: one item loops without barriers' cost
-    rt.kernel("sync", "sync_levels")(rt.queue, (lsz,), (lsz,), d_sampled, np.int32(n), d_out,
+    rt.kernel("sync", "sync_levels")(rt.queue, (lsz,), (lsz,), d_sampled, np.int32(n), d_head,
                                      cl.LocalMemory(LEVEL_LOCAL))
 
 
-def coarse(rt: Runtime, bufs: Buffers, x: np.ndarray, factor: int, riders: tuple = ()) -> sync.Coarse:
-    """sync.coarse_from_codes with the block sums, the level and their changes on the
-    device: what comes back, by one copy, is the level's percentiles and the sparse
-    changes, and `riders` (buffers.Rider: another step's small results, such as the
-    chunk's clipping counts; not launched where x holds no block)."""
+def real(rt: Runtime) -> type:
+    """The kernels' `real`: double where the device has it."""
+    return np.float64 if rt.fp64 else np.float32
+
+
+def fitted(rt: Runtime, bufs: Buffers, x: np.ndarray, half_period: float, riders: tuple = ()) -> sync.Fitted:
+    """sync.fitted on the device, from the codes to both line fits of every crossing: the
+    block sums, the level, the hysteresis (three launches over spans of SPAN blocks), the
+    fits; what comes back, by one copy, is the level's percentiles and each span's
+    crossings (`slots` each), and `riders` (buffers.Rider: another step's small results,
+    such as the chunk's clipping counts; not launched where x holds no block). A span
+    with more crossings than its slots (no triangle) makes the host redo the search from
+    the sums (sync.changes, coarse_crossings) and fit its centres (`line_fits`)."""
+    half = sync.fit_half_width(half_period)
+    factor = sync.block_length(half_period)
     m = x.size // factor
     if m == 0:
-        return sync.coarse_from_sums(np.zeros(0), factor)
+        return sync.fitted(x, half_period, fits=functools.partial(line_fits, rt, bufs))
     stride = sync.level_stride(m)
     n = -(-m // stride)
-    cap_e, cap_s = capacities(m)
-    packed = Packed(bufs, "crossing_changes", [(np.int32, HEADER + 2 * cap_e + 3 * cap_s)], riders)
-    d_out = packed.buffers[0]                               # its counters zeroed by block_sum
+    spans = -(-m // SPAN)
+    cap = slots(factor, half_period)
+    packed = Packed(bufs, "sync_fitted", [(np.int32, HEADER), (np.int32, spans * (cap + 1)),
+                                          (np.int64, 3 * spans * cap)], riders)
+    d_head, d_direction, d_fits = packed.buffers
     d_sums, d_sampled = bufs.get("block_sums", 4 * m), bufs.get("block_sampled", 4 * n)
-    if rt.lanes:                        # CPUs: a work-item a span of blocks (the span an argument)
-        suffix, sizes, span = "_span", ((-(-m // SPAN),), (1,)), (np.int32(SPAN),)
+    d_ends, d_centre = bufs.get("sync_ends", 16 * spans), bufs.get("sync_centres", 4 * spans * cap)
+    d_params = bufs.get("fit_params", 16)
+    codes = _codes(bufs, x)
+    if rt.lanes:                        # CPUs: a work-item a span of blocks
+        rt.kernel("sync", "block_sum_span")(rt.queue, (spans,), (1,), codes, np.int32(factor), np.int32(m),
+                                            np.int32(stride), np.int32(SPAN), d_sums, d_sampled)
     else:
-        suffix, sizes, span = "", rt.items(m), ()
-    rt.kernel("sync", "block_sum" + suffix)(rt.queue, *sizes, _codes(bufs, x), np.int32(factor), np.int32(m),
-                                            np.int32(stride), *span, d_sums, d_sampled, d_out)
-    levels(rt, d_sampled, n, d_out)
-    rt.kernel("sync", "crossing_changes" + suffix)(rt.queue, *sizes, d_sums, np.int32(m), np.int32(cap_e),
-                                                   np.int32(cap_s), *span, d_out)
-    out = packed.download()[0]
-    n_e, n_s = int(out[0]), int(out[1])
-    lv = sync.levels_of(int(out[2]), int(out[3]), factor)
-    if n_e > cap_e or n_s > cap_s:      # not a triangle's changes: the host redoes them
+        rt.kernel("sync", "block_sum")(rt.queue, *rt.items(m), codes, np.int32(factor), np.int32(m),
+                                       np.int32(stride), d_sums, d_sampled)
+    levels(rt, d_sampled, n, d_head)
+    each = ((spans,), (1,)) if rt.lanes else rt.items(spans)
+    rt.kernel("sync", "span_ends")(rt.queue, *each, d_sums, np.int32(m), np.int32(SPAN), d_head, d_ends)
+    rt.kernel("sync", "span_carries")(rt.queue, (1,), (1,), d_ends, np.int32(spans), d_head, np.int32(factor),
+                                      real(rt)(sync.SPIKE), d_params)
+    rt.kernel("sync", "span_crossings")(rt.queue, *each, d_sums, np.int32(m), np.int32(SPAN), d_head, d_ends,
+                                        np.int32(factor), np.int32(half), np.int32(x.size), np.int32(cap),
+                                        d_centre, d_direction)
+    _launch_fits(rt, codes, d_centre, spans * cap, half, d_params, x.size, d_fits)
+    head, direction, fits = packed.download()
+    lv = sync.levels_of(int(head[0]), int(head[1]), factor)
+    direction = direction.reshape(spans, cap + 1)
+    count = direction[:, cap]
+    if count.max(initial=0) > cap:      # not a triangle's crossings: the host redoes them
         sums = np.empty(m, np.int32)
         rt.copy(sums, d_sums)
-        return sync.coarse_crossings(sync.changes(sums.astype(np.float64), lv), lv, factor)
-    events = out[HEADER: HEADER + 2 * n_e].reshape(n_e, 2)
-    sides = out[HEADER + 2 * cap_e: HEADER + 2 * cap_e + 3 * n_s].reshape(n_s, 3)
-    # appended in any order, nearly sorted (a block each, blocks run in order): merge sort
-    # of the runs is twice as fast as quicksort
-    events = events[np.argsort(events[:, 0], kind="stable")]
-    sides = sides[np.argsort(sides[:, 0], kind="stable")].astype(np.float64)
-    ch = sync.Changes(events[:, 0].astype(np.int64), events[:, 1].astype(np.int8),
-                      sides[:, 0].astype(np.int64), sides[:, 1], sides[:, 2])
-    return sync.coarse_crossings(ch, lv, factor)
+        co = sync.coarse_crossings(sync.changes(sums.astype(np.float64), lv), lv, factor)
+        return sync.fitted(x, half_period, coarse=lambda *_: co, fits=functools.partial(line_fits, rt, bufs))
+    used = (np.arange(cap) < count[:, None]).ravel()
+    fits = fits.reshape(-1, 3)[used]
+    return sync.Fitted(fits[:, 0], fits[:, 1].astype(np.float64), fits[:, 2].astype(np.float64),
+                       direction[:, :cap].ravel()[used].astype(np.int8), lv.level)
+
+
+def _launch_fits(rt: Runtime, codes, d_centre, n: int, half: int, d_params, size: int, d_out) -> None:
+    """Both line fits of the n centres of d_centre (-1: none), into d_out (n, 3) int64."""
+    flush = np.int32(max(1, (2**31 - 1) // (max(half, 1) * 32768 + 32768)))
+    args = (codes, d_centre, np.int32(half), d_params, flush, np.int32(size), d_out)
+    if rt.lanes:
+        rt.kernel("sync", "line_fit_lanes")(rt.queue, (n,), (1,), *args)   # a work-item a crossing
+    else:
+        lsz = rt.group_size(16, 128)
+        rt.kernel("sync", "line_fit")(rt.queue, (n * lsz,), (lsz,), *args, cl.LocalMemory(8 * lsz),
+                                      cl.LocalMemory(8 * lsz))
 
 
 def line_fits(rt: Runtime, bufs: Buffers, x: np.ndarray, centre: np.ndarray, half: int, spike: float,
               level: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Both line fits of each crossing in one launch: the last fit's centre (-1:
-    dropped) and its sums of x and (i - c) x, spikes replaced (see the twin; codes are
-    integers, so `|d| > spike` is `|d| > floor(spike)`)."""
+    """Both line fits of each of the given centres in one launch (twin: sync.line_fits;
+    codes are integers, so `|d| > spike` is `|d| > floor(spike)`): the centres, level and
+    spike threshold up in one copy, the last fit's centre (-1: dropped) and sums down in
+    one."""
     n = centre.size
     out = np.empty((n, 3), np.int64)
     if n:
         d = bufs.get("fit_sums", out.nbytes)
-        real = np.float64 if rt.fp64 else np.float32
-        args = (_codes(bufs, x), bufs.upload("fit_centre", centre.astype(np.int32)), np.int32(half),
-                np.int32(np.floor(spike)), np.int32(max(1, (2**31 - 1) // (max(half, 1) * 32768 + 32768))),
-                real(level), np.int32(x.size), d)
-        if rt.lanes:
-            rt.kernel("sync", "line_fit_lanes")(rt.queue, (n,), (1,), *args)   # a work-item a crossing
-        else:
-            lsz = rt.group_size(16, 128)
-            rt.kernel("sync", "line_fit")(rt.queue, (n * lsz,), (lsz,), *args, cl.LocalMemory(8 * lsz),
-                                          cl.LocalMemory(8 * lsz))
+        parts = [(np.int32, n), (real(rt), 2)]
+        d_centre, d_params = Packed(bufs, "fit_in", parts).upload(centre, [level, spike])
+        _launch_fits(rt, _codes(bufs, x), d_centre, n, half, d_params, x.size, d)
         rt.copy(out, d)
     return out[:, 0], out[:, 1].astype(np.float64), out[:, 2].astype(np.float64)

@@ -130,8 +130,8 @@ def median3(sums: np.ndarray) -> np.ndarray:
 
 
 def changes(sums: np.ndarray, lv: Levels) -> Changes:
-    """The band and level changes of block sums. The numpy twin of the
-    `crossing_changes` kernel (kernels/sync.cl)."""
+    """The band and level changes of block sums; with `coarse_crossings`, the numpy twin
+    of the span_ends, span_carries and span_crossings kernels (kernels/sync.cl)."""
     b = median3(sums)
     event = np.where(b >= lv.high, 1, np.where(b < lv.low, -1, 0)).astype(np.int8)
     i = np.flatnonzero(np.r_[b.size > 0, event[1:] != event[:-1]])
@@ -253,12 +253,38 @@ def line_fits(x: np.ndarray, centre: np.ndarray, half: int, spike: float, level:
     return np.where(ok, c2, -1), s0, s1
 
 
-def crossings(x: np.ndarray, half_period: float, coarse=coarse_from_codes, fits=line_fits) -> Crossings:
+@dataclass(frozen=True)
+class Fitted:
+    """The line fits of a signal's coarse crossings, in order: each last fit's centre
+    (samples; -1: dropped) and its sums of x and (i - c) x (`line_fits`), the crossing's
+    direction (+1 up, -1 down), and the crossing level (codes)."""
+
+    centre: np.ndarray
+    s0: np.ndarray
+    s1: np.ndarray
+    direction: np.ndarray
+    level: float
+
+
+def fitted(x: np.ndarray, half_period: float, coarse=coarse_from_codes, fits=line_fits) -> Fitted:
+    """The coarse crossings of x in blocks (`block_length`, `coarse`), each then fitted
+    twice (`fits`) within FIT_FRACTION of a half-period around it; crossings whose first
+    window would leave x are left out. Requires x.size >= 2 fit_half_width + 6."""
+    half = fit_half_width(half_period)
+    factor = block_length(half_period)
+    co = coarse(x, factor)
+    centre = rounded(co.block * factor + 0.5 * (factor - 1), x.size)
+    first = np.flatnonzero(reaches(centre, half, x.size))
+    c, s0, s1 = fits(x, centre[first], half, SPIKE * co.swing, co.level)
+    return Fitted(c, s0, s1, co.direction[first], co.level)
+
+
+def crossings(x: np.ndarray, half_period: float, fit=fitted) -> Crossings:
     """Mid-level crossings of a triangle-like signal.
 
-    Found in block sums (`block_length`, `coarse_from_sums`), then each timed by a
-    straight-line fit to the full-rate samples within FIT_FRACTION of a half-period
-    around it, twice (the second fit centred on the first one's crossing).
+    Found in block sums (`coarse_from_sums`), then each timed by a straight-line fit to
+    the full-rate samples within FIT_FRACTION of a half-period around it, twice (the
+    second fit centred on the first one's crossing): `fitted`.
 
     Parameters
     ----------
@@ -266,26 +292,20 @@ def crossings(x: np.ndarray, half_period: float, coarse=coarse_from_codes, fits=
         The signal (ADC codes).
     half_period : float
         Nominal half-period in samples of `x`.
-    coarse, fits : the coarse crossings of `x` in blocks of a length (`coarse_from_codes`)
-        and both line fits (`line_fits`; the OpenCL backend swaps in its kernels).
+    fit : `fitted`, or a twin of it (the OpenCL processor's runs on its device).
 
     Returns
     -------
     Crossings with times in samples of `x`; crossings whose fit window would leave
     the array are dropped.
     """
-    none = Crossings(np.zeros(0), np.zeros(0, np.int8))
     half = fit_half_width(half_period)
     if x.size < 2 * half + 6:          # too short for a single crossing fit
-        return none
-    factor = block_length(half_period)
-    co = coarse(x, factor)
-    centre = rounded(co.block * factor + 0.5 * (factor - 1), x.size)
-    first = np.flatnonzero(reaches(centre, half, x.size))
-    c, s0, s1 = fits(x, centre[first], half, SPIKE * co.swing, co.level)
-    guess = line_fit_crossing(s0, s1, c, half, co.level)
-    keep = (c >= 0) & np.isfinite(guess)
-    return Crossings(guess[keep], co.direction[first][keep])
+        return Crossings(np.zeros(0), np.zeros(0, np.int8))
+    f = fit(x, half_period)
+    guess = line_fit_crossing(f.s0, f.s1, f.centre, half, f.level)
+    keep = (f.centre >= 0) & np.isfinite(guess)
+    return Crossings(guess[keep], f.direction[keep])
 
 
 @dataclass(frozen=True)
@@ -342,11 +362,10 @@ def turning_points(cr: Crossings, half_period: float) -> TurningPoints:
     return TurningPoints(fitted, is_max[idx], seg.astype(np.int64))
 
 
-def sync_turning_points(sync: np.ndarray, half_period: float, coarse=coarse_from_codes,
-                        fits=line_fits) -> TurningPoints:
-    """Turning points of the sync channel (higher code = higher current); `coarse` and
-    `fits` as in `crossings`."""
-    return turning_points(crossings(sync, half_period, coarse=coarse, fits=fits), half_period)
+def sync_turning_points(sync: np.ndarray, half_period: float, fit=fitted) -> TurningPoints:
+    """Turning points of the sync channel (higher code = higher current); `fit` as in
+    `crossings`."""
+    return turning_points(crossings(sync, half_period, fit), half_period)
 
 
 MAX_DELAY_SAMPLES = 400  # search range of the sync-to-optics delay
