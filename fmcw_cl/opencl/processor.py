@@ -105,10 +105,11 @@ class OpenCLProcessor(ChunkProcessor):
     def prepare(self, chunk, info):
         """ChunkProcessor.prepare, the clipping counts coming down with the sync's line
         fits (by a copy of their own where the sync is too short for a search)."""
-        clip = k_faults.clip_rider(self.rt, self.bufs, *clipping(chunk, info))
+        job = clipping(chunk, info)
+        clip = k_faults.clip_rider(self.rt, self.bufs, *job)
         fit = functools.partial(self._fitted, riders=(clip,))
         turns = sync.sync_turning_points(chunk.sync, info.samples_per_period / 2, fit)
-        return Prepared(turns, self.clip_counts(*clipping(chunk, info)) if clip.value is None else clip.value)
+        return Prepared(turns, self.clip_counts(*job) if clip.value is None else clip.value)
 
     def resample_each(self, codes, jobs, win):
         rows = k_resample.resample_each(self.rt, self.bufs, codes, jobs, win)
