@@ -163,6 +163,7 @@ class Packed:
         return self.send()
 
     def send(self) -> list:
-        """The parts as their views hold them, up by one copy; their sub-buffers."""
-        self._rt.copy(self._parent, self._host)
+        """The parts as their views hold them, up by one copy; their sub-buffers. The
+        copy does not wait (the host block is this object's own): change no view after."""
+        self._rt.copy(self._parent, self._host, wait=False)
         return self.buffers

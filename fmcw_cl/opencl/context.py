@@ -247,16 +247,20 @@ class Runtime:
             self.kernels[key] = _Counted(cl.Kernel(self.program(program), name), self.traffic)
         return self.kernels[key]
 
-    def copy(self, dest, src) -> None:
+    def copy(self, dest, src, wait: bool = True) -> None:
         """One copy between a host array and a device buffer (direction by type),
-        counted in `traffic`; a download waits for it, an upload of a host array too."""
+        counted in `traffic`; a download waits for it, an upload of a host array too
+        unless not `wait` (then the array must not change until the queue has read it:
+        pyopencl holds it until then; an upload that waits, waits for every launch
+        before it on the in-order queue)."""
         if isinstance(dest, np.ndarray):
             self.traffic.downloads += 1
             self.traffic.download_bytes += dest.nbytes
+            cl.enqueue_copy(self.queue, dest, src)
         else:
             self.traffic.uploads += 1
             self.traffic.upload_bytes += src.nbytes
-        cl.enqueue_copy(self.queue, dest, src)
+            cl.enqueue_copy(self.queue, dest, src, is_blocking=wait)
 
     def program(self, name: str):
         """kernels/<name>.cl built for this context (cached)."""
