@@ -142,57 +142,63 @@ __kernel void spectrum_peak(__global const float *x,          // (rows, points)
                             __global float *echo_bin,         // (sweeps, max_echoes)
                             __global float *echo_snr,         // (sweeps, max_echoes)
                             __global int *echo_count,         // (sweeps,)
+                            __global const int *listed,       // counted: listed[0] sweeps at most
+                            const int counted,                // (the tracker's list, kernels/track.cl)
                             __local float *re,                // nfft
                             __local float *im,                // nfft
                             __local float *pw,                // nfft/2
                             __local float *scratch,           // 3 per work-item
                             __local uchar *flag)              // nfft/2 when echoes
 {
-    const int g = get_group_id(0);
-    const int lid = get_local_id(0);
-    const int lsz = get_local_size(0);
-    const int s = dechirp ? g : 2 * g;                // first sweep of this transform
-    const int rows = dechirp || s + 1 == sweeps ? 1 : 2;
-    const float v = dechirp ? velocity[s] : 0.0f;
-    __global const float *ra = x + (size_t)(indexed ? index[s] : s) * points;
-    __global const float *rb = rows == 2 ? ra + points : 0;
-    // the first radix-4 stage straight from the input: its upper half is the zero
-    // padding (points <= nfft / 2), so each butterfly has two inputs
-    const int q = nfft >> 2;
-    for (int j = lid; j < q; j += lsz) {
-        float a0r = 0.0f, a0i = 0.0f, a1r = 0.0f, a1i = 0.0f;
-        if (j < points) load(ra, rb, beta, v, dechirp, j, &a0r, &a0i);
-        if (j + q < points) load(ra, rb, beta, v, dechirp, j + q, &a1r, &a1i);
-        radix4(re, im, j, q, j, a0r, a0i, a1r, a1i, 0.0f, 0.0f, 0.0f, 0.0f, tw_re, tw_im);
-    }
-    barrier(CLK_LOCAL_MEM_FENCE);
-    fft_dif(re, im, nfft, q, tw_re, tw_im);
-    const int half_n = nfft >> 1;
-    for (int r = 0; r < rows; ++r) {                  // uniform in the group: barriers are safe
-        __global float *out = power + (size_t)(scatter ? index[s] : s + r) * half_n;
-        for (int k = lid; k < half_n; k += lsz) {
-            const int p = perm[k];
-            float e;
-            if (dechirp) {
-                e = re[p] * re[p] + im[p] * im[p];
-            } else {
-                const int m = perm[(nfft - k) & (nfft - 1)];
-                const float cr = r == 0 ? re[p] + re[m] : im[p] + im[m];
-                const float ci = r == 0 ? im[p] - im[m] : re[p] - re[m];
-                e = 0.25f * (cr * cr + ci * ci);
+    const int n = counted ? min(sweeps, listed[0]) : sweeps;
+    // a transform a group; a counted launch has fewer groups than transforms, each
+    // taking every get_num_groups-th (uniform in the group: barriers are safe)
+    for (int g = get_group_id(0); (dechirp ? g : 2 * g) < n; g += get_num_groups(0)) {
+        const int lid = get_local_id(0);
+        const int lsz = get_local_size(0);
+        const int s = dechirp ? g : 2 * g;                // first sweep of this transform
+        const int rows = dechirp || s + 1 == n ? 1 : 2;
+        const float v = dechirp ? velocity[s] : 0.0f;
+        __global const float *ra = x + (size_t)(indexed ? index[s] : s) * points;
+        __global const float *rb = rows == 2 ? ra + points : 0;
+        // the first radix-4 stage straight from the input: its upper half is the zero
+        // padding (points <= nfft / 2), so each butterfly has two inputs
+        const int q = nfft >> 2;
+        for (int j = lid; j < q; j += lsz) {
+            float a0r = 0.0f, a0i = 0.0f, a1r = 0.0f, a1i = 0.0f;
+            if (j < points) load(ra, rb, beta, v, dechirp, j, &a0r, &a0i);
+            if (j + q < points) load(ra, rb, beta, v, dechirp, j + q, &a1r, &a1i);
+            radix4(re, im, j, q, j, a0r, a0i, a1r, a1i, 0.0f, 0.0f, 0.0f, 0.0f, tw_re, tw_im);
+        }
+        barrier(CLK_LOCAL_MEM_FENCE);
+        fft_dif(re, im, nfft, q, tw_re, tw_im);
+        const int half_n = nfft >> 1;
+        for (int r = 0; r < rows; ++r) {                  // uniform in the group: barriers are safe
+            __global float *out = power + (size_t)(scatter ? index[s] : s + r) * half_n;
+            for (int k = lid; k < half_n; k += lsz) {
+                const int p = perm[k];
+                float e;
+                if (dechirp) {
+                    e = re[p] * re[p] + im[p] * im[p];
+                } else {
+                    const int m = perm[(nfft - k) & (nfft - 1)];
+                    const float cr = r == 0 ? re[p] + re[m] : im[p] + im[m];
+                    const float ci = r == 0 ? im[p] - im[m] : re[p] - re[m];
+                    e = 0.25f * (cr * cr + ci * ci);
+                }
+                pw[k] = e;
+                if (keep_power) out[k] = e;
             }
-            pw[k] = e;
-            if (keep_power) out[k] = e;
+            barrier(CLK_LOCAL_MEM_FENCE);
+            local_peak(pw, half_n, lo, hi, guard, scratch, (__local int *)(scratch + lsz),
+                       scratch + 2 * lsz, bin + s + r, snr + s + r);
+            if (echoes) {
+                const size_t e = (size_t)(s + r) * max_echoes;
+                // every echo above the minimum range, the band's top (--max-range) aside
+                local_cfar(pw, half_n, lo, half_n, cfar_guard, train, scale, max_echoes, flag,
+                           (__local int *)scratch, echo_bin + e, echo_snr + e, echo_count + s + r);
+            }
+            barrier(CLK_LOCAL_MEM_FENCE);
         }
-        barrier(CLK_LOCAL_MEM_FENCE);
-        local_peak(pw, half_n, lo, hi, guard, scratch, (__local int *)(scratch + lsz),
-                   scratch + 2 * lsz, bin + s + r, snr + s + r);
-        if (echoes) {
-            const size_t e = (size_t)(s + r) * max_echoes;
-            // every echo above the minimum range, the band's top (--max-range) aside
-            local_cfar(pw, half_n, lo, half_n, cfar_guard, train, scale, max_echoes, flag,
-                       (__local int *)scratch, echo_bin + e, echo_snr + e, echo_count + s + r);
-        }
-        barrier(CLK_LOCAL_MEM_FENCE);
     }
 }

@@ -178,87 +178,92 @@ __kernel void spectrum_lanes(__global const float *x, const int sweeps, const in
                              const int echoes, const int cfar_guard, const int train,
                              __global const float *scale, const int max_echoes,
                              __global float *echo_bin, __global float *echo_snr, __global int *echo_count,
+                             __global const int *listed, const int counted,
                              __local float8 *re,       // nfft
                              __local float8 *im,       // nfft
                              __local float8 *pw)       // nfft: the power of a transform's two rows
 {
-    const int w = get_group_id(0);
-    const int transforms = dechirp ? sweeps : (sweeps + 1) / 2;
-    __global const float *ra[8];
-    __global const float *rb[8];
-    int first[8];                                      // first sweep of each lane, -1: idle lane
-    float vl[8];
-    for (int l = 0; l < 8; ++l) {
-        const int g = 8 * w + l;
-        const int s = dechirp ? g : 2 * g;
-        const int active = g < transforms;
-        first[l] = active ? s : -1;
-        const int row = active ? (indexed ? index[s] : s) : 0;
-        ra[l] = x + (size_t)row * points;
-        // a plain row's partner; a lone last row pairs with itself (the copy is not reported)
-        rb[l] = !dechirp && active && s + 1 < sweeps ? ra[l] + points : ra[l];
-        vl[l] = dechirp && active ? velocity[s] : 0.0f;
-    }
-    const float8 v = vload8(0, vl);
-    const int q = nfft >> 2;
-    for (int j = 0; j < q; ++j) {     // the first stage straight from the input (see fft.cl)
-        float8 a0r, a0i, a1r, a1i;
-        load8(ra, rb, beta, v, dechirp, points, j, &a0r, &a0i);
-        load8(ra, rb, beta, v, dechirp, points, j + q, &a1r, &a1i);
-        radix4_8(re, im, j, q, j, a0r, a0i, a1r, a1i, 0.0f, 0.0f, 0.0f, 0.0f, tw_re, tw_im);
-    }
-    int lb = q;
-    for (; lb >= 4; lb >>= 2) {
-        const int qq = lb >> 2;
-        const int step = nfft / lb;
-        for (int t = 0; t < (nfft >> 2); ++t) {
-            const int j = t & (qq - 1);
-            const int b = ((t - j) << 2) + j;
-            radix4_8(re, im, b, qq, j * step, re[b], im[b], re[b + qq], im[b + qq],
-                     re[b + 2 * qq], im[b + 2 * qq], re[b + 3 * qq], im[b + 3 * qq], tw_re, tw_im);
+    const int n = counted ? min(sweeps, listed[0]) : sweeps;
+    const int transforms = dechirp ? n : (n + 1) / 2;
+    // eight transforms a group; a counted launch has fewer groups than blocks, each
+    // taking every get_num_groups-th block (a listed few spread over all cores)
+    for (int w = get_group_id(0); 8 * w < transforms; w += get_num_groups(0)) {
+        __global const float *ra[8];
+        __global const float *rb[8];
+        int first[8];                                      // first sweep of each lane, -1: idle lane
+        float vl[8];
+        for (int l = 0; l < 8; ++l) {
+            const int g = 8 * w + l;
+            const int s = dechirp ? g : 2 * g;
+            const int active = g < transforms;
+            first[l] = active ? s : -1;
+            const int row = active ? (indexed ? index[s] : s) : 0;
+            ra[l] = x + (size_t)row * points;
+            // a plain row's partner; a lone last row pairs with itself (the copy is not reported)
+            rb[l] = !dechirp && active && s + 1 < n ? ra[l] + points : ra[l];
+            vl[l] = dechirp && active ? velocity[s] : 0.0f;
         }
-    }
-    if (lb == 2) {
-        for (int b = 0; b < nfft; b += 2) {
-            const float8 a0r = re[b], a0i = im[b], a1r = re[b + 1], a1i = im[b + 1];
-            re[b] = a0r + a1r;
-            im[b] = a0i + a1i;
-            re[b + 1] = a0r - a1r;
-            im[b + 1] = a0i - a1i;
+        const float8 v = vload8(0, vl);
+        const int q = nfft >> 2;
+        for (int j = 0; j < q; ++j) {     // the first stage straight from the input (see fft.cl)
+            float8 a0r, a0i, a1r, a1i;
+            load8(ra, rb, beta, v, dechirp, points, j, &a0r, &a0i);
+            load8(ra, rb, beta, v, dechirp, points, j + q, &a1r, &a1i);
+            radix4_8(re, im, j, q, j, a0r, a0i, a1r, a1i, 0.0f, 0.0f, 0.0f, 0.0f, tw_re, tw_im);
         }
-    }
-    const int half_n = nfft >> 1;
-    const int rows = dechirp ? 1 : 2;
-    for (int r = 0; r < rows; ++r) {
-        __local float8 *p_r = pw + r * half_n;
-        for (int k = 0; k < half_n; ++k) {
-            const int p = perm[k];
-            if (dechirp) {
-                p_r[k] = re[p] * re[p] + im[p] * im[p];
-            } else {
-                const int m = perm[(nfft - k) & (nfft - 1)];
-                const float8 cr = r == 0 ? re[p] + re[m] : im[p] + im[m];
-                const float8 ci = r == 0 ? im[p] - im[m] : re[p] - re[m];
-                p_r[k] = 0.25f * (cr * cr + ci * ci);
+        int lb = q;
+        for (; lb >= 4; lb >>= 2) {
+            const int qq = lb >> 2;
+            const int step = nfft / lb;
+            for (int t = 0; t < (nfft >> 2); ++t) {
+                const int j = t & (qq - 1);
+                const int b = ((t - j) << 2) + j;
+                radix4_8(re, im, b, qq, j * step, re[b], im[b], re[b + qq], im[b + qq],
+                         re[b + 2 * qq], im[b + 2 * qq], re[b + 3 * qq], im[b + 3 * qq], tw_re, tw_im);
             }
         }
-    }
-    // the transform is no longer needed: re and im hold the CFAR's tables
-    for (int r = 0; r < rows; ++r) {
-        __local const float8 *p_r = pw + r * half_n;
-        int sweep[8];
-        for (int l = 0; l < 8; ++l) sweep[l] = first[l] >= 0 && (r == 0 || first[l] + 1 < sweeps) ? first[l] + r : -1;
-        if (keep_power) {
-            for (int l = 0; l < 8; ++l) {
-                if (sweep[l] < 0) continue;
-                __global float *out = power + (size_t)(scatter ? index[sweep[l]] : sweep[l]) * half_n;
-                for (int k = 0; k < half_n; ++k) out[k] = lane(p_r, k, l);
+        if (lb == 2) {
+            for (int b = 0; b < nfft; b += 2) {
+                const float8 a0r = re[b], a0i = im[b], a1r = re[b + 1], a1i = im[b + 1];
+                re[b] = a0r + a1r;
+                im[b] = a0i + a1i;
+                re[b + 1] = a0r - a1r;
+                im[b + 1] = a0i - a1i;
             }
         }
-        lanes_peak(p_r, half_n, lo, hi, guard, sweep, bin, snr);
-        if (echoes) {
-            lanes_cfar(p_r, half_n, lo, cfar_guard, train, scale, max_echoes, re, im, sweep,
-                       echo_bin, echo_snr, echo_count);
+        const int half_n = nfft >> 1;
+        const int rows = dechirp ? 1 : 2;
+        for (int r = 0; r < rows; ++r) {
+            __local float8 *p_r = pw + r * half_n;
+            for (int k = 0; k < half_n; ++k) {
+                const int p = perm[k];
+                if (dechirp) {
+                    p_r[k] = re[p] * re[p] + im[p] * im[p];
+                } else {
+                    const int m = perm[(nfft - k) & (nfft - 1)];
+                    const float8 cr = r == 0 ? re[p] + re[m] : im[p] + im[m];
+                    const float8 ci = r == 0 ? im[p] - im[m] : re[p] - re[m];
+                    p_r[k] = 0.25f * (cr * cr + ci * ci);
+                }
+            }
+        }
+        // the transform is no longer needed: re and im hold the CFAR's tables
+        for (int r = 0; r < rows; ++r) {
+            __local const float8 *p_r = pw + r * half_n;
+            int sweep[8];
+            for (int l = 0; l < 8; ++l) sweep[l] = first[l] >= 0 && (r == 0 || first[l] + 1 < n) ? first[l] + r : -1;
+            if (keep_power) {
+                for (int l = 0; l < 8; ++l) {
+                    if (sweep[l] < 0) continue;
+                    __global float *out = power + (size_t)(scatter ? index[sweep[l]] : sweep[l]) * half_n;
+                    for (int k = 0; k < half_n; ++k) out[k] = lane(p_r, k, l);
+                }
+            }
+            lanes_peak(p_r, half_n, lo, hi, guard, sweep, bin, snr);
+            if (echoes) {
+                lanes_cfar(p_r, half_n, lo, cfar_guard, train, scale, max_echoes, re, im, sweep,
+                           echo_bin, echo_snr, echo_count);
+            }
         }
     }
 }

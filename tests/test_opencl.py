@@ -353,7 +353,8 @@ def test_every_kernel_launches_with_one_local_size(static_capture, monkeypatch):
     for periods in (97, 160):         # cores and the last partial chunk of other lengths
         process(static_capture, Options(chunk_periods=periods), be)
     assert {"resample_lanes", "spectrum_lanes", "block_sum_span", "sync_levels", "span_ends", "span_carries",
-            "span_crossings", "line_fit_lanes", "clip_blocks", "cic_decimate", "fir_same"} <= set(seen)
+            "span_crossings", "line_fit_lanes", "clip_blocks", "cic_decimate", "fir_same",
+            "track_pass"} <= set(seen)
     assert all(len(sizes) == 1 and None not in sizes for sizes in seen.values()), seen
 
 
@@ -536,3 +537,66 @@ def test_survey_kernel_matches_numpy(backend, kernel_variant, rows, nfft, lo):
     alone = backend.survey(flipped, -beta, *args[1:])
     for a, b in zip((*got, *alone), (*both[0], *both[1]), strict=True):
         np.testing.assert_array_equal(a, b)
+
+
+@pytest.mark.parametrize("scene,pairs,iterations", [("fold", 301, 6), ("fold", 301, 2), ("still", 40, 6),
+                                                    ("noise", 77, 6), ("fold", 5, 6),
+                                                    ("silent", 30, 6)])
+def test_tracker_passes_on_the_device_equal_the_host_passes(backend, kernel_variant, monkeypatch, scene,
+                                                            pairs, iterations):
+    """kernels/track.cl (the regularisation between the passes on the device, one copy
+    each way) against pairing.passes driven by the same device's measurements: an
+    accelerating target whose beat folds, with a fade (untrusted pairs interpolated)
+    and noise; passes cut short by `iterations`; a still target (the passes stop
+    after one); noise alone (few trusted pairs), silence (no spectrum at all); fewer
+    pairs than the median's window."""
+    from fmcw_cl.opencl import track as k_track
+    from fmcw_cl.physics import C
+    from fmcw_cl.stages import pairing
+    from fmcw_cl.stages.lut import build_lut
+
+    rng = np.random.default_rng(pairs + iterations)
+    cur = np.linspace(0.16, 0.48, 50)
+    lut = build_lut(cur, 190e12 + 160e9 * ((cur - 0.16) / 0.32) ** 1.3, 0.16, 0.48, 500, 1.0)
+    win = resample.window(500)
+    half_s = 25e-6
+    model = pairing.doppler_model(lut, half_s, 1024, win)
+    t_mid = 0.01 + np.arange(pairs) * 50e-6
+    v = np.linspace(1.0, 7.0, pairs) if scene == "fold" else np.zeros(pairs)
+    r = 0.12 + np.cumsum(v) * 50e-6
+    amp = np.ones(pairs) if scene in ("fold", "still") else np.zeros(pairs)
+    amp[pairs // 3: pairs // 3 + 12] = 0.0                       # a fade
+    rows = []
+    for beta, dt in ((model.beta_rise, -half_s / 2), (model.beta_fall, half_s / 2)):
+        phase = np.outer(2 * (r + v * dt) / C, lut.nu_hz) + v[:, None] * beta + rng.uniform(0, 1, (pairs, 1))
+        noise = rng.normal(0, 0.3 if scene != "silent" else 0.0, (pairs, lut.points))
+        x = amp[:, None] * np.cos(2 * np.pi * phase) + noise
+        rows.append(k_spectrum.as_device(backend.bufs, (x - x.mean(axis=1, keepdims=True)) * win))
+    times = pairing.Times(t_mid - half_s / 2, t_mid + half_s / 2)
+    search = Search(int(0.03 / model.metres_per_bin), model.nfft // 2, echoes=True)
+    rows = tuple(rows)
+    assert k_track.supported(backend.rt)
+    launched = monkeypatch_count(monkeypatch, k_track, "track")
+    first, state = backend.track(rows, times, model, search, iterations, True)
+    assert launched == [1]
+    want_first, want = pairing.SpectrumOps.track(backend, rows, times, model, search, iterations, True)
+    for a, b in zip(first, want_first, strict=True):
+        np.testing.assert_array_equal(a[0], b[0])
+        np.testing.assert_array_equal(a[1], b[1])
+        np.testing.assert_array_equal(a[2].bin, b[2].bin)
+    for key in ("d_r", "s_r", "d_f", "s_f", "vd", "count"):
+        np.testing.assert_array_equal(getattr(state, key), getattr(want, key), err_msg=key)
+    if scene == "fold" and pairs > 100:
+        assert np.ptp(state.vd) > 3.0            # the passes moved the de-chirp velocities
+
+
+def monkeypatch_count(monkeypatch, module, name: str) -> list[int]:
+    """Count the calls of module.name (a one-item list, updated in place)."""
+    calls, inner = [0], getattr(module, name)
+
+    def counted(*args, **kwargs):
+        calls[0] += 1
+        return inner(*args, **kwargs)
+
+    monkeypatch.setattr(module, name, counted)
+    return calls

@@ -1,10 +1,10 @@
 """The OpenCL chunk processor: the low-pass, the sync delay's per-period fits, the sync's
-block sums, level, hysteresis and line fits, the clipping counts, resampling, and the
-de-chirp/FFT/peak/echo stage on a device.
-The resampled half-sweeps stay on the device across the tracker's passes; only the sync's
-line fits (the clipping counts riding with them) and peaks come back. The turning-point
-grid, pairing and the tracker's regularisation stay on the host (docs/pipeline.md). CPU
-devices get the lanes variants of the kernels that have two.
+block sums, level, hysteresis and line fits, the clipping counts, resampling, the
+de-chirp/FFT/peak/echo stage and the tracker's passes with their regularisation on a
+device. The resampled half-sweeps stay on the device; the sync's line fits (the clipping
+counts riding with them) and the tracker's state come back, one download each. The
+turning-point grid, pairing, ownership and the tracker's verdicts stay on the host
+(docs/pipeline.md). CPU devices get the lanes variants of the kernels that have two.
 """
 
 from __future__ import annotations
@@ -24,6 +24,7 @@ from . import resample as k_resample
 from . import spectrum as k_spectrum
 from . import survey as k_survey
 from . import sync as k_sync
+from . import track as k_track
 from .buffers import Buffers, DeviceRows
 from .context import Runtime, runtime
 
@@ -41,7 +42,7 @@ class OpenCLProcessor(ChunkProcessor):
     # periods a chunk: a chunk's launches, copies and host steps cost about the same
     # whatever its size (0.4 s of capture: 160 MB of codes, 65 MB of resampled rows)
     chunk_default = 8192
-    programs = ("lpf", "delay", "sync", "resample", "spectrum", "integrate", "survey", "faults")
+    programs = ("lpf", "delay", "sync", "resample", "spectrum", "integrate", "survey", "faults", "track")
 
     def __init__(self, selector: str | None = None, rt: Runtime | None = None) -> None:
         super().__init__()
@@ -129,8 +130,16 @@ class OpenCLProcessor(ChunkProcessor):
         jobs = [(x, b, None) for x, b in zip(xs, betas, strict=True)]
         got = k_spectrum.measure_each(self.rt, self.bufs, jobs, v, model.nfft,
                                       search.lo, search.hi, index=rows, echoes=search.echoes)
-        return [(pk.bin * model.metres_per_bin, pk.snr_db, *([det] if search.echoes else []))
-                for pk, _, det in got]
+        return _measured(got, model, search)
+
+    def track(self, rows, times, model, search, iterations, single):
+        """Twin: pairing.SpectrumOps.track; the passes on the device, their state read
+        by one copy (where the rows are there and the device has double precision)."""
+        if not (single and iterations > 0 and k_track.supported(self.rt)
+                and all(isinstance(x, DeviceRows) for x in rows)):
+            return super().track(rows, times, model, search, iterations, single)
+        first, state = k_track.track(self.rt, self.bufs, rows, times, model, search, iterations)
+        return tuple(_measured(first, model, search)), state
 
     def power(self, x, beta, v, nfft, rows=None):
         """Power spectra of rows of x (plain, or de-chirped at v); twin: pairing.power."""
@@ -175,3 +184,10 @@ class OpenCLProcessor(ChunkProcessor):
         if not self._fits(2 * store.shape[1]):       # (pairs, nfft / 2) power spectra
             return pairing.NUMPY.integrated_peaks(store, disp, k, search)
         return k_integrate.peaks(self.rt, self.bufs, store, disp, k, search)
+
+
+def _measured(got: list, model, search) -> list[tuple]:
+    """pairing.measure's results from k_spectrum.measure_each's: distance (m), SNR (dB),
+    and the echoes with `search.echoes`."""
+    return [(pk.bin * model.metres_per_bin, pk.snr_db, *([det] if search.echoes else []))
+            for pk, _, det in got]

@@ -16,6 +16,7 @@ import sys
 
 import numpy as np
 
+from fmcw_cl.opencl import track as k_track
 from fmcw_cl.opencl.buffers import DeviceRows
 from fmcw_cl.opencl.context import cl
 from fmcw_cl.opencl.processor import OpenCLProcessor
@@ -154,6 +155,17 @@ def spectra(be, rng, group: str) -> None:
     got = be.measure(d_x, beta, v[pick], model, Search(3, nfft // 2), pick)
     want = pairing.measure(x, beta, v[pick], model, Search(3, nfft // 2), pick)
     close("de-chirp + FFT + peak, picked rows", got[0], want[0], 1e-4)
+    if k_track.supported(be.rt):
+        # the passes' decisions on the device against the host's, on the same peaks
+        # (the falling rows' tone 0.2 + 0.01 s cycles a point higher: pair s moves)
+        y = x + 400 * np.cos(2 * np.pi * (0.2 + 0.01 * np.arange(sweeps))[:, None] * np.arange(points))
+        d_y = DeviceRows(be.bufs, sweeps, points)
+        cl.enqueue_copy(be.rt.queue, d_y.buffer, y.astype(np.float32))
+        times = pairing.Times(np.arange(sweeps) * 50e-6, np.arange(sweeps) * 50e-6 + 25e-6)
+        got = be.track((d_x, d_y), times, model, search, 3, True)[1]
+        want = pairing.SpectrumOps.track(be, (d_x, d_y), times, model, search, 3, True)[1]
+        close("tracker passes (track_pass)", got.vd, want.vd, 1e-9)
+        close("tracker passes, distances", got.d_r, want.d_r, 1e-9)
     close("power spectra", be.power(d_x, None, None, nfft), pairing.power(x, None, None, nfft), 1e-5)
 
 

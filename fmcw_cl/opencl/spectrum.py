@@ -100,14 +100,20 @@ def measure(rt: Runtime, bufs: Buffers, rows, beta: np.ndarray | None,
 
 def measure_each(rt: Runtime, bufs: Buffers, jobs: list, velocity: np.ndarray | None, nfft: int, lo: int,
                  hi: int | None = None, keep_power: bool = False, index: np.ndarray | None = None,
-                 echoes: bool = False, scatter: bool = True, picked: tuple | None = None) -> list[tuple]:
+                 echoes: bool = False, scatter: bool = True, picked: tuple | None = None,
+                 out: Packed | None = None, listed=None) -> list[tuple] | None:
     """`measure` of each (rows, beta, store) of `jobs` (rows of one shape: a pair's
     rising and falling half-sweeps) with the same picked rows, velocities and band: the
     picked rows and velocities go up once (`picked`: their device buffers, already up,
-    int32 and float32) and every result comes back by one download."""
+    int32 and float32) and every result comes back by one download. With `out` (a
+    Packed whose first parts are `parts`') the results stay there and nothing comes
+    back (None: `results` reads them after its download). `listed`: a device int, how
+    many of the `picked` rows to de-chirp (at most all rows; the tracker's list of the
+    pairs to measure again, kernels/track.cl), `velocity` then unused."""
     up = {id(rows): as_device(bufs, rows) for rows, _, _ in jobs}      # a host array goes up once
     rows_of = [up[id(rows)] for rows, _, _ in jobs]
     sweeps, points = rows_of[0].shape
+    indexed = index is not None or listed is not None
     if index is not None:
         sweeps = int(np.size(index))
         if velocity is None:
@@ -119,52 +125,83 @@ def measure_each(rt: Runtime, bufs: Buffers, jobs: list, velocity: np.ndarray | 
         return [(Peaks(np.zeros(0), np.zeros(0, np.float32)), np.zeros((0, half), np.float32),
                  cfar.Detections.empty() if echoes else None)] * len(jobs)
     twr, twi, perm = tables(nfft)
-    dechirp = velocity is not None
+    dechirp = velocity is not None or listed is not None
     if picked is not None:
         d_index, d_v = picked
     elif index is not None:        # the rows picked and their velocities: one upload
-        parts = [(np.int32, sweeps), (np.float32, sweeps)]
-        d_index, d_v = Packed(bufs, "picked", parts).upload(index, velocity)
+        picks = [(np.int32, sweeps), (np.float32, sweeps)]
+        d_index, d_v = Packed(bufs, "picked", picks).upload(index, velocity)
     else:
         d_index = bufs.constant("index0", zeros(1), np.int32)
         d_v = (bufs.upload("velocity", np.asarray(velocity, np.float32)) if dechirp
                else bufs.constant("v0", zeros(1)))
     m = cfar.MAX_ECHOES
-    # what comes back, in one download: each job's peaks, echoes, the power when kept here
-    listed = sweeps if echoes else 0
-    parts = []
-    for _, _, store in jobs:
-        own = keep_power and store is None
-        parts += [(np.float32, sweeps), (np.float32, sweeps), (np.float32, listed * m),
-                  (np.float32, listed * m), (np.int32, listed), (np.float32, sweeps * half if own else 1)]
-    out = Packed(bufs, "measured", parts)
+    deferred = out is not None
+    if out is None:
+        out = Packed(bufs, "measured", parts(jobs, sweeps, nfft, echoes, keep_power))
+    counted = (listed, 1) if listed is not None else (bufs.constant("index0", zeros(1), np.int32), 0)
     transforms = sweeps if dechirp else (sweeps + 1) // 2    # plain rows: two per transform
     for i, (rows, (_, beta, store)) in enumerate(zip(rows_of, jobs, strict=True)):
         d_bin, d_snr, d_ebin, d_esnr, d_ecount, d_own = out.buffers[6 * i: 6 * i + 6]
         d_power = store.buffer if store is not None else d_own
         args = (rows.buffer, np.int32(sweeps), np.int32(points), d_index,
-                np.int32(index is not None), bufs.constant("beta", beta if dechirp else zeros(points)), d_v,
+                np.int32(indexed), bufs.constant("beta", beta if dechirp else zeros(points)), d_v,
                 np.int32(dechirp), bufs.constant("tw_re", twr), bufs.constant("tw_im", twi),
                 bufs.constant("perm", perm, np.int32), np.int32(nfft), np.int32(lo), np.int32(hi),
                 np.int32(GUARD_BINS), d_bin, d_snr, d_power, np.int32(keep_power or store is not None),
-                np.int32(store is not None and index is not None and scatter),
+                np.int32(store is not None and indexed and scatter),
                 np.int32(echoes), np.int32(cfar.GUARD), np.int32(cfar.TRAIN),
                 bufs.constant("cfar_scale", cfar_scales()), np.int32(m),
-                d_ebin, d_esnr, d_ecount)
+                d_ebin, d_esnr, d_ecount, counted[0], np.int32(counted[1]))
         if uses_lanes(rt, nfft):
             groups = -(-transforms // LANES)
+            if listed is not None:
+                groups = min(groups, counted_groups(rt))
             rt.kernel("spectrum", "spectrum_lanes")(rt.queue, (groups,), (1,), *args,
                                                     *(cl.LocalMemory(4 * LANES * nfft),) * 3)
         else:
             lsz = local_size(rt, nfft)
+            groups = transforms if listed is None else min(transforms, counted_groups(rt))
             rt.kernel("spectrum", "spectrum_peak")(
-                rt.queue, (transforms * lsz,), (lsz,), *args,
+                rt.queue, (groups * lsz,), (lsz,), *args,
                 cl.LocalMemory(4 * nfft), cl.LocalMemory(4 * nfft), cl.LocalMemory(4 * half),
                 cl.LocalMemory(12 * lsz), cl.LocalMemory(half if echoes else 1))
+    if deferred:
+        return None
     if all(store is not None for _, _, store in jobs):      # the spectra stay for the next kernel
         return [(None, None, None)] * len(jobs)
-    views = out.download()
-    results = []
+    return results(out.download(), jobs, sweeps, nfft, echoes, keep_power)
+
+
+GROUPS_PER_UNIT = 8   # groups a compute unit of a counted launch (each loops over its share)
+
+
+def counted_groups(rt: Runtime) -> int:
+    """Work-groups of a launch whose count of rows the device holds (`listed`): each
+    takes every so-many-th transform, so that however few are listed they spread over
+    every compute unit (PoCL hands each thread a contiguous range of groups: listed rows
+    at the front of one launch over all rows left one core with the work, 1.9x slower)."""
+    return GROUPS_PER_UNIT * rt.device.max_compute_units
+
+
+def parts(jobs: list, sweeps: int, nfft: int, echoes: bool = False, keep_power: bool = False) -> list:
+    """The (dtype, count) of what `measure_each` of `jobs` writes, in order: each job's
+    peaks, echoes, and power when kept on the host."""
+    listed = sweeps if echoes else 0
+    m = cfar.MAX_ECHOES
+    out = []
+    for _, _, store in jobs:
+        own = keep_power and store is None
+        out += [(np.float32, sweeps), (np.float32, sweeps), (np.float32, listed * m),
+                (np.float32, listed * m), (np.int32, listed), (np.float32, sweeps * nfft // 2 if own else 1)]
+    return out
+
+
+def results(views: list, jobs: list, sweeps: int, nfft: int, echoes: bool = False,
+            keep_power: bool = False) -> list[tuple]:
+    """`measure_each`'s results from the host views of its `parts`."""
+    m, half = cfar.MAX_ECHOES, nfft // 2
+    got = []
     for i, (_, _, store) in enumerate(jobs):
         b, s, ebin, esnr, ecount, own = views[6 * i: 6 * i + 6]
         power = own.reshape(sweeps, half).copy() if keep_power and store is None else None
@@ -172,8 +209,8 @@ def measure_each(rt: Runtime, bufs: Buffers, jobs: list, velocity: np.ndarray | 
         if echoes:
             det = cfar.Detections(ebin.reshape(sweeps, m).astype(np.float64), esnr.reshape(sweeps, m).copy(),
                                   ecount.copy())
-        results.append((Peaks(b.astype(np.float64), s.copy()), power, det))
-    return results
+        got.append((Peaks(b.astype(np.float64), s.copy()), power, det))
+    return got
 
 
 def as_device(bufs: Buffers, rows) -> DeviceRows:

@@ -156,6 +156,16 @@ class SpectrumOps:
         beta of `betas`, the same velocities and rows (a backend: in one round trip)."""
         return [self.measure(x, beta, v, model, search, rows) for x, beta in zip(xs, betas, strict=True)]
 
+    def track(self, rows: tuple, times: Times, model: DopplerModel, search: Search, iterations: int,
+              single: bool) -> tuple[tuple, Passes | None]:
+        """The tracker's plain pass of both directions of `rows` (every echo with
+        `search.echoes`) and, when `single`, its de-chirp passes without integration
+        (`passes`; a backend: on the device, its state read once)."""
+        first = tuple(self.measure_each(rows, (model.beta_rise, model.beta_fall), None, model, search))
+        if not single:
+            return first, None
+        return first, passes(rows, times, model, replace(search, echoes=False), iterations, self, first, 1)
+
     def power(self, x, beta, v, nfft: int, rows=None) -> np.ndarray:
         return power(x, beta, v, nfft, rows)
 
@@ -389,18 +399,24 @@ def track_pairs(xr: np.ndarray, xf: np.ndarray, t_rise: np.ndarray, t_fall: np.n
         integrate.AUTO_SHARE of the single pairs are heard.
     """
     ops = ops or NUMPY
+    times = Times(t_rise, t_fall)
+    iterations = iterations if dechirp else 0
     # the plain pass (with every echo) does not depend on the integration: made once
-    betas = (model.beta_rise, model.beta_fall)
-    first = tuple(ops.measure_each((xr, xf), betas, None, model, search))
-    args = (xr, xf, t_rise, t_fall, model, replace(search, echoes=False), iterations, dechirp, ops, first)
-    if integrate_k is not None:
-        return _track(*args, integrate_k)
-    single = _track(*args, 1)
-    if single.heard.size == 0 or single.heard.mean() >= integrate.AUTO_SHARE:
-        return single
-    probe = _track(*args, integrate.PROBE)
+    first, single = ops.track((xr, xf), times, model, search, iterations, integrate_k in (1, None))
+
+    def tracked(k: int, state: Passes | None = None) -> PairResult:
+        if state is None:
+            state = passes((xr, xf), times, model, replace(search, echoes=False), iterations, ops, first, k)
+        return result(first, state, times, model, dechirp)
+
+    if integrate_k is not None and integrate_k > 1:
+        return tracked(integrate_k)
+    one = tracked(1, single)
+    if integrate_k is not None or one.heard.size == 0 or one.heard.mean() >= integrate.AUTO_SHARE:
+        return one
+    probe = tracked(integrate.PROBE)
     k = integrate.choose(measured_snr(probe), SNR_MIN_DB)
-    return probe if k == integrate.PROBE else _track(*args, k)
+    return probe if k == integrate.PROBE else tracked(k)
 
 
 def measured_snr(res: PairResult) -> float:
@@ -413,25 +429,66 @@ def measured_snr(res: PairResult) -> float:
     return median(10 ** (db.astype(np.float64) / 10) - 1)
 
 
-def _track(xr, xf, t_rise, t_fall, model: DopplerModel, search: Search, iterations: int, dechirp: bool,
-           ops: SpectrumOps, first: tuple, k: int) -> PairResult:
-    """track_pairs with a fixed integration k, from the plain pass `first` (the
-    measurements of both directions)."""
-    half_gap = 0.5 * (t_fall - t_rise)
-    t_mid = 0.5 * (t_fall + t_rise)
+@dataclass(frozen=True)
+class Times:
+    """A chunk's pairs in time (s): each half-sweep's centre, the pair's centre and half
+    the time between its sweeps' centres."""
+
+    rise: np.ndarray
+    fall: np.ndarray
+
+    @property
+    def mid(self) -> np.ndarray:
+        return 0.5 * (self.fall + self.rise)
+
+    @property
+    def half_gap(self) -> np.ndarray:
+        return 0.5 * (self.fall - self.rise)
+
+
+@dataclass
+class Passes:
+    """The tracker's state after its de-chirp passes: each pair's last apparent
+    distances (m) and SNRs (dB), the velocity it was de-chirped with (m/s), and how many
+    half-sweeps of a direction each measurement integrated (`k` at most)."""
+
+    d_r: np.ndarray
+    s_r: np.ndarray
+    d_f: np.ndarray
+    s_f: np.ndarray
+    vd: np.ndarray
+    count: np.ndarray
+    k: int = 1
+
+    @property
+    def snr_min(self) -> np.ndarray | float:
+        return snr_floor(self.count, self.k)
+
+
+def snr_floor(count: np.ndarray, k: int) -> np.ndarray | float:
+    """The SNR (dB) a pair's peaks must reach, integrated over `count` half-sweeps of the
+    K = k windows (stages.integrate): SNR_MIN_DB without integration."""
+    return SNR_MIN_DB if k == 1 else integrate.threshold_db(count, SNR_MIN_DB)
+
+
+def passes(rows: tuple, times: Times, model: DopplerModel, search: Search, iterations: int,
+           ops: SpectrumOps, first: tuple, k: int) -> Passes:
+    """The tracker's de-chirp passes (integrating k half-sweeps a measurement) from the
+    plain pass `first`: de-chirp every pair at its regularised velocity (`regularise`),
+    measure, solve, until no pair's velocity moves by STOP_MPS or `iterations` are done."""
+    xr, xf = rows
+    half_gap, t_mid = times.half_gap, times.mid
     vd = np.zeros(t_mid.size)          # the velocity each pair was last de-chirped with
-    (d_r, s_r, *e_r), (d_f, s_f, *e_f) = first
-    plain = (d_r.copy(), d_f.copy(), s_r.copy(), s_f.copy())
-    d_r, d_f, s_r, s_f = (a.copy() for a in plain)          # updated in place by the passes
+    (d_r, s_r, *_), (d_f, s_f, *_) = first
+    d_r, d_f, s_r, s_f = (a.copy() for a in (d_r, d_f, s_r, s_f))   # updated in place
     count = np.ones(t_mid.size, np.int32)
-    windows = _Windows(ops, (xr, xf), model, search, k, t_mid) if k > 1 else None
+    windows = _Windows(ops, rows, model, search, k, t_mid) if k > 1 else None
     if windows is not None:
         d_r, s_r, d_f, s_f, count = windows.measure(vd)
-    snr_min = SNR_MIN_DB if windows is None else integrate.threshold_db(count, SNR_MIN_DB)
-    dist, vel, dv = solve_pair(d_r, d_f, vd, half_gap, model)
-    heard = (s_r >= snr_min) & (s_f >= snr_min)
-    med = None                         # running_median(vel), while vel is unchanged
-    for it in range(iterations if dechirp else 0):
+    snr_min = snr_floor(count, k)
+    for it in range(iterations):
+        _, vel, _ = solve_pair(d_r, d_f, vd, half_gap, model)
+        heard = (s_r >= snr_min) & (s_f >= snr_min)
         # the plain first pass smears fast targets: allow 20 % there, not later
         med = running_median(vel)
         tol = CONSISTENT_MPS + (0.2 * np.abs(med) if it == 0 else 0.0)
@@ -440,7 +497,6 @@ def _track(xr, xf, t_rise, t_fall, model: DopplerModel, search: Search, iteratio
         moved = np.flatnonzero(np.abs(v_next - vd) >= STOP_MPS)
         if moved.size == 0:
             break
-        med = None
         vd[moved] = v_next[moved]
         if windows is not None:
             d_r, s_r, d_f, s_f, count = windows.measure(vd, moved)
@@ -448,12 +504,21 @@ def _track(xr, xf, t_rise, t_fall, model: DopplerModel, search: Search, iteratio
             every = None if moved.size == vd.size else moved
             (d_r[moved], s_r[moved]), (d_f[moved], s_f[moved]) = ops.measure_each(
                 (xr, xf), (model.beta_rise, model.beta_fall), vd[moved], model, search, every)
-        dist, vel, dv = solve_pair(d_r, d_f, vd, half_gap, model)
-        heard = (s_r >= snr_min) & (s_f >= snr_min)
-    med = running_median(vel) if med is None else med
+    return Passes(d_r, s_r, d_f, s_f, vd, count, k)
+
+
+def result(first: tuple, state: Passes, times: Times, model: DopplerModel, dechirp: bool) -> PairResult:
+    """The pairs' distances, velocities and validity from the plain pass `first` and
+    the state after the de-chirp passes."""
+    (d_r, s_r, *e_r), (d_f, s_f, *e_f) = first
+    dist, vel, dv = solve_pair(state.d_r, state.d_f, state.vd, times.half_gap, model)
+    snr_min = state.snr_min
+    heard = (state.s_r >= snr_min) & (state.s_f >= snr_min)
     valid = heard
     if dechirp:
+        med = running_median(vel)
         valid = valid & (np.abs(dv) < CONVERGED_MPS) & (np.abs(vel - med) < CONSISTENT_MPS)
-    continuous = continuity(t_mid, dist, vel, valid) if dechirp else np.ones(valid.size, bool)
-    return PairResult(dist, vel, valid, *plain, d_r, d_f, s_r, s_f, heard, continuous, count,
+    continuous = continuity(times.mid, dist, vel, valid) if dechirp else np.ones(valid.size, bool)
+    return PairResult(dist, vel, valid, d_r.copy(), d_f.copy(), s_r.copy(), s_f.copy(), state.d_r, state.d_f,
+                      state.s_r, state.s_f, heard, continuous, state.count,
                       *(e_r or [None]), *(e_f or [None]))

@@ -1,0 +1,73 @@
+"""Launcher of kernels/track.cl: the tracker's plain pass and de-chirp passes with the
+regularisation between them on the device (twin: fmcw_cl.stages.pairing.SpectrumOps.track,
+its `passes` without integration)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..stages import pairing
+from ..stages.spectrum import Search
+from . import spectrum as k_spectrum
+from .buffers import Buffers, DeviceRows, Packed
+from .context import Runtime, cl
+
+REACH_MAX = 16      # the running median's half-width the kernel holds (kernels/track.cl)
+
+
+def supported(rt: Runtime) -> bool:
+    """Whether the device runs the passes: they decide in double precision, as numpy."""
+    return rt.fp64 and pairing.NEIGHBOURS <= REACH_MAX
+
+
+def track(rt: Runtime, bufs: Buffers, rows: tuple[DeviceRows, DeviceRows], times: pairing.Times,
+          model: pairing.DopplerModel, search: Search, iterations: int) -> tuple[list, pairing.Passes]:
+    """The plain pass of both directions (every echo with `search.echoes`) and up to
+    `iterations` de-chirp passes, each regularising the velocities and re-measuring the
+    pairs whose de-chirp velocity moved (the passes stop on the device when none did).
+    One copy goes up (the pairs' times and the passes' state) and one comes down (the
+    plain pass's results and the tracker's state).
+
+    Returns
+    -------
+    first : measure_each's results of the plain pass, (Peaks, None, Detections or None)
+        per direction.
+    state : the tracker's state after the passes.
+    """
+    pairs = rows[0].shape[0]
+    f64, f32, i32 = np.float64, np.float32, np.int32
+    plain = [(x, None, None) for x in rows]
+    head = k_spectrum.parts(plain, pairs, model.nfft, search.echoes)
+    state = [(f64, pairs), (f32, pairs), (f64, pairs), (f32, pairs), (f64, pairs)]   # d_r s_r d_f s_f vd
+    out = Packed(bufs, "tracked", [*head, *state])
+    d_r, s_r, d_f, s_f, vd = out.buffers[len(head):]
+    # the passes' state: [pairs listed, stopped], both 0
+    d_mid, d_half, d_state = Packed(bufs, "track_in", [(f64, pairs), (f64, pairs), (i32, 2)]).upload(
+        times.mid, times.half_gap, 0)
+    vel, med, nxt = (bufs.get(f"track_{n}", 8 * pairs) for n in ("vel", "med", "next"))
+    trusted, prev, slot, listed, v32 = (bufs.get(f"track_{n}", 4 * pairs)
+                                        for n in ("trusted", "prev", "slot", "rows", "v32"))
+    band = (model.nfft, search.lo, search.hi)
+    k_spectrum.measure_each(rt, bufs, plain, None, *band, echoes=search.echoes, out=out)
+    dechirp = [(rows[0], model.beta_rise, None), (rows[1], model.beta_fall, None)]
+    again = Packed(bufs, "track_pass", k_spectrum.parts(dechirp, pairs, model.nfft))
+    lsz = 1 if rt.lanes else rt.group_size(16, 256)      # PoCL: one item loops without barriers' cost
+    kernel = rt.kernel("track", "track_pass")
+
+    def launch(it: int) -> None:
+        got = (out if it == 0 else again).buffers      # each direction's peaks: parts 0, 1 and 6, 7
+        kernel(rt.queue, (lsz,), (lsz,), i32(pairs), i32(it == 0), i32(it == iterations),
+               *(got[i] for i in (0, 1, 6, 7)), slot, f64(model.metres_per_bin), d_mid, d_half,
+               f64(model.k_rise), f64(model.k_fall), d_r, d_f, s_r, s_f, vd, i32(pairing.NEIGHBOURS),
+               f32(pairing.SNR_MIN_DB), f64(pairing.CONSISTENT_MPS), f64(0.2 if it == 0 else 0.0),
+               f64(pairing.STOP_MPS), vel, med, nxt, trusted, prev, listed, v32, d_state,
+               cl.LocalMemory(12 * lsz))
+
+    for it in range(iterations):
+        launch(it)
+        k_spectrum.measure_each(rt, bufs, dechirp, None, *band, picked=(listed, v32), listed=d_state,
+                                out=again)
+    launch(iterations)
+    views = out.download()
+    first = k_spectrum.results(views[: len(head)], plain, pairs, model.nfft, search.echoes)
+    return first, pairing.Passes(*(v.copy() for v in views[len(head):]), np.ones(pairs, np.int32))

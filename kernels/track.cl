@@ -1,0 +1,172 @@
+// Stage 6: the tracker's regularisation between its de-chirp passes, so that the passes
+// follow each other on the device and the host reads the tracker's state once. One launch
+// a pass, one work-group (the work is a few operations a pair; a launch costs more): each
+// pair's new measurements into the state and its velocity, the continuity median and the
+// trusted pairs, the velocities interpolated over the trusted pairs, and the pairs whose
+// de-chirp velocity moved, listed in order for the next measurement (their count in
+// state[0], which the measurement reads). Twin: fmcw_cl.stages.pairing.passes, in double
+// precision as numpy's (a device without it runs the passes on the host).
+#pragma OPENCL FP_CONTRACT OFF
+#if defined(cl_khr_fp64)
+#pragma OPENCL EXTENSION cl_khr_fp64 : enable
+
+#define REACH_MAX 16        // the median's half-width, at most (pairing.NEIGHBOURS: 8)
+
+// numpy's order: NaN above every number, equal to itself
+int before(const double a, const double b) { return !isnan(a) && (isnan(b) || a < b); }
+int same(const double a, const double b) { return a == b || (isnan(a) && isnan(b)); }
+
+// x into the sorted w[0..n), one place up from where it goes
+void insert(double *w, const int n, const double x)
+{
+    int j = n;
+    while (j > 0 && before(x, w[j - 1])) {
+        w[j] = w[j - 1];
+        --j;
+    }
+    w[j] = x;
+}
+
+// one value equal to x out of the sorted w[0..n)
+void remove(double *w, const int n, const double x)
+{
+    int j = 0;
+    while (j < n - 1 && !same(w[j], x)) ++j;
+    for (; j < n - 1; ++j) w[j] = w[j + 1];
+}
+
+// np.interp(t[i], t[trusted], med[trusted]) for a pair between trusted pairs p <= i < n
+// (either absent: -1), numpy's arithmetic and its fallbacks where it makes a NaN.
+double interpolated(__global const double *t, __global const double *med, const int i,
+                    const int p, const int n, const int first, const int last)
+{
+    if (p == i) return med[i];
+    if (p < 0) return med[first];
+    if (n < 0) return med[last];
+    const double slope = (med[n] - med[p]) / (t[n] - t[p]);
+    double r = slope * (t[i] - t[p]) + med[p];
+    if (isnan(r)) {
+        r = slope * (t[i] - t[n]) + med[n];
+        if (isnan(r) && med[p] == med[n]) r = med[p];
+    }
+    return r;
+}
+
+// One pass (`first`: the plain pass's, vd = 0; `last`: only the measurements into the
+// state). Each work-item takes a run of consecutive pairs. Nothing is done once the
+// passes have stopped (state[1]: a pass moved no pair).
+__kernel void track_pass(const int pairs, const int first, const int last,
+                         __global const float *bin_r, __global const float *snr_r,
+                         __global const float *bin_f, __global const float *snr_f,
+                         __global int *slot,                  // each pair's place in the list, -1: none
+                         const double metres_per_bin,
+                         __global const double *t,            // s, the pairs' centres
+                         __global const double *half_gap,     // s, half the sweeps' spacing
+                         const double k_rise, const double k_fall,
+                         __global double *d_r, __global double *d_f,     // m
+                         __global float *s_r, __global float *s_f,       // dB
+                         __global double *vd,                 // m/s: each pair's de-chirp velocity
+                         const int reach,                     // the median's half-width (pairs)
+                         const float snr_min, const double consistent,
+                         const double share,                  // of |median| added to `consistent`
+                         const double stop,                   // m/s: a pair moved
+                         __global double *vel, __global double *med, __global double *next,
+                         __global int *trusted, __global int *prev,
+                         __global int *rows, __global float *v32,   // the list: pairs, their velocity
+                         __global int *state,
+                         __local int *ends)                   // 3 per work-item
+{
+    const int lid = get_local_id(0);
+    const int lsz = get_local_size(0);
+    const int per = (pairs + lsz - 1) / lsz;
+    const int a = min(lid * per, pairs), b = min(a + per, pairs);
+    if (!state[1]) {                                  // uniform in the group: barriers are safe
+        // the new measurements (pairing.solve_pair)
+        for (int i = a; i < b; ++i) {
+            const int g = first ? i : slot[i];
+            if (first) vd[i] = 0.0;
+            if (g >= 0) {
+                d_r[i] = (double)bin_r[g] * metres_per_bin;
+                d_f[i] = (double)bin_f[g] * metres_per_bin;
+                s_r[i] = snr_r[g];
+                s_f[i] = snr_f[g];
+            }
+            const double hg = half_gap[i];
+            const double dv = (d_f[i] - d_r[i] - 2.0 * vd[i] * hg) / (2.0 * hg + k_fall - k_rise);
+            vel[i] = vd[i] + dv;
+        }
+        barrier(CLK_GLOBAL_MEM_FENCE);
+        if (!last) {
+            // the running median (ends extended) and the trusted pairs
+            double w[2 * REACH_MAX + 1];
+            const int size = 2 * reach + 1;
+            int l = -1, f = -1;                       // the run's last and first trusted pair
+            for (int i = a; i < b; ++i) {
+                if (i == a) {
+                    for (int k = 0; k < size; ++k) insert(w, k, vel[clamp(i - reach + k, 0, pairs - 1)]);
+                } else {
+                    remove(w, size, vel[clamp(i - 1 - reach, 0, pairs - 1)]);
+                    insert(w, size - 1, vel[clamp(i + reach, 0, pairs - 1)]);
+                }
+                const double m = w[reach];
+                med[i] = m;
+                const double tol = consistent + (share > 0.0 ? share * fabs(m) : 0.0);
+                const int ok = s_r[i] >= snr_min && s_f[i] >= snr_min && fabs(vel[i] - m) < tol;
+                trusted[i] = ok;
+                if (ok) {
+                    l = i;
+                    if (f < 0) f = i;
+                }
+            }
+            ends[3 * lid] = l;
+            ends[3 * lid + 1] = f;
+            barrier(CLK_LOCAL_MEM_FENCE | CLK_GLOBAL_MEM_FENCE);
+            // the next velocity of each pair (pairing.regularise) and whether it moved
+            int p = -1, n = -1, first_all = -1, last_all = -1;
+            for (int k = 0; k < lsz; ++k) {
+                const int lk = ends[3 * k], fk = ends[3 * k + 1];
+                if (k < lid && lk >= 0) p = lk;
+                if (k > lid && fk >= 0 && n < 0) n = fk;
+                if (fk >= 0 && first_all < 0) first_all = fk;
+                if (lk >= 0) last_all = lk;
+            }
+            for (int i = a; i < b; ++i) {             // the trusted pair at or before each
+                if (trusted[i]) p = i;
+                prev[i] = p;
+            }
+            int moved = 0;
+            for (int i = b - 1; i >= a; --i) {        // ... and after
+                if (trusted[i]) n = i;
+                const double v = first_all < 0 ? 0.0 : interpolated(t, med, i, prev[i], n, first_all, last_all);
+                next[i] = v;
+                moved += fabs(v - vd[i]) >= stop;
+            }
+            barrier(CLK_LOCAL_MEM_FENCE);
+            ends[3 * lid + 2] = moved;
+            barrier(CLK_LOCAL_MEM_FENCE);
+            // the moved pairs, listed in order
+            int at = 0, total = 0;
+            for (int k = 0; k < lsz; ++k) {
+                at += k < lid ? ends[3 * k + 2] : 0;
+                total += ends[3 * k + 2];
+            }
+            for (int i = a; i < b; ++i) {
+                const double v = next[i];
+                if (fabs(v - vd[i]) >= stop) {
+                    vd[i] = v;
+                    rows[at] = i;
+                    v32[at] = (float)v;
+                    slot[i] = at++;
+                } else {
+                    slot[i] = -1;
+                }
+            }
+            barrier(CLK_GLOBAL_MEM_FENCE);
+            if (lid == 0) {
+                state[0] = total;
+                state[1] = total == 0;
+            }
+        }
+    }
+}
+#endif
