@@ -305,7 +305,8 @@ class Capture:
         """Int16 arrays of `samples` (beat, sync) for `read_into`, slot i of those this
         capture holds: borrowed from `fmcw_cl.pool` and given back when the capture is
         closed, so that memory is touched once per process, not per capture or chunk
-        (the chunks take turns in slots 0 and 1, the sync delay's stretches use slot 1).
+        (the chunks take turns in slots 0 and 1, the sync delay's stretches use slot 1,
+        the delay refinement's held chunks slots 2 on).
         What a slot held is overwritten by its next user, after `close` by another
         capture."""
         with self._slots_lock:
@@ -318,7 +319,7 @@ class Capture:
             return self._slots[i][0][:samples], self._slots[i][1][:samples]
 
     def chunks(self, periods: int, margin: int = 0, start: int = 0, stop: int | None = None,
-               slots: int = 0) -> Iterator[Chunk]:
+               slots: int = 0, held: int | None = None) -> Iterator[Chunk]:
         """Iterate over the capture in chunks of whole modulation periods.
 
         Parameters
@@ -334,6 +335,9 @@ class Capture:
             0: every chunk in new arrays. k > 0: the chunks take turns in the capture's
             slots 0 .. k - 1 (`slot`), so chunk i's samples are overwritten by chunk
             i + k's: for a consumer that is done with a chunk k - 1 chunks later.
+        held : int, optional
+            Chunk i in slot `held` + i, its own, of its own length instead (a consumer
+            that keeps every chunk: the arrays are the pool's, touched before).
         """
         if periods < 1:
             raise ValueError("periods must be >= 1")
@@ -344,7 +348,9 @@ class Capture:
             core_stop = min(core_start + core, stop)
             lo = max(0, core_start - margin)
             hi = min(self.info.samples, core_stop + margin)
-            if not slots:
+            if held is not None:
+                beat, sync = self.read_into(lo, hi, *self.slot(held + i, hi - lo))
+            elif not slots:
                 beat, sync = self.read(lo, hi)
             else:
                 beat, sync = self.read_into(lo, hi, *self.slot(i % slots, size))

@@ -74,10 +74,14 @@ def read_chunks(cap: Capture, options: Options, start: int = 0, stop: int | None
     return ReadAhead(cap.chunks(options.chunk_periods, margin, start, stop, slots=2))
 
 
-def held_chunks(cap: Capture, options: Options, start: int, stop: int) -> list[Chunk]:
+HELD_SLOT = 2     # the first of the capture's slots that held chunks take (0, 1: read_chunks)
+
+
+def held_chunks(cap: Capture, options: Options, start: int, stop: int, slot: int = HELD_SLOT) -> list[Chunk]:
     """The chunks of `options` whose cores lie in samples [start, stop), each in arrays
-    of its own: for a caller that converts the same samples more than once."""
-    return list(cap.chunks(options.chunk_periods, margin_samples(cap.info, options), start, stop))
+    of its own, the capture's slots `slot`, `slot` + 1, ... (pooled memory, touched
+    before: Capture.slot): for a caller that converts the same samples more than once."""
+    return list(cap.chunks(options.chunk_periods, margin_samples(cap.info, options), start, stop, held=slot))
 
 
 def capture_parts(cap: Capture, plan: Plan, processor: ChunkProcessor, start: int = 0,

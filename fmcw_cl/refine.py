@@ -23,7 +23,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .capture import Capture
-from .chunks import held_chunks
+from .chunks import HELD_SLOT, held_chunks
 from .numeric import runs, travelled
 
 STRETCHES = 3
@@ -65,8 +65,12 @@ def stretches(cap: Capture, plan, processor) -> list[list[tuple]]:
     info = cap.info
     length = int(STRETCH_PERIODS * info.samples_per_period)
     starts = np.unique(np.linspace(0, max(0, info.samples - length), STRETCHES).astype(np.int64))
-    return [[(c, processor.prepare(c, info))
-             for c in held_chunks(cap, plan.options, int(a), int(a) + length)] for a in starts]
+    out, slot = [], HELD_SLOT
+    for a in starts:
+        chunks = held_chunks(cap, plan.options, int(a), int(a) + length, slot)
+        slot += len(chunks)
+        out.append([(c, processor.prepare(c, info)) for c in chunks])
+    return out
 
 
 def mismatch(held: list[list[tuple]], plan, lag: float, processor) -> Mismatch:

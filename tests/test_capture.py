@@ -147,6 +147,28 @@ def test_chunks_in_reused_slots_hold_the_same_samples(static_capture):
         assert seen[2] is seen[0] and seen[1] is not seen[0]
 
 
+def test_held_chunks_each_in_a_pooled_slot_of_their_own(static_capture):
+    """Held chunks (the delay refinement's trial stretches): every chunk's samples as a
+    fresh read, each in a slot of its own from `held` on, none sharing memory with
+    another or with the read-ahead's slots 0 and 1."""
+    from fmcw_cl.chunks import HELD_SLOT, held_chunks, margin_samples
+    from fmcw_cl.options import Options
+
+    with Capture(static_capture) as cap:
+        ring = [cap.slot(i, 10)[0] for i in (0, 1)]
+        opts = Options(chunk_periods=20)
+        first = held_chunks(cap, opts, 1000, 400_000)
+        second = held_chunks(cap, opts, 500_000, 700_000, HELD_SLOT + len(first))
+        fresh = list(cap.chunks(20, margin=margin_samples(cap.info, opts), start=1000, stop=400_000))
+        assert len(first) == len(fresh) >= 2
+        for got, want in zip(first, fresh, strict=True):
+            np.testing.assert_array_equal(got.beat, want.beat)
+            np.testing.assert_array_equal(got.sync, want.sync)
+        arrays = [a for c in first + second for a in (c.beat, c.sync)] + ring
+        for i, a in enumerate(arrays):
+            assert not any(np.shares_memory(a, b) for b in arrays[i + 1:])
+
+
 def test_slots_return_to_the_pool_for_the_next_capture(static_capture, monkeypatch):
     """A closed capture's slots serve the next capture (memory touched once per process);
     two open captures never share one; the pool keeps at most its limit, largest first."""
