@@ -134,6 +134,11 @@ class ChunkProcessor(pairing.SpectrumOps):
     def resample(self, codes, starts, lengths, u, win):
         return self.resample_each(codes, [(starts, lengths, u)], win)[0]
 
+    def resample_pairs(self, codes, jobs, win, times: pairing.Times) -> tuple[list, pairing.Times]:
+        """`resample_each` of a chunk's pairs (rising, falling) and their `times` for the
+        tracker (a device: taken up with the positions)."""
+        return self.resample_each(codes, jobs, win), times
+
     def clip_counts(self, codes, block, full_scale):
         raise NotImplementedError
 
@@ -161,12 +166,13 @@ class ChunkProcessor(pairing.SpectrumOps):
         if r.size == 0:
             return None
         f = r + 1
-        xr, xf = self.resample_each(chunk.beat, [(hs.start[r], hs.length[r], plan.lut.u_rise),
-                                                 (hs.start[f], hs.length[f], plan.lut.u_fall)], plan.window)
         fs = info.sample_rate_hz
         t_r = (chunk.start + hs.centre[r]) / fs
         t_f = (chunk.start + hs.centre[f]) / fs
-        res = pairing.track_pairs(xr, xf, t_r, t_f, plan.model, plan.search, plan.options.iterations,
+        (xr, xf), times = self.resample_pairs(chunk.beat, [(hs.start[r], hs.length[r], plan.lut.u_rise),
+                                                            (hs.start[f], hs.length[f], plan.lut.u_fall)],
+                                              plan.window, pairing.Times(t_r, t_f))
+        res = pairing.track_pairs(xr, xf, times, plan.model, plan.search, plan.options.iterations,
                                   plan.options.dechirp, self, plan.options.integrate)
         first = chunk.start + hs.start[r] + plan.lag      # sync time of the pair's first turn
         own = (first >= chunk.core_start) & (first < chunk.core_stop)

@@ -54,7 +54,7 @@ double interpolated(__global const double *t, __global const double *med, const 
 
 // One pass (`first`: the plain pass's, vd = 0; `last`: only the measurements into the
 // state). Each work-item takes a run of consecutive pairs. Nothing is done once the
-// passes have stopped (state[1]: a pass moved no pair).
+// passes have stopped (state[1], from the first pass on: a pass moved no pair).
 __kernel void track_pass(const int pairs, const int first, const int last,
                          __global const float *bin_r, __global const float *snr_r,
                          __global const float *bin_f, __global const float *snr_f,
@@ -80,7 +80,7 @@ __kernel void track_pass(const int pairs, const int first, const int last,
     const int lsz = get_local_size(0);
     const int per = (pairs + lsz - 1) / lsz;
     const int a = min(lid * per, pairs), b = min(a + per, pairs);
-    if (!state[1]) {                                  // uniform in the group: barriers are safe
+    if (first || !state[1]) {                         // uniform in the group: barriers are safe
         // the new measurements (pairing.solve_pair)
         for (int i = a; i < b; ++i) {
             const int g = first ? i : slot[i];

@@ -154,7 +154,8 @@ def test_pairing(pairs, kind, bin_, seed, dechirp):
         x = 8191.0 * np.sign(np.cos(2 * np.pi * bin_ / 64 * j) + rng.standard_normal((2, pairs, 1)))
     x = x * WIN
     t = np.arange(pairs) * 50e-6
-    res = pairing.track_pairs(x[0], x[1], t, t + 25e-6, MODEL, Search(2, MODEL.nfft // 2), 3, dechirp)
+    res = pairing.track_pairs(x[0], x[1], pairing.Times(t, t + 25e-6), MODEL, Search(2, MODEL.nfft // 2), 3,
+                              dechirp)
     assert res.distance.shape == res.velocity.shape == res.valid.shape == (pairs,)
     assert res.valid.dtype == bool
     assert np.all(np.isfinite(res.distance[res.valid]))

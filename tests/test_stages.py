@@ -153,14 +153,13 @@ def test_tracker_resolves_folds_and_the_paper_method_does_not():
                                  for i in range(pairs)), strict=False))
     lo = int(0.03 / model.metres_per_bin)
     assert abs(model.k_rise) * 7.0 > 0.12   # the fold really happens
-    res = pairing.track_pairs(xr, xf, t_mid - half_s / 2, t_mid + half_s / 2, model,
-                              Search(lo, model.nfft // 2))
+    times = pairing.Times(t_mid - half_s / 2, t_mid + half_s / 2)
+    res = pairing.track_pairs(xr, xf, times, model, Search(lo, model.nfft // 2))
     assert res.valid.mean() > 0.98
     ok = res.valid
     assert np.abs(res.distance[ok] - r[ok]).max() < 0.05e-3
     assert np.abs(res.velocity[ok] - v[ok]).max() < 2e-3
-    paper = pairing.track_pairs(xr, xf, t_mid - half_s / 2, t_mid + half_s / 2, model,
-                                Search(lo, model.nfft // 2), dechirp=False)
+    paper = pairing.track_pairs(xr, xf, times, model, Search(lo, model.nfft // 2), dechirp=False)
     assert np.percentile(np.abs(paper.distance - r), 95) > 5e-3   # centimetres off
 
 

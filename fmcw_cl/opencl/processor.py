@@ -10,6 +10,7 @@ turning-point grid, pairing, ownership and the tracker's verdicts stay on the ho
 from __future__ import annotations
 
 import functools
+from dataclasses import replace
 
 import numpy as np
 
@@ -115,6 +116,15 @@ class OpenCLProcessor(ChunkProcessor):
     def resample_each(self, codes, jobs, win):
         rows = k_resample.resample_each(self.rt, self.bufs, codes, jobs, win)
         return rows if self._fits(fft_length(win.size)) else [x.get() for x in rows]
+
+    def resample_pairs(self, codes, jobs, win, times):
+        """ChunkProcessor.resample_pairs: where the tracker's passes run here, the pairs'
+        times go up in the positions' copy."""
+        if not (k_track.supported(self.rt) and self._fits(fft_length(win.size))):
+            return super().resample_pairs(codes, jobs, win, times)
+        *rows, d_mid, d_half = k_resample.resample_each(self.rt, self.bufs, codes, jobs, win,
+                                                        (times.mid, times.half_gap))
+        return rows, replace(times, device=(d_mid, d_half))
 
     def clip_counts(self, codes, block, full_scale):
         return k_faults.clip_counts(self.rt, self.bufs, codes, block, full_scale)

@@ -25,8 +25,8 @@ def track(rt: Runtime, bufs: Buffers, rows: tuple[DeviceRows, DeviceRows], times
     """The plain pass of both directions (every echo with `search.echoes`) and up to
     `iterations` de-chirp passes, each regularising the velocities and re-measuring the
     pairs whose de-chirp velocity moved (the passes stop on the device when none did).
-    One copy goes up (the pairs' times and the passes' state) and one comes down (the
-    plain pass's results and the tracker's state).
+    One copy goes up, the pairs' times (none where `times.device` holds them already),
+    and one comes down (the plain pass's results and the tracker's state).
 
     Returns
     -------
@@ -41,9 +41,9 @@ def track(rt: Runtime, bufs: Buffers, rows: tuple[DeviceRows, DeviceRows], times
     state = [(f64, pairs), (f32, pairs), (f64, pairs), (f32, pairs), (f64, pairs)]   # d_r s_r d_f s_f vd
     out = Packed(bufs, "tracked", [*head, *state])
     d_r, s_r, d_f, s_f, vd = out.buffers[len(head):]
-    # the passes' state: [pairs listed, stopped], both 0
-    d_mid, d_half, d_state = Packed(bufs, "track_in", [(f64, pairs), (f64, pairs), (i32, 2)]).upload(
-        times.mid, times.half_gap, 0)
+    d_mid, d_half = times.device or Packed(bufs, "track_times", [(f64, pairs), (f64, pairs)]).upload(
+        times.mid, times.half_gap)
+    d_state = bufs.get("track_state", 8)          # [pairs listed, passes stopped]: the first pass sets
     vel, med, nxt = (bufs.get(f"track_{n}", 8 * pairs) for n in ("vel", "med", "next"))
     trusted, prev, slot, listed, v32 = (bufs.get(f"track_{n}", 4 * pairs)
                                         for n in ("trusted", "prev", "slot", "rows", "v32"))

@@ -375,16 +375,16 @@ class _Windows:
         return (*out, count)
 
 
-def track_pairs(xr: np.ndarray, xf: np.ndarray, t_rise: np.ndarray, t_fall: np.ndarray,
-                model: DopplerModel, search: Search, iterations: int = 6, dechirp: bool = True,
-                ops: SpectrumOps | None = None, integrate_k: int | None = 1) -> PairResult:
+def track_pairs(xr: np.ndarray, xf: np.ndarray, times: Times, model: DopplerModel, search: Search,
+                iterations: int = 6, dechirp: bool = True, ops: SpectrumOps | None = None,
+                integrate_k: int | None = 1) -> PairResult:
     """Doppler-free distance and velocity of consecutive rising/falling half-sweeps.
 
     Parameters
     ----------
     xr, xf : (P, N) resampled, windowed rising and falling half-sweeps of each pair
         (or a backend's device-resident equivalent).
-    t_rise, t_fall : (P,) centre times of those half-sweeps (s).
+    times : the centre times of those half-sweeps (s).
     model : the LUT's Doppler model.
     search : the band and rule of the peak search; with `search.echoes` the plain
         pass also lists every echo.
@@ -399,7 +399,6 @@ def track_pairs(xr: np.ndarray, xf: np.ndarray, t_rise: np.ndarray, t_fall: np.n
         integrate.AUTO_SHARE of the single pairs are heard.
     """
     ops = ops or NUMPY
-    times = Times(t_rise, t_fall)
     iterations = iterations if dechirp else 0
     # the plain pass (with every echo) does not depend on the integration: made once
     first, single = ops.track((xr, xf), times, model, search, iterations, integrate_k in (1, None))
@@ -432,10 +431,12 @@ def measured_snr(res: PairResult) -> float:
 @dataclass(frozen=True)
 class Times:
     """A chunk's pairs in time (s): each half-sweep's centre, the pair's centre and half
-    the time between its sweeps' centres."""
+    the time between its sweeps' centres; `device`: copies of (mid, half_gap) on a
+    device, where a processor took them up with the pairs' resampling positions."""
 
     rise: np.ndarray
     fall: np.ndarray
+    device: tuple | None = None
 
     @property
     def mid(self) -> np.ndarray:
