@@ -51,8 +51,11 @@ def track(rt: Runtime, bufs: Buffers, rows: tuple[DeviceRows, DeviceRows], times
     k_spectrum.measure_each(rt, bufs, plain, None, *band, echoes=search.echoes, out=out)
     dechirp = [(rows[0], model.beta_rise, None), (rows[1], model.beta_fall, None)]
     again = Packed(bufs, "track_pass", k_spectrum.parts(dechirp, pairs, model.nfft))
-    lsz = 1 if rt.lanes else rt.group_size(16, 256)      # PoCL: one item loops without barriers' cost
     kernel = rt.kernel("track", "track_pass")
+    # PoCL: one item loops without barriers' cost; elsewhere at most what the kernel's
+    # registers allow (its median window is 33 doubles an item)
+    lsz = 1 if rt.lanes else min(rt.group_size(16, 256), kernel.kernel.get_work_group_info(
+        cl.kernel_work_group_info.WORK_GROUP_SIZE, rt.device))
 
     def launch(it: int) -> None:
         got = (out if it == 0 else again).buffers      # each direction's peaks: parts 0, 1 and 6, 7
