@@ -144,9 +144,9 @@ class OpenCLProcessor(ChunkProcessor):
 
     def track(self, rows, times, model, search, iterations, single):
         """Twin: pairing.SpectrumOps.track; the passes on the device, their state read
-        by one copy (where the rows are there and the device has double precision)."""
-        if not (single and iterations > 0 and k_track.supported(self.rt)
-                and all(isinstance(x, DeviceRows) for x in rows)):
+        by one copy (where the transform fits, so that the rows are there, and the device
+        has double precision)."""
+        if not (single and iterations > 0 and k_track.supported(self.rt) and self._fits(model.nfft)):
             return super().track(rows, times, model, search, iterations, single)
         first, state = k_track.track(self.rt, self.bufs, rows, times, model, search, iterations)
         return tuple(_measured(first, model, search)), state
