@@ -148,12 +148,33 @@ int band(const int b, const int high, const int low)
 // either side of it.
 typedef struct { int last; int at; int before; int after; } Carry;
 
+// Carry s of an (spans, 4) array, and back
+Carry load_carry(__global const int *e, const int s)
+{
+    const Carry c = {e[4 * s], e[4 * s + 1], e[4 * s + 2], e[4 * s + 3]};
+    return c;
+}
+
+void store_carry(__global int *e, const int s, const Carry c)
+{
+    e[4 * s] = c.last;
+    e[4 * s + 1] = c.at;
+    e[4 * s + 2] = c.before;
+    e[4 * s + 3] = c.after;
+}
+
+// The crossing level (codes) of the header's percentiles: (a + b) / (40 factor)
+real head_level(__global const int *head, const int factor)
+{
+    return (real)((long)head[0] + head[1]) / (real)(40 * factor);
+}
+
 void span_walk(__global const int *sums, const int m, const int i0, const int i1, __global const int *head,
                Carry *c, const int emit, const int factor, const int hw, const int n, const int cap,
                __global int *centre, __global int *direction)
 {
     const int high = head[2], low = head[3], mid = head[4];
-    const real level = (real)((long)head[0] + head[1]) / (real)(40 * factor);
+    const real level = head_level(head, factor);
     int a = filtered(sums, m, i0 > 0 ? i0 - 1 : 0);
     int found = 0;
     for (int i = i0; i < i1; ++i) {
@@ -203,10 +224,7 @@ __kernel void span_ends(__global const int *sums,
     if (i0 >= m) return;
     Carry c = {0, -1, 0, 0};
     span_walk(sums, m, i0, min(i0 + span, m), head, &c, 0, 1, 0, 0, 0, 0, 0);
-    ends[4 * s] = c.last;
-    ends[4 * s + 1] = c.at;
-    ends[4 * s + 2] = c.before;
-    ends[4 * s + 3] = c.after;
+    store_carry(ends, s, c);
 }
 
 // In place: each span's ends become what the spans before it leave. One work-item; also
@@ -220,11 +238,8 @@ __kernel void span_carries(__global int *ends,
 {
     Carry c = {0, -1, 0, 0};
     for (int s = 0; s < spans; ++s) {
-        const Carry e = {ends[4 * s], ends[4 * s + 1], ends[4 * s + 2], ends[4 * s + 3]};
-        ends[4 * s] = c.last;
-        ends[4 * s + 1] = c.at;
-        ends[4 * s + 2] = c.before;
-        ends[4 * s + 3] = c.after;
+        const Carry e = load_carry(ends, s);
+        store_carry(ends, s, c);
         if (e.last != 0) c.last = e.last;
         if (e.at >= 0) {
             c.at = e.at;
@@ -232,7 +247,7 @@ __kernel void span_carries(__global int *ends,
             c.after = e.after;
         }
     }
-    params[0] = (real)((long)head[0] + head[1]) / (real)(40 * factor);
+    params[0] = head_level(head, factor);
     params[1] = spike_share * ((real)((long)head[1] - head[0]) / (real)(18 * factor));
 }
 
@@ -253,7 +268,7 @@ __kernel void span_crossings(__global const int *sums,
     const int s = get_global_id(0);
     const int i0 = s * span;
     if (i0 >= m) return;
-    Carry c = {carries[4 * s], carries[4 * s + 1], carries[4 * s + 2], carries[4 * s + 3]};
+    Carry c = load_carry(carries, s);
     span_walk(sums, m, i0, min(i0 + span, m), head, &c, 1, factor, hw, n, cap, centre + (size_t)s * cap,
               direction + (size_t)s * (cap + 1));
 }

@@ -29,7 +29,7 @@ def kernel_variant(request, backend):
     """Both variants of the kernels that have two, on the test's device: work-groups
     (GPUs: `spectrum_peak`, `line_fit`, `resample`, one block or output an item) and
     explicit float8/int8 lanes or spans of work an item (CPUs: `spectrum_lanes`,
-    `line_fit_lanes`, `resample_lanes`, `block_sum_span`, `crossing_changes_span`)."""
+    `line_fit_lanes`, `resample_lanes`, `block_sum_span`)."""
     rt = backend.rt
     chosen = rt.lanes
     rt.lanes = request.param == "lanes"

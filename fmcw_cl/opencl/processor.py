@@ -59,6 +59,11 @@ class OpenCLProcessor(ChunkProcessor):
         """Whether an nfft-point transform runs on this device (its local memory)."""
         return k_spectrum.fits(self.rt, nfft)
 
+    def _passes_here(self, nfft: int) -> bool:
+        """Whether the tracker's passes run on this device: its rows are here (the
+        transform fits) and it has double precision."""
+        return k_track.supported(self.rt) and self._fits(nfft)
+
     @property
     def batch_workers(self) -> int:
         """Captures a batch converts at once (batch.process_each). A GPU waits on the
@@ -120,7 +125,7 @@ class OpenCLProcessor(ChunkProcessor):
     def resample_pairs(self, codes, jobs, win, times):
         """ChunkProcessor.resample_pairs: where the tracker's passes run here, the pairs'
         times go up in the positions' copy."""
-        if not (k_track.supported(self.rt) and self._fits(fft_length(win.size))):
+        if not self._passes_here(fft_length(win.size)):
             return super().resample_pairs(codes, jobs, win, times)
         *rows, d_mid, d_half = k_resample.resample_each(self.rt, self.bufs, codes, jobs, win,
                                                         (times.mid, times.half_gap))
@@ -143,10 +148,9 @@ class OpenCLProcessor(ChunkProcessor):
         return _measured(got, model, search)
 
     def track(self, rows, times, model, search, iterations, single):
-        """Twin: pairing.SpectrumOps.track; the passes on the device, their state read
-        by one copy (where the transform fits, so that the rows are there, and the device
-        has double precision)."""
-        if not (single and iterations > 0 and k_track.supported(self.rt) and self._fits(model.nfft)):
+        """Twin: pairing.SpectrumOps.track; the passes on the device (`_passes_here`),
+        their state read by one copy."""
+        if not (single and iterations > 0 and self._passes_here(model.nfft)):
             return super().track(rows, times, model, search, iterations, single)
         first, state = k_track.track(self.rt, self.bufs, rows, times, model, search, iterations)
         return tuple(_measured(first, model, search)), state

@@ -187,13 +187,14 @@ def counted_groups(rt: Runtime) -> int:
 def parts(jobs: list, sweeps: int, nfft: int, echoes: bool = False, keep_power: bool = False) -> list:
     """The (dtype, count) of what `measure_each` of `jobs` writes, in order: each job's
     peaks, echoes, and power when kept on the host."""
-    listed = sweeps if echoes else 0
+    echo_rows = sweeps if echoes else 0
     m = cfar.MAX_ECHOES
     out = []
     for _, _, store in jobs:
         own = keep_power and store is None
-        out += [(np.float32, sweeps), (np.float32, sweeps), (np.float32, listed * m),
-                (np.float32, listed * m), (np.int32, listed), (np.float32, sweeps * nfft // 2 if own else 1)]
+        out += [(np.float32, sweeps), (np.float32, sweeps), (np.float32, echo_rows * m),
+                (np.float32, echo_rows * m), (np.int32, echo_rows),
+                (np.float32, sweeps * nfft // 2 if own else 1)]
     return out
 
 

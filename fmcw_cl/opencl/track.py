@@ -62,9 +62,9 @@ def track(rt: Runtime, bufs: Buffers, rows: tuple[DeviceRows, DeviceRows], times
         kernel(rt.queue, (lsz,), (lsz,), i32(pairs), i32(it == 0), i32(it == iterations),
                *(got[i] for i in (0, 1, 6, 7)), slot, f64(model.metres_per_bin), d_mid, d_half,
                f64(model.k_rise), f64(model.k_fall), d_r, d_f, s_r, s_f, vd, i32(pairing.NEIGHBOURS),
-               f32(pairing.SNR_MIN_DB), f64(pairing.CONSISTENT_MPS), f64(0.2 if it == 0 else 0.0),
-               f64(pairing.STOP_MPS), vel, med, nxt, trusted, prev, listed, v32, d_state,
-               cl.LocalMemory(12 * lsz))
+               f32(pairing.SNR_MIN_DB), f64(pairing.CONSISTENT_MPS),
+               f64(pairing.PLAIN_SHARE if it == 0 else 0.0), f64(pairing.STOP_MPS), vel, med, nxt, trusted,
+               prev, listed, v32, d_state, cl.LocalMemory(12 * lsz))
 
     for it in range(iterations):
         launch(it)

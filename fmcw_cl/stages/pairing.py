@@ -29,6 +29,7 @@ from .spectrum import Search, find_peaks, power_spectra
 
 SNR_MIN_DB = 10.0     # a half-sweep's peak must stand this far above the floor
 CONSISTENT_MPS = 0.1  # a velocity this far from its neighbours' median is an outlier
+PLAIN_SHARE = 0.2     # ... plus this share of |median| after the plain pass (its peaks smear)
 CONVERGED_MPS = 0.05  # final velocity correction must be below this (peak not smeared)
 NEIGHBOURS = 8        # half-width (pairs) of the continuity median
 STOP_MPS = 1e-3       # a pair is re-measured when its de-chirp velocity moves this much
@@ -490,9 +491,9 @@ def passes(rows: tuple, times: Times, model: DopplerModel, search: Search, itera
     for it in range(iterations):
         _, vel, _ = solve_pair(d_r, d_f, vd, half_gap, model)
         heard = (s_r >= snr_min) & (s_f >= snr_min)
-        # the plain first pass smears fast targets: allow 20 % there, not later
+        # the plain first pass smears fast targets: allow PLAIN_SHARE there, not later
         med = running_median(vel)
-        tol = CONSISTENT_MPS + (0.2 * np.abs(med) if it == 0 else 0.0)
+        tol = CONSISTENT_MPS + (PLAIN_SHARE * np.abs(med) if it == 0 else 0.0)
         v_next = regularise(vel, heard & (np.abs(vel - med) < tol), t_mid, med)
         # the plain pass is the de-chirp at 0 m/s: a still pair is not measured again
         moved = np.flatnonzero(np.abs(v_next - vd) >= STOP_MPS)
