@@ -186,18 +186,30 @@ class ChunkProcessor(pairing.SpectrumOps):
         core = slice((chunk.core_start - chunk.start) // faults.CLIP_BLOCK,
                      -(-(chunk.core_stop - chunk.start) // faults.CLIP_BLOCK))
         clipped_codes = int(counts[core].sum(dtype=np.int64))
-        alias = np.zeros(r.size, bool)
-        if plan.check is not None and r.size:
-            alias = self._beyond_range(chunk.beat, hs, r, f, sel)
+        check = self._range_check(hs, r, f, sel) if plan.check is not None and r.size else None
+        survey = self._survey((xr, xf), res, np.flatnonzero(own)) if plan.survey else None
+        checked, surveyed = self.check_and_survey(chunk.beat, check, survey)
+        alias = np.zeros(r.size, bool) if check is None else check.beyond(checked, sel, plan.lut)
         reason = faults.reasons(sel.valid, sel.heard, clip, alias, sel.continuous)
         sel.valid[:] = reason == faults.OK
-        survey = self._survey((xr, xf), (t_r, t_f), res, np.flatnonzero(own)) if plan.survey else None
-        return ChunkMeasurements(t_r[own], t_f[own], sel, reason, survey or no_survey(), clipped_codes)
+        table = no_survey() if surveyed is None else survey.table(surveyed, (t_r, t_f), plan.model)
+        return ChunkMeasurements(t_r[own], t_f[own], sel, reason, table, clipped_codes)
 
-    def _survey(self, rows: tuple, times: tuple, res: pairing.PairResult, own: np.ndarray) -> dict | None:
-        """The energy no sharp echo explains (echoes.hidden) in both half-sweeps of every
+    def check_and_survey(self, beat: np.ndarray, check: RangeCheck | None, survey: Survey | None
+                         ) -> tuple[list | None, list | None]:
+        """The range check's peaks, (distance, SNR) of each side (measure_each), and the
+        survey's (ratio, centroid, found) of each direction (survey_each); None for the
+        one not asked. A device: both in one trip each way."""
+        checked = None
+        if check is not None:
+            xs = self.resample_each(beat, check.jobs, check.window)
+            checked = self.measure_each(xs, (None, None), None, check.model, check.search)
+        return checked, None if survey is None else self.survey_each(*survey.args)
+
+    def _survey(self, rows: tuple, res: pairing.PairResult, own: np.ndarray) -> Survey | None:
+        """The survey of hidden echoes (echoes.hidden) in both half-sweeps of every
         SURVEY_STRIDE-th owned pair: their plain spectra and those de-chirped at the
-        pair's velocity."""
+        pair's velocity (None: nothing to survey)."""
         plan = self.plan
         m = plan.model
         idx = own[:: echoes.SURVEY_STRIDE]
@@ -209,25 +221,17 @@ class ChunkProcessor(pairing.SpectrumOps):
             o = det.take(idx).bin.copy()
             o[echoes.is_tracked(o * m.metres_per_bin, dist[idx, None])] = np.nan
             others.append(o)
-        got = self.survey_each(rows, (m.beta_rise, m.beta_fall), res.velocity[idx], m.nfft, idx,
-                               plan.search.lo,
-                               [d[idx] / m.metres_per_bin for d in (res.dechirped_rise, res.dechirped_fall)],
-                               [d[idx] / m.metres_per_bin for d in dists], others)
-        return {"time_s": np.concatenate([t[idx] for t in times]),
-                "ratio": np.concatenate([g[0] for g in got]),
-                "distance_m": np.concatenate([g[1] * m.metres_per_bin for g in got]),
-                "found": np.concatenate([g[2] for g in got])}
+        return Survey(idx, (rows, (m.beta_rise, m.beta_fall), res.velocity[idx], m.nfft, idx, plan.search.lo,
+                            [d[idx] / m.metres_per_bin for d in (res.dechirped_rise, res.dechirped_fall)],
+                            [d[idx] / m.metres_per_bin for d in dists], others))
 
-    def _beyond_range(self, beat: np.ndarray, hs, r: np.ndarray, f: np.ndarray,
-                      res: pairing.PairResult) -> np.ndarray:
+    def _range_check(self, hs, r: np.ndarray, f: np.ndarray, res: pairing.PairResult) -> RangeCheck:
         """The 2N-point range check of pairs (r, f) with the tracker's results `res`, on
         the plain spectra (a target whose Doppler-shifted plain peak folds is flagged too:
         the plain pass that starts the tracker cannot measure it), run on every
-        CHECK_STRIDE-th pair; a pair is flagged when a checked pair on either side of it
-        is (a target crosses the range limit within a few pairs, where the N-point
-        distance is ambiguous anyway). A target only crosses the limit through N-point
-        distances near it: in a chunk whose plain and Doppler-free distances all stay
-        below CHECK_NEAR of it, every CHECK_STRIDE_FAR-th pair is checked (a target
+        CHECK_STRIDE-th pair (RangeCheck.beyond). A target only crosses the limit through
+        N-point distances near it: in a chunk whose plain and Doppler-free distances all
+        stay below CHECK_NEAR of it, every CHECK_STRIDE_FAR-th pair is checked (a target
         beyond the range from the start is still found)."""
         plan = self.plan
         lut2, win2, model2 = plan.check
@@ -237,14 +241,51 @@ class ChunkProcessor(pairing.SpectrumOps):
         stride = CHECK_STRIDE if near else CHECK_STRIDE_FAR
         checked = np.unique(np.r_[np.arange(0, r.size, stride), r.size - 1])
         sides = ((r[checked], lut2.u_rise), (f[checked], lut2.u_fall))
-        xs = self.resample_each(beat, [(hs.start[idx], hs.length[idx], u) for idx, u in sides], win2)
-        got = self.measure_each(xs, (None, None), None, model2, Search(plan.search.lo, model2.nfft // 2))
+        return RangeCheck(checked, [(hs.start[idx], hs.length[idx], u) for idx, u in sides], win2, model2,
+                          Search(plan.search.lo, model2.nfft // 2))
+
+
+@dataclass(frozen=True)
+class RangeCheck:
+    """The 2N-point range check of a chunk's owned pairs: the pairs `checked`, the
+    resampling jobs of their rising and falling half-sweeps at 2N points, its window,
+    model and search."""
+
+    checked: np.ndarray
+    jobs: list
+    window: np.ndarray
+    model: pairing.DopplerModel
+    search: Search
+
+    def beyond(self, got: list, res: pairing.PairResult, lut) -> np.ndarray:
+        """Which of the pairs of `res` lie beyond the unambiguous range of `lut`, from the
+        checked pairs' 2N-point peaks `got`: a pair is flagged when a checked pair on
+        either side of it is (a target crosses the range limit within a few pairs, where
+        the N-point distance is ambiguous anyway)."""
+        checked, n = self.checked, res.distance.size
         beyond = np.zeros(checked.size, bool)
         for (d2, s2), dn in zip(got, (res.dist_rise[checked], res.dist_fall[checked]), strict=True):
-            beyond |= faults.beyond_range(d2, s2, plan.lut.unambiguous_range_m, pairing.SNR_MIN_DB, dn)
-        right = np.searchsorted(checked, np.arange(r.size))          # first checked pair >= i
-        left = np.searchsorted(checked, np.arange(r.size), side="right") - 1
+            beyond |= faults.beyond_range(d2, s2, lut.unambiguous_range_m, pairing.SNR_MIN_DB, dn)
+        right = np.searchsorted(checked, np.arange(n))          # first checked pair >= i
+        left = np.searchsorted(checked, np.arange(n), side="right") - 1
         return beyond[right] | beyond[np.maximum(left, 0)]
+
+
+@dataclass(frozen=True)
+class Survey:
+    """The survey of a chunk's hidden echoes: the surveyed pairs `idx` and `survey_each`'s
+    arguments for them."""
+
+    idx: np.ndarray
+    args: tuple
+
+    def table(self, got: list, times: tuple, model: pairing.DopplerModel) -> dict:
+        """The survey's columns (SURVEY_KEYS) from survey_each's results `got`, the pairs'
+        rising and falling times (s) `times`."""
+        return {"time_s": np.concatenate([t[self.idx] for t in times]),
+                "ratio": np.concatenate([g[0] for g in got]),
+                "distance_m": np.concatenate([g[1] * model.metres_per_bin for g in got]),
+                "found": np.concatenate([g[2] for g in got])}
 
 
 def no_survey() -> dict:

@@ -502,6 +502,44 @@ def test_wall_track_and_echoes_equal_numpy(wall_capture):
     np.testing.assert_allclose(a.attrs["target_band_m"], b.attrs["target_band_m"], atol=1e-5)
 
 
+def test_range_check_and_survey_in_one_trip_equal_each_alone(backend, kernel_variant, wall_capture, monkeypatch):
+    """A chunk's range check and survey by one copy each way (OpenCLProcessor.
+    check_and_survey), on a jump past a wall: each result bitwise equal to the two run
+    apart on the device, and to numpy's within float32."""
+    from dataclasses import replace
+
+    from fmcw_cl.processor import ChunkProcessor, NumpyProcessor
+
+    seen = []
+    fused = OpenCLProcessor.check_and_survey
+
+    def both(self, beat, check, survey):
+        got = fused(self, beat, check, survey)
+        if check is not None and survey is not None:
+            apart = ChunkProcessor.check_and_survey(self, beat, check, survey)
+            rows = tuple(x.get() for x in survey.args[0])
+            ref = NumpyProcessor().check_and_survey(beat, check, replace(survey, args=(rows, *survey.args[1:])))
+            seen.append((got, apart, ref))
+        return got
+
+    monkeypatch.setattr(OpenCLProcessor, "check_and_survey", both)
+    before = backend.traffic()["downloads"]
+    process(wall_capture, Options(chunk_periods=1024), backend)
+    assert len(seen) >= 3 and backend.traffic()["downloads"] > before
+    for (checked, surveyed), (checked1, surveyed1), (checked0, surveyed0) in seen:
+        for got, apart in zip((*checked, *surveyed), (*checked1, *surveyed1), strict=True):
+            for a, b in zip(got, apart, strict=True):
+                np.testing.assert_array_equal(a, b)
+        for (d, snr), (d0, snr0) in zip(checked, checked0, strict=True):
+            strong = snr0 > 15
+            assert strong.mean() > 0.5
+            np.testing.assert_allclose(d[strong], d0[strong], atol=1e-5)
+            np.testing.assert_allclose(snr[strong], snr0[strong], atol=0.05)
+        for (ratio, centroid, found), (ratio0, _, found0) in zip(surveyed, surveyed0, strict=True):
+            np.testing.assert_array_equal(found, found0)
+            np.testing.assert_allclose(ratio, ratio0, rtol=1e-3, atol=1e-4)
+
+
 @pytest.mark.parametrize("rows,nfft,lo", [(1, 2048, 64), (37, 2048, 20), (9, 4096, 100), (5, 128, 3)])
 def test_survey_kernel_matches_numpy(backend, kernel_variant, rows, nfft, lo):
     """The echo survey (kernels/survey.cl against echoes.hidden): a target, sometimes a

@@ -26,7 +26,7 @@ from . import spectrum as k_spectrum
 from . import survey as k_survey
 from . import sync as k_sync
 from . import track as k_track
-from .buffers import Buffers, DeviceRows
+from .buffers import Buffers, DeviceRows, Packed
 from .context import Runtime, runtime
 
 
@@ -180,24 +180,56 @@ class OpenCLProcessor(ChunkProcessor):
         velocities and bins go up in one copy, the results come back in one."""
         if not self._fits(nfft):
             return pairing.NUMPY.survey_each(xs, betas, v, nfft, rows, lo, tracked_bins, plain_bins, others)
-        # each direction plain (de-chirped at v along a zero basis: the phase is 0), then
-        # de-chirped at v
+        bins = list(zip(tracked_bins, plain_bins, others, strict=True))
+        d_in = k_survey.upload(self.bufs, bins, _picked(rows, v))
+        return self._surveyed(xs, betas, v, nfft, rows, lo, bins, d_in)
+
+    def _surveyed(self, xs, betas, v, nfft, rows, lo, bins, d_in, out=None, first=0):
+        """survey_each's launches, its inputs `d_in` already up (`_picked`, then `bins`):
+        each direction's spectra plain (de-chirped at v along a zero basis: the phase is
+        0) and de-chirped at v, left on the device, then k_survey.hidden_each (into `out`
+        from part `first`, when given)."""
         jobs, spectra = [], []
         for x, beta in zip(xs, betas, strict=True):
             both = [DeviceRows(self.bufs, np.size(rows), nfft // 2) for _ in range(2)]
             jobs += [(x, k_spectrum.zeros(x.shape[1]), both[0]), (x, beta, both[1])]
             spectra.append(both)
-        bins = list(zip(tracked_bins, plain_bins, others, strict=True))
-        d_in = k_survey.upload(self.bufs, bins, (np.asarray(rows, np.int32), np.asarray(v, np.float32)))
         k_spectrum.measure_each(self.rt, self.bufs, jobs, v, nfft, 1, index=rows, scatter=False,
                                 picked=d_in[:2])
         per = [(*sp, *b) for sp, b in zip(spectra, bins, strict=True)]
-        return k_survey.hidden_each(self.rt, self.bufs, per, lo, d_in[2:])
+        return k_survey.hidden_each(self.rt, self.bufs, per, lo, d_in[2:], out, first)
+
+    def check_and_survey(self, beat, check, survey):
+        """ChunkProcessor.check_and_survey in one trip each way: the survey's inputs go up
+        with the check's resampling positions, both results come down by one copy."""
+        if check is None or survey is None:
+            return super().check_and_survey(beat, check, survey)
+        xs, betas, v, nfft, rows, lo, tracked_bins, plain_bins, others = survey.args
+        if not (self._fits(check.model.nfft) and self._fits(nfft)):
+            return super().check_and_survey(beat, check, survey)
+        bins = list(zip(tracked_bins, plain_bins, others, strict=True))
+        checked = k_resample.resample_each(self.rt, self.bufs, beat, check.jobs, check.window,
+                                           k_survey.inputs(bins, _picked(rows, v)))
+        jobs = [(x, None, None) for x in checked[:2]]
+        sweeps, nfft2 = jobs[0][0].shape[0], check.model.nfft
+        first = k_spectrum.parts(jobs, sweeps, nfft2)
+        out = Packed(self.bufs, "check_survey", first + k_survey.parts([np.size(rows)] * len(xs)))
+        k_spectrum.measure_each(self.rt, self.bufs, jobs, None, nfft2, check.search.lo, check.search.hi,
+                                out=out)
+        self._surveyed(xs, betas, v, nfft, rows, lo, bins, checked[2:], out, len(first))
+        views = out.download()
+        got = k_spectrum.results(views[: len(first)], jobs, sweeps, nfft2)
+        return _measured(got, check.model, check.search), k_survey.results(views[len(first):])
 
     def integrated_peaks(self, store, disp, k, search):
         if not self._fits(2 * store.shape[1]):       # (pairs, nfft / 2) power spectra
             return pairing.NUMPY.integrated_peaks(store, disp, k, search)
         return k_integrate.peaks(self.rt, self.bufs, store, disp, k, search)
+
+
+def _picked(rows, v) -> tuple[np.ndarray, np.ndarray]:
+    """The rows picked and their velocities as the kernels take them (int32, float32)."""
+    return np.asarray(rows, np.int32), np.asarray(v, np.float32)
 
 
 def _measured(got: list, model, search) -> list[tuple]:

@@ -16,28 +16,39 @@ def hidden(rt: Runtime, bufs: Buffers, plain: DeviceRows, dechirped: DeviceRows,
     return hidden_each(rt, bufs, [(plain, dechirped, tracked_bin, plain_bin, others)], lo)[0]
 
 
-def upload(bufs: Buffers, bins: list, head: tuple = ()) -> list:
-    """The arrays of `head`, then each (tracked_bin, plain_bin, others) of `bins` (float32),
-    up by one copy: their sub-buffers in that order (`hidden_each`'s `inputs` after the
-    head's)."""
-    parts, values = [(a.dtype, a.size) for a in head], list(head)
+def inputs(bins: list, head: tuple = ()) -> list[np.ndarray]:
+    """The arrays of `head`, then each (tracked_bin, plain_bin, others) of `bins` as
+    float32, in the order `hidden_each` reads them (its `inputs` after the head's)."""
+    out = list(head)
     for tracked_bin, plain_bin, others in bins:
-        parts += [(np.float32, np.size(a)) for a in (tracked_bin, plain_bin, others)]
-        values += [tracked_bin, plain_bin, np.ravel(others)]
-    return Packed(bufs, "survey_in", parts).upload(*values)
+        out += [np.asarray(a, np.float32).ravel() for a in (tracked_bin, plain_bin, others)]
+    return out
 
 
-def hidden_each(rt: Runtime, bufs: Buffers, jobs: list, lo: int, inputs: list | None = None) -> list[tuple]:
+def upload(bufs: Buffers, bins: list, head: tuple = ()) -> list:
+    """`inputs`, up by one copy: their sub-buffers in that order."""
+    arrays = inputs(bins, head)
+    return Packed(bufs, "survey_in", [(a.dtype, a.size) for a in arrays]).upload(*arrays)
+
+
+def parts(counts: list[int]) -> list:
+    """The (dtype, count) of what `hidden_each` writes for jobs of `counts` rows each:
+    their ratio, centroid and found, in order."""
+    return [(dtype, rows) for rows in counts for dtype in (np.float32, np.float32, np.int32)]
+
+
+def hidden_each(rt: Runtime, bufs: Buffers, jobs: list, lo: int, inputs: list | None = None,
+                out: Packed | None = None, first: int = 0) -> list[tuple] | None:
     """`hidden` of each (plain, dechirped, tracked_bin, plain_bin, others) of `jobs` (a
     pair's two directions): their inputs go up in one copy (`inputs`: already up, from
-    `upload`), their results come back in one."""
+    `upload`), their results come back in one. With `out` (a Packed whose parts from
+    `first` on are `parts`') the results stay there and nothing comes back (None:
+    `results` reads them after its download)."""
     if inputs is None:
         inputs = upload(bufs, [job[2:] for job in jobs])
-    outputs = []
-    for plain, _, _, _, _ in jobs:
-        rows = plain.shape[0]
-        outputs += [(np.float32, rows), (np.float32, rows), (np.int32, rows)]
-    out = Packed(bufs, "survey_out", outputs)
+    deferred = out is not None
+    if out is None:
+        out = Packed(bufs, "survey_out", parts([plain.shape[0] for plain, *_ in jobs]))
     lsz = rt.group_size(16, 256)
     rules = (np.int32(echoes.EXPLAIN_BINS), np.float32(echoes.SHARP),
              np.float32(10 ** (-echoes.RIVAL_DB / 10)), np.float32(echoes.HIDDEN_SIGMAS))
@@ -46,20 +57,28 @@ def hidden_each(rt: Runtime, bufs: Buffers, jobs: list, lo: int, inputs: list | 
         if rows == 0:
             continue
         d_tracked, d_plain_bin, d_others = inputs[3 * i: 3 * i + 3]
-        results = out.buffers[3 * i: 3 * i + 3]
+        at = first + 3 * i
+        written = out.buffers[at: at + 3]
         band = half - lo
         if rt.lanes:
             rt.kernel("survey", "hidden_lanes")(
                 rt.queue, (-(-rows // 8),), (1,), plain.buffer, dechirped.buffer, np.int32(half),
-                np.int32(lo), np.int32(rows), d_tracked, d_plain_bin, d_others, np.int32(m), *rules, *results,
+                np.int32(lo), np.int32(rows), d_tracked, d_plain_bin, d_others, np.int32(m), *rules, *written,
                 cl.LocalMemory(32 * band), cl.LocalMemory(32 * band), cl.LocalMemory(32 * max(m, 1)))
         else:
             rt.kernel("survey", "hidden")(
                 rt.queue, (rows * lsz,), (lsz,), plain.buffer, dechirped.buffer, np.int32(half), np.int32(lo),
-                d_tracked, d_plain_bin, d_others, np.int32(m), *rules, *results,
+                d_tracked, d_plain_bin, d_others, np.int32(m), *rules, *written,
                 cl.LocalMemory(4 * band), cl.LocalMemory(24 * lsz), cl.LocalMemory(8))
+    if deferred:
+        return None
     if all(plain.shape[0] == 0 for plain, *_ in jobs):
         return [(np.zeros(0), np.zeros(0), np.zeros(0, bool))] * len(jobs)
-    got = out.download()
+    return results(out.download())
+
+
+def results(views: list) -> list[tuple]:
+    """`hidden_each`'s (ratio, centroid, found) of each job from the host views of its
+    `parts`."""
     return [(ratio.astype(np.float64), centroid.astype(np.float64), found.astype(bool))
-            for ratio, centroid, found in zip(got[0::3], got[1::3], got[2::3], strict=True)]
+            for ratio, centroid, found in zip(views[0::3], views[1::3], views[2::3], strict=True)]
