@@ -211,11 +211,12 @@ def peak_width_ratio(cap: Capture, plan, t0_s: float, time_s: np.ndarray | None,
         if not span.any() or np.median(np.abs(velocity_mps[span])) <= STILL_MPS:
             known = None
     nfft = plan.model.nfft
-    widths = []
+    jobs = []
     directions = (True, False)
     sels = [fits & (hs.rising == rising) for rising in directions]
-    jobs = [(hs.start[s], hs.length[s], plan.lut.u(up)) for s, up in zip(sels, directions, strict=True)]
-    for sel, rising, x in zip(sels, directions, backend.resample_each(beat, jobs, plan.window), strict=True):
+    rows = backend.resample_each(beat, [(hs.start[s], hs.length[s], plan.lut.u(up))
+                                        for s, up in zip(sels, directions, strict=True)], plan.window)
+    for sel, rising, x in zip(sels, directions, rows, strict=True):
         if not sel.any():
             continue
         beta = v = None
@@ -223,11 +224,13 @@ def peak_width_ratio(cap: Capture, plan, t0_s: float, time_s: np.ndarray | None,
             t = (a + hs.centre[sel]) / info.sample_rate_hz
             v = np.interp(t, time_s[known], velocity_mps[known])
             beta = plan.model.beta_rise if rising else plan.model.beta_fall
-        # in the target's band: a wall left out of it is not the target's peak
-        widths.append(_widths(backend.power(x, beta, v, nfft), plan.search.lo, plan.search.hi))
-    if not widths:
+        jobs.append((x, beta, v))
+    if not jobs:
         return float("nan")
     j = np.arange(plan.lut.points)
     tones = np.array([plan.window * np.cos(2 * np.pi * (0.2 + f) * j / 8) for f in (0.0, 0.25, 0.5)])
-    reference = float(np.nanmedian(_widths(backend.power(tones, None, None, nfft), 1)))
+    *spectra, own = backend.power_each([*jobs, (tones, None, None)], nfft)
+    # in the target's band: a wall left out of it is not the target's peak
+    widths = [_widths(power, plan.search.lo, plan.search.hi) for power in spectra]
+    reference = float(np.nanmedian(_widths(own, 1)))
     return float(np.nanmedian(np.concatenate(widths)) / reference)

@@ -109,6 +109,28 @@ def test_both_directions_in_one_trip_equal_each_alone(backend, kernel_variant, s
                 np.testing.assert_array_equal(getattr(got[2], k), getattr(alone[2], k))
 
 
+@pytest.mark.parametrize("nfft", [128, 2048])
+def test_power_spectra_of_several_row_counts_in_one_trip(backend, kernel_variant, nfft):
+    """power_each (the tuning check's rising, falling and reference spectra): rows of
+    other counts, plain and de-chirped, by one download, each bit for bit as alone and
+    within float32 of numpy's."""
+    rng = np.random.default_rng(nfft)
+    points = nfft // 2 - 5
+    beta = rng.uniform(-20, 20, points)
+    jobs = [(rng.normal(0, 50, (n, points)).astype(np.float32), b, v)
+            for n, b, v in ((7, beta, rng.uniform(-6, 6, 7)), (4, -beta, rng.uniform(-6, 6, 4)),
+                            (3, None, None), (0, None, None))]
+    before = backend.traffic()["downloads"]
+    got = backend.power_each(jobs, nfft)
+    assert backend.traffic()["downloads"] == before + 1
+    for (x, b, v), spec in zip(jobs, got, strict=True):
+        assert spec.shape == (x.shape[0], nfft // 2)
+        np.testing.assert_array_equal(spec, backend.power(x, b, v, nfft))
+        ref = spectrum.power_spectra(x if v is None else x * np.exp(-2j * np.pi * np.outer(v, b)), nfft)
+        # float32 phases of tens of cycles: the de-chirped rows 1e-4
+        assert np.abs(spec - ref).max(initial=0) <= (1e-5 if v is None else 1e-4) * ref.max(initial=1)
+
+
 def test_fft_tables_undo_the_digit_reversal():
     for nfft in (8, 32, 2048, 4096):
         _, _, perm = k_spectrum.tables(nfft)

@@ -162,6 +162,21 @@ class OpenCLProcessor(ChunkProcessor):
         _, spec, _ = k_spectrum.measure(self.rt, self.bufs, x, beta, v, nfft, 1, keep_power=True, index=rows)
         return spec
 
+    def power_each(self, jobs, nfft):
+        """Twin: pairing.SpectrumOps.power_each; every spectrum comes back by one copy."""
+        if not self._fits(nfft):
+            return pairing.NUMPY.power_each(jobs, nfft)
+        each = [([(x, beta, None)], np.shape(x)[0], v) for x, beta, v in jobs]
+        parts = [k_spectrum.parts(one, rows, nfft, keep_power=True) for one, rows, _ in each]
+        out = Packed(self.bufs, "power", [p for part in parts for p in part])
+        firsts = np.cumsum([0, *map(len, parts)])[:-1].tolist()
+        for (one, _, v), first in zip(each, firsts, strict=True):
+            k_spectrum.measure_each(self.rt, self.bufs, one, v, nfft, 1, keep_power=True, out=out,
+                                    first=first)
+        views = out.download()
+        return [k_spectrum.results(views[first: first + len(part)], one, rows, nfft, keep_power=True)[0][1]
+                for (one, rows, _), part, first in zip(each, parts, firsts, strict=True)]
+
     def spectra(self, x, beta, v, nfft, rows=None, store=None):
         """`store` (DeviceRows of power spectra, new when None) with the rows `rows`
         replaced by their power spectra; twin: pairing.SpectrumOps.spectra."""

@@ -101,13 +101,13 @@ def measure(rt: Runtime, bufs: Buffers, rows, beta: np.ndarray | None,
 def measure_each(rt: Runtime, bufs: Buffers, jobs: list, velocity: np.ndarray | None, nfft: int, lo: int,
                  hi: int | None = None, keep_power: bool = False, index: np.ndarray | None = None,
                  echoes: bool = False, scatter: bool = True, picked: tuple | None = None,
-                 out: Packed | None = None, listed=None) -> list[tuple] | None:
+                 out: Packed | None = None, first: int = 0, listed=None) -> list[tuple] | None:
     """`measure` of each (rows, beta, store) of `jobs` (rows of one shape: a pair's
     rising and falling half-sweeps) with the same picked rows, velocities and band: the
     picked rows and velocities go up once (`picked`: their device buffers, already up,
     int32 and float32) and every result comes back by one download. With `out` (a
-    Packed whose first parts are `parts`') the results stay there and nothing comes
-    back (None: `results` reads them after its download). `listed`: a device int, how
+    Packed whose parts from `first` on are `parts`') the results stay there and nothing
+    comes back (None: `results` reads them after its download). `listed`: a device int, how
     many of the `picked` rows to de-chirp (at most all rows; the tracker's list of the
     pairs to measure again, kernels/track.cl), `velocity` then unused."""
     up = {id(rows): as_device(bufs, rows) for rows, _, _ in jobs}      # a host array goes up once
@@ -142,7 +142,7 @@ def measure_each(rt: Runtime, bufs: Buffers, jobs: list, velocity: np.ndarray | 
     counted = (listed, 1) if listed is not None else (bufs.constant("index0", zeros(1), np.int32), 0)
     transforms = sweeps if dechirp else (sweeps + 1) // 2    # plain rows: two per transform
     for i, (rows, (_, beta, store)) in enumerate(zip(rows_of, jobs, strict=True)):
-        d_bin, d_snr, d_ebin, d_esnr, d_ecount, d_own = out.buffers[6 * i: 6 * i + 6]
+        d_bin, d_snr, d_ebin, d_esnr, d_ecount, d_own = out.buffers[first + 6 * i: first + 6 * i + 6]
         d_power = store.buffer if store is not None else d_own
         args = (rows.buffer, np.int32(sweeps), np.int32(points), d_index,
                 np.int32(indexed), bufs.constant("beta", beta if dechirp else zeros(points)), d_v,

@@ -170,6 +170,11 @@ class SpectrumOps:
     def power(self, x, beta, v, nfft: int, rows=None) -> np.ndarray:
         return power(x, beta, v, nfft, rows)
 
+    def power_each(self, jobs: list, nfft: int) -> list[np.ndarray]:
+        """`power` of each (x, beta, v) of `jobs`, rows of any count each (a backend: one
+        download)."""
+        return [self.power(x, beta, v, nfft) for x, beta, v in jobs]
+
     def spectra(self, x, beta, v, nfft: int, rows=None, store=None):
         """`store` (a (sweeps, nfft/2) array, new when None) with the rows `rows` (all
         when None) replaced by their power spectra, de-chirped at v (plain when None)."""
