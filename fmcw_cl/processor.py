@@ -118,8 +118,12 @@ class ChunkProcessor(pairing.SpectrumOps):
         return None
 
     # -- stage operations, each a twin of a stages/ function --
-    def intensity(self, codes, sample_rate_hz):
+    def intensity_each(self, channels, sample_rate_hz) -> list[tuple]:
+        """`lpf.intensity` of each array of `channels` (a device: one download)."""
         raise NotImplementedError
+
+    def intensity(self, codes, sample_rate_hz):
+        return self.intensity_each([codes], sample_rate_hz)[0]
 
     def fit_periods(self, y, z, shift, period, span):
         raise NotImplementedError
@@ -306,8 +310,8 @@ class NumpyProcessor(ChunkProcessor):
     def fork(self) -> NumpyProcessor:
         return NumpyProcessor()
 
-    def intensity(self, codes, sample_rate_hz):
-        return lpf.intensity(codes, sample_rate_hz)
+    def intensity_each(self, channels, sample_rate_hz):
+        return lpf.intensity_each(channels, sample_rate_hz)
 
     def fit_periods(self, y, z, shift, period, span):
         return sync.fit_periods(y, z, shift, period, span)

@@ -479,6 +479,14 @@ def test_lpf_kernel_rows_match_numpy(backend, rows, n):
     assert np.all(np.abs(got[0] - ref[0]) < 1e-3)
     for r in range(rows):                                   # and the same as each row alone
         assert np.all(np.abs(got[0][r] - backend.intensity(codes[r], 100e6)[0]) < 1e-3)
+    # with a second channel of other rows (the beat and the sync), by one download
+    other = codes[:, : n // 2 + 1][::-1].copy()
+    before = backend.traffic()["downloads"]
+    both = backend.intensity_each([codes, other], 100e6)
+    assert backend.traffic()["downloads"] == before + (both[0][0].size + both[1][0].size > 0)  # none: none
+    np.testing.assert_array_equal(both[0][0], got[0])
+    np.testing.assert_array_equal(both[1][0], backend.intensity(other, 100e6)[0])
+    assert both[1][1:] == ref[1:]
 
 
 def test_kernels_build_without_warnings(backend):
@@ -524,7 +532,8 @@ def test_wall_track_and_echoes_equal_numpy(wall_capture):
     np.testing.assert_allclose(a.attrs["target_band_m"], b.attrs["target_band_m"], atol=1e-5)
 
 
-def test_range_check_and_survey_in_one_trip_equal_each_alone(backend, kernel_variant, wall_capture, monkeypatch):
+def test_range_check_and_survey_in_one_trip_equal_each_alone(backend, kernel_variant, wall_capture,
+                                                              monkeypatch):
     """A chunk's range check and survey by one copy each way (OpenCLProcessor.
     check_and_survey), on a jump past a wall: each result bitwise equal to the two run
     apart on the device, and to numpy's within float32."""
@@ -540,7 +549,8 @@ def test_range_check_and_survey_in_one_trip_equal_each_alone(backend, kernel_var
         if check is not None and survey is not None:
             apart = ChunkProcessor.check_and_survey(self, beat, check, survey)
             rows = tuple(x.get() for x in survey.args[0])
-            ref = NumpyProcessor().check_and_survey(beat, check, replace(survey, args=(rows, *survey.args[1:])))
+            on_host = replace(survey, args=(rows, *survey.args[1:]))
+            ref = NumpyProcessor().check_and_survey(beat, check, on_host)
             seen.append((got, apart, ref))
         return got
 
@@ -557,9 +567,10 @@ def test_range_check_and_survey_in_one_trip_equal_each_alone(backend, kernel_var
             assert strong.mean() > 0.5
             np.testing.assert_allclose(d[strong], d0[strong], atol=1e-5)
             np.testing.assert_allclose(snr[strong], snr0[strong], atol=0.05)
-        for (ratio, centroid, found), (ratio0, _, found0) in zip(surveyed, surveyed0, strict=True):
+        for (ratio, centroid, found), (ratio0, centroid0, found0) in zip(surveyed, surveyed0, strict=True):
             np.testing.assert_array_equal(found, found0)
             np.testing.assert_allclose(ratio, ratio0, rtol=1e-3, atol=1e-4)
+            np.testing.assert_allclose(centroid, centroid0, rtol=1e-4)
 
 
 @pytest.mark.parametrize("rows,nfft,lo", [(1, 2048, 64), (37, 2048, 20), (9, 4096, 100), (5, 128, 3)])

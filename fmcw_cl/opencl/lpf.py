@@ -7,7 +7,7 @@ import functools
 import numpy as np
 
 from ..stages import lpf
-from .buffers import Buffers
+from .buffers import Buffers, Packed
 from .context import Runtime
 
 
@@ -30,20 +30,29 @@ def intensity(rt: Runtime, bufs: Buffers, x: np.ndarray, sample_rate_hz: float,
               factor: int = lpf.DECIMATION) -> tuple[np.ndarray, float, float]:
     """Low-passed int16 codes at the decimated rate, of each row alone when x is
     (rows, samples), all rows in one launch a kernel (see the numpy twin)."""
-    if x.dtype != np.int16:
+    return intensity_each(rt, bufs, [x], sample_rate_hz, factor)[0]
+
+
+def intensity_each(rt: Runtime, bufs: Buffers, channels: list, sample_rate_hz: float,
+                   factor: int = lpf.DECIMATION) -> list[tuple[np.ndarray, float, float]]:
+    """`intensity` of each array of `channels` (the beat and the sync), every result
+    back by one download."""
+    if any(x.dtype != np.int16 for x in channels):
         raise TypeError("the low-pass kernel takes int16 ADC codes")
     h = cic_taps(factor)
-    rows = x.shape[0] if x.ndim == 2 else 1
-    m = lpf.outputs(x.shape[-1], factor)
-    out = np.empty((*x.shape[:-1], m), np.float32)
-    if out.size:
-        taps = fir_taps(sample_rate_hz / factor)
-        d_dec = bufs.get("lpf_decimated", out.nbytes)
-        d_out = bufs.get("lpf_out", out.nbytes)
-        rt.kernel("lpf", "cic_decimate")(rt.queue, *rt.items(out.size), bufs.upload_once("lpf_in", x),
+    taps = fir_taps(sample_rate_hz / factor)
+    shapes = [(*x.shape[:-1], lpf.outputs(x.shape[-1], factor)) for x in channels]
+    out = Packed(bufs, "lpf_out", [(np.float32, int(np.prod(shape))) for shape in shapes])
+    for i, (x, view, d_out) in enumerate(zip(channels, out.views, out.buffers, strict=True)):
+        if not view.size:
+            continue
+        rows, m = x.shape[0] if x.ndim == 2 else 1, shapes[i][-1]
+        d_dec = bufs.get("lpf_decimated", view.nbytes)      # read by the next launch alone
+        rt.kernel("lpf", "cic_decimate")(rt.queue, *rt.items(view.size), bufs.upload_once(f"lpf_in{i}", x),
                                          bufs.constant("lpf_cic", h), np.int32(h.size), np.int32(factor),
                                          np.int32(m), np.int32(rows), np.int32(x.shape[-1]), d_dec)
-        rt.kernel("lpf", "fir_same")(rt.queue, *rt.items(out.size), d_dec, np.int32(m), np.int32(rows),
+        rt.kernel("lpf", "fir_same")(rt.queue, *rt.items(view.size), d_dec, np.int32(m), np.int32(rows),
                                      bufs.constant("lpf_taps", taps), np.int32(taps.size // 2), d_out)
-        rt.copy(out, d_out)
-    return out.astype(np.float64), lpf.CIC_ORDER * (factor - 1) / 2.0, float(factor)
+    views = out.download() if any(v.size for v in out.views) else out.views
+    return [(view.reshape(shape).astype(np.float64), lpf.CIC_ORDER * (factor - 1) / 2.0, float(factor))
+            for view, shape in zip(views, shapes, strict=True)]

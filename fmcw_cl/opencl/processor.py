@@ -100,8 +100,8 @@ class OpenCLProcessor(ChunkProcessor):
         traffic.events = [] if on else None
         return busy
 
-    def intensity(self, codes, sample_rate_hz):
-        return k_lpf.intensity(self.rt, self.bufs, codes, sample_rate_hz)
+    def intensity_each(self, channels, sample_rate_hz):
+        return k_lpf.intensity_each(self.rt, self.bufs, channels, sample_rate_hz)
 
     def fit_periods(self, y, z, shift, period, span):
         return k_delay.fit_periods(self.rt, self.bufs, y, z, shift, period, span)

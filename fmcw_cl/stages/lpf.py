@@ -82,6 +82,11 @@ def intensity(beat: np.ndarray, sample_rate_hz: float, factor: int = DECIMATION
     return lowpass(dec, lowpass_taps(sample_rate_hz / factor)), t0, float(factor)
 
 
+def intensity_each(channels, sample_rate_hz: float) -> list[tuple[np.ndarray, float, float]]:
+    """`intensity` of each array of `channels` (a backend's twin: one download)."""
+    return [intensity(x, sample_rate_hz) for x in channels]
+
+
 def outputs(samples: int, factor: int = DECIMATION) -> int:
     """Decimated samples from `samples` inputs (the CIC's whole outputs)."""
     return max(0, (samples - (CIC_ORDER - 1) * (factor - 1)) // factor)

@@ -371,8 +371,8 @@ def sync_turning_points(sync: np.ndarray, half_period: float, fit=fitted) -> Tur
 MAX_DELAY_SAMPLES = 400  # search range of the sync-to-optics delay
 
 
-def period_delays(beat: np.ndarray, sync: np.ndarray, sample_rate_hz: float,
-                  half_period: float, intensity=lpf.intensity, fit=None) -> tuple[np.ndarray, np.ndarray]:
+def period_delays(beat: np.ndarray, sync: np.ndarray, sample_rate_hz: float, half_period: float,
+                  intensity_each=lpf.intensity_each, fit=None) -> tuple[np.ndarray, np.ndarray]:
     """Per-period estimates of how far the sync lags the optics (samples).
 
     The low-passed beat carries the laser intensity triangle, which has the optical
@@ -383,8 +383,9 @@ def period_delays(beat: np.ndarray, sync: np.ndarray, sample_rate_hz: float,
     regression's scale takes it.
 
     `beat` and `sync` are (samples,), or (stretches, samples): stretches of the capture,
-    low-passed by one call of `intensity` (lpf.intensity or a backend's kernel) and
-    fitted each alone, all by one call of `fit` (fit_periods or a backend's kernel).
+    both channels low-passed by one call of `intensity_each` (lpf.intensity_each or a
+    backend's kernels) and fitted each alone, all by one call of `fit` (fit_periods or
+    a backend's kernel).
 
     Returns
     -------
@@ -392,8 +393,7 @@ def period_delays(beat: np.ndarray, sync: np.ndarray, sample_rate_hz: float,
     misfit : (P,) rms residual of each period's fit relative to the triangle's rms;
         large where a target beat near 0 Hz leaks into the low band.
     """
-    y, _, step = intensity(beat, sample_rate_hz)
-    z, _, _ = intensity(sync, sample_rate_hz)
+    (y, _, step), (z, _, _) = intensity_each((beat, sync), sample_rate_hz)
     y, z = np.atleast_2d(y), np.atleast_2d(z)
     edge = lpf.TAPS // 2 + 1
     y, z = y[:, edge:-edge], z[:, edge:-edge]
