@@ -46,9 +46,8 @@ def test_kernels_pass_oclgrind_checks(tmp_path, group):
 def test_whole_pipeline_passes_oclgrind_checks(tmp_path, scene):
     """`fmcw-cl process` of a small capture, start to end on the simulator with its race,
     uninitialised-value and API checks: a still target, and the jump's take-off at 7 m/s
-    (de-chirp passes, folds). The track equals numpy's. Without the range check: after a
-    chunk's N-point resampling, Oclgrind reports the 2N-point resampling's stores of work-
-    item 0 as uninitialised, whose values equal numpy's (docs/pipeline.md)."""
+    (de-chirp passes, folds), the range check and the survey included. The track equals
+    numpy's."""
     import fmcw_cl
     from fmcw_cl.engine import process
     from fmcw_cl.options import Options
@@ -64,14 +63,15 @@ def test_whole_pipeline_passes_oclgrind_checks(tmp_path, scene):
     env = {**os.environ, **CHECKS, "OCLGRIND_LOG": str(log)}
     env.pop("PYOPENCL_CTX", None)
     proc = subprocess.run([sys.executable, "-m", "fmcw_cl.cli.main", "process", str(cap), "-o", str(tmp_path),
-                           "--device", "Oclgrind", "--no-range-check"],
+                           "--device", "Oclgrind"],
                           capture_output=True, text=True, env=env, timeout=900)
     assert proc.returncode == 0, proc.stderr[-3000:]
     diagnostics = log.read_text() if log.exists() else ""
     assert diagnostics == "", diagnostics[:3000]
     got = read_track(tmp_path / f"{scene}.track.h5")
     assert got.attrs["device"].startswith("Oclgrind")
-    ref = process(cap, Options(range_check=False), NumpyProcessor())
+    ref = process(cap, Options(), NumpyProcessor())
+    assert got.attrs["range_check"] and ref.attrs["range_check"]
     np.testing.assert_array_equal(got.valid, ref.valid)
     assert ref.valid.mean() > 0.9
     assert np.abs(got.distance_m - ref.distance_m)[ref.valid].max() < 1e-5

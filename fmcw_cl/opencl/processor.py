@@ -2,9 +2,10 @@
 block sums, level, hysteresis and line fits, the clipping counts, resampling, the
 de-chirp/FFT/peak/echo stage and the tracker's passes with their regularisation on a
 device. The resampled half-sweeps stay on the device; the sync's line fits (the clipping
-counts riding with them) and the tracker's state come back, one download each. The
-turning-point grid, pairing, ownership and the tracker's verdicts stay on the host
-(docs/pipeline.md). CPU devices get the lanes variants of the kernels that have two.
+counts riding with them), the tracker's state, and the range check's peaks with the
+survey's results come back, one download each. The turning-point grid, pairing,
+ownership and the tracker's verdicts stay on the host (docs/pipeline.md). CPU devices get
+the lanes variants of the kernels that have two.
 """
 
 from __future__ import annotations

@@ -73,7 +73,7 @@ def clipped_share(starts: np.ndarray, lengths: np.ndarray, counts: np.ndarray, s
     distorts the spectrum; noise peaks that reach full scale now and then (0.7 % of the
     codes at 2.7 sigma) do not measurably. A pair is CLIPPED from CLIP_SHARE up.
     """
-    if size == 0:
+    if size == 0 or not counts.any():            # most chunks: nothing clipped
         return np.zeros(np.size(starts))
     a = np.clip(np.floor(starts), 0, size)
     b = np.clip(np.ceil(starts + lengths) + 1, 0, size)                  # codes [a, b)
