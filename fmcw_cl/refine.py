@@ -75,9 +75,9 @@ def stretches(cap: Capture, plan, processor) -> list[list[tuple]]:
 
 def mismatch(held: list[list[tuple]], plan, lag: float, processor) -> Mismatch:
     """The kinematic inconsistency of `plan` at `lag` over the trial stretches `held`
-    (`stretches`), each converted by `processor` (no range check or survey: distances
-    and velocities alone)."""
-    p = replace(plan, lag=lag, check=None, survey=False)
+    (`stretches`), each converted by `processor` (no range check, survey or echo list:
+    distances and velocities alone)."""
+    p = replace(plan, lag=lag, check=None, survey=False, search=replace(plan.search, echoes=False))
     processor.open(p)
     slopes, errors, dist = [], [], []
     for chunks in held:
