@@ -213,7 +213,7 @@ def test_sync_kernels_match_numpy(backend, kernel_variant, monkeypatch, span, n,
     fine = sync.crossings(x, half).time
     centre = np.r_[np.random.default_rng(1).integers(hw + 2, n - hw - 2, 33), np.rint(fine) + 3,
                    np.rint(fine), hw + 2, n - hw - 3].astype(np.int64)
-    got = backend._line_fits(x, centre, hw, 300.0, want.level)
+    got = k_sync.line_fits(backend.rt, backend.bufs, x, centre, hw, 300.0, want.level)
     ref = sync.line_fits(x, centre, hw, 300.0, want.level)
     for a, b in zip(got, ref, strict=True):
         np.testing.assert_array_equal(a, b)

@@ -168,9 +168,9 @@ class _Counted:
 
     def __call__(self, queue, global_size, local_size, *args):
         self.traffic.launches += 1
-        last, n = self.args, len(self.args)
+        last = self.args
         for i, a in enumerate(args):
-            if i >= n or (last[i] is not a and not _same(last[i], a)):   # most are the same buffer
+            if i >= len(last) or not _same(last[i], a):
                 self.kernel.set_arg(i, a)
         self.args = list(args)
         event = cl.enqueue_nd_range_kernel(queue, self.kernel, global_size, local_size)

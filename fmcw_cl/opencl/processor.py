@@ -54,7 +54,6 @@ class OpenCLProcessor(ChunkProcessor):
         self.bufs = Buffers(self.rt)
         self.device = self.rt.name
         self._fitted = functools.partial(k_sync.fitted, self.rt, self.bufs)
-        self._line_fits = functools.partial(k_sync.line_fits, self.rt, self.bufs)
 
     def _fits(self, nfft: int) -> bool:
         """Whether an nfft-point transform runs on this device (its local memory)."""
