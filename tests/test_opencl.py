@@ -131,6 +131,15 @@ def test_power_spectra_of_several_row_counts_in_one_trip(backend, kernel_variant
         assert np.abs(spec - ref).max(initial=0) <= (1e-5 if v is None else 1e-4) * ref.max(initial=1)
 
 
+def test_a_kernel_of_each_slot_keeps_its_own_arguments(backend):
+    """The two directions of a pair launch one kernel with two argument sets: each slot
+    is a kernel object of its own (pyopencl's `set_arg` is per object)."""
+    rt = backend.rt
+    one, other = (rt.kernel("spectrum", "spectrum_peak", slot) for slot in (0, 1))
+    assert one is rt.kernel("spectrum", "spectrum_peak") and other is not one
+    assert other.kernel is not one.kernel and other.traffic is one.traffic
+
+
 def test_fft_tables_undo_the_digit_reversal():
     for nfft in (8, 32, 2048, 4096):
         _, _, perm = k_spectrum.tables(nfft)

@@ -240,9 +240,11 @@ class Runtime:
         lsz = min(self.group_size(*ITEMS_LOCAL), self.device.max_work_group_size)
         return (-(-n // lsz) * lsz,), (lsz,)
 
-    def kernel(self, program: str, name: str):
-        """Kernel `name` of kernels/<program>.cl (built and retrieved once)."""
-        key = (program, name)
+    def kernel(self, program: str, name: str, slot: int = 0):
+        """Kernel `name` of kernels/<program>.cl (built and retrieved once). A launch
+        site that alternates between argument sets (a pair's two directions) takes one
+        kernel object per set, `slot`, so that each keeps its arguments set."""
+        key = (program, name, slot)
         if key not in self.kernels:
             self.kernels[key] = _Counted(cl.Kernel(self.program(program), name), self.traffic)
         return self.kernels[key]
