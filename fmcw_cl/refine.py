@@ -33,6 +33,8 @@ MAX_SHIFT_SAMPLES = 200.0
 TOLERANCE_SAMPLES = 0.02
 MAX_EVALUATIONS = 6
 MIN_RUN = 60              # pairs of a valid run used
+TRIAL_ITERATIONS = 3      # de-chirp passes of a trial conversion: on a lab's landings six
+                          # moved the delay by 0.02 samples at most, two left it 1-4 samples off
 SETTLED = 0.25            # a mismatch this many of its standard errors from zero is the root
 
 
@@ -75,9 +77,11 @@ def stretches(cap: Capture, plan, processor) -> list[list[tuple]]:
 
 def mismatch(held: list[list[tuple]], plan, lag: float, processor) -> Mismatch:
     """The kinematic inconsistency of `plan` at `lag` over the trial stretches `held`
-    (`stretches`), each converted by `processor` (no range check, survey or echo list:
-    distances and velocities alone)."""
-    p = replace(plan, lag=lag, check=None, survey=False, search=replace(plan.search, echoes=False))
+    (`stretches`), each converted by `processor` (no range check, survey or echo list,
+    at most TRIAL_ITERATIONS de-chirp passes: distances and velocities alone)."""
+    options = replace(plan.options, iterations=min(plan.options.iterations, TRIAL_ITERATIONS))
+    p = replace(plan, lag=lag, check=None, survey=False, search=replace(plan.search, echoes=False),
+                options=options)
     processor.open(p)
     slopes, errors, dist = [], [], []
     for chunks in held:

@@ -7,11 +7,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from fmcw_cl import refine
 from fmcw_cl.engine import process
 from fmcw_cl.options import Options
 
 # a lab: an intensity triangle of +-150 codes under 600 codes rms, a 20 MHz G(I) table
-from fmcw_cl.simulator import LAB, SimulationConfig, simulate_capture, static
+from fmcw_cl.simulator import LAB, SimulationConfig, jump, simulate_capture, static
 
 
 @pytest.mark.parametrize(("seed", "distance", "points"), [(2, 0.4, 1000), (3, 0.7, 2048)])
@@ -50,3 +51,16 @@ def test_a_capture_shorter_than_the_stretches_is_refined(tmp_path):
     true = simulate_capture(path, static(0.006, 0.3), 0.006, seed=6, config=LAB)["sync_delay_samples"]
     track = process(path)
     assert track.attrs["sync_delay_refined"] and abs(track.attrs["sync_delay_samples"] - true) <= 1.5
+
+
+def test_trial_conversions_with_fewer_passes_find_the_same_delay(tmp_path, monkeypatch):
+    """refine's trial conversions make TRIAL_ITERATIONS de-chirp passes, not the
+    tracker's six: on a landing under lab conditions (each pass moves its velocities;
+    two passes left the delay 2 samples off here) they find the delay six find."""
+    path = tmp_path / "landing.h5"
+    simulate_capture(path, jump(0.3), 0.05, start_s=0.18, seed=2, config=LAB)
+    few = process(path).attrs
+    monkeypatch.setattr(refine, "TRIAL_ITERATIONS", Options().iterations)
+    full = process(path).attrs
+    assert refine.TRIAL_ITERATIONS > 3 and few["sync_delay_refined"] and full["sync_delay_refined"]
+    assert abs(few["sync_delay_samples"] - full["sync_delay_samples"]) < 0.05
