@@ -37,6 +37,12 @@ class ReadAhead:
             self._ahead = self._pool.submit(next, self._chunks, None)
             yield item
 
+    def peek(self):
+        """The item after the one being processed (None after the last), once read. The
+        read after it starts only when the iteration moves on: it takes the slot of the
+        item being processed."""
+        return self._ahead.result()
+
     def close(self) -> None:
         self._pool.shutdown(wait=True, cancel_futures=True)
 
@@ -89,12 +95,13 @@ def capture_parts(cap: Capture, plan: Plan, processor: ChunkProcessor, start: in
                   ) -> list[ChunkMeasurements]:
     """The measurements of every chunk whose core lies in samples [start, stop)
     (`start` a multiple of `core_samples`), read ahead (`read_chunks`), by `processor`
-    opened with `plan`."""
+    opened with `plan`; each chunk is processed knowing the one after it (a device
+    prepares that one in the same trip as this one's last step)."""
     parts = []
     processor.open(plan)
     with read_chunks(cap, plan.options, start, stop) as ahead:
         for chunk in ahead:
-            got = processor.process(chunk)
+            got = processor.process(chunk, following=ahead.peek)
             if got is not None:
                 parts.append(got)
             if progress:

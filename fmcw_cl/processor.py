@@ -16,6 +16,7 @@ runs the same steps on a device. What the steps are, in order (`process`):
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -87,15 +88,16 @@ class ChunkProcessor(pairing.SpectrumOps):
     def __init__(self) -> None:
         self.plan: Plan | None = None
         self.chunks = 0
+        self._ahead: tuple[Chunk, Prepared] | None = None   # the next chunk, prepared by the last one
 
     # -- life cycle --
     def open(self, plan: Plan) -> None:
         """Bind the capture's plan (its LUT, window and search) for `process`."""
-        self.plan = plan
+        self.plan, self._ahead = plan, None
 
     def close(self) -> None:
         """Let the plan go (a device processor also returns its pooled buffers)."""
-        self.plan = None
+        self.plan, self._ahead = None, None
 
     def fork(self) -> ChunkProcessor:
         """A processor of the same kind for another thread."""
@@ -152,17 +154,21 @@ class ChunkProcessor(pairing.SpectrumOps):
         return Prepared(self.turning_points(chunk.sync, info.samples_per_period / 2),
                         self.clip_counts(*clipping(chunk, info)))
 
-    def process(self, chunk: Chunk, prepared: Prepared | None = None) -> ChunkMeasurements | None:
+    def process(self, chunk: Chunk, prepared: Prepared | None = None,
+                following: Callable[[], Chunk | None] | None = None) -> ChunkMeasurements | None:
         """The owned pairs of `chunk` under the open plan (None: no pair in it);
         `prepared`: what `prepare` found in it, where already known (the delay's trial
-        conversions repeat a chunk at other delays)."""
+        conversions repeat a chunk at other delays); `following`: gives the chunk
+        processed next (None: none), prepared with this one's range check and survey
+        (`check_and_survey`) and kept for that call."""
         plan = self.plan
         if plan is None:
             raise FmcwError("a chunk processor must be opened with a plan before it processes")
         self.chunks += 1
         info = plan.info
+        ahead, self._ahead = self._ahead, None
         if prepared is None:
-            prepared = self.prepare(chunk, info)
+            prepared = ahead[1] if ahead is not None and ahead[0] is chunk else self.prepare(chunk, info)
         hs = sync.half_sweeps(prepared.turns, plan.lag)
         fits = resample.inside(hs.start, hs.length, plan.lut, chunk.beat.size)
         r = np.flatnonzero(hs.rising[:-1] & ~hs.rising[1:] & (hs.segment[:-1] == hs.segment[1:])
@@ -192,23 +198,29 @@ class ChunkProcessor(pairing.SpectrumOps):
         clipped_codes = int(counts[core].sum(dtype=np.int64))
         check = self._range_check(hs, r, f, sel) if plan.check is not None and r.size else None
         survey = self._survey((xr, xf), res, np.flatnonzero(own)) if plan.survey else None
-        checked, surveyed = self.check_and_survey(chunk.beat, check, survey)
+        nxt = following() if following is not None and (check is not None or survey is not None) else None
+        checked, surveyed, ahead = self.check_and_survey(chunk.beat, check, survey, nxt)
+        if nxt is not None:
+            self._ahead = (nxt, ahead)
         alias = np.zeros(r.size, bool) if check is None else check.beyond(checked, sel, plan.lut)
         reason = faults.reasons(sel.valid, sel.heard, clip, alias, sel.continuous)
         sel.valid[:] = reason == faults.OK
         table = no_survey() if surveyed is None else survey.table(surveyed, (t_r, t_f), plan.model)
         return ChunkMeasurements(t_r[own], t_f[own], sel, reason, table, clipped_codes)
 
-    def check_and_survey(self, beat: np.ndarray, check: RangeCheck | None, survey: Survey | None
-                         ) -> tuple[list | None, list | None]:
+    def check_and_survey(self, beat: np.ndarray, check: RangeCheck | None, survey: Survey | None,
+                         following: Chunk | None = None) -> tuple[list | None, list | None, Prepared | None]:
         """The range check's peaks, (distance, SNR) of each side (measure_each), and the
         survey's (ratio, centroid, found) of each direction (survey_each); None for the
-        one not asked. A device: both in one trip each way."""
+        one not asked; and what `prepare` finds in `following` (None: none given). A
+        device: one trip each way, the following chunk's sync fits coming down with the
+        results."""
         checked = None
         if check is not None:
             xs = self.resample_each(beat, check.jobs, check.window)
             checked = self.measure_each(xs, (None, None), None, check.model, check.search)
-        return checked, None if survey is None else self.survey_each(*survey.args)
+        surveyed = None if survey is None else self.survey_each(*survey.args)
+        return checked, surveyed, None if following is None else self.prepare(following, self.plan.info)
 
     def _survey(self, rows: tuple, res: pairing.PairResult, own: np.ndarray) -> Survey | None:
         """The survey of hidden echoes (echoes.hidden) in both half-sweeps of every

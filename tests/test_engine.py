@@ -143,3 +143,24 @@ def test_read_ahead_starts_at_once_and_close_waits():
     threading.Timer(0.2, release.set).start()
     ahead.close()
     assert finished.is_set()
+
+
+def test_read_ahead_peeks_at_the_next_item_and_reads_no_further():
+    """`peek` gives the item after the one being processed (its slot is the other one);
+    the read after that starts only when the iteration moves on (it takes the slot of
+    the item being processed)."""
+    from fmcw_cl.chunks import ReadAhead
+
+    made = []
+
+    def items():
+        for x in (1, 2, 3):
+            made.append(x)
+            yield x
+
+    seen = []
+    with ReadAhead(items()) as ahead:
+        for x in ahead:
+            nxt = ahead.peek()
+            seen.append((x, nxt, list(made)))
+    assert seen == [(1, 2, [1, 2]), (2, 3, [1, 2, 3]), (3, None, [1, 2, 3])]

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from fmcw_cl.backend import make_processor
+from fmcw_cl.chunks import margin_samples
 from fmcw_cl.engine import process
 from fmcw_cl.opencl import spectrum as k_spectrum
 from fmcw_cl.opencl.processor import OpenCLProcessor
@@ -553,8 +554,8 @@ def test_range_check_and_survey_in_one_trip_equal_each_alone(backend, kernel_var
     seen = []
     fused = OpenCLProcessor.check_and_survey
 
-    def both(self, beat, check, survey):
-        got = fused(self, beat, check, survey)
+    def both(self, beat, check, survey, following=None):
+        got = fused(self, beat, check, survey, following)
         if check is not None and survey is not None:
             apart = ChunkProcessor.check_and_survey(self, beat, check, survey)
             rows = tuple(x.get() for x in survey.args[0])
@@ -567,7 +568,7 @@ def test_range_check_and_survey_in_one_trip_equal_each_alone(backend, kernel_var
     before = backend.traffic()["downloads"]
     process(wall_capture, Options(chunk_periods=1024), backend)
     assert len(seen) >= 3 and backend.traffic()["downloads"] > before
-    for (checked, surveyed), (checked1, surveyed1), (checked0, surveyed0) in seen:
+    for (checked, surveyed, _), (checked1, surveyed1, _), (checked0, surveyed0, _) in seen:
         for got, apart in zip((*checked, *surveyed), (*checked1, *surveyed1), strict=True):
             for a, b in zip(got, apart, strict=True):
                 np.testing.assert_array_equal(a, b)
@@ -580,6 +581,51 @@ def test_range_check_and_survey_in_one_trip_equal_each_alone(backend, kernel_var
             np.testing.assert_array_equal(found, found0)
             np.testing.assert_allclose(ratio, ratio0, rtol=1e-3, atol=1e-4)
             np.testing.assert_allclose(centroid, centroid0, rtol=1e-4)
+
+
+def test_the_next_chunk_is_prepared_in_the_trip_of_the_check_and_survey(backend, wall_capture, monkeypatch):
+    """A chunk's range check and survey come down with the following chunk's sync fits
+    and clipping counts: each own chunk of a capture makes two downloads, the last one
+    three; what the following chunk was found to hold equals its own `prepare`, and the
+    measurements equal those of chunks prepared one by one."""
+    from fmcw_cl.capture import Capture
+    from fmcw_cl.chunks import capture_parts
+    from fmcw_cl.plan import make_plan
+    from fmcw_cl.processor import ChunkProcessor
+
+    options = Options(chunk_periods=1024)
+    with Capture(wall_capture) as cap:
+        plan = make_plan(cap, options, processor=backend)
+        before = backend.traffic()["downloads"]
+        parts = capture_parts(cap, plan, backend)
+        downloads = backend.traffic()["downloads"] - before
+        ahead = []
+        fused = OpenCLProcessor.check_and_survey
+
+        def check(self, beat, check, survey, following=None):
+            got = fused(self, beat, check, survey, following)
+            if following is not None:
+                ahead.append((got[2], ChunkProcessor.prepare(self, following, cap.info)))
+            return got
+
+        monkeypatch.setattr(OpenCLProcessor, "check_and_survey", check)
+        capture_parts(cap, plan, backend)
+        monkeypatch.undo()
+        one_by_one = []
+        backend.open(plan)
+        for chunk in cap.chunks(options.chunk_periods, margin_samples(cap.info, options), 0, None, held=2):
+            one_by_one.append(backend.process(chunk))
+    assert len(parts) >= 3 and downloads == 2 * len(parts) + 1
+    assert len(ahead) == len(parts) - 1
+    for got, own in ahead:
+        for a, b in zip(vars(got.turns).values(), vars(own.turns).values(), strict=True):
+            np.testing.assert_array_equal(a, b)
+        np.testing.assert_array_equal(got.clip_counts, own.clip_counts)
+    for a, b in zip(parts, [p for p in one_by_one if p is not None], strict=True):
+        np.testing.assert_array_equal(a.reason, b.reason)
+        np.testing.assert_array_equal(a.result.distance, b.result.distance)
+        for key in a.survey:
+            np.testing.assert_array_equal(a.survey[key], b.survey[key])
 
 
 @pytest.mark.parametrize("rows,nfft,lo", [(1, 2048, 64), (37, 2048, 20), (9, 4096, 100), (5, 128, 3)])

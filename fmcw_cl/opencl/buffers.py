@@ -156,6 +156,22 @@ class Packed:
             rider.value = view.copy()
         return self.views
 
+    def rider(self) -> Rider:
+        """These parts as a `Rider` of another step's download: a copy on the device of
+        this buffer into that step's `Packed`, after the kernels that write it; `read`
+        its value."""
+        nbytes = self._host.nbytes
+
+        def launch(buffer) -> None:
+            cl.enqueue_copy(self._rt.queue, buffer, self._parent, byte_count=nbytes)
+
+        return Rider(np.uint8, nbytes, launch)
+
+    def read(self, raw: np.ndarray) -> list[np.ndarray]:
+        """Every part from `raw`, the bytes this object's `rider` brought down."""
+        self._host[...] = raw
+        return self.views
+
     def upload(self, *arrays: np.ndarray) -> list:
         """`arrays` into the parts, by one copy; their sub-buffers."""
         for view, a in zip(self.views, arrays, strict=True):

@@ -2,8 +2,9 @@
 block sums, level, hysteresis and line fits, the clipping counts, resampling, the
 de-chirp/FFT/peak/echo stage and the tracker's passes with their regularisation on a
 device. The resampled half-sweeps stay on the device; the sync's line fits (the clipping
-counts riding with them), the tracker's state, and the range check's peaks with the
-survey's results come back, one download each. The turning-point grid, pairing,
+counts riding with them) and the tracker's state come back, one download each; the
+range check's peaks with the survey's results ride on the following chunk's line fits
+(a copy of their own after the last chunk). The turning-point grid, pairing,
 ownership and the tracker's verdicts stay on the host (docs/pipeline.md). CPU devices get
 the lanes variants of the kernels that have two.
 """
@@ -109,12 +110,13 @@ class OpenCLProcessor(ChunkProcessor):
     def turning_points(self, codes, half_period):
         return sync.sync_turning_points(codes, half_period, self._fitted)
 
-    def prepare(self, chunk, info):
-        """ChunkProcessor.prepare, the clipping counts coming down with the sync's line
-        fits (by a copy of their own where the sync is too short for a search)."""
+    def prepare(self, chunk, info, riders: tuple = ()):
+        """ChunkProcessor.prepare, the clipping counts and `riders` (another step's small
+        results) coming down with the sync's line fits (by a copy of their own where the
+        sync is too short for a search: then `riders` stay unread)."""
         job = clipping(chunk, info)
         clip = k_faults.clip_rider(self.rt, self.bufs, *job)
-        fit = functools.partial(self._fitted, riders=(clip,))
+        fit = functools.partial(self._fitted, riders=(clip, *riders))
         turns = sync.sync_turning_points(chunk.sync, info.samples_per_period / 2, fit)
         return Prepared(turns, self.clip_counts(*job) if clip.value is None else clip.value)
 
@@ -214,14 +216,15 @@ class OpenCLProcessor(ChunkProcessor):
         per = [(*sp, *b) for sp, b in zip(spectra, bins, strict=True)]
         return k_survey.hidden_each(self.rt, self.bufs, per, lo, d_in[2:], out, first)
 
-    def check_and_survey(self, beat, check, survey):
+    def check_and_survey(self, beat, check, survey, following=None):
         """ChunkProcessor.check_and_survey in one trip each way: the survey's inputs go up
-        with the check's resampling positions, both results come down by one copy."""
+        with the check's resampling positions; both results come down by one copy, with
+        the following chunk's sync fits where one is given."""
         if check is None or survey is None:
-            return super().check_and_survey(beat, check, survey)
+            return super().check_and_survey(beat, check, survey, following)
         xs, betas, v, nfft, rows, lo, tracked_bins, plain_bins, others = survey.args
         if not (self._fits(check.model.nfft) and self._fits(nfft)):
-            return super().check_and_survey(beat, check, survey)
+            return super().check_and_survey(beat, check, survey, following)
         bins = list(zip(tracked_bins, plain_bins, others, strict=True))
         checked = k_resample.resample_each(self.rt, self.bufs, beat, check.jobs, check.window,
                                            k_survey.inputs(bins, _picked(rows, v)))
@@ -232,9 +235,13 @@ class OpenCLProcessor(ChunkProcessor):
         k_spectrum.measure_each(self.rt, self.bufs, jobs, None, nfft2, check.search.lo, check.search.hi,
                                 out=out)
         self._surveyed(xs, betas, v, nfft, rows, lo, bins, checked[2:], out, len(first))
-        views = out.download()
+        ahead = rider = None
+        if following is not None:
+            rider = out.rider()
+            ahead = self.prepare(following, self.plan.info, (rider,))
+        views = out.download() if rider is None or rider.value is None else out.read(rider.value)
         got = k_spectrum.results(views[: len(first)], jobs, sweeps, nfft2)
-        return _measured(got, check.model, check.search), k_survey.results(views[len(first):])
+        return _measured(got, check.model, check.search), k_survey.results(views[len(first):]), ahead
 
     def integrated_peaks(self, store, disp, k, search):
         if not self._fits(2 * store.shape[1]):       # (pairs, nfft / 2) power spectra
