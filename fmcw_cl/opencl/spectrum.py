@@ -158,7 +158,7 @@ def measure_each(rt: Runtime, bufs: Buffers, jobs: list, velocity: np.ndarray | 
             if listed is not None:
                 groups = min(groups, counted_groups(rt))
             rt.kernel("spectrum", "spectrum_lanes", i)(rt.queue, (groups,), (1,), *args,
-                                                    *(cl.LocalMemory(4 * LANES * nfft),) * 3)
+                                                       *(cl.LocalMemory(4 * LANES * nfft),) * 3)
         else:
             lsz = local_size(rt, nfft)
             groups = transforms if listed is None else min(transforms, counted_groups(rt))
