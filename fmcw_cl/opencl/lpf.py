@@ -1,4 +1,4 @@
-"""Launcher of kernels/lpf.cl (twin: fmcw_cl.stages.lpf.intensity)."""
+"""Launcher of kernels/lpf.cl (twin: fmcw_cl.stages.lpf.intensity_each)."""
 
 from __future__ import annotations
 
@@ -26,17 +26,11 @@ def fir_taps(sample_rate_hz: float) -> np.ndarray:
     return lpf.lowpass_taps(sample_rate_hz).astype(np.float32)
 
 
-def intensity(rt: Runtime, bufs: Buffers, x: np.ndarray, sample_rate_hz: float,
-              factor: int = lpf.DECIMATION) -> tuple[np.ndarray, float, float]:
-    """Low-passed int16 codes at the decimated rate, of each row alone when x is
-    (rows, samples), all rows in one launch a kernel (see the numpy twin)."""
-    return intensity_each(rt, bufs, [x], sample_rate_hz, factor)[0]
-
-
 def intensity_each(rt: Runtime, bufs: Buffers, channels: list, sample_rate_hz: float,
                    factor: int = lpf.DECIMATION) -> list[tuple[np.ndarray, float, float]]:
-    """`intensity` of each array of `channels` (the beat and the sync), every result
-    back by one download."""
+    """Low-passed int16 codes at the decimated rate of each array of `channels` (the
+    beat and the sync), of each row alone where one is (rows, samples), all rows in one
+    launch a kernel; every result back by one download (twin: lpf.intensity_each)."""
     if any(x.dtype != np.int16 for x in channels):
         raise TypeError("the low-pass kernel takes int16 ADC codes")
     h = cic_taps(factor)

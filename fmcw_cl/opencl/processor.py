@@ -227,7 +227,7 @@ class OpenCLProcessor(ChunkProcessor):
             return super().check_and_survey(beat, check, survey, following)
         bins = list(zip(tracked_bins, plain_bins, others, strict=True))
         checked = k_resample.resample_each(self.rt, self.bufs, beat, check.jobs, check.window,
-                                           k_survey.inputs(bins, _picked(rows, v)))
+                                           k_survey.input_arrays(bins, _picked(rows, v)))
         jobs = [(x, None, None) for x in checked[:2]]
         sweeps, nfft2 = jobs[0][0].shape[0], check.model.nfft
         first = k_spectrum.parts(jobs, sweeps, nfft2)

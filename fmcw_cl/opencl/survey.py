@@ -16,7 +16,7 @@ def hidden(rt: Runtime, bufs: Buffers, plain: DeviceRows, dechirped: DeviceRows,
     return hidden_each(rt, bufs, [(plain, dechirped, tracked_bin, plain_bin, others)], lo)[0]
 
 
-def inputs(bins: list, head: tuple = ()) -> list[np.ndarray]:
+def input_arrays(bins: list, head: tuple = ()) -> list[np.ndarray]:
     """The arrays of `head`, then each (tracked_bin, plain_bin, others) of `bins` as
     float32, in the order `hidden_each` reads them (its `inputs` after the head's)."""
     out = list(head)
@@ -26,8 +26,8 @@ def inputs(bins: list, head: tuple = ()) -> list[np.ndarray]:
 
 
 def upload(bufs: Buffers, bins: list, head: tuple = ()) -> list:
-    """`inputs`, up by one copy: their sub-buffers in that order."""
-    arrays = inputs(bins, head)
+    """`input_arrays`, up by one copy: their sub-buffers in that order."""
+    arrays = input_arrays(bins, head)
     return Packed(bufs, "survey_in", [(a.dtype, a.size) for a in arrays]).upload(*arrays)
 
 
