@@ -24,10 +24,15 @@ class Buffers:
         self._free: list[tuple[int, object]] = []
         self._constants: OrderedDict[tuple[str, int], tuple[np.ndarray, object]] = OrderedDict()
 
+    def _new(self, flags, nbytes: int = 0, hostbuf=None):
+        buf = cl.Buffer(self.rt.context, flags, nbytes, hostbuf=hostbuf)
+        self.rt.hold(buf)
+        return buf
+
     def get(self, name: str, nbytes: int):
         nbytes = max(int(nbytes), 4)
         if self._sizes.get(name, 0) < nbytes:
-            self._bufs[name] = cl.Buffer(self.rt.context, cl.mem_flags.READ_WRITE, nbytes)
+            self._bufs[name] = self._new(cl.mem_flags.READ_WRITE, nbytes)
             self._sizes[name] = nbytes
             self._sources.pop(name, None)
         return self._bufs[name]
@@ -49,8 +54,7 @@ class Buffers:
             return self._bufs[name]
         array = np.ascontiguousarray(array)
         if self.rt.zero_copy and array.nbytes:
-            self._bufs[name] = cl.Buffer(self.rt.context, cl.mem_flags.READ_ONLY
-                                         | cl.mem_flags.USE_HOST_PTR, hostbuf=array)
+            self._bufs[name] = self._new(cl.mem_flags.READ_ONLY | cl.mem_flags.USE_HOST_PTR, hostbuf=array)
             self._sizes[name] = 0            # never reused for another array
         else:
             self.upload(name, array)
@@ -70,7 +74,7 @@ class Buffers:
             self._constants.move_to_end(key)
             return hit[1]
         host = np.ascontiguousarray(array, dtype)
-        buf = cl.Buffer(self.rt.context, cl.mem_flags.READ_ONLY, max(host.nbytes, 4))
+        buf = self._new(cl.mem_flags.READ_ONLY, max(host.nbytes, 4))
         if host.nbytes:
             self.rt.copy(buf, host)
         self._constants[key] = (array, buf)
@@ -84,7 +88,7 @@ class Buffers:
         for i, (size, _) in enumerate(self._free):
             if size >= nbytes:
                 return self._free.pop(i)
-        return nbytes, cl.Buffer(self.rt.context, cl.mem_flags.READ_WRITE, nbytes)
+        return nbytes, self._new(cl.mem_flags.READ_WRITE, nbytes)
 
     def release(self, leased) -> None:
         self._free.append(leased)

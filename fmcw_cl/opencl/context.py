@@ -191,6 +191,7 @@ class Runtime:
     traffic: Traffic = field(default_factory=Traffic)
 
     lanes: bool = False   # kernels with explicit float8 lanes where there are two variants
+    held: list | None = None   # every buffer made, on a simulator: `hold`
 
     def __post_init__(self) -> None:
         self.context = cl.Context([self.device])
@@ -200,6 +201,16 @@ class Runtime:
         # a CPU runs a work-group's work-items as a loop, which PoCL vectorises only where
         # the kernel has no loop of its own (kernels/fft_lanes.cl); GPUs want work-groups
         self.lanes = rank(self.device) == CPU
+        self.held = [] if is_simulator(self.device) else None
+
+    def hold(self, buffer) -> None:
+        """On a simulator, keep `buffer` as long as this runtime. Oclgrind gives a freed
+        buffer's slot to the next buffer made, keeping what its uninitialised-value check
+        knew of the old one (its size, which bytes were written): values a kernel stores
+        past that size would read back as uninitialised (Oclgrind 19.10; upstream has no
+        reset on release either). Held, no slot is reused."""
+        if self.held is not None:
+            self.held.append(buffer)
 
     def _new_queue(self):
         return cl.CommandQueue(self.context, properties=cl.command_queue_properties.PROFILING_ENABLE)
