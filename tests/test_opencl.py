@@ -367,6 +367,36 @@ def test_forked_backend_converts_the_same_track(backend, static_capture):
         np.testing.assert_array_equal(track.velocity_mps, alone.velocity_mps)
 
 
+def test_buffers_are_made_as_often_for_a_long_capture_as_for_a_short_one(tmp_path, monkeypatch):
+    """Device buffers are made for the first chunks and reused: chunks that differ by a
+    few percent in size (their sync crossings, their half-sweeps) find room in them, so
+    a capture of eight chunks makes no more buffers than one of two (wraps of host
+    memory on a CPU device, one per chunk, are no buffers made)."""
+    import fmcw_cl
+    from fmcw_cl.opencl.buffers import Buffers
+    from fmcw_cl.opencl.context import cl
+
+    made = []
+    new = Buffers._new
+
+    def counted(self, flags, *args, **kwargs):
+        made.append(not flags & cl.mem_flags.USE_HOST_PTR)
+        return new(self, flags, *args, **kwargs)
+
+    monkeypatch.setattr(Buffers, "_new", counted)
+    counts = []
+    for seconds in (0.1, 0.4):
+        cap = tmp_path / f"rail_{seconds}.h5"
+        fmcw_cl.simulate(cap, "rail", duration=seconds, seed=4)
+        made.clear()
+        processor = OpenCLProcessor()
+        process(cap, Options(chunk_periods=800), processor)
+        counts.append((sum(made), processor.chunks))
+    (short, n_short), (long, n_long) = counts
+    assert n_long >= n_short + 3
+    assert long == short, counts
+
+
 def test_every_kernel_launches_with_one_local_size(static_capture, monkeypatch):
     """PoCL builds a kernel anew (0.1-0.2 s) for each local size it meets, and picks one
     that follows the global size when the launch leaves it open: across chunks of other

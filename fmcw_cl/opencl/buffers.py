@@ -24,16 +24,24 @@ class Buffers:
         self._free: list[tuple[int, object]] = []
         self._constants: OrderedDict[tuple[str, int], tuple[np.ndarray, object]] = OrderedDict()
 
+    # a chunk's arrays vary by a few percent in size (its count of sync crossings, of
+    # half-sweeps): a buffer made for one gets this share more, so that it is made once,
+    # not again at each new largest chunk
+    ROOM = 1 / 8
+
     def _new(self, flags, nbytes: int = 0, hostbuf=None):
         buf = cl.Buffer(self.rt.context, flags, nbytes, hostbuf=hostbuf)
         self.rt.hold(buf)
         return buf
 
+    def _roomy(self, nbytes: int) -> int:
+        return int(nbytes * (1 + self.ROOM)) // 64 * 64 + 64
+
     def get(self, name: str, nbytes: int):
         nbytes = max(int(nbytes), 4)
         if self._sizes.get(name, 0) < nbytes:
-            self._bufs[name] = self._new(cl.mem_flags.READ_WRITE, nbytes)
-            self._sizes[name] = nbytes
+            self._sizes[name] = self._roomy(nbytes)
+            self._bufs[name] = self._new(cl.mem_flags.READ_WRITE, self._sizes[name])
             self._sources.pop(name, None)
         return self._bufs[name]
 
@@ -88,6 +96,7 @@ class Buffers:
         for i, (size, _) in enumerate(self._free):
             if size >= nbytes:
                 return self._free.pop(i)
+        nbytes = self._roomy(nbytes)
         return nbytes, self._new(cl.mem_flags.READ_WRITE, nbytes)
 
     def release(self, leased) -> None:
