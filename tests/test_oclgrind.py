@@ -105,8 +105,7 @@ def test_chunks_prepared_in_the_trip_before_pass_oclgrind_checks(tmp_path, scene
     env.pop("PYOPENCL_CTX", None)
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=900)
     assert proc.returncode == 0, proc.stderr[-3000:]
-    device = proc.stdout
-    assert device.startswith("Oclgrind"), proc.stdout
+    assert proc.stdout.startswith("Oclgrind"), proc.stdout
     diagnostics = log.read_text() if log.exists() else ""
     assert diagnostics == "", diagnostics[:3000]
     ref = process(cap, Options(**chunks), NumpyProcessor())
