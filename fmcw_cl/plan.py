@@ -8,6 +8,7 @@ kinematics (`refine`).
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -131,17 +132,24 @@ def tuned(info: CaptureInfo, options: Options, chirp: Chirp | None) -> dict:
     """The Plan's fields that follow from the tuning (the G(I) table, or `chirp`): the
     LUT, window, Doppler model, peak search, the range check's 2N-point versions and the
     chirp itself."""
+    half_sweep_s = info.modulation.period_s / 2
     lut = make_lut(info, options.points, chirp)
-    win = resample.window(options.points)
-    model = pairing.doppler_model(lut, info.modulation.period_s / 2, spectrum.fft_length(options.points), win)
+    win, model = shaped(lut, half_sweep_s)
     check = None
     if options.range_check:
         lut2 = make_lut(info, 2 * options.points, chirp)
-        win2 = resample.window(2 * options.points)
-        check = (lut2, win2, pairing.doppler_model(lut2, info.modulation.period_s / 2,
-                                                   spectrum.fft_length(2 * options.points), win2))
+        check = (lut2, *shaped(lut2, half_sweep_s))
     return {"lut": lut, "window": win, "model": model, "search": make_search(options, lut, model),
             "check": check, "chirp": chirp}
+
+
+@functools.lru_cache(maxsize=16)
+def shaped(lut: Lut, half_sweep_s: float) -> tuple[np.ndarray, pairing.DopplerModel]:
+    """The window and the Doppler model of `lut` (half-sweeps of `half_sweep_s` s), made
+    once per LUT object (build_lut caches those): capture after capture the same
+    read-only arrays, which a device keeps from its first upload (Buffers.constant)."""
+    win = resample.window(lut.points)
+    return win, pairing.doppler_model(lut, half_sweep_s, spectrum.fft_length(lut.points), win)
 
 
 def make_search(options: Options, lut: Lut, model: pairing.DopplerModel) -> Search:

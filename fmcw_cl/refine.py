@@ -18,6 +18,7 @@ valid run of MIN_RUN pairs keeps the intensity estimate.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -25,6 +26,7 @@ import numpy as np
 from .capture import Capture
 from .chunks import HELD_SLOT, held_chunks
 from .numeric import runs, travelled
+from .stages import resample, sync
 
 STRETCHES = 3
 STRETCH_PERIODS = 240
@@ -200,8 +202,6 @@ def peak_width_ratio(cap: Capture, plan, t0_s: float, time_s: np.ndarray | None,
     error still does, a little less where it has biased the velocity itself.
     `backend`: the stages'.
     """
-    from .stages import resample, sync
-
     info = cap.info
     spp = info.samples_per_period
     a = max(0, int(t0_s * info.sample_rate_hz - spp))
@@ -231,10 +231,16 @@ def peak_width_ratio(cap: Capture, plan, t0_s: float, time_s: np.ndarray | None,
         jobs.append((x, beta, v))
     if not jobs:
         return float("nan")
-    j = np.arange(plan.lut.points)
-    tones = np.array([plan.window * np.cos(2 * np.pi * (0.2 + f) * j / 8) for f in (0.0, 0.25, 0.5)])
-    *spectra, own = backend.power_each([*jobs, (tones, None, None)], nfft)
     # in the target's band: a wall left out of it is not the target's peak
-    widths = [_widths(power, plan.search.lo, plan.search.hi) for power in spectra]
-    reference = float(np.nanmedian(_widths(own, 1)))
-    return float(np.nanmedian(np.concatenate(widths)) / reference)
+    widths = [_widths(power, plan.search.lo, plan.search.hi) for power in backend.power_each(jobs, nfft)]
+    return float(np.nanmedian(np.concatenate(widths)) / own_width(plan.lut.points, nfft))
+
+
+@functools.lru_cache(maxsize=8)
+def own_width(points: int, nfft: int) -> float:
+    """The median half-power width (bins) of the window's own peak (resample.window of
+    `points`, the plans' window; `nfft`-point transforms): tones a few fractions of a bin
+    apart, once per size (numpy's FFT: the device path imports no scipy)."""
+    j, win = np.arange(points), resample.window(points)
+    tones = np.array([win * np.cos(2 * np.pi * (0.2 + f) * j / 8) for f in (0.0, 0.25, 0.5)])
+    return float(np.nanmedian(_widths(np.abs(np.fft.rfft(tones, nfft)[:, : nfft // 2]) ** 2, 1)))

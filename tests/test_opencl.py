@@ -397,6 +397,31 @@ def test_buffers_are_made_as_often_for_a_long_capture_as_for_a_short_one(tmp_pat
     assert long == short, counts
 
 
+@pytest.mark.parametrize("dechirp", [True, False])
+def test_a_second_capture_uploads_no_constants(static_capture, dechirp, monkeypatch):
+    """A plan's window, Doppler bases and LUTs are the same objects capture after capture
+    (plan.shaped, build_lut): the device keeps them from the first conversion, and the
+    second makes no constant's buffer (and no copy of one)."""
+    from fmcw_cl.opencl.buffers import Buffers
+    from fmcw_cl.opencl.context import cl
+
+    made = []
+    new = Buffers._new
+
+    def counted(self, flags, *args, **kwargs):
+        made.append(flags == cl.mem_flags.READ_ONLY)       # Buffers.constant's, alone
+        return new(self, flags, *args, **kwargs)
+
+    monkeypatch.setattr(Buffers, "_new", counted)
+    processor = OpenCLProcessor()
+    counts = []
+    for _ in range(2):
+        made.clear()
+        process(static_capture, Options(dechirp=dechirp), processor)
+        counts.append(sum(made))
+    assert counts[0] > 0 and counts[1] == 0, counts
+
+
 def test_every_kernel_launches_with_one_local_size(static_capture, monkeypatch):
     """PoCL builds a kernel anew (0.1-0.2 s) for each local size it meets, and picks one
     that follows the global size when the launch leaves it open: across chunks of other

@@ -149,7 +149,7 @@ def _fit(x: np.ndarray, y: np.ndarray, leave_one_out: tuple[TuningFit, ...] = ()
     return TuningFit(best, ref, deg, scatter, _read_only(cov), dof, leave_one_out)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)   # identity: a LUT is cached (build_lut), and what is made from it
 class Lut:
     """Resampling table for one modulation set-up.
 

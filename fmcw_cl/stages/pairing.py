@@ -77,6 +77,8 @@ def doppler_model(lut: Lut, half_sweep_s: float, nfft: int, win: np.ndarray) -> 
         return metres_per_cycle * np.sum(win * j * beta) / np.sum(win * j * j)
 
     br, bf = basis(lut.u_rise), basis(lut.u_fall)
+    for beta in (br, bf):
+        beta.flags.writeable = False       # a device keeps its first upload (Buffers.constant)
     return DopplerModel(br, bf, float(k_eff(br)), float(k_eff(bf)),
                         metres_per_cycle / nfft, nfft)
 

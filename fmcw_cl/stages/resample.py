@@ -6,6 +6,8 @@ removal and a Hann window, for a batch of half-sweeps of one direction.
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 
@@ -20,9 +22,13 @@ def keys_weights(frac: np.ndarray) -> tuple[np.ndarray, ...]:
             0.5 * f3 - 0.5 * f2)
 
 
+@functools.lru_cache(maxsize=8)
 def window(points: int) -> np.ndarray:
-    """Periodic-free symmetric Hann window of `points` samples (float64)."""
-    return 0.5 - 0.5 * np.cos(2 * np.pi * (np.arange(points) + 0.5) / points)
+    """Periodic-free symmetric Hann window of `points` samples (float64), read-only:
+    one object per length, so that a device uploads it once (opencl.Buffers.constant)."""
+    win = 0.5 - 0.5 * np.cos(2 * np.pi * (np.arange(points) + 0.5) / points)
+    win.flags.writeable = False
+    return win
 
 
 def positions(starts: np.ndarray, lengths: np.ndarray, u: np.ndarray) -> np.ndarray:
