@@ -1,9 +1,9 @@
 """Throughput per stage and end to end, for each backend, on a simulated capture.
 
 Real time is 100 MS/s per channel = 40 000 half-sweeps per second (at 20 kHz).
-Each stage is run once to warm up (kernel compilation, caches) and then timed, waiting
-for the device to finish; the figures are ratios within one run, on whatever else the
-machine is doing.
+Each stage and each end-to-end row is run once to warm up (kernel compilation, caches),
+then three times, waiting for the device to finish, and the best kept; the figures are
+ratios within one run, on whatever else the machine is doing.
 """
 
 from __future__ import annotations
@@ -31,6 +31,7 @@ WHOLES = ("resample + FFT + peak + echoes", "end to end, paper's method")   # no
 
 
 def _timed(fn, finish, repeat: int = 3) -> float:
+    """Best of `repeat` warm runs (s): the machine's noise only ever adds time."""
     fn()  # warm-up: kernel builds, caches
     finish()
     best = np.inf
@@ -84,7 +85,7 @@ def _stage_rows(be, path: Path, opts: Options, seconds: float, scenes: dict[str,
     rows = []
     for stage, fn in stages.items():
         end = stage.startswith("end")
-        secs = _timed(fn, finish, repeat=1 if end else 3)
+        secs = _timed(fn, finish)
         rows.append({"backend": be.name, "device": be.device, "stage": stage, "seconds": secs,
                      "half_sweeps_per_s": sweeps / secs, "msamples_per_s": info.samples / secs / 1e6,
                      "real_time_multiple": seconds / secs,
@@ -99,7 +100,7 @@ def _stage_rows(be, path: Path, opts: Options, seconds: float, scenes: dict[str,
         with Capture(scene) as cap:
             n, periods = cap.info.samples, cap.info.periods
         fn = functools.partial(process, scene, opts, be)
-        secs = _timed(fn, finish, repeat=1)
+        secs = _timed(fn, finish)
         rows.append({"backend": be.name, "device": be.device, "stage": f"end to end, {name}", "seconds": secs,
                      "half_sweeps_per_s": 2 * periods / secs, "msamples_per_s": n / secs / 1e6,
                      "real_time_multiple": length / secs, "share_of_end_to_end": float("nan"),
