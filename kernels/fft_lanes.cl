@@ -90,10 +90,32 @@ void lanes_peak(__local const float8 *pw, const int half_n, const int lo, const 
     }
 }
 
+// The echoes among bin k of every lane (`echo`; power p over the training mean `mean`)
+// appended to their lanes' lists, at most max_echoes each.
+void lanes_record(__local const float8 *pw, const int half_n, const int k, const float8 p, const float8 mean,
+                  const int8 echo, const int max_echoes, const int *sweep, int *count,
+                  __global float *echo_bin, __global float *echo_snr)
+{
+    int hit[8];
+    float pv[8], mv[8];
+    vstore8(echo, 0, hit);
+    vstore8(p, 0, pv);
+    vstore8(mean, 0, mv);
+    for (int l = 0; l < 8; ++l) {
+        if (sweep[l] < 0 || !hit[l] || count[l] >= max_echoes) continue;
+        const size_t e = (size_t)sweep[l] * max_echoes + count[l];
+        echo_bin[e] = peak_position_lane(pw, half_n, k, l);
+        echo_snr[e] = 10.0f * log10(pv[l] / mv[l]);
+        ++count[l];
+    }
+}
+
 // local_cfar (cfar.cl) of every lane, bins [lo, half_n). Each bin's guard maxima and
 // training sums come from tables of running maxima of 8 bins (mx) and sums of 16
 // (sm) where the windows are whole (guard 8 and train 16, stages.cfar's), taken
-// directly near the band's ends or for other widths.
+// directly near the band's ends or for other widths. The bins whose windows are all
+// whole run a loop of their own, without a branch on where they lie (PoCL: the test
+// of a bin took twice the time with them).
 void lanes_cfar(__local const float8 *pw, const int half_n, const int lo, const int guard, const int train,
                 __global const float *scale, const int max_echoes, __local float8 *mx, __local float8 *sm,
                 const int *sweep, __global float *echo_bin, __global float *echo_snr, __global int *echo_count)
@@ -113,7 +135,25 @@ void lanes_cfar(__local const float8 *pw, const int half_n, const int lo, const 
     }
     for (int i = 0; i + 15 < half_n; ++i) sm[i] += sm[i + 8];
     int count[8] = {0, 0, 0, 0, 0, 0, 0, 0};
+    // [k0, k1): every window whole and inside [lo, half_n)
+    const int reach = guard + train;
+    const int k0 = tables ? IMIN(lo + reach, half_n) : half_n;
+    const int k1 = tables ? IMAX(k0, half_n - reach) : half_n;
     for (int k = lo; k < half_n; ++k) {
+        if (k == k0) {
+            const int n = 2 * train;
+            const float limit = scale[n];
+            for (; k < k1; ++k) {
+                const float8 p = pw[k];
+                float8 sum = sm[k - reach];
+                sum += sm[k + guard + 1];
+                const int8 echo = (p > mx[k - guard]) & (p >= mx[k + 1]) & (p * (float)n > limit * sum);
+                if (any(echo))
+                    lanes_record(pw, half_n, k, p, sum / (float)n, echo, max_echoes, sweep, count, echo_bin,
+                                 echo_snr);
+            }
+            if (k == half_n) break;
+        }
         const float8 p = pw[k];
         float8 left = -1.0f, right = -1.0f;        // powers are >= 0: an empty side passes
         if (tables && k - guard >= 0) {
@@ -142,19 +182,8 @@ void lanes_cfar(__local const float8 *pw, const int half_n, const int lo, const 
         const int n = (a1 - a0) + (b1 - b0);
         // p > scale[n] * sum / n, without a division per bin (n = 0: scale is infinite)
         const int8 echo = (p > left) & (p >= right) & (p * (float)n > scale[n] * sum);
-        if (!any(echo)) continue;
-        int hit[8];
-        float pv[8], mv[8];
-        vstore8(echo, 0, hit);
-        vstore8(p, 0, pv);
-        vstore8(sum / (float)n, 0, mv);
-        for (int l = 0; l < 8; ++l) {
-            if (sweep[l] < 0 || !hit[l] || count[l] >= max_echoes) continue;
-            const size_t e = (size_t)sweep[l] * max_echoes + count[l];
-            echo_bin[e] = peak_position_lane(pw, half_n, k, l);
-            echo_snr[e] = 10.0f * log10(pv[l] / mv[l]);
-            ++count[l];
-        }
+        if (any(echo))
+            lanes_record(pw, half_n, k, p, sum / (float)n, echo, max_echoes, sweep, count, echo_bin, echo_snr);
     }
     for (int l = 0; l < 8; ++l) {
         if (sweep[l] < 0) continue;

@@ -236,6 +236,34 @@ def test_sync_kernels_match_numpy(backend, kernel_variant, monkeypatch, span, n,
     np.testing.assert_array_equal(got.segment, ref.segment)
 
 
+def test_line_fits_see_a_spike_at_every_place_of_the_window(backend, kernel_variant):
+    """A spike on a window's first or last code, just outside it, or where the lanes
+    hand over to the scalar tail is found and replaced as numpy's despike does (the
+    lanes variant looks for spikes by each code's step to the left only: the next
+    code's step is its step to the right; a search that misses any of these places
+    fails here)."""
+    from fmcw_cl.opencl import sync as k_sync
+
+    half = 2500.0
+    x = sync_codes(120_001, half, t0=0.37 * half, noise=5.0, seed=5)
+    level = sync.fitted(x, half).level
+    hw = sync.fit_half_width(half)
+    centre = np.rint(sync.crossings(x, half).time).astype(np.int64)
+    centre = centre[(centre > hw + 20) & (centre < x.size - hw - 20)]
+    tail = (2 * hw + 1) // 8 * 8 - hw          # the first code the lanes leave to the tail
+    offsets = [-hw - 1, -hw, -hw + 1, tail - 1, tail, hw - 1, hw, hw + 1, 0]
+    assert centre.size >= len(offsets)
+    spiky = x.copy()
+    for c, off in zip(centre, offsets, strict=False):      # the first len(offsets) crossings
+        spiky[c + off] += 6000
+    got = k_sync.line_fits(backend.rt, backend.bufs, spiky, centre, hw, 300.0, level)
+    ref = sync.line_fits(spiky, centre, hw, 300.0, level)
+    clean = sync.line_fits(x, centre, hw, 300.0, level)
+    for a, b in zip(got, ref, strict=True):
+        np.testing.assert_array_equal(a, b)
+    assert not np.array_equal(ref[1], clean[1])        # some spikes were inside their windows
+
+
 @pytest.mark.parametrize("n", [1, 2, 19, 21, 4097, 8191])
 def test_sync_level_kernel_matches_numpy(backend, kernel_variant, n):
     """The percentiles of the sampled sums (a radix select on the device) and the band's
