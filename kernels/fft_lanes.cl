@@ -21,16 +21,10 @@ RADIX4(radix4_8, float8)
 // back as a vector would stall on store forwarding).
 #define ROWS8(r, j) ((float8)(r[0][j], r[1][j], r[2][j], r[3][j], r[4][j], r[5][j], r[6][j], r[7][j]))
 
-// Sample j of each lane's transform input (load in fft.cl), zero past the points.
+// Sample j < points of each lane's transform input (load in fft.cl).
 void load8(__global const float *const *ra, __global const float *const *rb,
-           __global const float *beta, const float8 v, const int dechirp, const int points,
-           const int j, float8 *re, float8 *im)
+           __global const float *beta, const float8 v, const int dechirp, const int j, float8 *re, float8 *im)
 {
-    if (j >= points) {
-        *re = 0.0f;
-        *im = 0.0f;
-        return;
-    }
     const float8 xa = ROWS8(ra, j);
     if (dechirp) {
         float8 c, s;
@@ -234,12 +228,23 @@ __kernel void spectrum_lanes(__global const float *x, const int sweeps, const in
         }
         const float8 v = vload8(0, vl);
         const int q = nfft >> 2;
-        for (int j = 0; j < q; ++j) {     // the first stage straight from the input (see fft.cl)
+        // the first stage straight from the input (see fft.cl), whose second half is zero:
+        // inputs j and j + q up to n1, j alone up to n0 (points), none after; three loops,
+        // no test of j in any (PoCL: a branch on where a sample lies costs a loop's speed)
+        const int n0 = IMIN(q, points), n1 = IMIN(q, IMAX(points - q, 0));
+        int j = 0;
+        for (; j < n1; ++j) {
             float8 a0r, a0i, a1r, a1i;
-            load8(ra, rb, beta, v, dechirp, points, j, &a0r, &a0i);
-            load8(ra, rb, beta, v, dechirp, points, j + q, &a1r, &a1i);
+            load8(ra, rb, beta, v, dechirp, j, &a0r, &a0i);
+            load8(ra, rb, beta, v, dechirp, j + q, &a1r, &a1i);
             radix4_8(re, im, j, q, j, a0r, a0i, a1r, a1i, 0.0f, 0.0f, 0.0f, 0.0f, tw_re, tw_im);
         }
+        for (; j < n0; ++j) {
+            float8 a0r, a0i;
+            load8(ra, rb, beta, v, dechirp, j, &a0r, &a0i);
+            radix4_8(re, im, j, q, j, a0r, a0i, 0.0f, 0.0f, 0.0f, 0.0f, 0.0f, 0.0f, tw_re, tw_im);
+        }
+        for (; j < q; ++j) radix4_8(re, im, j, q, j, 0.0f, 0.0f, 0.0f, 0.0f, 0.0f, 0.0f, 0.0f, 0.0f, tw_re, tw_im);
         int lb = q;
         for (; lb >= 4; lb >>= 2) {
             const int qq = lb >> 2;
