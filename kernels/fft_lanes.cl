@@ -267,18 +267,18 @@ __kernel void spectrum_lanes(__global const float *x, const int sweeps, const in
         }
         const int half_n = nfft >> 1;
         const int rows = dechirp ? 1 : 2;
-        for (int r = 0; r < rows; ++r) {
-            __local float8 *p_r = pw + r * half_n;
+        if (dechirp) {
             for (int k = 0; k < half_n; ++k) {
                 const int p = perm[k];
-                if (dechirp) {
-                    p_r[k] = re[p] * re[p] + im[p] * im[p];
-                } else {
-                    const int m = perm[(nfft - k) & (nfft - 1)];
-                    const float8 cr = r == 0 ? re[p] + re[m] : im[p] + im[m];
-                    const float8 ci = r == 0 ? im[p] - im[m] : re[p] - re[m];
-                    p_r[k] = 0.25f * (cr * cr + ci * ci);
-                }
+                pw[k] = re[p] * re[p] + im[p] * im[p];
+            }
+        } else {                          // both rows of a plain transform from one pass
+            for (int k = 0; k < half_n; ++k) {
+                const int p = perm[k], m = perm[(nfft - k) & (nfft - 1)];
+                const float8 rp = re[p], rm = re[m], ip = im[p], imm = im[m];
+                const float8 ar = rp + rm, ai = ip - imm, br = ip + imm, bi = rp - rm;
+                pw[k] = 0.25f * (ar * ar + ai * ai);
+                pw[half_n + k] = 0.25f * (br * br + bi * bi);
             }
         }
         // the transform is no longer needed: re and im hold the CFAR's tables
