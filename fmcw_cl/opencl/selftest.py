@@ -107,9 +107,10 @@ def stream(be, beat, sync_codes, fs, hp, rng) -> None:
     win = resample.window(points)
     starts = rng.uniform(2, beat.size - 2600, sweeps)
     lengths = np.full(sweeps, 2499.5)
-    rows = be.resample(beat, starts, lengths, u, win)
-    host = resample.resample(beat, starts, lengths, u, win)
-    close("resample", rows.get(be.rt.queue), host, 1e-5)
+    for uu, way in ((u, "rising u"), (u[::-1], "falling u")):      # a rising current's u falls
+        rows = be.resample(beat, starts, lengths, uu, win)
+        host = resample.resample(beat, starts, lengths, uu, win)
+        close(f"resample, {way}", rows.get(be.rt.queue), host, 1e-5)
 
 
 def spectra(be, rng, group: str) -> None:
