@@ -108,8 +108,8 @@ void lanes_record(__local const float8 *pw, const int half_n, const int k, const
 // training sums come from tables of running maxima of 8 bins (mx) and sums of 16
 // (sm) where the windows are whole (guard 8 and train 16, stages.cfar's), taken
 // directly near the band's ends or for other widths. The bins whose windows are all
-// whole run a loop of their own, without a branch on where they lie (PoCL: the test
-// of a bin took twice the time with them).
+// whole run a loop of their own, without a branch on where they lie (PoCL, 2-core EPYC:
+// the echo test 1.6x faster).
 void lanes_cfar(__local const float8 *pw, const int half_n, const int lo, const int guard, const int train,
                 __global const float *scale, const int max_echoes, __local float8 *mx, __local float8 *sm,
                 const int *sweep, __global float *echo_bin, __global float *echo_snr, __global int *echo_count)
