@@ -395,23 +395,31 @@ def test_forked_backend_converts_the_same_track(backend, static_capture):
         np.testing.assert_array_equal(track.velocity_mps, alone.velocity_mps)
 
 
+def buffers_made(monkeypatch, counts) -> list[bool]:
+    """From now on, `counts(flags)` of every device buffer `Buffers` makes (its one place
+    that makes them, `_new`), in a list."""
+    from fmcw_cl.opencl.buffers import Buffers
+
+    made = []
+    new = Buffers._new
+
+    def counted(self, flags, *args, **kwargs):
+        made.append(counts(flags))
+        return new(self, flags, *args, **kwargs)
+
+    monkeypatch.setattr(Buffers, "_new", counted)
+    return made
+
+
 def test_buffers_are_made_as_often_for_a_long_capture_as_for_a_short_one(tmp_path, monkeypatch):
     """Device buffers are made for the first chunks and reused: chunks that differ by a
     few percent in size (their sync crossings, their half-sweeps) find room in them, so
     a capture of eight chunks makes no more buffers than one of two (wraps of host
     memory on a CPU device, one per chunk, are no buffers made)."""
     import fmcw_cl
-    from fmcw_cl.opencl.buffers import Buffers
     from fmcw_cl.opencl.context import cl
 
-    made = []
-    new = Buffers._new
-
-    def counted(self, flags, *args, **kwargs):
-        made.append(not flags & cl.mem_flags.USE_HOST_PTR)
-        return new(self, flags, *args, **kwargs)
-
-    monkeypatch.setattr(Buffers, "_new", counted)
+    made = buffers_made(monkeypatch, lambda flags: not flags & cl.mem_flags.USE_HOST_PTR)
     counts = []
     for seconds in (0.1, 0.4):
         cap = tmp_path / f"rail_{seconds}.h5"
@@ -430,17 +438,9 @@ def test_a_second_capture_uploads_no_constants(static_capture, dechirp, monkeypa
     """A plan's window, Doppler bases and LUTs are the same objects capture after capture
     (plan.shaped, build_lut): the device keeps them from the first conversion, and the
     second makes no constant's buffer (and no copy of one)."""
-    from fmcw_cl.opencl.buffers import Buffers
     from fmcw_cl.opencl.context import cl
 
-    made = []
-    new = Buffers._new
-
-    def counted(self, flags, *args, **kwargs):
-        made.append(flags == cl.mem_flags.READ_ONLY)       # Buffers.constant's, alone
-        return new(self, flags, *args, **kwargs)
-
-    monkeypatch.setattr(Buffers, "_new", counted)
+    made = buffers_made(monkeypatch, lambda flags: flags == cl.mem_flags.READ_ONLY)   # Buffers.constant's
     processor = OpenCLProcessor()
     counts = []
     for _ in range(2):
