@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .numeric import median
+from .numeric import group_median, ragged
 from .stages.cfar import Detections
 
 SLICE_S = 0.01        # persistent echoes are found in slices of 10 ms (200 periods)
@@ -102,42 +102,46 @@ def table(t_sweep: np.ndarray, rising: np.ndarray, tracked_m: np.ndarray, level_
 
 def persistent(t_sweep: np.ndarray, level_db: np.ndarray, t: np.ndarray, dist: np.ndarray,
                snr: np.ndarray, tracked: np.ndarray, survey: dict | None = None) -> dict:
-    """Persistent echoes other than the tracked target, slice by slice (see the module);
-    `t_sweep` and the detections' times `t` in increasing order."""
+    """Persistent echoes other than the tracked target, slice by slice (see the module),
+    every slice at once; `t_sweep` and the detections' times `t` in increasing order."""
     keys = ("time_s", "distance_m", "snr_db", "share", "relative_db", "diffuse")
-    out: dict[str, list] = {k: [] for k in keys}
+    if t_sweep.size == 0:
+        return {k: np.zeros(0, bool if k == "diffuse" else np.float64) for k in keys}
+    edges = np.arange(t_sweep.min(), t_sweep.max() + SLICE_S, SLICE_S)
+    slices = edges.size
+
+    def within(times):                          # each slice's elements of sorted `times`
+        return ragged(np.searchsorted(times, edges), np.searchsorted(times, edges + SLICE_S))
+
+    g_sweep, at_sweep = within(t_sweep)
+    sweeps = np.bincount(g_sweep, minlength=slices)
+    kept = sweeps >= 20
+    g_det, at_det = within(t)
+    mine = tracked[at_det]
+    seen = np.bincount(g_det[mine], minlength=slices) >= SEEN * sweeps
+    level = np.where(seen, group_median(g_det[mine], snr[at_det[mine]], slices),
+                     group_median(g_sweep, level_db[at_sweep], slices))
+    others = ~mine & kept[g_det]
+    at = at_det[others]
+    g, d, x, n = keyed_clusters(g_det[others], dist[at], snr[at], sweeps, medians=True)
+    rows = [(g, d, x, n / sweeps[g], x - level[g], np.zeros(g.size, bool))]
     if survey is not None:                      # by time (chunks list their directions apart)
         order = np.argsort(survey["time_s"], kind="stable")
-        survey = {k: np.asarray(v)[order] for k, v in survey.items()}
-    if t_sweep.size:
-        edges = np.arange(t_sweep.min(), t_sweep.max() + SLICE_S, SLICE_S)
-
-        def ranges(times):                      # [start, stop) of each slice in sorted times
-            return zip(np.searchsorted(times, edges), np.searchsorted(times, edges + SLICE_S), strict=True)
-
-        slices = zip(edges, ranges(t_sweep), ranges(t),
-                     ranges(survey["time_s"]) if survey is not None else [(0, 0)] * edges.size, strict=True)
-        for a, (s0, s1), (d0, d1), (v0, v1) in slices:
-            sweeps = s1 - s0
-            if sweeps < 20:
-                continue
-            mine = tracked[d0:d1]
-            level = median(snr[d0:d1][mine] if mine.sum() >= SEEN * sweeps else level_db[s0:s1])
-            others = ~mine
-            found = [(d, x, share, x - level, False)
-                     for d, x, share in clusters(dist[d0:d1][others], snr[d0:d1][others], sweeps)]
-            if survey is not None and v1 - v0 >= 4:
-                hit = survey["found"][v0:v1]
-                if hit.sum() >= PRESENT * (v1 - v0):
-                    rel = 10 * np.log10(median(survey["ratio"][v0:v1][hit]))
-                    found.append((median(survey["distance_m"][v0:v1][hit]), level + rel,
-                                  float(hit.sum() / (v1 - v0)), rel, True))
-            for row in found:
-                for k, x in zip(keys, (a + SLICE_S / 2, *row), strict=True):
-                    out[k].append(x)
-    got = {k: np.asarray(v, np.float64) for k, v in out.items()}
-    got["diffuse"] = got["diffuse"].astype(bool)
-    return got
+        g_sv, at_sv = within(np.asarray(survey["time_s"])[order])
+        at_sv = order[at_sv]
+        total = np.bincount(g_sv, minlength=slices)
+        found = np.asarray(survey["found"], bool)[at_sv]
+        g_hit, at_hit = g_sv[found], at_sv[found]
+        hits = np.bincount(g_hit, minlength=slices)
+        s = np.flatnonzero(kept & (total >= 4) & (hits >= PRESENT * total))
+        with np.errstate(divide="ignore"):
+            rel = 10 * np.log10(group_median(g_hit, np.asarray(survey["ratio"])[at_hit], slices)[s])
+        dist_s = group_median(g_hit, np.asarray(survey["distance_m"])[at_hit], slices)[s]
+        rows.append((s, dist_s, level[s] + rel, hits[s] / total[s], rel, np.ones(s.size, bool)))
+    cols = [np.concatenate(c) for c in zip(*rows, strict=True)]
+    order = np.argsort(cols[0], kind="stable")  # by slice: its sharp echoes by distance, then its diffuse one
+    out = dict(zip(keys, (edges[cols[0][order]] + SLICE_S / 2, *(c[order] for c in cols[1:])), strict=True))
+    return {k: v.astype(bool if k == "diffuse" else np.float64) for k, v in out.items()}
 
 
 def hidden(plain: np.ndarray, dechirped: np.ndarray, lo: int, tracked_bin: np.ndarray,
@@ -211,26 +215,33 @@ def _peaks(window: np.ndarray, sweeps: np.ndarray, present: float) -> tuple[np.n
 
 
 def keyed_clusters(key: np.ndarray, dist: np.ndarray, snr: np.ndarray, sweeps: np.ndarray,
-                   present: float = PRESENT) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """`clusters` of many groups at once: the detections of group `key` (0..K-1) among
-    `sweeps[key]` half-sweeps. Returns each cluster's (group, mean distance m, mean SNR
-    dB) over its three histogram bins, by group, then distance."""
+                   present: float = PRESENT, medians: bool = False
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The distances seen in >= `present` of their group's half-sweeps, many groups at
+    once: the detections of group `key` (0..K-1) among `sweeps[key]` half-sweeps; local
+    maxima of the counts over three histogram bins. Returns each cluster's group, its
+    distance (m) and SNR (dB) over its three bins (means, or with `medians` medians) and
+    its detections, by group, then distance."""
     if dist.size == 0:
-        return np.zeros(0, np.int64), np.zeros(0), np.zeros(0)
-    _, windowed = _histograms(key, dist, sweeps.size)
+        return np.zeros(0, np.int64), np.zeros(0), np.zeros(0), np.zeros(0, np.int64)
+    idx, windowed = _histograms(key, dist, sweeps.size)
     window = windowed()
     g, b = _peaks(window, sweeps, present)
     n = window[g, b]
-    return g, windowed(dist)[g, b] / n, windowed(snr)[g, b] / n
+    if not medians:
+        return g, windowed(dist)[g, b] / n, windowed(snr)[g, b] / n, n
+    # each detection belongs to the clusters whose peak is its bin or a neighbour (the
+    # histogram's margins keep idx +- 1 inside)
+    peak = np.full(window.shape, -1)
+    peak[g, b] = np.arange(g.size)
+    member = np.concatenate([peak[key, idx + o] for o in (-1, 0, 1)])
+    at = np.tile(np.arange(dist.size), 3)[member >= 0]
+    member = member[member >= 0]
+    return g, group_median(member, dist[at], g.size), group_median(member, snr[at], g.size), n
 
 
 def clusters(dist: np.ndarray, snr: np.ndarray, sweeps: int, present: float = PRESENT):
     """(median distance, median SNR, share) of each distance seen in >= `present` of
-    `sweeps` half-sweeps (or slices): local maxima of the counts over three histogram
-    bins."""
-    if dist.size == 0 or dist.size < present * sweeps:
-        return
-    idx, windowed = _histograms(np.zeros(dist.size, np.int64), dist, 1)
-    for b in _peaks(windowed(), np.array([sweeps]), present)[1]:
-        near = np.abs(idx - b) <= 1
-        yield median(dist[near]), median(snr[near]), float(near.sum() / sweeps)
+    `sweeps` half-sweeps (or slices): `keyed_clusters` of one group."""
+    _, d, x, n = keyed_clusters(np.zeros(dist.size, np.int64), dist, snr, np.array([sweeps]), present, True)
+    return zip(d, x, n / sweeps, strict=True)

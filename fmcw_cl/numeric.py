@@ -23,6 +23,34 @@ def median(x: np.ndarray) -> float:
     return 0.5 * float(s[(n - 1) // 2] + s[n // 2])
 
 
+def group_median(group: np.ndarray, x: np.ndarray, groups: int) -> np.ndarray:
+    """`median` of the values `x` of each group 0..`groups` - 1 (`group`: each value's):
+    NaN for a group that is empty or holds a NaN. The groups are sorted as the rows of
+    one table (a sort of many short rows, not of one long one)."""
+    x = np.asarray(x, np.float64)
+    n = np.bincount(group, minlength=groups)
+    out = np.full(groups, np.nan)
+    if x.size == 0:
+        return out
+    if np.any(np.diff(group) < 0):
+        by = np.argsort(group, kind="stable")
+        group, x = group[by], x[by]
+    rows = np.full((groups, int(n.max())), np.inf)
+    rows[group, np.arange(x.size) - (np.cumsum(n) - n)[group]] = x
+    rows.sort(axis=1)
+    has = np.flatnonzero((n > 0) & (np.bincount(group, np.isnan(x), minlength=groups) == 0))
+    out[has] = 0.5 * (rows[has, (n[has] - 1) // 2] + rows[has, n[has] // 2])
+    return out
+
+
+def ragged(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The index ranges [lo, hi) laid end to end: each element's range (0, 1, ...) and
+    its index."""
+    n = np.maximum(np.asarray(hi) - lo, 0)
+    which = np.repeat(np.arange(n.size), n)
+    return which, np.arange(which.size) + np.repeat(lo - (np.cumsum(n) - n), n)
+
+
 def row_nanmedian(a: np.ndarray) -> np.ndarray:
     """np.nanmedian(a, axis=1) for rows with at least one number, without its masked
     arrays (10x faster on the tracker's (pairs, 16) predictions): NaNs sort last."""

@@ -43,7 +43,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import echoes
-from .numeric import nearest
+from .numeric import group_median, nearest
 from .options import said
 from .stages import faults
 
@@ -117,7 +117,7 @@ def fixed_echoes(e: echoes.Echoes, level_db: float) -> tuple[np.ndarray, np.ndar
     sweeps = np.bincount(key[first], minlength=2 * slice_.max() + 2)
     kept = np.bincount(slice_[first], minlength=slice_.max() + 1) >= 20
     rows = kept[slice_]
-    g, d, snr = echoes.keyed_clusters(key[rows], e.distance_m[rows], e.snr_db[rows], sweeps)
+    g, d, snr, _ = echoes.keyed_clusters(key[rows], e.distance_m[rows], e.snr_db[rows], sweeps)
     fall, rise = (g % 2 == 0), (g % 2 == 1)
     # pair each rising cluster with the nearest falling one of its slice, within GATE_M
     at = (g // 2) * SPAN_KEY_M + d                     # slice-major sort key (m)
@@ -193,15 +193,8 @@ def _objects(fixed: np.ndarray, time_s, distance_m, valid, e: echoes.Echoes) -> 
     t0 = time_s.min()
     nslices = int((time_s.max() - t0) // echoes.SLICE_S) + 1
     k = ((time_s[valid] - t0) // echoes.SLICE_S).astype(np.int64)
-    d = distance_m[valid]
-    order = np.lexsort((d, k))
-    k, d = k[order], d[order]
-    count = np.bincount(k, minlength=nslices)
-    start = np.r_[0, np.cumsum(count)[:-1]]
-    full = count >= 20
-    mid = np.full(nslices, np.nan)                        # the slice's median distance
-    c, s0 = count[full], start[full]
-    mid[full] = 0.5 * (d[s0 + (c - 1) // 2] + d[s0 + c // 2])
+    full = np.bincount(k, minlength=nslices) >= 20
+    mid = np.where(full, group_median(k, distance_m[valid], nslices), np.nan)   # the slice's median distance
     # the echoes' slices (echo times outside the pairs' span fall out)
     ke = ((e.time_s - t0) // echoes.SLICE_S).astype(np.int64)
     inside = (ke >= 0) & (ke < nslices)

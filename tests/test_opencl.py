@@ -8,10 +8,11 @@ import pytest
 from fmcw_cl.backend import make_processor
 from fmcw_cl.chunks import margin_samples
 from fmcw_cl.engine import process
+from fmcw_cl.opencl import faults as k_faults
 from fmcw_cl.opencl import spectrum as k_spectrum
 from fmcw_cl.opencl.processor import OpenCLProcessor
 from fmcw_cl.options import Options
-from fmcw_cl.stages import lpf, resample, spectrum, sync
+from fmcw_cl.stages import faults, lpf, resample, spectrum, sync
 from fmcw_cl.stages.spectrum import Search
 
 
@@ -132,13 +133,18 @@ def test_power_spectra_of_several_row_counts_in_one_trip(backend, kernel_variant
         assert np.abs(spec - ref).max(initial=0) <= (1e-5 if v is None else 1e-4) * ref.max(initial=1)
 
 
-def test_a_kernel_of_each_slot_keeps_its_own_arguments(backend):
-    """The two directions of a pair launch one kernel with two argument sets: each slot
-    is a kernel object of its own (pyopencl's `set_arg` is per object)."""
+def test_a_kernel_launched_with_changing_scalars_uses_each_launchs(backend):
+    """A kernel's scalar types are declared at its first launch and every argument is
+    set at each: one kernel object launched in turn with other blocks, limits and
+    buffers counts each time as numpy does."""
     rt = backend.rt
-    one, other = (rt.kernel("spectrum", "spectrum_peak", slot) for slot in (0, 1))
-    assert one is rt.kernel("spectrum", "spectrum_peak") and other is not one
-    assert other.kernel is not one.kernel and other.traffic is one.traffic
+    codes = np.random.default_rng(3).integers(-2048, 2048, 5001).astype(np.int16)
+    kernel = rt.kernel("faults", "clip_blocks")
+    assert kernel is rt.kernel("faults", "clip_blocks")
+    for block, full_scale in ((64, 2048), (37, 1500), (64, 2048), (1000, 100)):
+        got = k_faults.clip_counts(rt, backend.bufs, codes, block, full_scale)
+        np.testing.assert_array_equal(got, faults.clip_counts(codes, block, full_scale))
+    assert kernel.typed
 
 
 def test_fft_tables_undo_the_digit_reversal():
@@ -325,7 +331,6 @@ def test_coarse_crossings_of_a_triangle():
 def test_clip_kernel_matches_numpy(backend, n, block):
     """Clipped codes of both signs and both full-scale codes, at block edges, in a last
     partial block; lengths that are no multiple of the vector loads."""
-    from fmcw_cl.stages import faults
 
     rng = np.random.default_rng(n)
     codes = rng.integers(-8000, 8000, n).astype(np.int16)
@@ -344,7 +349,6 @@ def test_prepared_chunk_equals_numpy(backend, static_capture, monkeypatch):
     counts, which ride on the sync's first download (no copy of their own), or where the
     sync is too short for a crossing search come down by themselves."""
     from fmcw_cl.capture import Capture, Chunk
-    from fmcw_cl.opencl import faults as k_faults
     from fmcw_cl.processor import NumpyProcessor
 
     own, real = [], k_faults.clip_counts

@@ -42,8 +42,8 @@ def resample_each(rt: Runtime, bufs: Buffers, codes: np.ndarray, jobs: list, win
             continue
         args = (d_codes, *buffers[5 * i: 5 * i + 5], bufs.constant("u", u), d_win, np.int32(points))
         if rt.lanes:
-            rt.kernel("resample", "resample_lanes", i)(rt.queue, (sweeps,), (1,), *args, rows.buffer)
+            rt.kernel("resample", "resample_lanes")(rt.queue, (sweeps,), (1,), *args, rows.buffer)
         else:
-            rt.kernel("resample", "resample", i)(rt.queue, (sweeps * GPU_LOCAL,), (GPU_LOCAL,), *args,
-                                                 rows.buffer, cl.LocalMemory(4 * GPU_LOCAL))
+            rt.kernel("resample", "resample")(rt.queue, (sweeps * GPU_LOCAL,), (GPU_LOCAL,), *args,
+                                              rows.buffer, cl.LocalMemory(4 * GPU_LOCAL))
     return out + buffers[5 * len(jobs):]

@@ -157,12 +157,12 @@ def measure_each(rt: Runtime, bufs: Buffers, jobs: list, velocity: np.ndarray | 
             groups = -(-transforms // LANES)
             if listed is not None:
                 groups = min(groups, counted_groups(rt))
-            rt.kernel("spectrum", "spectrum_lanes", i)(rt.queue, (groups,), (1,), *args,
-                                                       *(cl.LocalMemory(4 * LANES * nfft),) * 3)
+            rt.kernel("spectrum", "spectrum_lanes")(rt.queue, (groups,), (1,), *args,
+                                                    *(cl.LocalMemory(4 * LANES * nfft),) * 3)
         else:
             lsz = local_size(rt, nfft)
             groups = transforms if listed is None else min(transforms, counted_groups(rt))
-            rt.kernel("spectrum", "spectrum_peak", i)(
+            rt.kernel("spectrum", "spectrum_peak")(
                 rt.queue, (groups * lsz,), (lsz,), *args,
                 cl.LocalMemory(4 * nfft), cl.LocalMemory(4 * nfft), cl.LocalMemory(4 * half),
                 cl.LocalMemory(12 * lsz), cl.LocalMemory(half if echoes else 1))

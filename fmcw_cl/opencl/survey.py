@@ -61,12 +61,12 @@ def hidden_each(rt: Runtime, bufs: Buffers, jobs: list, lo: int, inputs: list | 
         written = out.buffers[at: at + 3]
         band = half - lo
         if rt.lanes:
-            rt.kernel("survey", "hidden_lanes", i)(
+            rt.kernel("survey", "hidden_lanes")(
                 rt.queue, (-(-rows // 8),), (1,), plain.buffer, dechirped.buffer, np.int32(half),
                 np.int32(lo), np.int32(rows), d_tracked, d_plain_bin, d_others, np.int32(m), *rules, *written,
                 cl.LocalMemory(32 * band), cl.LocalMemory(32 * band), cl.LocalMemory(32 * max(m, 1)))
         else:
-            rt.kernel("survey", "hidden", i)(
+            rt.kernel("survey", "hidden")(
                 rt.queue, (rows * lsz,), (lsz,), plain.buffer, dechirped.buffer, np.int32(half), np.int32(lo),
                 d_tracked, d_plain_bin, d_others, np.int32(m), *rules, *written,
                 cl.LocalMemory(4 * band), cl.LocalMemory(24 * lsz), cl.LocalMemory(8))

@@ -1,0 +1,97 @@
+"""The echo table's persistent echoes, found for every slice at once, against a slice
+by slice reference; the grouped medians they take."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from fmcw_cl import echoes
+from fmcw_cl.numeric import group_median, ragged
+
+
+def test_group_medians_equal_numpys():
+    rng = np.random.default_rng(4)
+    for size, groups in ((0, 3), (1, 1), (7, 3), (500, 40), (2001, 9)):
+        group = rng.integers(0, groups, size)
+        x = rng.normal(size=size).round(1)                    # ties
+        if size > 10:
+            x[:3] = (np.nan, np.inf, -np.inf)
+        want = [np.median(x[group == g]) if np.any(group == g) else np.nan for g in range(groups)]
+        np.testing.assert_array_equal(group_median(group, x, groups), want)
+    which, index = ragged(np.array([3, 0, 5, 9]), np.array([6, 0, 7, 8]))
+    np.testing.assert_array_equal(which, [0, 0, 0, 2, 2])
+    np.testing.assert_array_equal(index, [3, 4, 5, 5, 6])
+
+
+def reference(t_sweep, level_db, t, dist, snr, tracked, survey=None) -> dict:
+    """The persistent echoes as the module says, one slice at a time."""
+    keys = ("time_s", "distance_m", "snr_db", "share", "relative_db", "diffuse")
+    out = {k: [] for k in keys}
+    snr = snr.astype(np.float64)                    # medians of float32 SNRs in double
+    if t_sweep.size == 0:
+        return {k: np.asarray(v, bool if k == "diffuse" else np.float64) for k, v in out.items()}
+    for a in np.arange(t_sweep.min(), t_sweep.max() + echoes.SLICE_S, echoes.SLICE_S):
+        s = (t_sweep >= a) & (t_sweep < a + echoes.SLICE_S)
+        d = (t >= a) & (t < a + echoes.SLICE_S)
+        sweeps = s.sum()
+        if sweeps < 20:
+            continue
+        mine = d & tracked
+        level = np.median(snr[mine] if mine.sum() >= echoes.SEEN * sweeps else level_db[s])
+        rows = []
+        others = d & ~tracked
+        if others.any():
+            b = np.floor(dist[others] / echoes.HIST_M).astype(np.int64)
+            bins = np.arange(b.min() - 1, b.max() + 2)
+            count = np.array([np.sum(np.abs(b - k) <= 1) for k in bins])
+            for i, k in enumerate(bins):
+                left = count[i - 1] if i else -1
+                right = count[i + 1] if i + 1 < bins.size else -1
+                peak = count[i] > max(left, 0) and count[i] >= right
+                if peak and count[i] >= echoes.PRESENT * sweeps:
+                    near = np.abs(b - k) <= 1
+                    x = np.median(snr[others][near])
+                    rows.append((np.median(dist[others][near]), x, near.sum() / sweeps, x - level, False))
+        if survey is not None:
+            v = (survey["time_s"] >= a) & (survey["time_s"] < a + echoes.SLICE_S)
+            hit = v & survey["found"]
+            if v.sum() >= 4 and hit.sum() >= echoes.PRESENT * v.sum():
+                rel = 10 * np.log10(np.median(survey["ratio"][hit]))
+                share = hit.sum() / v.sum()
+                rows.append((np.median(survey["distance_m"][hit]), level + rel, share, rel, True))
+        for row in rows:
+            for k, x in zip(keys, (a + echoes.SLICE_S / 2, *row), strict=True):
+                out[k].append(x)
+    return {k: np.asarray(v, bool if k == "diffuse" else np.float64) for k, v in out.items()}
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_persistent_echoes_of_all_slices_equal_slice_by_slice(seed):
+    """Walls two histogram bins apart (a detection in two clusters), slices without
+    half-sweeps, NaN levels, a target seen or not, and a survey out of time order."""
+    rng = np.random.default_rng(seed)
+    m = int(rng.integers(0, 2500))
+    ts = np.sort(rng.uniform(0, rng.uniform(0.001, 0.06), m))
+    if seed % 3 == 0:
+        ts = np.r_[ts[: m // 3], ts[m // 3:] + 0.03]
+    level = rng.normal(20, 5, m)
+    if seed % 4 == 0 and m:
+        level[rng.integers(0, m, 3)] = np.nan
+    t = np.repeat(ts, rng.integers(0, 4, m))
+    walls = rng.choice([0.1, 0.2, 0.3001, 0.3041, 0.3081], int(rng.integers(1, 4)), replace=False)
+    dist = rng.choice(walls, t.size) + rng.normal(0, rng.uniform(2e-4, 2e-3), t.size)
+    snr = rng.normal(15, 3, t.size).astype(np.float32)
+    tracked = rng.random(t.size) < rng.uniform(0, 0.6)
+    survey = None
+    if seed % 2:
+        k = m // 6
+        survey = {"time_s": rng.permutation(rng.choice(ts, k)) if m else np.zeros(0),
+                  "ratio": rng.uniform(0.05, 3, k), "distance_m": rng.uniform(0, 0.4, k),
+                  "found": rng.random(k) < rng.uniform(0, 1)}
+    got = echoes.persistent(ts, level, t, dist, snr, tracked, survey)
+    want = reference(ts, level, t, dist, snr, tracked, survey)
+    assert got.keys() == want.keys()
+    for k in got:
+        np.testing.assert_allclose(got[k], want[k], rtol=1e-12, err_msg=k)
+        assert got[k].dtype == want[k].dtype
