@@ -89,7 +89,7 @@ def table(t_sweep: np.ndarray, rising: np.ndarray, tracked_m: np.ndarray, level_
     """The detections of half-sweeps (times t_sweep, directions, tracked plain distances
     and de-chirped SNRs) as a flat table, with the persistent echoes (sharp, and diffuse
     from the `survey` of `hidden`: time_s, ratio, distance_m, found)."""
-    rows, slots = np.nonzero(np.arange(det.bin.shape[1])[None, :] < det.count[:, None])
+    rows, slots = ragged(np.zeros(det.count.size, np.int64), np.minimum(det.count, det.bin.shape[1]))
     dist = det.bin[rows, slots] * metres_per_bin
     tracked = is_tracked(dist, tracked_m[rows])
     order = np.argsort(t_sweep[rows], kind="stable")

@@ -273,3 +273,24 @@ def test_running_median_and_savgol_derivative_equal_scipys():
                 want = savgol_filter(x, window, order, deriv=1, delta=5e-5, mode="interp")
                 np.testing.assert_allclose(savgol_derivative(x, window, order, 5e-5), want,
                                            rtol=1e-10, atol=1e-10 * np.abs(want).max())
+
+
+def test_neighbour_residuals_in_blocks_equal_those_of_each_pair():
+    """The continuity residuals of all pairs, taken RESIDUAL_BLOCK rows at a time,
+    against those of subsets of pairs (one block of copied windows), across the
+    blocks' seams; NaN distances and untrusted pairs among them."""
+    rng = np.random.default_rng(12)
+    n = 3 * pairing.RESIDUAL_BLOCK + 123
+    t = np.cumsum(rng.uniform(4e-5, 6e-5, n))
+    dist = 0.3 + np.cumsum(rng.normal(0, 1e-4, n))
+    vel = rng.normal(0, 0.01, n)
+    dist[rng.integers(0, n, 20)] = np.nan
+    trusted = rng.random(n) < 0.9
+    trusted[100:140] = False                        # pairs with too few neighbours: inf
+    resid, support = pairing._residuals(t, dist, vel, trusted)
+    seams = np.arange(1, 4) * pairing.RESIDUAL_BLOCK
+    for rows in (np.sort(rng.choice(n, n // 5, replace=False)), np.r_[seams - 1, seams, seams + 1]):
+        got = pairing._residuals(t, dist, vel, trusted, rows)
+        np.testing.assert_array_equal(got[0], resid[rows])
+        np.testing.assert_array_equal(got[1], support[rows])
+    assert np.isinf(resid).any() and np.isfinite(resid).mean() > 0.5

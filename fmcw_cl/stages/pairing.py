@@ -36,6 +36,7 @@ STOP_MPS = 1e-3       # a pair is re-measured when its de-chirp velocity moves t
 JUMP_M = 0.25e-3      # a distance this far from its neighbours' prediction is discontinuous
 JUMP_SIGMAS = 6.0     # ... or this many robust standard deviations of the chunk's residuals
 JUMP_MAX_M = 1e-3     # ... but never more than this
+RESIDUAL_BLOCK = 4096      # pairs whose neighbours' predictions are taken at once
 SUPPORT = 2           # trusted neighbours needed to vouch for a pair
 ANCHOR_PAIRS = 2 * NEIGHBOURS + 1   # a run of valid pairs this long stands on its own
 ACCEL_MAX = 500.0     # m/s^2: how far a shorter run may stray from an anchor across its gap
@@ -226,18 +227,27 @@ def _residuals(t: np.ndarray, dist: np.ndarray, vel: np.ndarray, trusted: np.nda
     if rows is not None and rows.size > dist.size // 4:     # cheaper on strided views
         resid, support = _residuals(t, dist, vel, trusted)
         return resid[rows], support[rows]
-    at = slice(None) if rows is None else rows
+    # each row's window of 2 NEIGHBOURS + 1 pairs (itself in the middle): strided views
+    # of the padded arrays, taken RESIDUAL_BLOCK rows at a time (the (rows, window)
+    # temporaries stay in cache), or copied for a subset of rows
+    windows = [np.lib.stride_tricks.sliding_window_view(np.pad(a, NEIGHBOURS, constant_values=fill),
+                                                        2 * NEIGHBOURS + 1)
+               for a, fill in ((trusted, False), (t, 0.0), (dist, 0.0), (vel, 0.0))]
+    blocks = [rows] if rows is not None else [slice(a, a + RESIDUAL_BLOCK)
+                                              for a in range(0, dist.size, RESIDUAL_BLOCK)]
+    got = [_residuals_of(at, t, dist, vel, *windows) for at in blocks]
+    if len(got) == 1:
+        return got[0]
+    return np.concatenate([g[0] for g in got]), np.concatenate([g[1] for g in got])
 
-    def around(a, fill):
-        """Each row's window of 2 NEIGHBOURS + 1 pairs (itself in the middle), a strided
-        view of the padded array (copied for a subset of rows)."""
-        padded = np.pad(a, NEIGHBOURS, constant_values=fill)
-        return np.lib.stride_tricks.sliding_window_view(padded, 2 * NEIGHBOURS + 1)[at]
 
-    ok = np.array(around(trusted, False))
+def _residuals_of(at, t, dist, vel, ok, tj, dj, vj) -> tuple[np.ndarray, np.ndarray]:
+    """_residuals of the pairs `at` (a slice or indices), from the windows of the trusted
+    flags, times, distances and velocities."""
+    ok = np.array(ok[at])
     ok[:, NEIGHBOURS] = False                   # a pair does not vouch for itself
     support = ok.sum(axis=1)
-    tj, dj, vj = (around(a, 0.0) for a in (t, dist, vel))
+    tj, dj, vj = tj[at], dj[at], vj[at]
     pred = np.where(ok, dj + (t[at, None] - tj) * 0.5 * (vel[at, None] + vj), np.nan)
     with np.errstate(invalid="ignore"):
         resid = np.where(support >= SUPPORT, np.abs(dist[at] - row_nanmedian(pred)), np.inf)
