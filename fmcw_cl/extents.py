@@ -49,7 +49,11 @@ class Extents:
             count = -(-n // size)
             if dset.id.get_num_chunks() != count:       # some never written: HDF5's fill value
                 return None
-            infos = [dset.id.get_chunk_info(i) for i in range(count)]
+            infos: list = []
+            try:
+                dset.id.chunk_iter(infos.append)       # one walk of the index: 0.2 ms for 191 chunks
+            except AttributeError:                      # HDF5 < 1.12.3: a query a chunk, 2 ms
+                infos = [dset.id.get_chunk_info(i) for i in range(count)]
         except (AttributeError, OSError, RuntimeError, ValueError):
             return None               # an HDF5 without the chunk queries: h5py reads it
         if any(c.filter_mask or c.size != size * ITEM for c in infos):
