@@ -25,10 +25,10 @@ def median(x: np.ndarray) -> float:
 
 def group_median(group: np.ndarray, x: np.ndarray, groups: int) -> np.ndarray:
     """`median` of the values `x` of each group 0..`groups` - 1 (`group`: each value's):
-    NaN for a group that is empty or holds a NaN. The groups are sorted as the rows of
-    one table padded to the largest (a sort of many short rows is 8x faster than one of
-    all values by group and value), or, where that table would be mostly padding, by
-    one such sort."""
+    NaN for a group that is empty or holds a NaN. The groups are the rows of one table
+    padded to the largest (`row_nanmedian`: a sort of many short rows is 8x faster than
+    one of all values by group and value), or, where that table would be mostly padding,
+    sorted by one such sort."""
     x = np.asarray(x, np.float64)
     n = np.bincount(group, minlength=groups)
     start = np.cumsum(n) - n
@@ -36,18 +36,16 @@ def group_median(group: np.ndarray, x: np.ndarray, groups: int) -> np.ndarray:
     if x.size == 0:
         return out
     has = np.flatnonzero((n > 0) & (np.bincount(group, np.isnan(x), minlength=groups) == 0))
-    a, b = (n[has] - 1) // 2, n[has] // 2
     if groups * int(n.max()) > 4 * x.size + 4096:
         s = x[np.lexsort((x, group))]
-        out[has] = 0.5 * (s[start[has] + a] + s[start[has] + b])
+        out[has] = 0.5 * (s[start[has] + (n[has] - 1) // 2] + s[start[has] + n[has] // 2])
         return out
     if np.any(np.diff(group) < 0):
         by = np.argsort(group, kind="stable")
         group, x = group[by], x[by]
-    rows = np.full((groups, int(n.max())), np.inf)
+    rows = np.full((groups, int(n.max())), np.nan)
     rows[group, np.arange(x.size) - start[group]] = x
-    rows.sort(axis=1)
-    out[has] = 0.5 * (rows[has, a] + rows[has, b])
+    out[has] = row_nanmedian(rows[has])
     return out
 
 

@@ -133,7 +133,7 @@ def test_power_spectra_of_several_row_counts_in_one_trip(backend, kernel_variant
         assert np.abs(spec - ref).max(initial=0) <= (1e-5 if v is None else 1e-4) * ref.max(initial=1)
 
 
-def test_a_kernel_launched_with_changing_scalars_uses_each_launchs(backend):
+def test_a_kernel_uses_the_scalars_of_each_launch(backend):
     """A kernel's scalar types are declared at its first launch and every argument is
     set at each: one kernel object launched in turn with other blocks, limits and
     buffers counts each time as numpy does."""
