@@ -243,5 +243,6 @@ def keyed_clusters(key: np.ndarray, dist: np.ndarray, snr: np.ndarray, sweeps: n
 def clusters(dist: np.ndarray, snr: np.ndarray, sweeps: int, present: float = PRESENT):
     """(median distance, median SNR, share) of each distance seen in >= `present` of
     `sweeps` half-sweeps (or slices): `keyed_clusters` of one group."""
-    _, d, x, n = keyed_clusters(np.zeros(dist.size, np.int64), dist, snr, np.array([sweeps]), present, True)
+    _, d, x, n = keyed_clusters(np.zeros(dist.size, np.int64), dist, snr, np.array([sweeps]), present,
+                                medians=True)
     return zip(d, x, n / sweeps, strict=True)
