@@ -12,8 +12,10 @@ zero), found by secant steps from the intensity estimate.
 The mismatch's standard error (from the runs' residuals, or the stretches' spread where
 that is larger) over its slope against the delay is the delay's uncertainty; in
 velocity it is the standard error itself, in distance the delay's uncertainty times how
-far the stretches' mean distance moves per sample. A capture whose stretches hold no
-valid run of MIN_RUN pairs keeps the intensity estimate.
+far the stretches' mean distance moves per sample. A run is the valid pairs of a
+stretch with at most BRIDGE_PAIRS invalid ones between two, across which the distance
+moves as the velocity says; a capture whose stretches hold no run of MIN_RUN valid pairs
+keeps the intensity estimate.
 """
 
 from __future__ import annotations
@@ -25,7 +27,7 @@ import numpy as np
 
 from .capture import Capture
 from .chunks import HELD_SLOT, held_chunks
-from .numeric import runs, travelled
+from .numeric import travelled
 from .stages import resample, sync
 
 STRETCHES = 3
@@ -34,7 +36,11 @@ STEP_SAMPLES = 2.0        # first secant step
 MAX_SHIFT_SAMPLES = 200.0
 TOLERANCE_SAMPLES = 0.02
 MAX_EVALUATIONS = 6
-MIN_RUN = 60              # pairs of a valid run used
+MIN_RUN = 60              # valid pairs of a run used
+BRIDGE_PAIRS = 3          # a run goes on across this many invalid pairs (150 us) ...
+BRIDGE_M = 0.002          # ... where the distance moves by no more than this beyond the velocity's
+JACKKNIFE_BLOCKS = 6      # blocks of a run left out in turn for the drift's standard error
+FIT_SAMPLES = 5.0         # unsettled trials this near the best are fitted by a line
 TRIAL_ITERATIONS = 3      # de-chirp passes of a trial conversion: on a lab's landings six
                           # moved the delay by 0.02 samples at most, two left it 1-4 samples off
 SETTLED = 0.25            # a mismatch this many of its standard errors from zero is the root
@@ -53,13 +59,30 @@ class Mismatch:
 
 def drift(t: np.ndarray, d: np.ndarray, v: np.ndarray) -> tuple[float, float]:
     """Least-squares slope (m/s) of d - integral of v over one run, and its standard
-    error: zero for consistent kinematics, whatever the motion."""
+    error: zero for consistent kinematics, whatever the motion. The error is the
+    larger of the white residuals' and a jackknife's over JACKKNIFE_BLOCKS blocks of
+    the run: the tracker's distances are correlated over several pairs (under noise at
+    full scale their variogram grows from 40 um at one pair to a plateau of 90 um at
+    5-10), which the white residuals' error misses by a factor of two or so."""
     r = d - travelled(t, v)
+    slope, se = _slope(t, r)
+    keep = np.ones(t.size, bool)
+    loo = []
+    for block in np.array_split(np.arange(t.size), JACKKNIFE_BLOCKS):
+        keep[block] = False
+        loo.append(_slope(t[keep], r[keep])[0])
+        keep[block] = True
+    g = len(loo)
+    jack = float(np.sqrt((g - 1) / g * np.sum(np.square(np.subtract(loo, np.mean(loo))))))
+    return slope, max(se, jack)
+
+
+def _slope(t: np.ndarray, r: np.ndarray) -> tuple[float, float]:
+    """Least-squares slope of r over t and its standard error for white residuals."""
     tc = t - t.mean()
     slope = float(np.dot(tc, r - r.mean()) / np.dot(tc, tc))
     resid = r - r.mean() - slope * tc
-    se = float(np.sqrt(np.dot(resid, resid) / max(1, t.size - 2) / np.dot(tc, tc)))
-    return slope, se
+    return slope, float(np.sqrt(np.dot(resid, resid) / max(1, t.size - 2) / np.dot(tc, tc)))
 
 
 def stretches(cap: Capture, plan, processor) -> list[list[tuple]]:
@@ -91,13 +114,13 @@ def mismatch(held: list[list[tuple]], plan, lag: float, processor) -> Mismatch:
         if not parts:
             continue
         t, d, v, ok = pairs_of(parts)
-        i, j = max(runs(ok), key=lambda r: r[1] - r[0], default=(0, 0))
-        if j - i < MIN_RUN:
+        run = max(bridged_runs(t, d, v, ok), key=np.size, default=np.zeros(0, np.int64))
+        if run.size < MIN_RUN:
             continue
-        slope, se = drift(t[i:j], d[i:j], v[i:j])
+        slope, se = drift(t[run], d[run], v[run])
         slopes.append(slope)
         errors.append(se)
-        dist.append(float(np.mean(d[i:j])))
+        dist.append(float(np.mean(d[run])))
     if not slopes:
         return Mismatch(float("nan"), float("nan"), float("nan"))
     # the standard error of the mean: from the runs' residuals, or from the stretches'
@@ -107,6 +130,20 @@ def mismatch(held: list[list[tuple]], plan, lag: float, processor) -> Mismatch:
     if n > 1:
         sigma = max(sigma, float(np.std(slopes, ddof=1)) / np.sqrt(n))
     return Mismatch(float(np.mean(slopes)), sigma, float(np.mean(dist)))
+
+
+def bridged_runs(t: np.ndarray, d: np.ndarray, v: np.ndarray, ok: np.ndarray) -> list[np.ndarray]:
+    """The indices of the valid pairs of `ok` (times s, distances m, velocities m/s),
+    split where more than BRIDGE_PAIRS invalid pairs lie between two, or where the
+    distance across the invalid ones moves by more than BRIDGE_M beyond what the
+    velocity says (another echo). The velocity is integrated across the other gaps:
+    noise leaves a few isolated invalid pairs in a lab's runs."""
+    idx = np.flatnonzero(ok)
+    if idx.size == 0:
+        return []
+    a, b = idx[:-1], idx[1:]
+    jump = np.abs(d[b] - d[a] - 0.5 * (v[a] + v[b]) * (t[b] - t[a]))
+    return np.split(idx, np.flatnonzero((b - a > BRIDGE_PAIRS + 1) | ((b - a > 1) & (jump > BRIDGE_M))) + 1)
 
 
 def pairs_of(parts) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -133,6 +170,7 @@ def refine_lag(cap: Capture, plan, processor):
     # d(mismatch)/d(lag) and d(distance)/d(lag) from the first step: smooth in the lag
     slope = (ms[1].mps - ms[0].mps) / STEP_SAMPLES
     moves = (ms[1].distance_m - ms[0].distance_m) / STEP_SAMPLES
+    settled = False
     while len(xs) < MAX_EVALUATIONS and np.isfinite(ms[-1].mps) and np.isfinite(ms[-2].mps):
         step = (ms[-1].mps - ms[-2].mps) / (xs[-1] - xs[-2])
         if step == 0:
@@ -143,15 +181,45 @@ def refine_lag(cap: Capture, plan, processor):
         ms.append(mismatch(held, plan, nxt, processor))
         # converged, or what is left is small against its own uncertainty: a further
         # trial conversion would move the delay by a fraction of its sigma
-        if done or abs(ms[-1].mps) <= SETTLED * ms[-1].sigma_mps:
+        settled = done or abs(ms[-1].mps) <= SETTLED * ms[-1].sigma_mps
+        if settled:
             break
     good = [k for k, m in enumerate(ms) if np.isfinite(m.mps)]
     best = min(good, key=lambda k: abs(ms[k].mps))
-    sigma_mps = ms[best].sigma_mps
+    lag, left, sigma_mps = xs[best], abs(ms[best].mps), ms[best].sigma_mps
     sigma_lag = sigma_mps / abs(slope)
-    return replace(plan, lag=xs[best], lag_refined=True, lag_mismatch_mps=abs(ms[best].mps),
+    near = [k for k in good if abs(xs[k] - lag) <= FIT_SAMPLES]
+    if not settled and len(near) >= 3:
+        # noise kept the secant steps from settling: the root of a line through the
+        # trials near the best, weighted by their errors, uses them all
+        fit = line_root(np.array([xs[k] for k in near]), np.array([ms[k].mps for k in near]),
+                        np.array([ms[k].sigma_mps for k in near]))
+        if fit is not None:
+            lag, sigma_lag, slope = fit
+            left, sigma_mps = 0.0, sigma_lag * abs(slope)
+    return replace(plan, lag=lag, lag_refined=True, lag_mismatch_mps=left,
                    lag_sigma_samples=sigma_lag, lag_sigma_mps=sigma_mps,
                    lag_sigma_m=abs(moves) * sigma_lag, lag_at_m=ms[best].distance_m)
+
+
+def line_root(x: np.ndarray, y: np.ndarray, sigma: np.ndarray) -> tuple[float, float, float] | None:
+    """(root, its standard error, slope) of the weighted least-squares line through
+    (x, y +- sigma); the error from the given sigmas or from the residuals, the larger
+    (None: a flat line, or a root outside the span of x)."""
+    w = 1.0 / np.square(sigma)
+    xm = np.sum(w * x) / np.sum(w)
+    sxx = np.sum(w * np.square(x - xm))
+    slope = np.sum(w * (x - xm) * y) / sxx
+    mean = np.sum(w * y) / np.sum(w)
+    if slope == 0:
+        return None
+    root = xm - mean / slope
+    if not x.min() <= root <= x.max():
+        return None
+    chi2 = np.sum(w * np.square(y - mean - slope * (x - xm))) / max(1, x.size - 2)
+    # var(root) from var(mean) = 1 / sum w and var(slope) = 1 / sxx (independent about xm)
+    var = (1.0 / np.sum(w) + np.square(root - xm) / sxx) / np.square(slope) * max(1.0, chi2)
+    return float(root), float(np.sqrt(var)), float(slope)
 
 
 WIDTH_PERIODS = 100       # periods whose peaks are measured by the tuning check

@@ -64,3 +64,68 @@ def test_trial_conversions_with_fewer_passes_find_the_same_delay(tmp_path, monke
     full = process(path).attrs
     assert refine.TRIAL_ITERATIONS > 3 and few["sync_delay_refined"] and full["sync_delay_refined"]
     assert abs(few["sync_delay_samples"] - full["sync_delay_samples"]) < 0.05
+
+
+def test_a_run_of_the_delays_refinement_bridges_isolated_invalid_pairs():
+    """A run of `refine` goes on across a few invalid pairs where the distance moves as
+    the velocity says, not across a longer gap or a step to another echo."""
+    from fmcw_cl.refine import BRIDGE_M, BRIDGE_PAIRS, bridged_runs
+
+    t = np.arange(60) * 5e-5
+    v = np.full(60, 0.5)
+    d = 0.2 + v * t
+    ok = np.ones(60, bool)
+    ok[[5, 9, 10]] = False                             # isolated pairs: one run
+    ok[20: 21 + BRIDGE_PAIRS] = False                  # a longer gap: two
+    d[45:] += 2 * BRIDGE_M                             # another echo after a short gap: three
+    ok[44] = False
+    got = bridged_runs(t, d, v, ok)
+    want = [np.flatnonzero(ok[:20]), np.arange(21 + BRIDGE_PAIRS, 44), np.arange(45, 60)]
+    assert [r.tolist() for r in got] == [w.tolist() for w in want]
+    assert bridged_runs(t[:4], d[:4], v[:4], np.zeros(4, bool)) == []
+
+
+@pytest.mark.parametrize("phi", [0.0, 0.85])
+def test_the_drifts_error_holds_for_distances_correlated_over_pairs(phi):
+    """refine.drift over runs of 220 valid pairs (bridged gaps) whose distance noise is
+    white or correlated over several pairs (AR(1), as the tracker's under noise at full
+    scale): the slopes are unbiased and the stated error matches their spread over 300
+    runs; with the correlation the white residuals' error alone is far too small."""
+    from fmcw_cl.refine import _slope, drift
+
+    rng = np.random.default_rng(3)
+    t = np.arange(240) * 5e-5
+    t = t[np.sort(rng.choice(t.size, 220, replace=False))]
+    slopes, errors, white = [], [], []
+    for _ in range(300):
+        e = rng.normal(0, 40e-6, t.size)
+        for i in range(1, t.size):
+            e[i] += phi * e[i - 1]
+        d = 0.3 + 0.004 * t + e
+        v = np.full(t.size, 0.004)                     # consistent: the drift is zero
+        slope, se = drift(t, d, v)
+        slopes.append(slope)
+        errors.append(se)
+        white.append(_slope(t, d)[1])
+    spread = np.std(slopes)
+    assert abs(np.mean(slopes)) < 3 * spread / np.sqrt(len(slopes))
+    assert 0.8 < np.sqrt(np.mean(np.square(errors))) / spread < 1.3
+    if phi:
+        assert np.median(white) < 0.6 * spread
+
+
+def test_a_line_through_unsettled_trials_gives_the_root_and_its_error():
+    from fmcw_cl.refine import line_root
+
+    rng = np.random.default_rng(5)
+    x = np.array([-2.8, -0.8, 0.9, 3.3, 2.3])
+    sigma = np.full(x.size, 0.002)
+    roots, errors = [], []
+    for _ in range(400):
+        got = line_root(x, -0.004 * (x - 1.0) + rng.normal(0, 0.002, x.size), sigma)
+        assert got is not None and abs(got[2] + 0.004) < 0.004
+        roots.append(got[0])
+        errors.append(got[1])
+    assert abs(np.mean(roots) - 1.0) < 0.05
+    assert 0.8 < np.median(errors) / np.std(roots) < 1.3
+    assert line_root(x, 0.01 + 0.001 * x, sigma) is None          # its root outside the trials
