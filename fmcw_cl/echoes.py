@@ -12,16 +12,25 @@ too fast to stay sharp without de-chirp) the median SNR of its final de-chirped
 peaks, whose noise floor another strong echo raises: the comparison then errs
 towards a warning. A persistent echo within RIVAL_DB of the tracked target is the
 user's to judge: `process` names it.
+
+An echo too weak for the CFAR in single half-sweeps still stands out of their mean:
+the surveyed half-sweeps' plain spectra are averaged in blocks of MEAN_ROWS of a
+direction (`block_sums`), and each mean spectrum's peaks are listed (`mean_peaks`):
+the mean of K exponential noise bins is Gamma(K)/K, so its noise fluctuates sqrt(K)
+less and an echo a few dB over the noise is found in every block (fixed echoes,
+fmcw_cl.target).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from .numeric import group_median, ragged
+from .stages import cfar
 from .stages.cfar import Detections
+from .stages.spectrum import interpolate
 
 SLICE_S = 0.01        # persistent echoes are found in slices of 10 ms (200 periods)
 HIST_M = 0.002        # distance histogram bin; an echo is counted over 3 neighbouring bins
@@ -33,6 +42,13 @@ EXPLAIN_BINS = 16     # padded bins either side of a peak counted as its energy
 HIDDEN_SIGMAS = 5.0   # unexplained energy must stand this far above the noise of its sum
 SHARP = 0.9           # the target's energy within +-3 bins over +-EXPLAIN_BINS (a lone peak: >= 0.96)
 RIVAL_DB = 10.0       # a persistent echo this close to the tracked target's level is reported
+MEAN_ROWS = 12        # surveyed half-sweeps of a direction a mean spectrum (12 x 16 periods: 9.6 ms)
+# the factor white noise's mean of K spectra (K = 1 .. MEAN_ROWS) exceeds over the
+# training mean with probability cfar.PFA: scipy.stats.f.isf(PFA, 2K, K TRAIN) (the
+# conversion imports no scipy; tests/test_echoes.py checks the table)
+MEAN_LIMITS = np.array([36.9873, 14.0629, 9.2355, 7.1597, 5.9977, 5.2500, 4.7258, 4.3361, 4.0340,
+                        3.7922, 3.5937, 3.4276])
+MEAN_KEYS = ("mean_time_s", "mean_rising", "peak_time_s", "peak_rising", "peak_distance_m", "peak_snr_db")
 
 
 @dataclass
@@ -49,6 +65,9 @@ class Echoes:
         relative_db (over the tracked target's level in the slice), in_band (below
         --max-range), diffuse (found by its unexplained energy, not as a sharp echo;
         its snr_db is then the target's level plus relative_db).
+    means : dict of arrays (MEAN_KEYS) of the surveyed half-sweeps' mean spectra: per
+        mean spectrum its pairs' mean time (s) and direction, per peak (`mean_peaks`)
+        its mean spectrum's time and direction, distance (m) and power over the noise (dB).
     """
 
     time_s: np.ndarray
@@ -57,6 +76,7 @@ class Echoes:
     rising: np.ndarray
     tracked: np.ndarray
     persistent: dict
+    means: dict = field(default_factory=lambda: no_means())
 
     @property
     def rival(self) -> tuple[float, float, bool] | None:
@@ -97,7 +117,64 @@ def table(t_sweep: np.ndarray, rising: np.ndarray, tracked_m: np.ndarray, level_
     snr = det.snr_db[rows, slots[order]]
     pers = persistent(t_sweep, level_db, t_sweep[rows], dist, snr, tracked, survey)
     pers["in_band"] = pers["distance_m"] < max_range_m
-    return Echoes(t_sweep[rows], dist, snr.astype(np.float32), rising[rows], tracked, pers)
+    means = no_means() if survey is None else {k: np.asarray(survey[k]) for k in MEAN_KEYS}
+    return Echoes(t_sweep[rows], dist, snr.astype(np.float32), rising[rows], tracked, pers, means)
+
+
+def no_means() -> dict:
+    """`Echoes.means` without a mean spectrum."""
+    return {k: np.zeros(0, bool if k.endswith("rising") else np.float64) for k in MEAN_KEYS}
+
+
+def block_sums(plain: np.ndarray, rows: int = MEAN_ROWS) -> np.ndarray:
+    """(ceil(R / rows), nfft/2) sums of `rows` consecutive rows of the (R, nfft/2) power
+    spectra `plain` (the last block shorter). Twin: kernels/survey.cl `block_sums`."""
+    starts = np.arange(0, plain.shape[0], rows)
+    if starts.size == 0:
+        return np.zeros((0, plain.shape[1]))
+    return np.add.reduceat(np.asarray(plain, np.float64), starts, axis=0)
+
+
+def block_rows(count: int, rows: int = MEAN_ROWS) -> np.ndarray:
+    """The rows of each block of `block_sums` of `count` rows."""
+    return np.minimum(rows, count - np.arange(0, count, rows))
+
+
+def mean_peaks(sums: np.ndarray, counts: np.ndarray, lo: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The echoes of mean power spectra: (block, fractional bin, power over the noise in
+    dB) of each.
+
+    Parameters
+    ----------
+    sums : (B, nfft/2) sums of `counts` (B,) power spectra each (`block_sums`).
+    lo : first bin of the search band.
+
+    A bin is an echo where it is the largest of its +-cfar.GUARD bins and stands over the
+    noise of both sides' cfar.TRAIN training bins (the greater of the two means: a slope,
+    such as the intensity ramp's skirt above `lo`, is no echo) by the factor that white
+    noise exceeds with probability cfar.PFA: the ratio of a mean of K exponential bins to
+    a training mean of K TRAIN / 2 independent ones is F(2K, K TRAIN) distributed. Only
+    bins whose training cells lie inside [lo, nfft/2) are tested.
+    """
+    b, half = sums.shape
+    reach = cfar.GUARD + cfar.TRAIN
+    k0, k1 = lo + reach, half - reach
+    if b == 0 or k1 <= k0:
+        return np.zeros(0, np.int64), np.zeros(0), np.zeros(0)
+    mean = sums / np.maximum(counts, 1)[:, None]
+    c = np.concatenate([np.zeros((b, 1)), np.cumsum(mean, axis=1)], axis=1)
+    k = np.arange(k0, k1)
+    left = (c[:, k - cfar.GUARD] - c[:, k - reach]) / cfar.TRAIN
+    right = (c[:, k + reach + 1] - c[:, k + cfar.GUARD + 1]) / cfar.TRAIN
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = mean[:, k0:k1] / np.maximum(left, right)
+    limit = MEAN_LIMITS[np.clip(counts, 1, MEAN_ROWS) - 1]
+    hit = ratio > limit[:, None]
+    peak = np.ones(hit.shape, bool)
+    for d in range(1, cfar.GUARD + 1):              # the largest of +-GUARD (ties: the lowest)
+        peak &= (mean[:, k0:k1] > mean[:, k0 - d: k1 - d]) & (mean[:, k0:k1] >= mean[:, k0 + d: k1 + d])
+    rows, cols = np.nonzero(hit & peak)
+    return rows, interpolate(mean, rows, cols + k0), 10 * np.log10(ratio[rows, cols])
 
 
 def persistent(t_sweep: np.ndarray, level_db: np.ndarray, t: np.ndarray, dist: np.ndarray,

@@ -34,7 +34,7 @@ if TYPE_CHECKING:
 CHECK_STRIDE = 4             # the 2N-point range check runs on every 4th pair near the limit,
 CHECK_STRIDE_FAR = 16        # ... every 16th where every distance of the chunk is below
 CHECK_NEAR = 0.75            # this share of the unambiguous range
-SURVEY_KEYS = ("time_s", "ratio", "distance_m", "found")
+SURVEY_KEYS = ("time_s", "ratio", "distance_m", "found", *echoes.MEAN_KEYS)
 
 
 @dataclass
@@ -297,16 +297,26 @@ class Survey:
 
     def table(self, got: list, times: tuple, model: pairing.DopplerModel) -> dict:
         """The survey's columns (SURVEY_KEYS) from survey_each's results `got`, the pairs'
-        rising and falling times (s) `times`."""
+        rising and falling times (s) `times`: per surveyed half-sweep, and the peaks of
+        each direction's mean spectra (echoes.mean_peaks, at their pairs' mean time)."""
+        counts = echoes.block_rows(self.idx.size)
+        starts = np.cumsum(counts) - counts
+        t_mean = np.add.reduceat(0.5 * (times[0][self.idx] + times[1][self.idx]), starts) / counts
+        means = []
+        for rising, g in zip((True, False), got, strict=True):
+            block, b, snr = echoes.mean_peaks(g[3], counts, self.args[5])
+            means.append((t_mean, np.full(t_mean.size, rising), t_mean[block], np.full(block.size, rising),
+                          b * model.metres_per_bin, snr))
         return {"time_s": np.concatenate([t[self.idx] for t in times]),
                 "ratio": np.concatenate([g[0] for g in got]),
                 "distance_m": np.concatenate([g[1] * model.metres_per_bin for g in got]),
-                "found": np.concatenate([g[2] for g in got])}
+                "found": np.concatenate([g[2] for g in got]),
+                **dict(zip(echoes.MEAN_KEYS, map(np.concatenate, zip(*means, strict=True)), strict=True))}
 
 
 def no_survey() -> dict:
     """The survey of a chunk that surveyed nothing."""
-    return {k: np.zeros(0, bool if k == "found" else float) for k in SURVEY_KEYS}
+    return {k: np.zeros(0, bool if k == "found" or k.endswith("rising") else float) for k in SURVEY_KEYS}
 
 
 class NumpyProcessor(ChunkProcessor):

@@ -9,7 +9,9 @@ A first conversion tracks the strongest echo of the user's band [--min-range,
   its Doppler shift cancels its motion, is no fixed echo), at their midpoint, in at
   least FIXED_SHARE of the capture's 10 ms slices, at a
   level within echoes.RIVAL_DB of the tracked echo's: a wall, a window, a lens, or a
-  target at rest for most of the capture;
+  target at rest for most of the capture. The peaks of the surveyed half-sweeps' mean
+  spectra (echoes.mean_peaks) count alike, a block of them for a slice: an echo too
+  weak for the CFAR in single half-sweeps is a rival all the same;
 - a **moving echo** spans the distances of the verified pairs that move faster than
   MOVING_MPS and of the echoes found by their Doppler-smeared energy (echoes.hidden);
   those distances part into several moving echoes where APART_M of range holds none
@@ -106,34 +108,11 @@ class Choice:
 
 
 def fixed_echoes(e: echoes.Echoes, level_db: float) -> tuple[np.ndarray, np.ndarray]:
-    """(distances m, levels dB) of the fixed echoes of an echo table (see the module)."""
-    if e.time_s.size == 0:
-        return np.zeros(0), np.zeros(0)
-    # each direction of each slice apart: an echo seen in one only is a moving target's
-    # Doppler image
-    slice_ = np.floor((e.time_s - e.time_s.min()) / echoes.SLICE_S).astype(np.int64)
-    key = 2 * slice_ + e.rising.astype(np.int64)
-    first = np.r_[True, (np.diff(e.time_s) != 0) | (np.diff(key) != 0)]   # a half-sweep's first echo
-    sweeps = np.bincount(key[first], minlength=2 * slice_.max() + 2)
-    kept = np.bincount(slice_[first], minlength=slice_.max() + 1) >= 20
-    rows = kept[slice_]
-    g, d, snr, _ = echoes.keyed_clusters(key[rows], e.distance_m[rows], e.snr_db[rows], sweeps)
-    fall, rise = (g % 2 == 0), (g % 2 == 1)
-    # pair each rising cluster with the nearest falling one of its slice, within GATE_M
-    at = (g // 2) * SPAN_KEY_M + d                     # slice-major sort key (m)
-    order = np.argsort(at[fall], kind="stable")
-    f_at, f_d, f_s = at[fall][order], d[fall][order], snr[fall][order]
-    r_at, r_d, r_s = at[rise], d[rise], snr[rise]
-    if f_at.size == 0 or r_at.size == 0:
-        return np.zeros(0), np.zeros(0)
-    j = nearest(f_at, r_at)
-    pair = np.abs(f_at[j] - r_at) <= GATE_M
-    found_d = 0.5 * (r_d[pair] + f_d[j[pair]])
-    found_s = np.minimum(r_s[pair], f_s[j[pair]])
-    if not found_d.size:
-        return np.zeros(0), np.zeros(0)
+    """(distances m, levels dB) of the fixed echoes of an echo table (see the module):
+    the CFAR's echoes clustered in each slice, and the peaks of the mean spectra."""
+    found = sorted([*_sharp(e), *_averaged(e)])
     out_d, out_s = [], []
-    for x, level, _ in echoes.clusters(found_d, found_s, int(kept.sum()), FIXED_SHARE):
+    for x, level in found:
         if level < level_db - echoes.RIVAL_DB:
             continue
         if out_d and x - out_d[-1] < APART_M:            # one echo: the stronger stands for both
@@ -143,6 +122,55 @@ def fixed_echoes(e: echoes.Echoes, level_db: float) -> tuple[np.ndarray, np.ndar
         out_d.append(x)
         out_s.append(level)
     return np.asarray(out_d), np.asarray(out_s)
+
+
+def _sharp(e: echoes.Echoes) -> list[tuple[float, float]]:
+    """(distance m, median CFAR SNR dB) of the echoes whose CFAR detections cluster in
+    both directions of FIXED_SHARE of the slices."""
+    if e.time_s.size == 0:
+        return []
+    # each direction of each slice apart: an echo seen in one only is a moving target's
+    # Doppler image
+    slice_ = np.floor((e.time_s - e.time_s.min()) / echoes.SLICE_S).astype(np.int64)
+    key = 2 * slice_ + e.rising.astype(np.int64)
+    first = np.r_[True, (np.diff(e.time_s) != 0) | (np.diff(key) != 0)]   # a half-sweep's first echo
+    sweeps = np.bincount(key[first], minlength=2 * slice_.max() + 2)
+    kept = np.bincount(slice_[first], minlength=slice_.max() + 1) >= 20
+    rows = kept[slice_]
+    g, d, snr, _ = echoes.keyed_clusters(key[rows], e.distance_m[rows], e.snr_db[rows], sweeps)
+    return _fixed(g // 2, g % 2 == 1, d, snr, int(kept.sum()))
+
+
+def _averaged(e: echoes.Echoes) -> list[tuple[float, float]]:
+    """(distance m, median power over the noise dB) of the echoes at the peaks of both
+    directions' mean spectra (echoes.mean_peaks) in FIXED_SHARE of their blocks."""
+    m = e.means
+    blocks = np.unique(m["mean_time_s"])          # a block's two directions share its time
+    if blocks.size == 0:
+        return []
+    return _fixed(np.searchsorted(blocks, m["peak_time_s"]), m["peak_rising"], m["peak_distance_m"],
+                  m["peak_snr_db"], blocks.size)
+
+
+def _fixed(group: np.ndarray, rising: np.ndarray, d: np.ndarray, level: np.ndarray,
+           groups: int) -> list[tuple[float, float]]:
+    """(distance, level) of the echoes seen at one distance in FIXED_SHARE of `groups`
+    (slices, or blocks) in both directions: each rising echo paired with the nearest
+    falling one of its group within GATE_M, at their midpoint and the weaker level."""
+    fall = ~rising
+    at = group * SPAN_KEY_M + d                        # group-major sort key (m)
+    order = np.argsort(at[fall], kind="stable")
+    f_at, f_d, f_s = at[fall][order], d[fall][order], level[fall][order]
+    r_at, r_d, r_s = at[rising], d[rising], level[rising]
+    if f_at.size == 0 or r_at.size == 0:
+        return []
+    j = nearest(f_at, r_at)
+    pair = np.abs(f_at[j] - r_at) <= GATE_M
+    if not pair.any():
+        return []
+    found = echoes.clusters(0.5 * (r_d[pair] + f_d[j[pair]]), np.minimum(r_s[pair], f_s[j[pair]]), groups,
+                            FIXED_SHARE)
+    return [(float(x), float(s)) for x, s, _ in found]
 
 
 def moving_spans(time_s, distance_m, velocity_mps, valid, e: echoes.Echoes,

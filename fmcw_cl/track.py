@@ -11,7 +11,7 @@ import numpy as np
 
 from .atomic import atomic_hdf5
 from .chirp import Chirp, read_directions, write_directions
-from .echoes import Echoes
+from .echoes import MEAN_KEYS, Echoes, no_means
 
 FORMAT = "track"
 FORMAT_VERSION = 1
@@ -128,12 +128,16 @@ def _write_echoes(g, e: Echoes) -> None:
     for name in PERSISTENT_COLUMNS:
         flag = name in ("in_band", "diffuse")
         p.create_dataset(name, data=np.asarray(e.persistent[name], bool if flag else np.float64))
+    m = g.create_group("means")
+    for name in MEAN_KEYS:
+        m.create_dataset(name, data=e.means[name])
 
 
 def _read_echoes(g) -> Echoes:
     cols = [g[name][()] for name, _ in ECHO_COLUMNS]
+    means = {name: g["means"][name][()] for name in MEAN_KEYS} if "means" in g else no_means()
     return Echoes(*cols, {name: g["persistent"][name][()] for name in PERSISTENT_COLUMNS
-                          if name in g["persistent"]})
+                          if name in g["persistent"]}, means)
 
 
 def read_track(path: str | os.PathLike) -> Track:

@@ -231,3 +231,19 @@ __kernel void hidden_lanes(__global const float *plain, __global const float *de
         found[r0 + l] = hv[l] != 0;
     }
 }
+
+// The plain spectra of the surveyed half-sweeps summed in blocks of `block` rows (the
+// last one shorter), for their mean spectra: one work-item a bin of a block, its rows
+// read down a column (neighbouring work-items read neighbouring bins). Twin:
+// fmcw_cl.echoes.block_sums.
+__kernel void block_sums(__global const float *plain,  // (rows, half_n)
+                         const int half_n, const int rows, const int block,
+                         __global float *sums)          // (ceil(rows / block), half_n)
+{
+    const int k = get_global_id(0), b = get_global_id(1);
+    if (k >= half_n) return;
+    const int stop = min(rows, (b + 1) * block);
+    float s = 0.0f;
+    for (int r = b * block; r < stop; ++r) s += plain[(size_t)r * half_n + k];
+    sums[(size_t)b * half_n + k] = s;
+}

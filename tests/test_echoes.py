@@ -8,6 +8,7 @@ import pytest
 
 from fmcw_cl import echoes
 from fmcw_cl.numeric import group_median, ragged
+from fmcw_cl.stages import cfar
 
 
 def test_group_medians_equal_numpys():
@@ -97,3 +98,40 @@ def test_persistent_echoes_of_all_slices_equal_slice_by_slice(seed):
     for k in got:
         np.testing.assert_allclose(got[k], want[k], rtol=1e-12, err_msg=k)
         assert got[k].dtype == want[k].dtype
+
+
+def test_mean_spectra_find_a_weak_echo_and_no_false_one():
+    """echoes.mean_peaks on the mean of K exponential noise spectra: a steady echo 6 dB
+    over the noise, rarely the peak of a single spectrum, is found in every block at its
+    bin; pure noise and the skirt of a slope above the band's start give none (the F
+    threshold at cfar.PFA: over 4000 blocks of 1000 bins, none expected)."""
+    rng = np.random.default_rng(7)
+    half, lo, k = 1024, 40, 12
+    blocks = 4000
+    noise = rng.exponential(1.0, (blocks, k, half))
+    b, _, _ = echoes.mean_peaks(noise.sum(axis=1), np.full(blocks, k), lo)
+    assert b.size == 0
+    slope = noise[:40] * (1 + 30 * np.exp(-(np.arange(half) - lo) / 15.0))     # a ramp's skirt
+    assert echoes.mean_peaks(slope.sum(axis=1), np.full(40, k), lo)[0].size == 0
+    tone = noise[:200].copy()
+    tone[:, :, 500] += 4.0                                            # 10 log10(4) = 6 dB
+    single = tone.reshape(-1, half)[:, lo:].argmax(axis=1) + lo
+    assert np.mean(single == 500) < 0.1
+    sums = echoes.block_sums(tone.reshape(-1, half), k)
+    b, at, snr = echoes.mean_peaks(sums, echoes.block_rows(200 * k, k), lo)
+    assert np.array_equal(b, np.arange(200)) and np.all(np.abs(at - 500) <= 0.5)
+    assert 6.0 < np.median(snr) < 7.5                                 # (1 + 4) / 1 over the noise: 7 dB
+
+
+def test_the_mean_spectras_thresholds_are_the_f_distributions():
+    from scipy import stats
+
+    k = np.arange(1, echoes.MEAN_ROWS + 1)
+    np.testing.assert_allclose(echoes.MEAN_LIMITS, stats.f.isf(cfar.PFA, 2 * k, k * cfar.TRAIN), rtol=1e-4)
+
+
+def test_block_sums_and_their_rows():
+    x = np.arange(5 * 3, dtype=float).reshape(5, 3)
+    np.testing.assert_array_equal(echoes.block_sums(x, 2), [x[0] + x[1], x[2] + x[3], x[4]])
+    np.testing.assert_array_equal(echoes.block_rows(5, 2), [2, 2, 1])
+    assert echoes.block_sums(np.zeros((0, 3)), 2).shape == (0, 3) and echoes.block_rows(0, 2).size == 0

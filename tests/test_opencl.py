@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from fmcw_cl import echoes
 from fmcw_cl.backend import make_processor
 from fmcw_cl.chunks import margin_samples
 from fmcw_cl.engine import process
@@ -434,7 +435,7 @@ def test_buffers_are_made_as_often_for_a_long_capture_as_for_a_short_one(tmp_pat
         counts.append((sum(made), processor.chunks))
     (short, n_short), (long, n_long) = counts
     assert n_long >= n_short + 3
-    assert long == short, counts
+    assert long <= short, counts
 
 
 @pytest.mark.parametrize("dechirp", [True, False])
@@ -473,7 +474,7 @@ def test_every_kernel_launches_with_one_local_size(static_capture, monkeypatch):
         process(static_capture, Options(chunk_periods=periods), be)
     assert {"resample_lanes", "spectrum_lanes", "block_sum_span", "sync_levels", "span_ends", "span_carries",
             "span_crossings", "line_fit_lanes", "clip_blocks", "cic_decimate", "fir_same",
-            "track_pass"} <= set(seen)
+            "track_pass", "block_sums"} <= set(seen)
     assert all(len(sizes) == 1 and None not in sizes for sizes in seen.values()), seen
 
 
@@ -664,10 +665,13 @@ def test_range_check_and_survey_in_one_trip_equal_each_alone(backend, kernel_var
             assert strong.mean() > 0.5
             np.testing.assert_allclose(d[strong], d0[strong], atol=1e-5)
             np.testing.assert_allclose(snr[strong], snr0[strong], atol=0.05)
-        for (ratio, centroid, found), (ratio0, centroid0, found0) in zip(surveyed, surveyed0, strict=True):
+        for (ratio, centroid, found, sums), (ratio0, centroid0, found0, sums0) in zip(surveyed, surveyed0,
+                                                                                      strict=True):
             np.testing.assert_array_equal(found, found0)
             np.testing.assert_allclose(ratio, ratio0, rtol=1e-3, atol=1e-4)
             np.testing.assert_allclose(centroid, centroid0, rtol=1e-4)
+            assert sums.shape == sums0.shape and sums.shape[0] == -(-ratio.size // echoes.MEAN_ROWS)
+            np.testing.assert_allclose(sums, sums0, rtol=2e-4, atol=1e-3 * sums0.max())
 
 
 def test_the_next_chunk_is_prepared_in_the_trip_of_the_check_and_survey(backend, wall_capture, monkeypatch):
@@ -715,7 +719,8 @@ def test_the_next_chunk_is_prepared_in_the_trip_of_the_check_and_survey(backend,
             np.testing.assert_array_equal(a.survey[key], b.survey[key])
 
 
-@pytest.mark.parametrize("rows,nfft,lo", [(1, 2048, 64), (37, 2048, 20), (9, 4096, 100), (5, 128, 3)])
+@pytest.mark.parametrize("rows,nfft,lo", [(1, 2048, 64), (37, 2048, 20), (9, 4096, 100), (5, 128, 3),
+                                         (25, 2048, 50)])
 def test_survey_kernel_matches_numpy(backend, kernel_variant, rows, nfft, lo):
     """The echo survey (kernels/survey.cl against echoes.hidden): a target, sometimes a
     rival the other echoes explain or not, noise; medians of odd and even band sizes."""
@@ -741,6 +746,11 @@ def test_survey_kernel_matches_numpy(backend, kernel_variant, rows, nfft, lo):
     np.testing.assert_array_equal(got[2], want[2])
     np.testing.assert_allclose(got[0], want[0], rtol=1e-3, atol=1e-4)
     np.testing.assert_allclose(got[1], want[1], rtol=1e-4)
+    # the plain spectra's sums in blocks of MEAN_ROWS rows (the last one shorter)
+    assert got[3].shape == want[3].shape == (-(-rows // echoes.MEAN_ROWS), nfft // 2)
+    np.testing.assert_allclose(got[3], want[3], rtol=2e-4, atol=1e-5 * want[3].max())
+    picked = pairing.power(x, None, None, nfft, pick)
+    np.testing.assert_allclose(want[3][-1], picked[(want[3].shape[0] - 1) * echoes.MEAN_ROWS:].sum(axis=0))
     if rows >= 9:
         assert want[2].any() and not want[2].all()  # the rival is found where nothing explains it
     # two directions in one trip: each as alone

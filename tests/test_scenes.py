@@ -119,6 +119,35 @@ def test_two_static_reflectors_are_ambiguous_until_the_user_chooses(tmp_path, fm
         assert np.all(np.abs(got.distance_m[got.valid] - want) < 0.5e-3), opts
 
 
+@pytest.mark.parametrize("seed", [1, 2])
+def test_a_stronger_wall_under_full_scale_noise_is_told_from_the_target(tmp_path, seed):
+    """A lab's target at 0.3 m (500 codes) under noise at full scale, a stronger wall at
+    0.45 m (800 codes): the CFAR sees neither echo in enough single half-sweeps, their
+    mean spectra see both, so the rule cannot tell which is the target and no pair is
+    valid (tracking the wall as "one echo: the target" put 94 % of the pairs 150 mm from
+    the target). The sync delay is refined on the wall across the isolated pairs noise
+    leaves invalid (without bridging them, seed 2 kept an intensity estimate 51 samples
+    off and every velocity 0.24 m/s off)."""
+    import fmcw_cl
+
+    path = tmp_path / "fs.h5"
+    drawn = fmcw_cl.simulate(path, "static", duration=0.05, seed=seed, noise=3000.0, lab=True,
+                             no_headroom=True, reflectors=((0.45, 800.0),))["sync_delay_samples"]
+    track = process(path)
+    assert not track.valid.any() and track.attrs["invalid_ambiguous"] > 0.9 * track.time_s.size
+    assert "cannot be told apart" in track.attrs["target_choice"]
+    fixed = np.sort(track.attrs["target_fixed_echoes_m"])
+    assert fixed.size == 2 and np.all(np.abs(fixed - [0.30, 0.45]) < 2e-3)
+    m = track.echoes.means
+    for rising in (True, False):           # both echoes in every full mean spectrum of both directions
+        blocks = np.unique(m["mean_time_s"][m["mean_rising"] == rising])
+        for d in (0.30, 0.45):
+            seen = m["peak_time_s"][(m["peak_rising"] == rising) & (np.abs(m["peak_distance_m"] - d) < 2e-3)]
+            assert np.unique(seen).size >= blocks.size - 1
+    assert track.attrs["sync_delay_refined"]
+    assert abs(track.attrs["sync_delay_samples"] - drawn) < 1.0
+
+
 def test_two_moving_echoes_are_ambiguous_until_the_user_chooses(tmp_path, fmcw):
     """The jump and, beyond it, a second limb swinging 0.38-0.42 m at 8 Hz (1 m/s) and
     stronger than the target in flight: the strongest echo hops between the two."""

@@ -231,7 +231,7 @@ class OpenCLProcessor(ChunkProcessor):
         jobs = [(x, None, None) for x in checked[:2]]
         sweeps, nfft2 = jobs[0][0].shape[0], check.model.nfft
         first = k_spectrum.parts(jobs, sweeps, nfft2)
-        out = Packed(self.bufs, "check_survey", first + k_survey.parts([np.size(rows)] * len(xs)))
+        out = Packed(self.bufs, "check_survey", first + k_survey.parts([np.size(rows)] * len(xs), nfft // 2))
         k_spectrum.measure_each(self.rt, self.bufs, jobs, None, nfft2, check.search.lo, check.search.hi,
                                 out=out)
         self._surveyed(xs, betas, v, nfft, rows, lo, bins, checked[2:], out, len(first))

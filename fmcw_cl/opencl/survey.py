@@ -31,10 +31,17 @@ def upload(bufs: Buffers, bins: list, head: tuple = ()) -> list:
     return Packed(bufs, "survey_in", [(a.dtype, a.size) for a in arrays]).upload(*arrays)
 
 
-def parts(counts: list[int]) -> list:
-    """The (dtype, count) of what `hidden_each` writes for jobs of `counts` rows each:
-    their ratio, centroid and found, in order."""
-    return [(dtype, rows) for rows in counts for dtype in (np.float32, np.float32, np.int32)]
+def parts(counts: list[int], half: int) -> list:
+    """The (dtype, count) of what `hidden_each` writes for jobs of `counts` rows of
+    `half` bins each: their ratio, centroid and found, and their plain spectra's
+    echoes.block_sums, in order."""
+    return [(dtype, n) for rows in counts
+            for dtype, n in ((np.float32, rows), (np.float32, rows), (np.int32, rows),
+                             (np.float32, _blocks(rows) * half))]
+
+
+def _blocks(rows: int) -> int:
+    return -(-rows // echoes.MEAN_ROWS)
 
 
 def hidden_each(rt: Runtime, bufs: Buffers, jobs: list, lo: int, inputs: list | None = None,
@@ -48,7 +55,7 @@ def hidden_each(rt: Runtime, bufs: Buffers, jobs: list, lo: int, inputs: list | 
         inputs = upload(bufs, [job[2:] for job in jobs])
     deferred = out is not None
     if out is None:
-        out = Packed(bufs, "survey_out", parts([plain.shape[0] for plain, *_ in jobs]))
+        out = Packed(bufs, "survey_out", parts([plain.shape[0] for plain, *_ in jobs], jobs[0][0].shape[1]))
     lsz = rt.group_size(16, 256)
     rules = (np.int32(echoes.EXPLAIN_BINS), np.float32(echoes.SHARP),
              np.float32(10 ** (-echoes.RIVAL_DB / 10)), np.float32(echoes.HIDDEN_SIGMAS))
@@ -57,8 +64,8 @@ def hidden_each(rt: Runtime, bufs: Buffers, jobs: list, lo: int, inputs: list | 
         if rows == 0:
             continue
         d_tracked, d_plain_bin, d_others = inputs[3 * i: 3 * i + 3]
-        at = first + 3 * i
-        written = out.buffers[at: at + 3]
+        at = first + 4 * i
+        written, sums = out.buffers[at: at + 3], out.buffers[at + 3]
         band = half - lo
         if rt.lanes:
             rt.kernel("survey", "hidden_lanes")(
@@ -70,15 +77,19 @@ def hidden_each(rt: Runtime, bufs: Buffers, jobs: list, lo: int, inputs: list | 
                 rt.queue, (rows * lsz,), (lsz,), plain.buffer, dechirped.buffer, np.int32(half), np.int32(lo),
                 d_tracked, d_plain_bin, d_others, np.int32(m), *rules, *written,
                 cl.LocalMemory(4 * band), cl.LocalMemory(24 * lsz), cl.LocalMemory(8))
+        (bins,), (group,) = rt.items(half)
+        rt.kernel("survey", "block_sums")(rt.queue, (bins, _blocks(rows)), (group, 1), plain.buffer,
+                                          np.int32(half), np.int32(rows), np.int32(echoes.MEAN_ROWS), sums)
     if deferred:
         return None
     if all(plain.shape[0] == 0 for plain, *_ in jobs):
-        return [(np.zeros(0), np.zeros(0), np.zeros(0, bool))] * len(jobs)
+        return [(np.zeros(0), np.zeros(0), np.zeros(0, bool), np.zeros((0, jobs[0][0].shape[1])))] * len(jobs)
     return results(out.download())
 
 
 def results(views: list) -> list[tuple]:
-    """`hidden_each`'s (ratio, centroid, found) of each job from the host views of its
-    `parts`."""
-    return [(ratio.astype(np.float64), centroid.astype(np.float64), found.astype(bool))
-            for ratio, centroid, found in zip(views[0::3], views[1::3], views[2::3], strict=True)]
+    """`hidden_each`'s (ratio, centroid, found, block sums) of each job from the host
+    views of its `parts`."""
+    return [(ratio.astype(np.float64), centroid.astype(np.float64), found.astype(bool),
+             sums.astype(np.float64).reshape(_blocks(ratio.size), -1) if ratio.size else np.zeros((0, 0)))
+            for ratio, centroid, found, sums in zip(*(views[i::4] for i in range(4)), strict=True)]

@@ -193,11 +193,12 @@ class SpectrumOps:
 
     def survey(self, x, beta, v, nfft: int, rows, lo: int, tracked_bin, plain_bin, others) -> tuple:
         """echoes.hidden of the rows `rows` of x: (ratio, centroid, found) from their plain
-        spectra and those de-chirped at v."""
-        from ..echoes import hidden
+        spectra and those de-chirped at v, and the plain spectra's echoes.block_sums."""
+        from ..echoes import block_sums, hidden
 
-        return hidden(power(x, None, None, nfft, rows), power(x, beta, v, nfft, rows), lo, tracked_bin,
-                      plain_bin, others)
+        plain = power(x, None, None, nfft, rows)
+        return (*hidden(plain, power(x, beta, v, nfft, rows), lo, tracked_bin, plain_bin, others),
+                block_sums(plain))
 
     def survey_each(self, xs, betas, v, nfft: int, rows, lo: int, tracked_bins, plain_bins, others) -> list:
         """`survey` of each x of `xs` (a pair's two directions) with its beta, tracked and
