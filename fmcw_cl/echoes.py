@@ -170,12 +170,9 @@ def mean_peaks(sums: np.ndarray, counts: np.ndarray, lo: int) -> tuple[np.ndarra
         ratio = mean[:, k0:k1] / np.maximum(left, right)
     limit = MEAN_LIMITS[np.clip(counts, 1, MEAN_ROWS) - 1]
     rows, cols = np.nonzero(ratio > limit[:, None])
-    k = cols + k0
-    peak = np.ones(rows.size, bool)
-    for d in range(1, cfar.GUARD + 1):              # the largest of +-GUARD (ties: the lowest), where hit
-        peak &= (mean[rows, k] > mean[rows, k - d]) & (mean[rows, k] >= mean[rows, k + d])
-    rows, cols, k = rows[peak], cols[peak], k[peak]
-    return rows, interpolate(mean, rows, k), 10 * np.log10(ratio[rows, cols])
+    peak = cfar.is_peak(mean, rows, cols + k0)
+    rows, cols = rows[peak], cols[peak]
+    return rows, interpolate(mean, rows, cols + k0), 10 * np.log10(ratio[rows, cols])
 
 
 def persistent(t_sweep: np.ndarray, level_db: np.ndarray, t: np.ndarray, dist: np.ndarray,

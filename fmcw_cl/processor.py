@@ -300,8 +300,7 @@ class Survey:
         rising and falling times (s) `times`: per surveyed half-sweep, and the peaks of
         each direction's mean spectra (echoes.mean_peaks, at their pairs' mean time)."""
         counts = echoes.block_rows(self.idx.size)
-        starts = np.cumsum(counts) - counts
-        t_mean = np.add.reduceat(0.5 * (times[0][self.idx] + times[1][self.idx]), starts) / counts
+        t_mean = echoes.block_sums(0.5 * (times[0][self.idx, None] + times[1][self.idx, None]))[:, 0] / counts
         means = []
         for rising, g in zip((True, False), got, strict=True):
             block, b, snr = echoes.mean_peaks(g[3], counts, self.args[5])

@@ -9,8 +9,10 @@ kinematically consistent: over a few stretches of the capture, the distance less
 integral of the velocity must not drift (its least-squares slope, the *mismatch*, is
 zero), found by secant steps from the intensity estimate.
 
-The mismatch's standard error (from the runs' residuals, or the stretches' spread where
-that is larger) over its slope against the delay is the delay's uncertainty; in
+The mismatch's standard error (each run's the larger of its white residuals' and a
+jackknife's, or the stretches' spread where that is larger) over its slope against the
+delay is the delay's uncertainty (where noise keeps the secant steps from settling, the
+root and its error come from a line through the trials near the best); in
 velocity it is the standard error itself, in distance the delay's uncertainty times how
 far the stretches' mean distance moves per sample. A run is the valid pairs of a
 stretch with at most BRIDGE_PAIRS invalid ones between two, across which the distance

@@ -37,11 +37,7 @@ def parts(counts: list[int], half: int) -> list:
     echoes.block_sums, in order."""
     return [(dtype, n) for rows in counts
             for dtype, n in ((np.float32, rows), (np.float32, rows), (np.int32, rows),
-                             (np.float32, _blocks(rows) * half))]
-
-
-def _blocks(rows: int) -> int:
-    return -(-rows // echoes.MEAN_ROWS)
+                             (np.float32, echoes.block_rows(rows).size * half))]
 
 
 def hidden_each(rt: Runtime, bufs: Buffers, jobs: list, lo: int, inputs: list | None = None,
@@ -78,8 +74,9 @@ def hidden_each(rt: Runtime, bufs: Buffers, jobs: list, lo: int, inputs: list | 
                 d_tracked, d_plain_bin, d_others, np.int32(m), *rules, *written,
                 cl.LocalMemory(4 * band), cl.LocalMemory(24 * lsz), cl.LocalMemory(8))
         (bins,), (group,) = rt.items(half)
-        rt.kernel("survey", "block_sums")(rt.queue, (bins, _blocks(rows)), (group, 1), plain.buffer,
-                                          np.int32(half), np.int32(rows), np.int32(echoes.MEAN_ROWS), sums)
+        blocks = echoes.block_rows(rows).size
+        rt.kernel("survey", "block_sums")(rt.queue, (bins, blocks), (group, 1), plain.buffer, np.int32(half),
+                                          np.int32(rows), np.int32(echoes.MEAN_ROWS), sums)
     if deferred:
         return None
     if all(plain.shape[0] == 0 for plain, *_ in jobs):
@@ -90,6 +87,9 @@ def hidden_each(rt: Runtime, bufs: Buffers, jobs: list, lo: int, inputs: list | 
 def results(views: list) -> list[tuple]:
     """`hidden_each`'s (ratio, centroid, found, block sums) of each job from the host
     views of its `parts`."""
-    return [(ratio.astype(np.float64), centroid.astype(np.float64), found.astype(bool),
-             sums.astype(np.float64).reshape(_blocks(ratio.size), -1) if ratio.size else np.zeros((0, 0)))
-            for ratio, centroid, found, sums in zip(*(views[i::4] for i in range(4)), strict=True)]
+    out = []
+    for ratio, centroid, found, sums in zip(*(views[i::4] for i in range(4)), strict=True):
+        blocks = echoes.block_rows(ratio.size).size
+        out.append((ratio.astype(np.float64), centroid.astype(np.float64), found.astype(bool),
+                    sums.astype(np.float64).reshape(blocks, -1) if blocks else np.zeros((0, 0))))
+    return out

@@ -103,16 +103,24 @@ def detect_mask(power: np.ndarray, lo: int, hi: int) -> tuple[np.ndarray, np.nda
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = p / mean
     mask = p > scales()[n] * mean
-    # the peak test (largest of +-GUARD, ties: the lowest) on the few bins above threshold
+    # the peak test on the few bins above threshold
     rows, cols = np.nonzero(mask)
-    centre = cols + lo
-    peak = np.ones(rows.size, bool)
-    for d in range(1, GUARD + 1):
-        left, right = centre - d, centre + d
-        peak &= (left < 0) | (p[rows, cols] > power[rows, np.maximum(left, 0)])
-        peak &= (right >= half) | (p[rows, cols] >= power[rows, np.minimum(right, half - 1)])
+    peak = is_peak(power, rows, cols + lo)
     mask[rows[~peak], cols[~peak]] = False
     return mask, ratio
+
+
+def is_peak(power: np.ndarray, rows: np.ndarray, k: np.ndarray) -> np.ndarray:
+    """Whether bin k[i] of row rows[i] of `power` is the largest of its +-GUARD bins
+    (ties: the lowest; bins beyond the spectrum's ends do not count)."""
+    half = power.shape[1]
+    p = power[rows, k]
+    peak = np.ones(rows.size, bool)
+    for d in range(1, GUARD + 1):
+        left, right = k - d, k + d
+        peak &= (left < 0) | (p > power[rows, np.maximum(left, 0)])
+        peak &= (right >= half) | (p >= power[rows, np.minimum(right, half - 1)])
+    return peak
 
 
 def detect(power: np.ndarray, lo: int, hi: int | None = None) -> Detections:
