@@ -72,15 +72,19 @@ def margin_samples(info: CaptureInfo, options: Options) -> int:
     return int((options.context_periods + 1) * info.samples_per_period + sync.MAX_DELAY_SAMPLES + 8)
 
 
+READ_SLOTS = 3    # a chunk's codes are read by its range check while the next one is
+                  # processed and the one after is read
+
+
 def read_chunks(cap: Capture, options: Options, start: int = 0, stop: int | None = None) -> ReadAhead:
     """The chunks of `options` whose cores lie in samples [start, stop), read ahead into
-    the capture's slots 0 and 1: a chunk's results keep none of its samples, and its
-    kernels are done when the next one starts."""
+    the capture's slots 0 .. READ_SLOTS - 1: a chunk's results keep none of its samples,
+    and its kernels are done when the chunk after the next one starts."""
     margin = margin_samples(cap.info, options)
-    return ReadAhead(cap.chunks(options.chunk_periods, margin, start, stop, slots=2))
+    return ReadAhead(cap.chunks(options.chunk_periods, margin, start, stop, slots=READ_SLOTS))
 
 
-HELD_SLOT = 2     # the first of the capture's slots that held chunks take (0, 1: read_chunks)
+HELD_SLOT = READ_SLOTS     # the first of the capture's slots that held chunks take
 
 
 def held_chunks(cap: Capture, options: Options, start: int, stop: int, slot: int = HELD_SLOT) -> list[Chunk]:
@@ -95,15 +99,14 @@ def capture_parts(cap: Capture, plan: Plan, processor: ChunkProcessor, start: in
                   ) -> list[ChunkMeasurements]:
     """The measurements of every chunk whose core lies in samples [start, stop)
     (`start` a multiple of `core_samples`), read ahead (`read_chunks`), by `processor`
-    opened with `plan`; each chunk is processed knowing the one after it (a device
-    prepares that one in the same trip as this one's last step)."""
+    opened with `plan`; each chunk is processed knowing the one after it (a chunk's
+    range check and survey run in the trips of the next one, which a device prepares in
+    them: `ChunkProcessor.process`)."""
     parts = []
     processor.open(plan)
     with read_chunks(cap, plan.options, start, stop) as ahead:
         for chunk in ahead:
-            got = processor.process(chunk, following=ahead.peek)
-            if got is not None:
-                parts.append(got)
+            parts += processor.process(chunk, following=ahead.peek)
             if progress:
                 progress(chunk.core_stop, cap.info.samples, cap.info.sample_rate_hz)
     return parts

@@ -86,8 +86,7 @@ def estimate_capture_delay(cap: Capture, processor: ChunkProcessor | None = None
     beat, sy = (x.reshape(starts.size, length) for x in cap.slot(1, starts.size * length))
     for a, b, s in zip(starts, beat, sy, strict=True):
         cap.read_into(a, a + length, b, s)
-    return sync.combine_delays(*sync.period_delays(beat, sy, info.sample_rate_hz, hp,
-                                                   processor.intensity_each, processor.fit_periods))
+    return sync.combine_delays(*processor.period_delays(beat, sy, info.sample_rate_hz, hp))
 
 
 def make_lut(info: CaptureInfo, points: int, chirp=None) -> Lut:

@@ -67,6 +67,42 @@ class Prepared:
     clip_counts: np.ndarray
 
 
+@dataclass
+class Pending:
+    """A chunk measured but for its range check and survey: its beat codes, the times
+    (s) of its pairs' rising and falling half-sweeps, which pairs it owns, the owned
+    pairs' tracker results (`result`) and clipping, its clipped codes, and the range
+    check and survey to run."""
+
+    beat: np.ndarray
+    times: tuple[np.ndarray, np.ndarray]
+    own: np.ndarray
+    result: pairing.PairResult
+    clip: np.ndarray
+    clipped_codes: int
+    check: RangeCheck | None
+    survey: Survey | None
+
+
+@dataclass
+class Later:
+    """A step's results: known now (`value`), or once a later download of a device
+    brings them (`rider`, a buffers.Rider that download carries; `land(raw)` makes the
+    results from its bytes, `fetch()` by a copy of their own where no download took it)."""
+
+    value: object = None
+    rider: object = None
+    land: Callable | None = None
+    fetch: Callable | None = None
+
+    def get(self):
+        """The results (waits for the device where they are still there)."""
+        if self.rider is not None:
+            raw, self.rider = self.rider.value, None
+            self.value = self.fetch() if raw is None else self.land(raw)
+        return self.value
+
+
 class ChunkProcessor(pairing.SpectrumOps):
     """The life cycle and the steps of a chunk processor; a subclass supplies the stage
     operations (low-pass, the delay's per-period fits, turning points, resampling,
@@ -89,15 +125,16 @@ class ChunkProcessor(pairing.SpectrumOps):
         self.plan: Plan | None = None
         self.chunks = 0
         self._ahead: tuple[Chunk, Prepared] | None = None   # the next chunk, prepared by the last one
+        self._pending: Pending | None = None     # the last chunk, but for its range check and survey
 
     # -- life cycle --
     def open(self, plan: Plan) -> None:
         """Bind the capture's plan (its LUT, window and search) for `process`."""
-        self.plan, self._ahead = plan, None
+        self.plan, self._ahead, self._pending = plan, None, None
 
     def close(self) -> None:
         """Let the plan go (a device processor also returns its pooled buffers)."""
-        self.plan, self._ahead = None, None
+        self.plan, self._ahead, self._pending = None, None, None
 
     def fork(self) -> ChunkProcessor:
         """A processor of the same kind for another thread."""
@@ -130,6 +167,12 @@ class ChunkProcessor(pairing.SpectrumOps):
     def fit_periods(self, y, z, shift, period, span):
         raise NotImplementedError
 
+    def period_delays(self, beat, sync_codes, sample_rate_hz, half_period):
+        """`sync.period_delays` of the stretches `beat`, `sync_codes` (rows of codes), by
+        this processor's low-pass and per-period fit (a device: one download)."""
+        return sync.period_delays(beat, sync_codes, sample_rate_hz, half_period, self.intensity_each,
+                                  self.fit_periods)
+
     def turning_points(self, codes, half_period):
         raise NotImplementedError
 
@@ -140,11 +183,6 @@ class ChunkProcessor(pairing.SpectrumOps):
     def resample(self, codes, starts, lengths, u, win):
         return self.resample_each(codes, [(starts, lengths, u)], win)[0]
 
-    def resample_pairs(self, codes, jobs, win, times: pairing.Times) -> tuple[list, pairing.Times]:
-        """`resample_each` of a chunk's pairs (rising, falling) and their `times` for the
-        tracker (a device: taken up with the positions)."""
-        return self.resample_each(codes, jobs, win), times
-
     def clip_counts(self, codes, block, full_scale):
         raise NotImplementedError
 
@@ -154,19 +192,31 @@ class ChunkProcessor(pairing.SpectrumOps):
         return Prepared(self.turning_points(chunk.sync, info.samples_per_period / 2),
                         self.clip_counts(*clipping(chunk, info)))
 
+    def prepare_later(self, chunk: Chunk, info) -> Later:
+        """`prepare`, its results coming down with the tracker's next download (a
+        device's; here: at once)."""
+        return Later(self.prepare(chunk, info))
+
+    def ride(self, *later: Later) -> None:
+        """Have the tracker's next download carry the riders of `later` (a device's)."""
+
     def process(self, chunk: Chunk, prepared: Prepared | None = None,
-                following: Callable[[], Chunk | None] | None = None) -> ChunkMeasurements | None:
-        """The owned pairs of `chunk` under the open plan (None: no pair in it);
-        `prepared`: what `prepare` found in it, where already known (the delay's trial
-        conversions repeat a chunk at other delays); `following`: gives the chunk
-        processed next (None: none), prepared with this one's range check and survey
-        (`check_and_survey`) and kept for that call."""
+                following: Callable[[], Chunk | None] | None = None) -> list[ChunkMeasurements]:
+        """The measurements of the owned pairs of the chunks finished by this call, in
+        order: none, this one's, or the one before's and this one's, under the open plan
+        (a chunk without a pair has none). `prepared`: what `prepare` found in `chunk`,
+        where already known (the delay's trial conversions repeat a chunk at other delays);
+        `following`: gives the chunk processed next (None: none). With one, this chunk's
+        range check and survey wait for the next call: they go up with the next chunk's
+        resampling and come down with its tracker's state, which also brings what
+        `prepare` finds in the following chunk (one trip each way a chunk)."""
         plan = self.plan
         if plan is None:
             raise FmcwError("a chunk processor must be opened with a plan before it processes")
         self.chunks += 1
         info = plan.info
         ahead, self._ahead = self._ahead, None
+        before, self._pending = self._pending, None
         if prepared is None:
             prepared = ahead[1] if ahead is not None and ahead[0] is chunk else self.prepare(chunk, info)
         hs = sync.half_sweeps(prepared.turns, plan.lag)
@@ -174,16 +224,22 @@ class ChunkProcessor(pairing.SpectrumOps):
         r = np.flatnonzero(hs.rising[:-1] & ~hs.rising[1:] & (hs.segment[:-1] == hs.segment[1:])
                            & fits[:-1] & fits[1:])
         if r.size == 0:
-            return None
+            return [] if before is None else [self._finished(before, self.check_and_survey(before))]
         f = r + 1
         fs = info.sample_rate_hz
         t_r = (chunk.start + hs.centre[r]) / fs
         t_f = (chunk.start + hs.centre[f]) / fs
-        (xr, xf), times = self.resample_pairs(chunk.beat, [(hs.start[r], hs.length[r], plan.lut.u_rise),
-                                                            (hs.start[f], hs.length[f], plan.lut.u_fall)],
-                                              plan.window, pairing.Times(t_r, t_f))
+        jobs = [(hs.start[r], hs.length[r], plan.lut.u_rise), (hs.start[f], hs.length[f], plan.lut.u_fall)]
+        (xr, xf), times, landed = self.resample_pairs(chunk.beat, jobs, plan.window, pairing.Times(t_r, t_f),
+                                                      before)
+        nxt = following() if following is not None else None
+        coming = None if nxt is None else self.prepare_later(nxt, info)
+        self.ride(*(x for x in (landed, coming) if x is not None))
         res = pairing.track_pairs(xr, xf, times, plan.model, plan.search, plan.options.iterations,
                                   plan.options.dechirp, self, plan.options.integrate)
+        done = [] if before is None else [self._finished(before, landed.get())]
+        if coming is not None:
+            self._ahead = (nxt, coming.get())
         first = chunk.start + hs.start[r] + plan.lag      # sync time of the pair's first turn
         own = (first >= chunk.core_start) & (first < chunk.core_stop)
         sel = res.take(own)
@@ -195,32 +251,44 @@ class ChunkProcessor(pairing.SpectrumOps):
         # the core's clipped codes, counted once over the capture
         core = slice((chunk.core_start - chunk.start) // faults.CLIP_BLOCK,
                      -(-(chunk.core_stop - chunk.start) // faults.CLIP_BLOCK))
-        clipped_codes = int(counts[core].sum(dtype=np.int64))
-        check = self._range_check(hs, r, f, sel) if plan.check is not None and r.size else None
-        survey = self._survey((xr, xf), res, np.flatnonzero(own)) if plan.survey else None
-        nxt = following() if following is not None and (check is not None or survey is not None) else None
-        checked, surveyed, ahead = self.check_and_survey(chunk.beat, check, survey, nxt)
-        if nxt is not None:
-            self._ahead = (nxt, ahead)
-        alias = np.zeros(r.size, bool) if check is None else check.beyond(checked, sel, plan.lut)
-        reason = faults.reasons(sel.valid, sel.heard, clip, alias, sel.continuous)
-        sel.valid[:] = reason == faults.OK
-        table = no_survey() if surveyed is None else survey.table(surveyed, (t_r, t_f), plan.model)
-        return ChunkMeasurements(t_r[own], t_f[own], sel, reason, table, clipped_codes)
+        mine = Pending(chunk.beat, (t_r, t_f), own, sel, clip, int(counts[core].sum(dtype=np.int64)),
+                       self._range_check(hs, r, f, sel) if plan.check is not None and r.size else None,
+                       self._survey((xr, xf), res, np.flatnonzero(own)) if plan.survey else None)
+        if nxt is None or (mine.check is None and mine.survey is None):
+            return [*done, self._finished(mine, self.check_and_survey(mine))]
+        self._pending = mine
+        return done
 
-    def check_and_survey(self, beat: np.ndarray, check: RangeCheck | None, survey: Survey | None,
-                         following: Chunk | None = None) -> tuple[list | None, list | None, Prepared | None]:
-        """The range check's peaks, (distance, SNR) of each side (measure_each), and the
-        survey's (ratio, centroid, found) of each direction (survey_each); None for the
-        one not asked; and what `prepare` finds in `following` (None: none given). A
-        device: one trip each way, the following chunk's sync fits coming down with the
-        results."""
-        checked = None
+    def _finished(self, chunk: Pending, got: tuple) -> ChunkMeasurements:
+        """The measurements of a `chunk` whose range check and survey gave `got`."""
+        plan = self.plan
+        checked, surveyed = got
+        sel, check, survey = chunk.result, chunk.check, chunk.survey
+        alias = np.zeros(sel.distance.size, bool) if check is None else check.beyond(checked, sel, plan.lut)
+        reason = faults.reasons(sel.valid, sel.heard, chunk.clip, alias, sel.continuous)
+        sel.valid[:] = reason == faults.OK
+        table = no_survey() if surveyed is None else survey.table(surveyed, chunk.times, plan.model)
+        t_r, t_f = chunk.times
+        return ChunkMeasurements(t_r[chunk.own], t_f[chunk.own], sel, reason, table, chunk.clipped_codes)
+
+    def resample_pairs(self, codes, jobs, win, times: pairing.Times, before: Pending | None = None
+                       ) -> tuple[list, pairing.Times, Later | None]:
+        """`resample_each` of a chunk's pairs (rising, falling) and their `times` for the
+        tracker (a device: taken up with the positions), and the range check and survey
+        of the chunk `before` (`check_and_survey`; a device: their inputs up in the same
+        copy, their results riding on the tracker's download)."""
+        landed = None if before is None else Later(self.check_and_survey(before))
+        return self.resample_each(codes, jobs, win), times, landed
+
+    def check_and_survey(self, chunk: Pending) -> tuple[list | None, list | None]:
+        """The range check's peaks of a measured `chunk`, (distance, SNR) of each side
+        (measure_each), and the survey's (ratio, centroid, found, sums) of each direction
+        (survey_each); None for the one not asked (a device: one trip each way)."""
+        checked, check = None, chunk.check
         if check is not None:
-            xs = self.resample_each(beat, check.jobs, check.window)
+            xs = self.resample_each(chunk.beat, check.jobs, check.window)
             checked = self.measure_each(xs, (None, None), None, check.model, check.search)
-        surveyed = None if survey is None else self.survey_each(*survey.args)
-        return checked, surveyed, None if following is None else self.prepare(following, self.plan.info)
+        return checked, None if chunk.survey is None else self.survey_each(*chunk.survey.args)
 
     def _survey(self, rows: tuple, res: pairing.PairResult, own: np.ndarray) -> Survey | None:
         """The survey of hidden echoes (echoes.hidden) in both half-sweeps of every

@@ -112,7 +112,7 @@ def mismatch(held: list[list[tuple]], plan, lag: float, processor) -> Mismatch:
     processor.open(p)
     slopes, errors, dist = [], [], []
     for chunks in held:
-        parts = [got for c, prep in chunks if (got := processor.process(c, prep)) is not None]
+        parts = [got for c, prep in chunks for got in processor.process(c, prep)]
         if not parts:
             continue
         t, d, v, ok = pairs_of(parts)

@@ -2,6 +2,78 @@
 // one period is regressed on the low-passed sync z moved by a lag, its derivative and a
 // constant (Gauss-Newton, three steps from the row's coarse lag); one work-item per
 // period of every row (the sync delay's stretches). Twin: fmcw_cl.stages.sync.fit_periods.
+// Before it, from the low-pass's rows on the device: each row trimmed and its mean
+// removed, and its coarse lag, the largest |cross-correlation| (twin: sync.period_delays).
+
+#if defined(cl_khr_fp64)
+#pragma OPENCL EXTENSION cl_khr_fp64 : enable
+typedef double real;
+#else
+typedef float real;
+#endif
+
+// Each row of the low-passed beat (channel 0) and sync (channel 1), `edge` samples left
+// out at each end, less its mean: one work-item a row of a channel.
+__kernel void delay_centre(__global const float *y,     // (rows, m): low-passed beat
+                           __global const float *z,     // (rows, m): low-passed sync
+                           const int m,
+                           const int rows,
+                           const int edge,
+                           __global float *yz)          // (2, rows, n), n = m - 2 edge
+{
+    const int g = get_global_id(0);
+    if (g >= 2 * rows) return;
+    const int r = g < rows ? g : g - rows, n = m - 2 * edge;
+    __global const float *x = (g < rows ? y : z) + (size_t)r * m + edge;
+    real sum = 0;
+    for (int i = 0; i < n; ++i) sum += (real)x[i];
+    const real mean = sum / (real)n;
+    __global float *o = yz + (size_t)g * n;
+    for (int i = 0; i < n; ++i) o[i] = (float)((real)x[i] - mean);
+}
+
+// The cross-correlation of each row's sync with its beat's middle: c[r, k] = sum_i
+// z[r, i + k] y[r, span + i], i < n - 2 span, k = 0 .. 2 span (numpy.correlate's
+// "valid"); a work-item a lag of a row. Eight products at a time, flushed to `real`
+// every 256 samples.
+__kernel void delay_correlate(__global const float *yz, // (2, rows, n)
+                              const int n,
+                              const int rows,
+                              const int span,
+                              __global real *c)         // (rows, 2 span + 1)
+{
+    const int lags = 2 * span + 1;
+    const int g = get_global_id(0);
+    if (g >= rows * lags) return;
+    const int r = g / lags, k = g - r * lags, len = n - 2 * span;
+    __global const float *a = yz + (size_t)r * n + span;
+    __global const float *b = yz + (size_t)(rows + r) * n + k;
+    real acc = 0;
+    int i = 0;
+    while (i + 8 <= len) {
+        float8 block = 0.0f;
+        const int end = min(len, i + 256);
+        for (; i + 8 <= end; i += 8) block += vload8(0, a + i) * vload8(0, b + i);
+        acc += (real)block.s0 + block.s1 + block.s2 + block.s3 + block.s4 + block.s5 + block.s6 + block.s7;
+    }
+    for (; i < len; ++i) acc += (real)a[i] * b[i];
+    c[g] = acc;
+}
+
+// Each row's coarse lag: the lag of its largest |c| (the first of equals), less span.
+__kernel void delay_coarse(__global const real *c,      // (rows, 2 span + 1)
+                           const int rows,
+                           const int span,
+                           __global float *coarse)      // (rows,)
+{
+    const int r = get_global_id(0);
+    if (r >= rows) return;
+    const int lags = 2 * span + 1;
+    int best = 0;
+    for (int k = 1; k < lags; ++k)
+        if (fabs(c[(size_t)r * lags + k]) > fabs(c[(size_t)r * lags + best])) best = k;
+    coarse[r] = (float)(best - span);
+}
 
 // z at sample i + t of a row of n (t in [0, 1)): linear between samples, held at the
 // ends (np.interp on the sample grid). The whole and fractional samples are apart: a

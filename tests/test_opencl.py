@@ -474,7 +474,8 @@ def test_every_kernel_launches_with_one_local_size(static_capture, monkeypatch):
         process(static_capture, Options(chunk_periods=periods), be)
     assert {"resample_lanes", "spectrum_lanes", "block_sum_span", "sync_levels", "span_ends", "span_carries",
             "span_crossings", "line_fit_lanes", "clip_blocks", "cic_decimate", "fir_same",
-            "track_pass", "block_sums"} <= set(seen)
+            "track_pass", "block_sums", "delay_centre", "delay_correlate", "delay_coarse", "delay_fit",
+            "copy_words"} <= set(seen)
     assert all(len(sizes) == 1 and None not in sizes for sizes in seen.values()), seen
 
 
@@ -548,6 +549,51 @@ def test_delay_fit_kernel_matches_numpy(backend, rows, n, period):
     assert np.abs(got[0][ok] - want[0][ok]).max() < 1e-3
     assert np.abs(got[1][ok] - want[1][ok]).max() < 1e-4
     assert np.abs(got[0][heard] - lag[heard, None]).max() < 0.5         # noise: about 0.1 a period
+
+
+@pytest.mark.parametrize("n", [200_003, 9_000])
+def test_delay_estimate_on_the_device_equals_numpy(backend, n):
+    """The sync delay's estimate from the codes on the device (low-pass, trimmed and
+    centred rows, coarse lags, fits: OpenCLProcessor.period_delays, one download) against
+    the device's stages driven from the host (the rows down, centred and correlated by
+    numpy, up again) and numpy's: stretches of an odd length whose lags reach both ends
+    of the coarse search, a lab's weak triangle (+-150 codes under 600 rms), a row of
+    noise alone. Against the stages: the same NaNs, lags within 1e-4 samples; against
+    numpy on the rows with a triangle: the same NaNs, lags within 0.03 samples (1e-3
+    decimated), near the truth."""
+    from fmcw_cl.processor import NumpyProcessor
+
+    half = 2500.0
+    lags = np.array([17.3, -380.5, 391.0, 0.0])
+    rng = np.random.default_rng(n)
+
+    def tri(t0, amp):
+        p = ((np.arange(n) - t0) / (2 * half)) % 1.0
+        return amp * (np.where(p < 0.5, 2 * p, 2 - 2 * p) - 0.5)
+
+    sy = np.stack([tri(777.0 + 131 * k, 6000) + rng.normal(0, 4, n) for k in range(lags.size)])
+    beat = np.stack([tri(777.0 + 131 * k - lag, 300 * (k < 3)) + rng.normal(0, 600, n)
+                     for k, lag in enumerate(lags)])
+    sy, beat = (np.rint(x).astype(np.int16) for x in (sy, beat))
+    got = backend.period_delays(beat, sy, 100e6, half)
+    staged = sync.period_delays(beat, sy, 100e6, half, backend.intensity_each, backend.fit_periods)
+    want = NumpyProcessor().period_delays(beat, sy, 100e6, half)
+    if n < 10_000:                         # too short for a period between the coarse lags' reach
+        assert got[0].size == staged[0].size == want[0].size == 0
+        return
+    assert got[0].shape == staged[0].shape == want[0].shape and got[0].size % lags.size == 0
+    for g, w in zip(got, staged, strict=True):
+        np.testing.assert_array_equal(np.isnan(g), np.isnan(w))
+        np.testing.assert_allclose(g, w, rtol=0, atol=1e-4)
+    heard = np.repeat(np.arange(lags.size) < 3, got[0].size // lags.size)
+    for g, w in zip(got, want, strict=True):
+        np.testing.assert_array_equal(np.isnan(g[heard]), np.isnan(w[heard]))
+    ok = heard & np.isfinite(want[0])
+    assert ok.mean() > 0.7
+    assert np.abs(got[0][ok] - want[0][ok]).max() < 0.03
+    assert np.abs(got[1][ok] - want[1][ok]).max() < 1e-4
+    for row, lag in zip(want[0].reshape(lags.size, -1)[:3], lags[:3], strict=True):
+        assert abs(np.nanmedian(row) - lag) < 40        # a weak triangle: some 50 samples' noise a period
 
 
 @pytest.mark.parametrize("n", [400_003, 5_000, 73, 72, 0])
@@ -632,31 +678,30 @@ def test_wall_track_and_echoes_equal_numpy(wall_capture):
 
 def test_range_check_and_survey_in_one_trip_equal_each_alone(backend, kernel_variant, wall_capture,
                                                               monkeypatch):
-    """A chunk's range check and survey by one copy each way (OpenCLProcessor.
-    check_and_survey), on a jump past a wall: each result bitwise equal to the two run
-    apart on the device, and to numpy's within float32."""
+    """A chunk's range check and survey by one copy each way (launched with the next
+    chunk's resampling and carried down with its tracker's state, or the last chunk's by
+    a trip of its own: OpenCLProcessor.check_and_survey), on a jump past a wall: each
+    result bitwise equal to the two run apart on the device, and to numpy's within
+    float32."""
     from dataclasses import replace
 
     from fmcw_cl.processor import ChunkProcessor, NumpyProcessor
 
     seen = []
-    fused = OpenCLProcessor.check_and_survey
+    finished = OpenCLProcessor._finished
 
-    def both(self, beat, check, survey, following=None):
-        got = fused(self, beat, check, survey, following)
-        if check is not None and survey is not None:
-            apart = ChunkProcessor.check_and_survey(self, beat, check, survey)
-            rows = tuple(x.get() for x in survey.args[0])
-            on_host = replace(survey, args=(rows, *survey.args[1:]))
-            ref = NumpyProcessor().check_and_survey(beat, check, on_host)
-            seen.append((got, apart, ref))
-        return got
+    def both(self, chunk, got):
+        if chunk.check is not None and chunk.survey is not None:
+            apart = ChunkProcessor.check_and_survey(self, chunk)
+            rows = tuple(x.get() for x in chunk.survey.args[0])
+            on_host = replace(chunk, survey=replace(chunk.survey, args=(rows, *chunk.survey.args[1:])))
+            seen.append((got, apart, NumpyProcessor().check_and_survey(on_host)))
+        return finished(self, chunk, got)
 
-    monkeypatch.setattr(OpenCLProcessor, "check_and_survey", both)
-    before = backend.traffic()["downloads"]
+    monkeypatch.setattr(OpenCLProcessor, "_finished", both)
     process(wall_capture, Options(chunk_periods=1024), backend)
-    assert len(seen) >= 3 and backend.traffic()["downloads"] > before
-    for (checked, surveyed, _), (checked1, surveyed1, _), (checked0, surveyed0, _) in seen:
+    assert len(seen) >= 3
+    for (checked, surveyed), (checked1, surveyed1), (checked0, surveyed0) in seen:
         for got, apart in zip((*checked, *surveyed), (*checked1, *surveyed1), strict=True):
             for a, b in zip(got, apart, strict=True):
                 np.testing.assert_array_equal(a, b)
@@ -674,11 +719,14 @@ def test_range_check_and_survey_in_one_trip_equal_each_alone(backend, kernel_var
             np.testing.assert_allclose(sums, sums0, rtol=2e-4, atol=1e-3 * sums0.max())
 
 
-def test_the_next_chunk_is_prepared_in_the_trip_of_the_check_and_survey(backend, wall_capture, monkeypatch):
-    """A chunk's range check and survey come down with the following chunk's sync fits
-    and clipping counts: each own chunk of a capture makes two downloads, the last one
-    three; what the following chunk was found to hold equals its own `prepare`, and the
-    measurements equal those of chunks prepared one by one."""
+def test_a_chunk_makes_one_trip_each_way(backend, wall_capture, monkeypatch):
+    """One copy up and one down a chunk: the positions of a chunk's resampling go up with
+    the range check and survey inputs of the chunk before, and its tracker's state comes
+    down with their results and the following chunk's sync fits and clipping counts
+    (n + 1 uploads and n + 2 downloads for n chunks: the first chunk's own sync fits, the
+    last chunk's own range check). What each chunk was found to hold (the first by a trip
+    of its own) equals its own `prepare` made apart, and the measurements equal those of
+    chunks processed one by one."""
     from fmcw_cl.capture import Capture
     from fmcw_cl.chunks import capture_parts
     from fmcw_cl.plan import make_plan
@@ -687,32 +735,35 @@ def test_the_next_chunk_is_prepared_in_the_trip_of_the_check_and_survey(backend,
     options = Options(chunk_periods=1024)
     with Capture(wall_capture) as cap:
         plan = make_plan(cap, options, processor=backend)
-        before = backend.traffic()["downloads"]
+        before = backend.traffic()
         parts = capture_parts(cap, plan, backend)
-        downloads = backend.traffic()["downloads"] - before
+        after = backend.traffic()
         ahead = []
-        fused = OpenCLProcessor.check_and_survey
+        later = OpenCLProcessor.prepare_later
 
-        def check(self, beat, check, survey, following=None):
-            got = fused(self, beat, check, survey, following)
-            if following is not None:
-                ahead.append((got[2], ChunkProcessor.prepare(self, following, cap.info)))
+        def kept(self, chunk, info):
+            got = later(self, chunk, info)
+            ahead.append((got, ChunkProcessor.prepare(self, chunk, info)))
             return got
 
-        monkeypatch.setattr(OpenCLProcessor, "check_and_survey", check)
+        monkeypatch.setattr(OpenCLProcessor, "prepare_later", kept)
         capture_parts(cap, plan, backend)
         monkeypatch.undo()
         one_by_one = []
         backend.open(plan)
-        for chunk in cap.chunks(options.chunk_periods, margin_samples(cap.info, options), 0, None, held=2):
-            one_by_one.append(backend.process(chunk))
-    assert len(parts) >= 3 and downloads == 2 * len(parts) + 1
-    assert len(ahead) == len(parts) - 1
+        for chunk in cap.chunks(options.chunk_periods, margin_samples(cap.info, options), 0, None, held=3):
+            one_by_one += backend.process(chunk)
+    n = len(parts)
+    assert n >= 3
+    assert after["uploads"] - before["uploads"] == n + 1
+    assert after["downloads"] - before["downloads"] == n + 2
+    assert len(ahead) == n and all(got.rider is None for got, _ in ahead)   # every chunk's, each landed
     for got, own in ahead:
-        for a, b in zip(vars(got.turns).values(), vars(own.turns).values(), strict=True):
+        for a, b in zip(vars(got.value.turns).values(), vars(own.turns).values(), strict=True):
             np.testing.assert_array_equal(a, b)
-        np.testing.assert_array_equal(got.clip_counts, own.clip_counts)
-    for a, b in zip(parts, [p for p in one_by_one if p is not None], strict=True):
+        np.testing.assert_array_equal(got.value.clip_counts, own.clip_counts)
+    assert len(one_by_one) == n
+    for a, b in zip(parts, one_by_one, strict=True):
         np.testing.assert_array_equal(a.reason, b.reason)
         np.testing.assert_array_equal(a.result.distance, b.result.distance)
         for key in a.survey:

@@ -21,6 +21,7 @@ class Buffers:
         self._bufs: dict[str, object] = {}
         self._sizes: dict[str, int] = {}
         self._sources: dict[str, np.ndarray] = {}
+        self._recent: dict[str, list[str]] = {}     # upload_once's buffers of a name, least recent first
         self._free: list[tuple[int, object]] = []
         self._constants: OrderedDict[tuple[str, int], tuple[np.ndarray, object]] = OrderedDict()
 
@@ -52,22 +53,29 @@ class Buffers:
             self.rt.copy(buf, np.ascontiguousarray(array))
         return buf
 
-    def upload_once(self, name: str, array: np.ndarray):
-        """Like `upload`, but skipped when this very array was the last one uploaded
-        (a chunk's codes serve several launches; values that never change: `constant`).
+    def upload_once(self, name: str, array: np.ndarray, keep: int = 1):
+        """Like `upload`, but skipped when this very array is one of the last `keep`
+        uploaded under `name` (a chunk's codes serve several launches; values that never
+        change: `constant`); a new one takes the place of the least recently used.
         On a CPU device the buffer wraps the host array (CL_MEM_USE_HOST_PTR: no copy at
         all on PoCL; not on a simulator, which copies it and checks reads as if from
         device memory)."""
-        if self._sources.get(name) is array:
-            return self._bufs[name]
+        recent = self._recent.setdefault(name, [f"{name}#{i}" if i else name for i in range(keep)])
+        slot = next((n for n in recent if self._sources.get(n) is array), None)
+        hit = slot is not None
+        slot = slot if hit else recent[0]
+        recent.remove(slot)
+        recent.append(slot)                 # the most recently used last
+        if hit:
+            return self._bufs[slot]
         array = np.ascontiguousarray(array)
         if self.rt.zero_copy and array.nbytes:
-            self._bufs[name] = self._new(cl.mem_flags.READ_ONLY | cl.mem_flags.USE_HOST_PTR, hostbuf=array)
-            self._sizes[name] = 0            # never reused for another array
+            self._bufs[slot] = self._new(cl.mem_flags.READ_ONLY | cl.mem_flags.USE_HOST_PTR, hostbuf=array)
+            self._sizes[slot] = 0            # never reused for another array
         else:
-            self.upload(name, array)
-        self._sources[name] = array          # held: the buffer may point into it
-        return self._bufs[name]
+            self.upload(slot, array)
+        self._sources[slot] = array          # held: the buffer may point into it
+        return self._bufs[slot]
 
     CONSTANTS = 32      # device copies of constants kept (a few per plan: LUTs, windows, bases)
 
@@ -165,25 +173,31 @@ class Packed:
         """Every part, by one copy (waits for the kernels that wrote them); the riders'
         values too."""
         self._rt.copy(self._host, self._parent)
+        return self._landed()
+
+    def _landed(self) -> list[np.ndarray]:
         for rider, view in self._riders:
             rider.value = view.copy()
         return self.views
 
     def rider(self) -> Rider:
         """These parts as a `Rider` of another step's download: a copy on the device of
-        this buffer into that step's `Packed`, after the kernels that write it; `read`
-        its value."""
-        nbytes = self._host.nbytes
+        this buffer into that step's `Packed`, after the kernels that write it
+        (kernels/copy.cl); `read` its value."""
+        nbytes = self._host.nbytes          # a multiple of the alignment, at least 16
+        words = nbytes // 16
 
         def launch(buffer) -> None:
-            cl.enqueue_copy(self._rt.queue, buffer, self._parent, byte_count=nbytes)
+            rt = self._rt
+            rt.kernel("copy", "copy_words")(rt.queue, *rt.items(words), self._parent, np.int32(words), buffer)
 
         return Rider(np.uint8, nbytes, launch)
 
     def read(self, raw: np.ndarray) -> list[np.ndarray]:
-        """Every part from `raw`, the bytes this object's `rider` brought down."""
+        """Every part from `raw`, the bytes this object's `rider` brought down; its own
+        riders' values too."""
         self._host[...] = raw
-        return self.views
+        return self._landed()
 
     def upload(self, *arrays: np.ndarray) -> list:
         """`arrays` into the parts, by one copy; their sub-buffers."""

@@ -31,6 +31,16 @@ def intensity_each(rt: Runtime, bufs: Buffers, channels: list, sample_rate_hz: f
     """Low-passed int16 codes at the decimated rate of each array of `channels` (the
     beat and the sync), of each row alone where one is (rows, samples), all rows in one
     launch a kernel; every result back by one download (twin: lpf.intensity_each)."""
+    out, shapes = launch(rt, bufs, channels, sample_rate_hz, factor)
+    views = out.download() if any(v.size for v in out.views) else out.views
+    return [(view.reshape(shape).astype(np.float64), lpf.CIC_ORDER * (factor - 1) / 2.0, float(factor))
+            for view, shape in zip(views, shapes, strict=True)]
+
+
+def launch(rt: Runtime, bufs: Buffers, channels: list, sample_rate_hz: float, factor: int = lpf.DECIMATION
+           ) -> tuple[Packed, list[tuple]]:
+    """`intensity_each`'s launches: the low-passed rows of each channel in a part of a
+    Packed, not yet downloaded, and their shapes."""
     if any(x.dtype != np.int16 for x in channels):
         raise TypeError("the low-pass kernel takes int16 ADC codes")
     h = cic_taps(factor)
@@ -47,6 +57,4 @@ def intensity_each(rt: Runtime, bufs: Buffers, channels: list, sample_rate_hz: f
                                          np.int32(m), np.int32(rows), np.int32(x.shape[-1]), d_dec)
         rt.kernel("lpf", "fir_same")(rt.queue, *rt.items(view.size), d_dec, np.int32(m), np.int32(rows),
                                      bufs.constant("lpf_taps", taps), np.int32(taps.size // 2), d_out)
-    views = out.download() if any(v.size for v in out.views) else out.views
-    return [(view.reshape(shape).astype(np.float64), lpf.CIC_ORDER * (factor - 1) / 2.0, float(factor))
-            for view, shape in zip(views, shapes, strict=True)]
+    return out, shapes

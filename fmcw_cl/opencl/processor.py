@@ -12,11 +12,12 @@ the lanes variants of the kernels that have two.
 from __future__ import annotations
 
 import functools
+from collections.abc import Callable
 from dataclasses import replace
 
 import numpy as np
 
-from ..processor import ChunkProcessor, Prepared, clipping
+from ..processor import ChunkProcessor, Later, Prepared, clipping
 from ..stages import pairing, sync
 from ..stages.spectrum import fft_length
 from . import delay as k_delay
@@ -45,7 +46,8 @@ class OpenCLProcessor(ChunkProcessor):
     # periods a chunk: a chunk's launches, copies and host steps cost about the same
     # whatever its size (0.4 s of capture: 160 MB of codes, 65 MB of resampled rows)
     chunk_default = 8192
-    programs = ("lpf", "delay", "sync", "resample", "spectrum", "integrate", "survey", "faults", "track")
+    programs = ("lpf", "delay", "sync", "resample", "spectrum", "integrate", "survey", "faults", "track",
+                "copy")
 
     def __init__(self, selector: str | None = None, rt: Runtime | None = None) -> None:
         super().__init__()
@@ -55,6 +57,7 @@ class OpenCLProcessor(ChunkProcessor):
         self.bufs = Buffers(self.rt)
         self.device = self.rt.name
         self._fitted = functools.partial(k_sync.fitted, self.rt, self.bufs)
+        self._riders: tuple = ()        # what the tracker's next download carries (`ride`)
 
     def _fits(self, nfft: int) -> bool:
         """Whether an nfft-point transform runs on this device (its local memory)."""
@@ -80,11 +83,12 @@ class OpenCLProcessor(ChunkProcessor):
 
     def chunk_limit(self, samples_per_period: float, points: int) -> int:
         """Modulation periods of one chunk that fit in a quarter of the device's memory
-        (and each buffer in its largest allocation): the two int16 channels, the
-        resampled rows of both directions and the range check's (2N points, a quarter
-        of the pairs)."""
+        (and each buffer in its largest allocation): the int16 beat of two chunks (the
+        range check of one runs with the next) and one sync, the resampled rows of both
+        directions of two chunks (the survey of one runs with the next) and the range
+        check's (2N points, a quarter of the pairs)."""
         dev = self.rt.device
-        per_period = 4 * samples_per_period + 4 * points * (2 + 1)
+        per_period = 6 * samples_per_period + 4 * points * (4 + 1)
         budget = min(dev.global_mem_size // 4, dev.max_mem_alloc_size)
         return max(1, int(budget // per_period))
 
@@ -107,31 +111,87 @@ class OpenCLProcessor(ChunkProcessor):
     def fit_periods(self, y, z, shift, period, span):
         return k_delay.fit_periods(self.rt, self.bufs, y, z, shift, period, span)
 
+    def period_delays(self, beat, sync_codes, sample_rate_hz, half_period):
+        return k_delay.period_delays(self.rt, self.bufs, beat, sync_codes, sample_rate_hz, half_period)
+
     def turning_points(self, codes, half_period):
         return sync.sync_turning_points(codes, half_period, self._fitted)
 
-    def prepare(self, chunk, info, riders: tuple = ()):
-        """ChunkProcessor.prepare, the clipping counts and `riders` (another step's small
-        results) coming down with the sync's line fits (by a copy of their own where the
-        sync is too short for a search: then `riders` stay unread)."""
-        job = clipping(chunk, info)
-        clip = k_faults.clip_rider(self.rt, self.bufs, *job)
-        fit = functools.partial(self._fitted, riders=(clip, *riders))
-        turns = sync.sync_turning_points(chunk.sync, info.samples_per_period / 2, fit)
-        return Prepared(turns, self.clip_counts(*job) if clip.value is None else clip.value)
-
     def resample_each(self, codes, jobs, win):
-        rows = k_resample.resample_each(self.rt, self.bufs, codes, jobs, win)
+        return self._kept(k_resample.resample_each(self.rt, self.bufs, codes, jobs, win), win)
+
+    def _kept(self, rows: list, win: np.ndarray) -> list:
+        """Resampled `rows` left on the device where their spectra are taken here, else
+        brought down."""
         return rows if self._fits(fft_length(win.size)) else [x.get() for x in rows]
 
-    def resample_pairs(self, codes, jobs, win, times):
+    def prepare(self, chunk, info):
+        """ChunkProcessor.prepare, the clipping counts coming down with the sync's line
+        fits (one copy)."""
+        return self.prepare_later(chunk, info).get()
+
+    def prepare_later(self, chunk, info) -> Later:
+        """ChunkProcessor.prepare_later: the sync's search and the clipping counts
+        launched, their results riding on the tracker's next download (`ride`)."""
+        half = info.samples_per_period / 2
+        if chunk.sync.size < 2 * sync.fit_half_width(half) + 6:     # no crossing to fit
+            return Later(ChunkProcessor.prepare(self, chunk, info))
+        job = clipping(chunk, info)
+        clip = k_faults.clip_rider(self.rt, self.bufs, *job)
+        launched = k_sync.launch_fits(self.rt, self.bufs, chunk.sync, half, (clip,))
+        if launched is None:
+            return Later(ChunkProcessor.prepare(self, chunk, info))
+        packed, finish = launched
+
+        def prepared(views: list) -> Prepared:
+            fitted = finish(views)
+            turns = sync.sync_turning_points(chunk.sync, half, lambda *_: fitted)
+            return Prepared(turns, self.clip_counts(*job) if clip.value is None else clip.value)
+
+        return Later(rider=packed.rider(), land=lambda raw: prepared(packed.read(raw)),
+                     fetch=lambda: prepared(packed.download()))
+
+    def ride(self, *later: Later) -> None:
+        self._riders = tuple(x.rider for x in later if x.rider is not None)
+
+    def _landing(self) -> tuple:
+        """The riders of the tracker's download (`ride`), handed over once."""
+        riders, self._riders = self._riders, ()
+        return riders
+
+    def resample_pairs(self, codes, jobs, win, times, before=None):
         """ChunkProcessor.resample_pairs: where the tracker's passes run here, the pairs'
-        times go up in the positions' copy."""
-        if not self._passes_here(fft_length(win.size)):
-            return super().resample_pairs(codes, jobs, win, times)
-        *rows, d_mid, d_half = k_resample.resample_each(self.rt, self.bufs, codes, jobs, win,
-                                                        (times.mid, times.half_gap))
-        return rows, replace(times, device=(d_mid, d_half))
+        times go up in the positions' copy; where the spectra of `before`'s range check
+        and survey run here, their positions and inputs go up in it too, their kernels
+        are launched, and their results ride on the tracker's download."""
+        passes = self._passes_here(fft_length(win.size))
+        fused = before is not None and self._fused(before)
+        # not fused: by trips of their own, before this chunk's positions go up (they would
+        # take the positions' buffer from under this chunk's times)
+        landed = Later(self.check_and_survey(before)) if before is not None and not fused else None
+        groups, also = [(codes, jobs, win)], ()
+        if fused:
+            if before.check is not None:
+                groups.insert(0, (before.beat, before.check.jobs, before.check.window))
+            if before.survey is not None:
+                also = _survey_inputs(before.survey)
+        if passes:
+            also = (*also, times.mid, times.half_gap)
+        rows, extra = k_resample.resample_groups(self.rt, self.bufs, groups, also)
+        pairs = self._kept(rows[-1], win)
+        if passes:
+            *extra, d_mid, d_half = extra
+            times = replace(times, device=(d_mid, d_half))
+        if not fused:
+            return pairs, times, landed
+        out, read = self._check_and_survey(before, rows[0] if before.check is not None else None, extra)
+        return pairs, times, Later(rider=out.rider(), land=lambda raw: read(out.read(raw)),
+                                   fetch=lambda: read(out.download()))
+
+    def _fused(self, chunk) -> bool:
+        """Whether the spectra of `chunk`'s range check and survey run here."""
+        return ((chunk.check is None or self._fits(chunk.check.model.nfft))
+                and (chunk.survey is None or self._fits(chunk.survey.args[3])))
 
     def clip_counts(self, codes, block, full_scale):
         return k_faults.clip_counts(self.rt, self.bufs, codes, block, full_scale)
@@ -139,23 +199,29 @@ class OpenCLProcessor(ChunkProcessor):
     def measure(self, x, beta, v, model, search, rows=None):
         return self.measure_each([x], [beta], v, model, search, rows)[0]
 
-    def measure_each(self, xs, betas, v, model, search, rows=None):
+    def measure_each(self, xs, betas, v, model, search, rows=None, riders: tuple = ()):
         """Twin: pairing.SpectrumOps.measure_each; one upload of the rows and velocities,
-        one download of every result."""
+        one download of every result (and of `riders`)."""
         if not self._fits(model.nfft):
             return pairing.NUMPY.measure_each(xs, betas, v, model, search, rows)
         jobs = [(x, b, None) for x, b in zip(xs, betas, strict=True)]
-        got = k_spectrum.measure_each(self.rt, self.bufs, jobs, v, model.nfft,
-                                      search.lo, search.hi, index=rows, echoes=search.echoes)
+        got = k_spectrum.measure_each(self.rt, self.bufs, jobs, v, model.nfft, search.lo, search.hi,
+                                      index=rows, echoes=search.echoes, riders=riders)
         return _measured(got, model, search)
 
     def track(self, rows, times, model, search, iterations, single):
         """Twin: pairing.SpectrumOps.track; the passes on the device (`_passes_here`),
-        their state read by one copy."""
+        their state read by one copy, which carries the riders of `ride`."""
         if not (single and iterations > 0 and self._passes_here(model.nfft)):
             return super().track(rows, times, model, search, iterations, single)
-        first, state = k_track.track(self.rt, self.bufs, rows, times, model, search, iterations)
+        first, state = k_track.track(self.rt, self.bufs, rows, times, model, search, iterations,
+                                     self._landing())
         return tuple(_measured(first, model, search)), state
+
+    def plain_pass(self, rows, model, search):
+        """Twin: pairing.SpectrumOps.plain_pass; its download carries the riders of `ride`."""
+        return self.measure_each(rows, (model.beta_rise, model.beta_fall), None, model, search,
+                                 riders=self._landing())
 
     def power(self, x, beta, v, nfft, rows=None):
         """Power spectra of rows of x (plain, or de-chirped at v); twin: pairing.power."""
@@ -216,37 +282,61 @@ class OpenCLProcessor(ChunkProcessor):
         per = [(*sp, *b) for sp, b in zip(spectra, bins, strict=True)]
         return k_survey.hidden_each(self.rt, self.bufs, per, lo, d_in[2:], out, first)
 
-    def check_and_survey(self, beat, check, survey, following=None):
+    def check_and_survey(self, chunk):
         """ChunkProcessor.check_and_survey in one trip each way: the survey's inputs go up
-        with the check's resampling positions; both results come down by one copy, with
-        the following chunk's sync fits where one is given."""
-        if check is None or survey is None:
-            return super().check_and_survey(beat, check, survey, following)
-        xs, betas, v, nfft, rows, lo, tracked_bins, plain_bins, others = survey.args
-        if not (self._fits(check.model.nfft) and self._fits(nfft)):
-            return super().check_and_survey(beat, check, survey, following)
-        bins = list(zip(tracked_bins, plain_bins, others, strict=True))
-        checked = k_resample.resample_each(self.rt, self.bufs, beat, check.jobs, check.window,
-                                           k_survey.input_arrays(bins, _picked(rows, v)))
-        jobs = [(x, None, None) for x in checked[:2]]
-        sweeps, nfft2 = jobs[0][0].shape[0], check.model.nfft
-        first = k_spectrum.parts(jobs, sweeps, nfft2)
-        out = Packed(self.bufs, "check_survey", first + k_survey.parts([np.size(rows)] * len(xs), nfft // 2))
-        k_spectrum.measure_each(self.rt, self.bufs, jobs, None, nfft2, check.search.lo, check.search.hi,
-                                out=out)
-        self._surveyed(xs, betas, v, nfft, rows, lo, bins, checked[2:], out, len(first))
-        ahead = rider = None
-        if following is not None:
-            rider = out.rider()
-            ahead = self.prepare(following, self.plan.info, (rider,))
-        views = out.download() if rider is None or rider.value is None else out.read(rider.value)
-        got = k_spectrum.results(views[: len(first)], jobs, sweeps, nfft2)
-        return _measured(got, check.model, check.search), k_survey.results(views[len(first):]), ahead
+        with the check's resampling positions; both results come down by one copy."""
+        if not self._fused(chunk) or (chunk.check is None and chunk.survey is None):
+            return super().check_and_survey(chunk)
+        groups = [] if chunk.check is None else [(chunk.beat, chunk.check.jobs, chunk.check.window)]
+        also = () if chunk.survey is None else _survey_inputs(chunk.survey)
+        rows, inputs = k_resample.resample_groups(self.rt, self.bufs, groups, also)
+        out, read = self._check_and_survey(chunk, rows[0] if groups else None, inputs)
+        return read(out.download())
+
+    def _check_and_survey(self, chunk, checked, inputs) -> tuple[Packed, Callable]:
+        """The spectra and peaks of `chunk`'s range check (its resampled rows `checked`)
+        and its survey (`inputs`: their device buffers, `_survey_inputs`), launched into
+        one Packed; and `read(views)`: (checked, surveyed) from its parts once down."""
+        first = []
+        if checked is not None:
+            check = chunk.check
+            jobs = [(x, None, None) for x in checked]
+            sweeps, nfft2 = jobs[0][0].shape[0], check.model.nfft
+            first = k_spectrum.parts(jobs, sweeps, nfft2)
+        survey = chunk.survey
+        rest = [] if survey is None else k_survey.parts([np.size(survey.args[4])] * len(survey.args[0]),
+                                                         survey.args[3] // 2)
+        out = Packed(self.bufs, "check_survey", first + rest)
+        if checked is not None:
+            k_spectrum.measure_each(self.rt, self.bufs, jobs, None, nfft2, check.search.lo, check.search.hi,
+                                    out=out)
+        if survey is not None:
+            xs, betas, v, nfft, rows, lo, *_ = survey.args
+            self._surveyed(xs, betas, v, nfft, rows, lo, _bins(survey), inputs, out, len(first))
+
+        def read(views: list) -> tuple:
+            got = None
+            if checked is not None:
+                got = _measured(k_spectrum.results(views[: len(first)], jobs, sweeps, nfft2), check.model,
+                                check.search)
+            return got, None if survey is None else k_survey.results(views[len(first):])
+
+        return out, read
 
     def integrated_peaks(self, store, disp, k, search):
         if not self._fits(2 * store.shape[1]):       # (pairs, nfft / 2) power spectra
             return pairing.NUMPY.integrated_peaks(store, disp, k, search)
         return k_integrate.peaks(self.rt, self.bufs, store, disp, k, search)
+
+
+def _bins(survey) -> list[tuple]:
+    """The (tracked, plain, others) bins of each direction of a Survey."""
+    return list(zip(*survey.args[6:9], strict=True))
+
+
+def _survey_inputs(survey) -> tuple:
+    """A Survey's inputs as k_survey takes them up."""
+    return k_survey.input_arrays(_bins(survey), _picked(survey.args[4], survey.args[2]))
 
 
 def _picked(rows, v) -> tuple[np.ndarray, np.ndarray]:

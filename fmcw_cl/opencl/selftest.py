@@ -93,6 +93,13 @@ def stream(be, beat, sync_codes, fs, hp, rng) -> None:
     ok = np.isfinite(want[0])
     close("sync delay fit (delay_fit)", got[0][ok], want[0][ok], 1e-4)
     close("sync delay fit, misfit", got[1][ok], want[1][ok], 1e-3)
+    got = be.period_delays(beat[None], sync_codes[None], fs, hp)      # the codes to the lags, one download
+    want = sync.period_delays(beat[None], sync_codes[None], fs, hp)
+    if want[0].size == 0 or not np.array_equal(np.isnan(got[0]), np.isnan(want[0])):
+        raise SystemExit("sync delay (delay_centre, delay_correlate, delay_coarse): kernels and twin differ")
+    ok = np.isfinite(want[0])
+    close("sync delay from the codes (delay_centre, delay_correlate, delay_coarse, delay_fit)",
+          got[0][ok], want[0][ok], 1e-4)
     got = be.turning_points(sync_codes, hp)
     want = sync.sync_turning_points(sync_codes, hp)
     close("sync (block_sum, sync_levels, span_*, line_fit)", got.time, want.time, 1e-9)

@@ -101,7 +101,8 @@ def measure(rt: Runtime, bufs: Buffers, rows, beta: np.ndarray | None,
 def measure_each(rt: Runtime, bufs: Buffers, jobs: list, velocity: np.ndarray | None, nfft: int, lo: int,
                  hi: int | None = None, keep_power: bool = False, index: np.ndarray | None = None,
                  echoes: bool = False, scatter: bool = True, picked: tuple | None = None,
-                 out: Packed | None = None, first: int = 0, listed=None) -> list[tuple] | None:
+                 out: Packed | None = None, first: int = 0, listed=None, riders: tuple = ()
+                 ) -> list[tuple] | None:
     """`measure` of each (rows, beta, store) of `jobs` (rows of one shape: a pair's
     rising and falling half-sweeps) with the same picked rows, velocities and band: the
     picked rows and velocities go up once (`picked`: their device buffers, already up,
@@ -109,7 +110,8 @@ def measure_each(rt: Runtime, bufs: Buffers, jobs: list, velocity: np.ndarray | 
     Packed whose parts from `first` on are `parts`') the results stay there and nothing
     comes back (None: `results` reads them after its download). `listed`: a device int, how
     many of the `picked` rows to de-chirp (at most all rows; the tracker's list of the
-    pairs to measure again, kernels/track.cl), `velocity` then unused."""
+    pairs to measure again, kernels/track.cl), `velocity` then unused. `riders`
+    (buffers.Rider) come down with the results."""
     up = {id(rows): as_device(bufs, rows) for rows, _, _ in jobs}      # a host array goes up once
     rows_of = [up[id(rows)] for rows, _, _ in jobs]
     sweeps, points = rows_of[0].shape
@@ -138,7 +140,7 @@ def measure_each(rt: Runtime, bufs: Buffers, jobs: list, velocity: np.ndarray | 
     m = cfar.MAX_ECHOES
     deferred = out is not None
     if out is None:
-        out = Packed(bufs, "measured", parts(jobs, sweeps, nfft, echoes, keep_power))
+        out = Packed(bufs, "measured", parts(jobs, sweeps, nfft, echoes, keep_power), riders)
     counted = (listed, 1) if listed is not None else (bufs.constant("index0", zeros(1), np.int32), 0)
     transforms = sweeps if dechirp else (sweeps + 1) // 2    # plain rows: two per transform
     for i, (rows, (_, beta, store)) in enumerate(zip(rows_of, jobs, strict=True)):

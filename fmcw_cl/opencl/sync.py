@@ -4,6 +4,7 @@ changes and coarse_crossings, line_fits: together sync.fitted)."""
 from __future__ import annotations
 
 import functools
+from collections.abc import Callable
 
 import numpy as np
 
@@ -44,18 +45,30 @@ def real(rt: Runtime) -> type:
 
 
 def fitted(rt: Runtime, bufs: Buffers, x: np.ndarray, half_period: float, riders: tuple = ()) -> sync.Fitted:
-    """sync.fitted on the device, from the codes to both line fits of every crossing: the
-    block sums, the level, the hysteresis (three launches over spans of SPAN blocks), the
-    fits; what comes back, by one copy, is the level's percentiles and each span's
-    crossings (`slots` each), and `riders` (buffers.Rider: another step's small results,
-    such as the chunk's clipping counts; not launched where x holds no block). A span
-    with more crossings than its slots (no triangle) makes the host redo the search from
-    the sums (sync.changes, coarse_crossings) and fit its centres (`line_fits`)."""
+    """sync.fitted on the device, from the codes to both line fits of every crossing
+    (`launch_fits`), by one copy: the level's percentiles and each span's crossings, and
+    `riders` (buffers.Rider: another step's small results, such as the chunk's clipping
+    counts; not launched where x holds no block)."""
+    launched = launch_fits(rt, bufs, x, half_period, riders)
+    if launched is None:
+        return sync.fitted(x, half_period, fits=functools.partial(line_fits, rt, bufs))
+    packed, finish = launched
+    return finish(packed.download())
+
+
+def launch_fits(rt: Runtime, bufs: Buffers, x: np.ndarray, half_period: float, riders: tuple = ()
+                ) -> tuple[Packed, Callable[[list], sync.Fitted]] | None:
+    """The launches of sync.fitted: the block sums, the level, the hysteresis (three
+    launches over spans of SPAN blocks), the fits, writing into a Packed (with `riders`)
+    that is not yet downloaded; and `finish(views)`, the Fitted from its parts once down
+    (None: x holds no block, the host searches it). A span with more crossings than its
+    slots (no triangle) makes `finish` redo the search from the sums (sync.changes,
+    coarse_crossings) and fit its centres (`line_fits`)."""
     half = sync.fit_half_width(half_period)
     factor = sync.block_length(half_period)
     m = x.size // factor
     if m == 0:
-        return sync.fitted(x, half_period, fits=functools.partial(line_fits, rt, bufs))
+        return None
     stride = sync.level_stride(m)
     n = -(-m // stride)
     spans = -(-m // SPAN)
@@ -82,19 +95,24 @@ def fitted(rt: Runtime, bufs: Buffers, x: np.ndarray, half_period: float, riders
                                         np.int32(factor), np.int32(half), np.int32(x.size), np.int32(cap),
                                         d_centre, d_direction)
     _launch_fits(rt, codes, d_centre, spans * cap, half, d_params, x.size, d_fits)
-    head, direction, fits = packed.download()
-    lv = sync.levels_of(int(head[0]), int(head[1]), factor)
-    direction = direction.reshape(spans, cap + 1)
-    count = direction[:, cap]
-    if count.max(initial=0) > cap:      # not a triangle's crossings: the host redoes them
-        sums = np.empty(m, np.int32)
-        rt.copy(sums, d_sums)
-        co = sync.coarse_crossings(sync.changes(sums.astype(np.float64), lv), lv, factor)
-        return sync.fitted(x, half_period, coarse=lambda *_: co, fits=functools.partial(line_fits, rt, bufs))
-    used = (np.arange(cap) < count[:, None]).ravel()
-    fits = fits.reshape(-1, 3)[used]
-    return sync.Fitted(fits[:, 0], fits[:, 1].astype(np.float64), fits[:, 2].astype(np.float64),
-                       direction[:, :cap].ravel()[used].astype(np.int8), lv.level)
+
+    def finish(views: list) -> sync.Fitted:
+        head, direction, fits = views
+        lv = sync.levels_of(int(head[0]), int(head[1]), factor)
+        direction = direction.reshape(spans, cap + 1)
+        count = direction[:, cap]
+        if count.max(initial=0) > cap:      # not a triangle's crossings: the host redoes them
+            sums = np.empty(m, np.int32)
+            rt.copy(sums, d_sums)
+            co = sync.coarse_crossings(sync.changes(sums.astype(np.float64), lv), lv, factor)
+            return sync.fitted(x, half_period, coarse=lambda *_: co,
+                               fits=functools.partial(line_fits, rt, bufs))
+        used = (np.arange(cap) < count[:, None]).ravel()
+        fits = fits.reshape(-1, 3)[used]
+        return sync.Fitted(fits[:, 0], fits[:, 1].astype(np.float64), fits[:, 2].astype(np.float64),
+                           direction[:, :cap].ravel()[used].astype(np.int8), lv.level)
+
+    return packed, finish
 
 
 def _launch_fits(rt: Runtime, codes, d_centre, n: int, half: int, d_params, size: int, d_out) -> None:

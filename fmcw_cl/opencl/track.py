@@ -21,12 +21,14 @@ def supported(rt: Runtime) -> bool:
 
 
 def track(rt: Runtime, bufs: Buffers, rows: tuple[DeviceRows, DeviceRows], times: pairing.Times,
-          model: pairing.DopplerModel, search: Search, iterations: int) -> tuple[list, pairing.Passes]:
+          model: pairing.DopplerModel, search: Search, iterations: int, riders: tuple = ()
+          ) -> tuple[list, pairing.Passes]:
     """The plain pass of both directions (every echo with `search.echoes`) and up to
     `iterations` de-chirp passes, each regularising the velocities and re-measuring the
     pairs whose de-chirp velocity moved (the passes stop on the device when none did).
     One copy goes up, the pairs' times (none where `times.device` holds them already),
-    and one comes down (the plain pass's results and the tracker's state).
+    and one comes down (the plain pass's results and the tracker's state, and `riders`:
+    buffers.Rider, other steps' results).
 
     Returns
     -------
@@ -39,7 +41,7 @@ def track(rt: Runtime, bufs: Buffers, rows: tuple[DeviceRows, DeviceRows], times
     plain = [(x, None, None) for x in rows]
     head = k_spectrum.parts(plain, pairs, model.nfft, search.echoes)
     state = [(f64, pairs), (f32, pairs), (f64, pairs), (f32, pairs), (f64, pairs)]   # d_r s_r d_f s_f vd
-    out = Packed(bufs, "tracked", [*head, *state])
+    out = Packed(bufs, "tracked", [*head, *state], riders)
     d_r, s_r, d_f, s_f, vd = out.buffers[len(head):]
     d_mid, d_half = times.device or Packed(bufs, "track_times", [(f64, pairs), (f64, pairs)]).upload(
         times.mid, times.half_gap)

@@ -395,12 +395,11 @@ def period_delays(beat: np.ndarray, sync: np.ndarray, sample_rate_hz: float, hal
     """
     (y, _, step), (z, _, _) = intensity_each((beat, sync), sample_rate_hz)
     y, z = np.atleast_2d(y), np.atleast_2d(z)
-    edge = lpf.TAPS // 2 + 1
-    y, z = y[:, edge:-edge], z[:, edge:-edge]
-    span = int(MAX_DELAY_SAMPLES / step) + 1
-    period = int(round(2 * half_period / step))
-    if y.shape[1] < 2 * span + 2 * period or y.shape[0] == 0:
+    got = delay_windows(y.shape, step, half_period)
+    if got is None:
         return np.zeros(0), np.zeros(0)
+    edge, span, period = got
+    y, z = y[:, edge:-edge], z[:, edge:-edge]
     y = y - y.mean(axis=1, keepdims=True)
     z = z - z.mean(axis=1, keepdims=True)
     # coarse: integer lag (decimated samples) of the largest |cross-correlation|
@@ -408,6 +407,19 @@ def period_delays(beat: np.ndarray, sync: np.ndarray, sample_rate_hz: float, hal
                       for a, b in zip(y, z, strict=True)], np.float64)
     lags, misfit = (fit or fit_periods)(y, z, shift, period, span)
     return (lags * step).ravel(), misfit.ravel()
+
+
+def delay_windows(shape: tuple[int, int], step: float, half_period: float) -> tuple[int, int, int] | None:
+    """Where `period_delays` looks in low-passed rows of `shape` (rows, samples at the
+    decimated rate, `step` samples apart): the samples left out at each end (the
+    low-pass's edge), the coarse lags' reach either way and the samples of a period, in
+    decimated samples; None where the rows are too few or too short."""
+    edge = lpf.TAPS // 2 + 1
+    span = int(MAX_DELAY_SAMPLES / step) + 1
+    period = int(round(2 * half_period / step))
+    if shape[0] == 0 or shape[1] - 2 * edge < 2 * span + 2 * period:
+        return None
+    return edge, span, period
 
 
 def fit_periods(y: np.ndarray, z: np.ndarray, shift: np.ndarray, period: int, span: int
