@@ -13,11 +13,27 @@ from __future__ import annotations
 
 import os
 import sys
+import threading
+from concurrent.futures import ThreadPoolExecutor, wait
 
 import h5py
 import numpy as np
 
 ITEM = 2    # bytes a sample
+PIECE_BYTES = 8 << 20       # a read of several such pieces is shared by threads ...
+READERS = min(4, os.cpu_count() or 1)      # ... this many: one thread's copies from the
+                                           # page cache fall well short of the memory's speed
+
+_readers: ThreadPoolExecutor | None = None
+_readers_lock = threading.Lock()
+
+
+def _pool() -> ThreadPoolExecutor:
+    global _readers
+    with _readers_lock:
+        if _readers is None:
+            _readers = ThreadPoolExecutor(READERS, thread_name_prefix="fmcw-read")
+        return _readers
 
 
 class Extents:
@@ -65,10 +81,24 @@ class Extents:
         return cls(starts, np.array([c.byte_offset for c in order], np.int64), n)
 
     def read(self, fd: int, start: int, stop: int, out: np.ndarray) -> None:
-        """Samples [start, stop) into out[:stop - start] (a contiguous int16 array).
+        """Samples [start, stop) into out[:stop - start] (a contiguous int16 array), a
+        long read in READERS pieces at once (`preadv` lets the GIL go).
 
         Raises OSError when the file ends early (a truncated copy)."""
         view = memoryview(out).cast("B")
+        pieces = min(READERS, (stop - start) * ITEM // PIECE_BYTES)
+        if pieces < 2:
+            self._read(fd, start, stop, view, start)
+            return
+        bounds = np.linspace(start, stop, pieces + 1).astype(np.int64)
+        pieces = [_pool().submit(self._read, fd, int(a), int(b), view, start)
+                  for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
+        wait(pieces)                    # all done before any error leaves: none writes after
+        for piece in pieces:
+            piece.result()
+
+    def _read(self, fd: int, start: int, stop: int, view: memoryview, origin: int) -> None:
+        """Samples [start, stop) into `view`, the bytes of the samples from `origin` on."""
         first = int(np.searchsorted(self.starts, start, side="right")) - 1
         pos = start
         for i in range(first, self.starts.size):
@@ -76,7 +106,7 @@ class Extents:
                 break
             end = min(stop, int(self.starts[i + 1]) if i + 1 < self.starts.size else self.samples)
             want = (end - pos) * ITEM
-            got = os.preadv(fd, [view[(pos - start) * ITEM: (end - start) * ITEM]],
+            got = os.preadv(fd, [view[(pos - origin) * ITEM: (end - origin) * ITEM]],
                             int(self.offsets[i]) + (pos - int(self.starts[i])) * ITEM)
             if got != want:
                 raise OSError(f"the file ends {want - got} bytes into samples {pos}-{end}")

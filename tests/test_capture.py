@@ -249,9 +249,16 @@ def _relayout(path, tmp_path, layout):
 @pytest.mark.parametrize("layout", ["contiguous", "odd chunks", "chunks written backwards", "gzip",
                                     "big-endian", "int32", "chunks not all written", "user block", "external",
                                     "virtual"])
-def test_every_layout_reads_the_same_samples(tmp_path, layout):
+@pytest.mark.parametrize("piece", [None, 1000])
+def test_every_layout_reads_the_same_samples(tmp_path, layout, piece, monkeypatch):
     """Raw int16 channels are read straight from the file (fmcw_cl.extents), any other
-    layout through h5py; either way every range holds what h5py reads there."""
+    layout through h5py; either way every range holds what h5py reads there, a read of
+    several pieces (`piece` bytes, three threads) too."""
+    from fmcw_cl import extents
+
+    if piece:
+        monkeypatch.setattr(extents, "PIECE_BYTES", piece)
+        monkeypatch.setattr(extents, "READERS", 3)
     path = tmp_path / "c.h5"
     write(path, samples=23_457)
     direct = _relayout(path, tmp_path, layout)
@@ -266,9 +273,16 @@ def test_every_layout_reads_the_same_samples(tmp_path, layout):
             np.testing.assert_array_equal(sync, f["adc/sync"][a:b].astype(np.int64).clip(-32768, 32767))
 
 
-def test_a_file_cut_after_opening_fails_its_read(tmp_path):
+@pytest.mark.parametrize("piece", [None, 1000])
+def test_a_file_cut_after_opening_fails_its_read(tmp_path, piece, monkeypatch):
     """A raw channel whose bytes are gone (the file cut after it was opened) is a
-    one-line error naming the file and the samples, not short data."""
+    one-line error naming the file and the samples, not short data, also where the
+    read is shared by threads (`piece` bytes a piece)."""
+    from fmcw_cl import extents
+
+    if piece:
+        monkeypatch.setattr(extents, "PIECE_BYTES", piece)
+        monkeypatch.setattr(extents, "READERS", 3)
     path = tmp_path / "c.h5"
     write(path, samples=23_457)
     with Capture(path) as cap:
