@@ -5,7 +5,8 @@ from importlib.resources import files
 # programs built from more than one file (device functions first)
 # (survey.cl: alone)
 PROGRAMS = {"spectrum": ("peak", "cfar", "fft", "fft_lanes"), "integrate": ("peak", "integrate"),
-            "lpf": ("lanes", "lpf"), "resample": ("lanes", "resample")}
+            "lpf": ("lanes", "lpf"), "resample": ("lanes", "resample"), "sync": ("real", "sync"),
+            "delay": ("real", "delay")}
 
 
 def files_of(program: str) -> tuple[str, ...]:

@@ -5,13 +5,6 @@
 // Before it, from the low-pass's rows on the device: each row trimmed and its mean
 // removed, and its coarse lag, the largest |cross-correlation| (twin: sync.period_delays).
 
-#if defined(cl_khr_fp64)
-#pragma OPENCL EXTENSION cl_khr_fp64 : enable
-typedef double real;
-#else
-typedef float real;
-#endif
-
 // Each row of the low-passed beat (channel 0) and sync (channel 1), `edge` samples left
 // out at each end, less its mean: one work-item a row of a channel.
 __kernel void delay_centre(__global const float *y,     // (rows, m): low-passed beat

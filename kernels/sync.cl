@@ -11,12 +11,6 @@
 // centres); without it, in float (a centre may differ by one sample where a crossing
 // lies within a float's precision of a half sample).
 #pragma OPENCL FP_CONTRACT OFF
-#if defined(cl_khr_fp64)
-#pragma OPENCL EXTENSION cl_khr_fp64 : enable
-typedef double real;
-#else
-typedef float real;
-#endif
 
 // The integer sum of block j of `factor` codes, kept in `sampled` too when j is a
 // multiple of `stride`.
