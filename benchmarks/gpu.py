@@ -11,7 +11,12 @@ benchmarks/README.md: on one device,
    at once: the aggregate multiple of real time, file to track (page cache). The backend
    warms up on captures of its own, so every capture of the batch is one it has not
    seen (where a kernel build waits for a new size, it shows: `benchmarks/README.md`,
-   part 3). `--batch-only` skips 1 and 2.
+   part 3). `--batch-only` skips 1 and 2;
+4. with `--processes N [N ...]` (Dask installed: `pip install ".[cluster]"`), the same
+   batch on `fmcw-cl process --scheduler local:N`'s cluster of N worker processes, each
+   with its own context on the device: a host of many cores runs N captures' host steps
+   at once, where the threads of 3 share one interpreter. Best of two runs after one
+   that warms the workers up.
 
 Runs on any OpenCL device (PoCL too); the figures are ratios within one run.
 """
@@ -33,15 +38,22 @@ from fmcw_cl.options import Options
 from fmcw_cl.simulator import rail, simulate_capture
 
 
-def batch(device: str | None, seconds: float, count: int, tmp: Path) -> list[dict]:
-    """Aggregate throughput of `count` captures of `seconds` converted by
-    batch.process_each (`fmcw-cl process`), one at a time and two at once (the device's
-    own choice is the backend's `batch_workers`): a row each."""
+def captures(seconds: float, count: int, tmp: Path) -> list[Path]:
+    """`count` captures of the guide rail of `seconds` (seeds 100 on), and two more for
+    warming up, last."""
     paths = []
     for k in range(count + 2):
         path = tmp / f"rail{k}.h5"
         simulate_capture(path, rail(seconds + 0.1), seconds, seed=100 + k, start_s=0.1)
         paths.append(path)
+    return paths
+
+
+def batch(device: str | None, seconds: float, paths: list[Path]) -> list[dict]:
+    """Aggregate throughput of the captures of `paths` (`captures`) converted by
+    batch.process_each (`fmcw-cl process`), one at a time and two at once (the device's
+    own choice is the backend's `batch_workers`): a row each."""
+    count = len(paths) - 2
     be = make_processor("opencl", device)
     # warm: programs built, both workers' buffers sized, on captures of their own
     list(process_each(paths[count:], Options(), be, workers=2))
@@ -64,12 +76,39 @@ def batch(device: str | None, seconds: float, count: int, tmp: Path) -> list[dic
     return [best[1], best[2]]
 
 
+def processes(device: str | None, seconds: float, paths: list[Path], n: int, tmp: Path) -> dict:
+    """The captures of `paths` but the last two converted on a `local:n` Dask cluster
+    (cluster.run_batch, as `fmcw-cl process --scheduler local:n`): the best of two runs
+    after one that warms the workers up (their contexts and programs)."""
+    from fmcw_cl.cluster import connect, run_batch
+
+    todo, out = paths[:-2], tmp / f"tracks{n}"
+    out.mkdir(exist_ok=True)
+    client = connect(f"local:{n}")
+    try:
+        walls = []
+        for _ in range(3):
+            wall = time.perf_counter()
+            for got in run_batch(client, todo, out, Options(), "opencl", device):
+                if "error" in got:
+                    raise RuntimeError(got["error"])
+            walls.append(time.perf_counter() - wall)
+    finally:
+        client.close()
+    wall = min(walls[1:])
+    total = seconds * len(todo)
+    return {"device": device or "auto", "captures": len(todo), "capture_seconds": total, "processes": n,
+            "wall_s": wall, "real_time_multiple": total / wall, "warm_up_wall_s": walls[0]}
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--device", default=None, help="OpenCL device (see `fmcw-cl devices`)")
     ap.add_argument("--seconds", type=float, default=1.0)
     ap.add_argument("--batch", type=int, default=8)
     ap.add_argument("--batch-only", action="store_true", help="only the batch (no check, no bench table)")
+    ap.add_argument("--processes", type=int, nargs="*", default=[],
+                    help="also the batch on local:N Dask clusters of these N (needs Dask)")
     ap.add_argument("--json", type=Path)
     args = ap.parse_args()
     rows = []
@@ -84,14 +123,23 @@ def main() -> None:
         print(f"| {r['backend']} | {r['stage']} | {r['seconds']:.4f} | {r['real_time_multiple']:.2f} | "
               f"{f'{share:.0%}' if share == share else ''} | {host} |")
     with tempfile.TemporaryDirectory() as tmp:
-        got = batch(args.device, args.seconds, args.batch, Path(tmp))
-    for b in got:
-        host = f", host CPU {b['host_cpu_ms_per_s']:.0f} ms per s" if b["workers"] == 1 else ""
-        print(f"\nbatch: {b['captures']} captures of {args.seconds:g} s on {b['device']}, {b['workers']} at "
-              f"once{' (its default)' if b['default'] else ''}: {b['wall_s']:.2f} s, "
-              f"{b['real_time_multiple']:.2f}x real time, {b['process_cpu_cores']:.2f} cores busy{host}")
+        paths = captures(args.seconds, args.batch, Path(tmp))
+        got = batch(args.device, args.seconds, paths)
+        for b in got:
+            host = f", host CPU {b['host_cpu_ms_per_s']:.0f} ms per s" if b["workers"] == 1 else ""
+            print(f"\nbatch: {b['captures']} captures of {args.seconds:g} s on {b['device']}, {b['workers']} "
+                  f"at once{' (its default)' if b['default'] else ''}: {b['wall_s']:.2f} s, "
+                  f"{b['real_time_multiple']:.2f}x real time, {b['process_cpu_cores']:.2f} cores busy{host}",
+                  flush=True)
+        spread = []
+        for n in args.processes:
+            spread.append(processes(args.device, args.seconds, paths, n, Path(tmp)))
+            p = spread[-1]
+            print(f"batch on local:{n}: {p['captures']} captures of {args.seconds:g} s: {p['wall_s']:.2f} s, "
+                  f"{p['real_time_multiple']:.2f}x real time (warm-up run {p['warm_up_wall_s']:.2f} s)",
+                  flush=True)
     if args.json:
-        args.json.write_text(json.dumps({"bench": rows, "batch": got}, indent=2))
+        args.json.write_text(json.dumps({"bench": rows, "batch": got, "processes": spread}, indent=2))
 
 
 if __name__ == "__main__":
