@@ -195,17 +195,23 @@ def test_devices_check_runs_every_kernel_on_the_used_device(fmcw):
 
 
 def test_gpu_benchmark_batch_runs_anywhere(tmp_path):
-    """benchmarks/gpu.py's batch on the default device (PoCL here): what a GPU session runs."""
+    """benchmarks/gpu.py's batch on the default device (PoCL here), in threads and on a
+    local:2 Dask cluster: what a GPU session runs."""
     import importlib.util
     from pathlib import Path
 
     spec = importlib.util.spec_from_file_location("gpu", Path(__file__).parents[1] / "benchmarks" / "gpu.py")
     gpu = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(gpu)
-    one, two = gpu.batch(None, 0.01, 2, tmp_path)
+    paths = gpu.captures(0.01, 2, tmp_path)
+    one, two = gpu.batch(None, 0.01, paths)
     assert (one["workers"], two["workers"]) == (1, 2) and one["default"] != two["default"]
     for got in (one, two):
         assert got["captures"] == 2 and got["capture_seconds"] == 0.02
         assert got["real_time_multiple"] == pytest.approx(0.02 / got["wall_s"])
         assert got["process_cpu_cores"] > 0 and "Oclgrind" not in got["device"]
     assert one["host_cpu_ms_per_s"] > 0
+    spread = gpu.processes(None, 0.01, paths, 2, tmp_path)
+    assert spread["processes"] == 2 and spread["captures"] == 2
+    assert spread["real_time_multiple"] == pytest.approx(0.02 / spread["wall_s"])
+    assert sorted(p.name for p in (tmp_path / "tracks2").iterdir()) == ["rail0.track.h5", "rail1.track.h5"]
