@@ -148,8 +148,7 @@ class OpenCLProcessor(ChunkProcessor):
             turns = sync.sync_turning_points(chunk.sync, half, lambda *_: fitted)
             return Prepared(turns, self.clip_counts(*job) if clip.value is None else clip.value)
 
-        return Later(rider=packed.rider(), land=lambda raw: prepared(packed.read(raw)),
-                     fetch=lambda: prepared(packed.download()))
+        return _riding(packed, prepared)
 
     def ride(self, *later: Later) -> None:
         self._riders = tuple(x.rider for x in later if x.rider is not None)
@@ -185,8 +184,7 @@ class OpenCLProcessor(ChunkProcessor):
         if not fused:
             return pairs, times, landed
         out, read = self._check_and_survey(before, rows[0] if before.check is not None else None, extra)
-        return pairs, times, Later(rider=out.rider(), land=lambda raw: read(out.read(raw)),
-                                   fetch=lambda: read(out.download()))
+        return pairs, times, _riding(out, read)
 
     def _fused(self, chunk) -> bool:
         """Whether the spectra of `chunk`'s range check and survey run here."""
@@ -327,6 +325,13 @@ class OpenCLProcessor(ChunkProcessor):
         if not self._fits(2 * store.shape[1]):       # (pairs, nfft / 2) power spectra
             return pairing.NUMPY.integrated_peaks(store, disp, k, search)
         return k_integrate.peaks(self.rt, self.bufs, store, disp, k, search)
+
+
+def _riding(packed: Packed, make: Callable[[list], object]) -> Later:
+    """The results `make(views)` of the parts of `packed`, riding on the tracker's next
+    download (`ride`), or by a copy of their own where none took them."""
+    return Later(rider=packed.rider(), land=lambda raw: make(packed.read(raw)),
+                 fetch=lambda: make(packed.download()))
 
 
 def _bins(survey) -> list[tuple]:
