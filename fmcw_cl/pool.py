@@ -6,11 +6,16 @@ already touched, a quarter of the whole conversion. A capture borrows its chunk 
 here (`Capture.slot`) and returns them when closed, so that the captures of a batch,
 and the repeated runs of a benchmark, read into memory that is already there (the
 streaming engines of OCT allocate their buffers once the same way).
+
+A GPU's processor has the pool hand out page-locked memory (`use`): its driver copies
+such memory to the device by DMA without waiting, where pageable memory first goes
+through a staging copy of the driver's own.
 """
 
 from __future__ import annotations
 
 import threading
+from collections.abc import Callable
 
 import numpy as np
 
@@ -18,6 +23,18 @@ LIMIT_BYTES = 1 << 30     # kept while unused, at most (the largest first)
 
 _free: list[np.ndarray] = []
 _lock = threading.Lock()
+_allocate: Callable[[int], np.ndarray] | None = None    # None: np.empty
+
+
+def use(allocate: Callable[[int], np.ndarray] | None) -> None:
+    """Make new arrays with `allocate(samples)` (an int16 array of that many; it may
+    raise MemoryError, and np.empty then makes it), or with np.empty (None). The kept
+    arrays made otherwise are let go."""
+    global _allocate
+    with _lock:
+        if allocate is not _allocate:
+            _allocate = allocate
+            _free.clear()
 
 
 def lease(samples: int) -> np.ndarray:
@@ -27,6 +44,12 @@ def lease(samples: int) -> np.ndarray:
         fits = [i for i, a in enumerate(_free) if a.size >= samples]
         if fits:
             return _free.pop(min(fits, key=lambda i: _free[i].size))
+        allocate = _allocate
+    if allocate is not None:
+        try:
+            return allocate(samples)
+        except MemoryError:
+            pass
     return np.empty(samples, np.int16)
 
 

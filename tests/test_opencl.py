@@ -11,6 +11,7 @@ from fmcw_cl.chunks import margin_samples
 from fmcw_cl.engine import process
 from fmcw_cl.opencl import faults as k_faults
 from fmcw_cl.opencl import spectrum as k_spectrum
+from fmcw_cl.opencl.context import cl
 from fmcw_cl.opencl.processor import OpenCLProcessor
 from fmcw_cl.options import Options
 from fmcw_cl.stages import faults, lpf, resample, spectrum, sync
@@ -398,6 +399,55 @@ def test_forked_backend_converts_the_same_track(backend, static_capture):
         np.testing.assert_array_equal(track.valid, alone.valid)
         np.testing.assert_array_equal(track.distance_m, alone.distance_m)
         np.testing.assert_array_equal(track.velocity_mps, alone.velocity_mps)
+
+
+def test_a_gpus_path_reads_codes_into_page_locked_memory(backend, jump_capture, monkeypatch):
+    """Where the device copies (a GPU: not zero-copy), the codes are read into
+    page-locked memory of its context and go up without waiting, their copies held
+    until a download has waited for them; the track equals the zero-copy one. Run on
+    PoCL by taking its zero-copy away."""
+    from fmcw_cl import pool
+    from fmcw_cl.opencl import context
+    from fmcw_cl.opencl.buffers import page_locked
+
+    alone = process(jump_capture, Options(), backend)
+    monkeypatch.setattr(context.Runtime, "zero_copy", property(lambda self: False))
+    leased = []
+    lease = pool.lease
+    monkeypatch.setattr(pool, "lease", lambda n: leased.append(lease(n)) or leased[-1])
+    try:
+        copying = OpenCLProcessor()
+        assert pool._allocate is page_locked(copying.rt.context)
+        track = process(jump_capture, Options(), copying)
+        assert leased and all(isinstance(a.base, cl.MemoryMap) for a in leased)
+        rt = copying.rt
+        codes = np.arange(1001, dtype=np.int16)
+        copying.bufs.upload_once("codes", codes)
+        assert len(rt.in_flight) == 1                 # not waited for: held
+        got = np.empty_like(codes)
+        rt.copy(got, copying.bufs.upload_once("codes", codes))     # the same array: no copy
+        assert not rt.in_flight
+        np.testing.assert_array_equal(got, codes)
+    finally:
+        pool.use(None)
+    np.testing.assert_array_equal(track.valid, alone.valid)
+    np.testing.assert_array_equal(track.distance_m, alone.distance_m)
+    np.testing.assert_array_equal(track.velocity_mps, alone.velocity_mps)
+
+
+def test_page_locked_memory_running_out_falls_back_to_the_heap(monkeypatch):
+    """An allocator that cannot give page-locked memory leaves the pool to np.empty."""
+    from fmcw_cl import pool
+
+    def none_left(samples):
+        raise MemoryError("out of page-locked memory")
+
+    pool.use(none_left)
+    try:
+        got = pool.lease(1234)
+        assert got.size == 1234 and got.dtype == np.int16 and got.base is None
+    finally:
+        pool.use(None)
 
 
 def buffers_made(monkeypatch, counts) -> list[bool]:

@@ -1,7 +1,10 @@
-"""Device buffers allocated once per size and reused from chunk to chunk."""
+"""Device buffers allocated once per size and reused from chunk to chunk, and the
+page-locked host memory that a GPU's codes are read into."""
 
 from __future__ import annotations
 
+import functools
+import threading
 import weakref
 from collections import OrderedDict
 from collections.abc import Callable
@@ -46,11 +49,13 @@ class Buffers:
             self._sources.pop(name, None)
         return self._bufs[name]
 
-    def upload(self, name: str, array: np.ndarray):
+    def upload(self, name: str, array: np.ndarray, wait: bool = True):
+        """`array` into buffer `name`; without `wait` the copy runs behind the host
+        (`Runtime.copy`: the array must not change before the next download)."""
         buf = self.get(name, array.nbytes)
         self._sources.pop(name, None)
         if array.nbytes:
-            self.rt.copy(buf, np.ascontiguousarray(array))
+            self.rt.copy(buf, np.ascontiguousarray(array), wait)
         return buf
 
     def upload_once(self, name: str, array: np.ndarray, keep: int = 1):
@@ -59,7 +64,10 @@ class Buffers:
         change: `constant`); a new one takes the place of the least recently used.
         On a CPU device the buffer wraps the host array (CL_MEM_USE_HOST_PTR: no copy at
         all on PoCL; not on a simulator, which copies it and checks reads as if from
-        device memory)."""
+        device memory). Elsewhere the copy does not wait: the arrays are codes (a
+        chunk's, a stretch's), which nothing changes before the download that ends
+        their step; in page-locked memory (`page_locked`) a GPU's driver copies them by
+        DMA while the host goes on."""
         recent = self._recent.setdefault(name, [f"{name}#{i}" if i else name for i in range(keep)])
         slot = next((n for n in recent if self._sources.get(n) is array), None)
         hit = slot is not None
@@ -73,7 +81,7 @@ class Buffers:
             self._bufs[slot] = self._new(cl.mem_flags.READ_ONLY | cl.mem_flags.USE_HOST_PTR, hostbuf=array)
             self._sizes[slot] = 0            # never reused for another array
         else:
-            self.upload(slot, array)
+            self.upload(slot, array, wait=False)
         self._sources[slot] = array          # held: the buffer may point into it
         return self._bufs[slot]
 
@@ -109,6 +117,30 @@ class Buffers:
 
     def release(self, leased) -> None:
         self._free.append(leased)
+
+
+@functools.lru_cache(maxsize=4)
+def page_locked(context) -> Callable[[int], np.ndarray]:
+    """An allocator of int16 host arrays in page-locked memory of `context` (a buffer
+    made with CL_MEM_ALLOC_HOST_PTR, mapped for good: the array holds it), for
+    `fmcw_cl.pool.use`. A GPU's driver copies such memory to the device by DMA while
+    the host goes on; pageable memory goes through a staging copy first (NVIDIA's
+    OpenCL guide). One allocator per context, so that `pool.use` sees the same one."""
+    queue = cl.CommandQueue(context)
+    lock = threading.Lock()          # the chunk reader's thread allocates too
+
+    def allocate(samples: int) -> np.ndarray:
+        flags = cl.mem_flags.READ_WRITE | cl.mem_flags.ALLOC_HOST_PTR
+        with lock:
+            try:
+                buf = cl.Buffer(context, flags, 2 * max(int(samples), 1))
+                array, _ = cl.enqueue_map_buffer(queue, buf, cl.map_flags.READ | cl.map_flags.WRITE, 0,
+                                                 (int(samples),), np.int16)
+            except cl.Error as exc:       # out of page-locked memory: pool makes a plain one
+                raise MemoryError(str(exc)) from None
+        return array
+
+    return allocate
 
 
 class DeviceRows:

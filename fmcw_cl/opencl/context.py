@@ -181,6 +181,9 @@ class Runtime:
 
     lanes: bool = False   # kernels with explicit float8 lanes where there are two variants
     held: list | None = None   # every buffer made, on a simulator: `hold`
+    # the events of uploads that do not wait: pyopencl's event of such a copy waits for
+    # it when dropped, so they are held until a download or `finish` has waited for them
+    in_flight: list = field(default_factory=list)
 
     def __post_init__(self) -> None:
         self.context = cl.Context([self.device])
@@ -210,6 +213,7 @@ class Runtime:
         one) and counters; the context and the built programs are shared."""
         other = copy.copy(self)
         other.queue, other.kernels, other.traffic = other._new_queue(), {}, Traffic()
+        other.in_flight = []
         return other
 
     @property
@@ -251,16 +255,24 @@ class Runtime:
         """One copy between a host array and a device buffer (direction by type),
         counted in `traffic`; a download waits for it, an upload of a host array too
         unless not `wait` (then the array must not change until the queue has read it:
-        pyopencl holds it until then; an upload that waits, waits for every launch
+        its event holds it until then; an upload that waits, waits for every launch
         before it on the in-order queue)."""
         if isinstance(dest, np.ndarray):
             self.traffic.downloads += 1
             self.traffic.download_bytes += dest.nbytes
             cl.enqueue_copy(self.queue, dest, src)
+            self.in_flight.clear()       # the in-order queue has done every copy before it
         else:
             self.traffic.uploads += 1
             self.traffic.upload_bytes += src.nbytes
-            cl.enqueue_copy(self.queue, dest, src, is_blocking=wait)
+            event = cl.enqueue_copy(self.queue, dest, src, is_blocking=wait)
+            if not wait:
+                self.in_flight.append(event)
+
+    def finish(self) -> None:
+        """Wait for everything enqueued."""
+        self.queue.finish()
+        self.in_flight.clear()
 
     def program(self, name: str):
         """kernels/<name>.cl built for this context (cached)."""

@@ -17,6 +17,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from .. import pool
 from ..processor import ChunkProcessor, Later, Prepared, clipping
 from ..stages import pairing, sync
 from ..stages.spectrum import fft_length
@@ -29,8 +30,8 @@ from . import spectrum as k_spectrum
 from . import survey as k_survey
 from . import sync as k_sync
 from . import track as k_track
-from .buffers import Buffers, DeviceRows, Packed
-from .context import Runtime, runtime
+from .buffers import Buffers, DeviceRows, Packed, page_locked
+from .context import Runtime, is_simulator, runtime
 
 
 class OpenCLProcessor(ChunkProcessor):
@@ -56,6 +57,9 @@ class OpenCLProcessor(ChunkProcessor):
             self.rt.program(program)
         self.bufs = Buffers(self.rt)
         self.device = self.rt.name
+        if not (self.rt.zero_copy or is_simulator(self.rt.device)):
+            # codes are read into page-locked memory, which the device copies by DMA
+            pool.use(page_locked(self.rt.context))
         self._fitted = functools.partial(k_sync.fitted, self.rt, self.bufs)
         self._riders: tuple = ()        # what the tracker's next download carries (`ride`)
 
@@ -94,7 +98,7 @@ class OpenCLProcessor(ChunkProcessor):
 
     def finish(self) -> None:
         """Wait for the device (the launches are asynchronous)."""
-        self.rt.queue.finish()
+        self.rt.finish()
 
     def traffic(self) -> dict[str, int]:
         return self.rt.traffic.counts()
