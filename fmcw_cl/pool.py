@@ -9,7 +9,9 @@ streaming engines of OCT allocate their buffers once the same way).
 
 A GPU's processor has the pool hand out page-locked memory (`use`): its driver copies
 such memory to the device by DMA without waiting, where pageable memory first goes
-through a staging copy of the driver's own.
+through a staging copy of the driver's own. Making it costs more still (on an H100's
+host 25 ms per 80 MB slot: 0.6-1.2 s a batch of 8 captures when a limit let slots go),
+so the pool keeps more of it (KEEP_PAGE_LOCKED_BYTES).
 """
 
 from __future__ import annotations
@@ -20,6 +22,9 @@ from collections.abc import Callable
 import numpy as np
 
 LIMIT_BYTES = 1 << 30     # kept while unused, at most (the largest first)
+# ... of page-locked memory: two captures at once (a GPU's batch) hold 1.1 GB of 1 s
+# captures (three read slots of 8192 periods a channel, the trial stretches)
+KEEP_PAGE_LOCKED_BYTES = 8 << 30
 
 _free: list[np.ndarray] = []
 _lock = threading.Lock()
@@ -27,14 +32,18 @@ _allocate: Callable[[int], np.ndarray] | None = None    # None: np.empty
 
 
 def use(allocate: Callable[[int], np.ndarray] | None) -> None:
-    """Make new arrays with `allocate(samples)` (an int16 array of that many; it may
-    raise MemoryError, and np.empty then makes it), or with np.empty (None). The kept
-    arrays made otherwise are let go."""
+    """Make new arrays with `allocate(samples)`, page-locked memory (an int16 array of
+    that many; it may raise MemoryError, and np.empty then makes it), or with np.empty
+    (None). The kept arrays made otherwise are let go."""
     global _allocate
     with _lock:
         if allocate is not _allocate:
             _allocate = allocate
             _free.clear()
+
+
+def _limit() -> int:
+    return LIMIT_BYTES if _allocate is None else max(LIMIT_BYTES, KEEP_PAGE_LOCKED_BYTES)
 
 
 def lease(samples: int) -> np.ndarray:
@@ -55,7 +64,8 @@ def lease(samples: int) -> np.ndarray:
 
 def give(array: np.ndarray) -> None:
     """Keep `array` for a later `lease` (nothing may use it any more); beyond
-    LIMIT_BYTES the smallest kept arrays are let go."""
+    LIMIT_BYTES (KEEP_PAGE_LOCKED_BYTES of page-locked memory) the smallest kept arrays
+    are let go."""
     if not array.size:
         return
     with _lock:
@@ -64,7 +74,7 @@ def give(array: np.ndarray) -> None:
         total = 0
         for i, a in enumerate(_free):
             total += a.nbytes
-            if total > LIMIT_BYTES:
+            if total > _limit():
                 del _free[i:]
                 break
 

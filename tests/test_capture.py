@@ -200,6 +200,41 @@ def test_slots_return_to_the_pool_for_the_next_capture(static_capture, monkeypat
     assert pool.lease(10).size == 10 and not pool._free
 
 
+def test_page_locked_slots_are_kept_for_the_next_captures(static_capture, monkeypatch):
+    """Memory of the pool's allocator (a GPU's page-locked memory, costly to make) is
+    kept beyond the plain limit, so that two captures at once take theirs back from
+    the pool rather than making it again; an allocator that fails leaves np.empty."""
+    from fmcw_cl import pool
+
+    made = []
+
+    def allocate(samples):
+        made.append(samples)
+        return np.empty(samples, np.int16)
+
+    monkeypatch.setattr(pool, "LIMIT_BYTES", 2 * 9000 * 2)        # two slots' worth
+    monkeypatch.setattr(pool, "KEEP_PAGE_LOCKED_BYTES", 6 * 9000 * 2)
+    pool.use(allocate)
+    try:
+        for _ in range(3):
+            with Capture(static_capture) as a, Capture(static_capture) as b:
+                for cap in (a, b):
+                    cap.slot(0, 9000)
+        assert len(made) == 4                  # the first two captures' slots, made once
+        pool.use(None)                         # np.empty again: the kept ones let go
+        assert not pool._free
+
+        def none_left(samples):
+            raise MemoryError("out of page-locked memory")
+
+        pool.use(none_left)
+        got = pool.lease(1234)
+        assert got.size == 1234 and got.dtype == np.int16
+    finally:
+        pool.use(None)
+        pool.clear()
+
+
 def _relayout(path, tmp_path, layout):
     """The capture at `path` with both channels stored in `layout`; whether the samples
     are then read straight from the file (fmcw_cl.extents) or through h5py."""

@@ -435,21 +435,6 @@ def test_a_gpus_path_reads_codes_into_page_locked_memory(backend, jump_capture, 
     np.testing.assert_array_equal(track.velocity_mps, alone.velocity_mps)
 
 
-def test_page_locked_memory_running_out_falls_back_to_the_heap(monkeypatch):
-    """An allocator that cannot give page-locked memory leaves the pool to np.empty."""
-    from fmcw_cl import pool
-
-    def none_left(samples):
-        raise MemoryError("out of page-locked memory")
-
-    pool.use(none_left)
-    try:
-        got = pool.lease(1234)
-        assert got.size == 1234 and got.dtype == np.int16 and got.base is None
-    finally:
-        pool.use(None)
-
-
 def buffers_made(monkeypatch, counts) -> list[bool]:
     """From now on, `counts(flags)` of every device buffer `Buffers` makes (its one place
     that makes them, `_new`), in a list."""
