@@ -10,8 +10,8 @@ streaming engines of OCT allocate their buffers once the same way).
 A GPU's processor has the pool hand out page-locked memory (`use`): its driver copies
 such memory to the device by DMA without waiting, where pageable memory first goes
 through a staging copy of the driver's own. Making it costs more still (on an H100's
-host 25 ms per 80 MB slot: 0.6-1.2 s a batch of 8 captures when a limit let slots go),
-so the pool keeps more of it (KEEP_PAGE_LOCKED_BYTES).
+host 25 ms per 80 MB slot: 1.1-1.2 s a batch of 8 captures when the plain limit let
+slots go), so the pool keeps more of it (KEEP_PAGE_LOCKED_BYTES).
 """
 
 from __future__ import annotations
@@ -22,8 +22,8 @@ from collections.abc import Callable
 import numpy as np
 
 LIMIT_BYTES = 1 << 30     # kept while unused, at most (the largest first)
-# ... of page-locked memory: two captures at once (a GPU's batch) hold 1.1 GB of 1 s
-# captures (three read slots of 8192 periods a channel, the trial stretches)
+# ... of page-locked memory: two captures at once (a GPU's batch) hold about 1 GB (each
+# three read slots of 8192 periods, 82 MB a channel, and the trial stretches)
 KEEP_PAGE_LOCKED_BYTES = 8 << 30
 
 _free: list[np.ndarray] = []
@@ -43,6 +43,7 @@ def use(allocate: Callable[[int], np.ndarray] | None) -> None:
 
 
 def _limit() -> int:
+    """Bytes kept while unused under the allocator in use."""
     return LIMIT_BYTES if _allocate is None else max(LIMIT_BYTES, KEEP_PAGE_LOCKED_BYTES)
 
 
