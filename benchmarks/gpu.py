@@ -8,7 +8,8 @@ benchmarks/README.md: on one device,
    per second of capture, launches and copies per chunk);
 3. a batch: `--batch` captures of the guide rail, `--seconds` each, converted by one
    warm backend as `fmcw-cl process` does (batch.process_each), one at a time and two
-   at once: the aggregate multiple of real time, file to track (page cache). The backend
+   at once: the aggregate multiple of real time, file to track (page cache); and three
+   of them alone, each the second of two conversions by one warm backend. The backend
    warms up on captures of its own, so every capture of the batch is one it has not
    seen (where a kernel build waits for a new size, it shows: `benchmarks/README.md`,
    part 3). `--batch-only` skips 1 and 2;
@@ -33,6 +34,7 @@ from pathlib import Path
 from fmcw_cl.backend import make_processor
 from fmcw_cl.batch import process_each
 from fmcw_cl.bench import run
+from fmcw_cl.engine import process
 from fmcw_cl.opencl.selftest import check
 from fmcw_cl.options import Options
 from fmcw_cl.simulator import rail, simulate_capture
@@ -74,6 +76,23 @@ def batch(device: str | None, seconds: float, paths: list[Path]) -> list[dict]:
         if workers not in best or wall < best[workers]["wall_s"]:
             best[workers] = row
     return [best[1], best[2]]
+
+
+def alone(device: str | None, seconds: float, paths: list[Path], count: int = 3) -> list[dict]:
+    """Single captures file to track (`engine.process`, as `fmcw-cl process` of one): the
+    first `count` of the batch's (`paths` but the last two, which warm the backend up),
+    each converted twice by one warm backend, the second timed: a row each."""
+    be = make_processor("opencl", device)
+    process(paths[-1], Options(), be)                   # warm: programs built, buffers sized
+    rows = []
+    for path in paths[:-2][:count]:
+        for _ in range(2):
+            wall = time.perf_counter()
+            process(path, Options(), be)
+            wall = time.perf_counter() - wall
+        rows.append({"device": be.device, "capture": path.name, "wall_s": wall,
+                     "real_time_multiple": seconds / wall})
+    return rows
 
 
 def processes(device: str | None, seconds: float, paths: list[Path], n: int, tmp: Path) -> dict:
@@ -131,6 +150,10 @@ def main() -> None:
                   f"at once{' (its default)' if b['default'] else ''}: {b['wall_s']:.2f} s, "
                   f"{b['real_time_multiple']:.2f}x real time, {b['process_cpu_cores']:.2f} cores busy{host}",
                   flush=True)
+        singles = alone(args.device, args.seconds, paths)
+        walls = ", ".join(f"{r['wall_s']:.3f}" for r in singles)
+        multiples = ", ".join(f"{r['real_time_multiple']:.2f}" for r in singles)
+        print(f"one capture alone: {walls} s ({multiples}x real time)", flush=True)
         spread = []
         for n in args.processes:
             spread.append(processes(args.device, args.seconds, paths, n, Path(tmp)))
@@ -139,7 +162,8 @@ def main() -> None:
                   f"{p['real_time_multiple']:.2f}x real time (warm-up run {p['warm_up_wall_s']:.2f} s)",
                   flush=True)
     if args.json:
-        args.json.write_text(json.dumps({"bench": rows, "batch": got, "processes": spread}, indent=2))
+        args.json.write_text(json.dumps({"bench": rows, "batch": got, "alone": singles, "processes": spread},
+                                        indent=2))
 
 
 if __name__ == "__main__":

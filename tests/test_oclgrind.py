@@ -211,6 +211,9 @@ def test_gpu_benchmark_batch_runs_anywhere(tmp_path):
         assert got["real_time_multiple"] == pytest.approx(0.02 / got["wall_s"])
         assert got["process_cpu_cores"] > 0 and "Oclgrind" not in got["device"]
     assert one["host_cpu_ms_per_s"] > 0
+    singles = gpu.alone(None, 0.01, paths)
+    assert [r["capture"] for r in singles] == ["rail0.h5", "rail1.h5"]
+    assert all(r["real_time_multiple"] == pytest.approx(0.01 / r["wall_s"]) for r in singles)
     spread = gpu.processes(None, 0.01, paths, 2, tmp_path)
     assert spread["processes"] == 2 and spread["captures"] == 2
     assert spread["real_time_multiple"] == pytest.approx(0.02 / spread["wall_s"])
