@@ -44,12 +44,10 @@ def real(rt: Runtime) -> type:
     return np.float64 if rt.fp64 else np.float32
 
 
-def fitted(rt: Runtime, bufs: Buffers, x: np.ndarray, half_period: float, riders: tuple = ()) -> sync.Fitted:
+def fitted(rt: Runtime, bufs: Buffers, x: np.ndarray, half_period: float) -> sync.Fitted:
     """sync.fitted on the device, from the codes to both line fits of every crossing
-    (`launch_fits`), by one copy: the level's percentiles and each span's crossings, and
-    `riders` (buffers.Rider: another step's small results, such as the chunk's clipping
-    counts; not launched where x holds no block)."""
-    launched = launch_fits(rt, bufs, x, half_period, riders)
+    (`launch_fits`), by one copy: the level's percentiles and each span's crossings."""
+    launched = launch_fits(rt, bufs, x, half_period)
     if launched is None:
         return sync.fitted(x, half_period, fits=functools.partial(line_fits, rt, bufs))
     packed, finish = launched
