@@ -20,7 +20,6 @@ from .assemble import assemble
 from .capture import Capture
 from .chunks import capture_parts
 from .errors import CaptureError
-from .numeric import median
 from .options import Options
 from .plan import TABLE, Plan, make_plan
 from .processor import ChunkMeasurements, ChunkProcessor, NumpyProcessor
@@ -80,11 +79,10 @@ def with_choice(plan: Plan, parts: list[ChunkMeasurements], processor: ChunkProc
 
 def choose_target(plan: Plan, track: Track) -> target.Choice:
     """The target of a first conversion (fmcw_cl.target.choose)."""
-    e = track.echoes
-    level = median(e.snr_db[e.tracked]) if e.tracked.any() else median(track.sweep_snr_db)
     try:
         return target.choose(plan.options.target, plan.options.target_near, track.time_s, track.distance_m,
-                             track.velocity_mps, track.valid, e, level, plan.options.band_m)
+                             track.velocity_mps, track.valid, track.echoes, plan.lut.unambiguous_range_m,
+                             plan.options.band_m)
     except ValueError as exc:
         raise CaptureError(plan.info.path, str(exc)) from None
 

@@ -6,6 +6,7 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 
 from .capture import Truth
+from .stages import faults
 from .track import Track
 
 
@@ -13,6 +14,18 @@ def truth_at(truth: Truth, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.nd
     """True distance, velocity and acceleration at times t (cubic interpolation)."""
     return tuple(CubicSpline(truth.time_s, y)(t) for y in
                  (truth.distance_m, truth.velocity_mps, truth.acceleration_mps2))
+
+
+def valid_errors(track: Track, truth: Truth) -> np.ndarray:
+    """|distance - true distance| (m) of each valid pair."""
+    r, _, _ = truth_at(truth, track.time_s[track.valid])
+    return np.abs(track.distance_m[track.valid] - r)
+
+
+def invalid_reasons(track: Track) -> str:
+    """The invalid pairs' count by reason ("no_echo 12, unstable 3"; empty when none)."""
+    return ", ".join(f"{faults.REASONS[k]} {int(np.sum(track.reason == k))}"
+                     for k in np.unique(track.reason) if k)
 
 
 def accuracy(track: Track, truth: Truth) -> dict:

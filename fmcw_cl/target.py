@@ -7,11 +7,13 @@ A first conversion tracks the strongest echo of the user's band [--min-range,
   (within echoes.HIST_M), the two within GATE_M of each other (a sync delay's error
   parts them by a few mm; a moving target's plain peak in one direction only, where
   its Doppler shift cancels its motion, is no fixed echo), at their midpoint, in at
-  least FIXED_SHARE of the capture's 10 ms slices, at a
-  level within echoes.RIVAL_DB of the tracked echo's: a wall, a window, a lens, or a
-  target at rest for most of the capture. The peaks of the surveyed half-sweeps' mean
-  spectra (echoes.mean_peaks) count alike, a block of them for a slice: an echo too
-  weak for the CFAR in single half-sweeps is a rival all the same;
+  least FIXED_SHARE of the capture's 10 ms slices, at any level: a wall, a window, a
+  lens, or a target at rest for most of the capture (a target at rest 12 dB below a
+  wall is still the target). An echo at 2 to HARMONICS times the distance of a stronger
+  one (folded at the unambiguous range) is its harmonic, not an object. The peaks of
+  the surveyed half-sweeps' mean spectra (echoes.mean_peaks) count alike, a block of
+  them for a slice: an echo too weak for the CFAR in single half-sweeps is a rival
+  all the same;
 - a **moving echo** spans the distances of the verified pairs that move faster than
   MOVING_MPS and of the echoes found by their Doppler-smeared energy (echoes.hidden);
   those distances part into several moving echoes where APART_M of range holds none
@@ -61,6 +63,7 @@ MIN_TRAVEL_M = 0.01   # a moving echo's verified pairs span at least this (a bia
 TOGETHER_S = 2e-3    # pairs this close in time but APART_M apart are two moving echoes
 SPAN_KEY_M = 1e3     # slices' sort keys lie this far apart (beyond any distance)
 AWAY_SHARE = 0.5      # a fixed echo seen in this share of the slices where the target is away is an object
+HARMONICS = 3         # a weaker fixed echo at 2..HARMONICS times a stronger one's distance is its harmonic
 
 
 @dataclass
@@ -107,21 +110,34 @@ class Choice:
                 "target_choice": self.note}
 
 
-def fixed_echoes(e: echoes.Echoes, level_db: float) -> tuple[np.ndarray, np.ndarray]:
+def fixed_echoes(e: echoes.Echoes, unambiguous_m: float) -> tuple[np.ndarray, np.ndarray]:
     """(distances m, levels dB) of the fixed echoes of an echo table (see the module):
-    the CFAR's echoes clustered in each slice, and the peaks of the mean spectra."""
+    the CFAR's echoes clustered in each slice, and the peaks of the mean spectra, less
+    the harmonics of stronger ones (a detector's or a converter's distortion)."""
     found = sorted([*_sharp(e), *_averaged(e)])
-    out_d, out_s = [], []
+    out_d: list[float] = []
+    out_s: list[float] = []
     for x, level in found:
-        if level < level_db - echoes.RIVAL_DB:
-            continue
         if out_d and x - out_d[-1] < APART_M:            # one echo: the stronger stands for both
             if level > out_s[-1]:
                 out_d[-1], out_s[-1] = x, level
             continue
         out_d.append(x)
         out_s.append(level)
-    return np.asarray(out_d), np.asarray(out_s)
+    d, s = np.asarray(out_d), np.asarray(out_s)
+    keep = ~harmonic(d, s, unambiguous_m)
+    return d[keep], s[keep]
+
+
+def harmonic(d: np.ndarray, level: np.ndarray, unambiguous_m: float) -> np.ndarray:
+    """Which echoes (distances `d` m, levels dB) lie within GATE_M of 2..HARMONICS times
+    the distance of a stronger one, folded into [0, unambiguous_m] as a real beat's
+    tone folds at the resampled Nyquist frequency."""
+    m = np.arange(2, HARMONICS + 1)
+    at = np.mod(d[:, None] * m, 2 * unambiguous_m)                  # (echo, multiple)
+    at = np.minimum(at, 2 * unambiguous_m - at)
+    near = np.abs(d[None, :, None] - at[:, None, :]).min(axis=2) <= GATE_M   # (source, echo)
+    return np.any(near & (level[:, None] > level[None, :]), axis=0)
 
 
 def _sharp(e: echoes.Echoes) -> list[tuple[float, float]]:
@@ -138,7 +154,7 @@ def _sharp(e: echoes.Echoes) -> list[tuple[float, float]]:
     kept = np.bincount(slice_[first], minlength=slice_.max() + 1) >= 20
     rows = kept[slice_]
     g, d, snr, _ = echoes.keyed_clusters(key[rows], e.distance_m[rows], e.snr_db[rows], sweeps)
-    return _fixed(g // 2, g % 2 == 1, d, snr, int(kept.sum()))
+    return _fixed(g % 2 == 1, d, snr, int(kept.sum()))
 
 
 def _averaged(e: echoes.Echoes) -> list[tuple[float, float]]:
@@ -148,29 +164,27 @@ def _averaged(e: echoes.Echoes) -> list[tuple[float, float]]:
     blocks = np.unique(m["mean_time_s"])          # a block's two directions share its time
     if blocks.size == 0:
         return []
-    return _fixed(np.searchsorted(blocks, m["peak_time_s"]), m["peak_rising"], m["peak_distance_m"],
-                  m["peak_snr_db"], blocks.size)
+    return _fixed(m["peak_rising"], m["peak_distance_m"], m["peak_snr_db"], blocks.size)
 
 
-def _fixed(group: np.ndarray, rising: np.ndarray, d: np.ndarray, level: np.ndarray,
-           groups: int) -> list[tuple[float, float]]:
-    """(distance, level) of the echoes seen at one distance in FIXED_SHARE of `groups`
-    (slices, or blocks) in both directions: each rising echo paired with the nearest
-    falling one of its group within GATE_M, at their midpoint and the weaker level."""
-    fall = ~rising
-    at = group * SPAN_KEY_M + d                        # group-major sort key (m)
-    order = np.argsort(at[fall], kind="stable")
-    f_at, f_d, f_s = at[fall][order], d[fall][order], level[fall][order]
-    r_at, r_d, r_s = at[rising], d[rising], level[rising]
-    if f_at.size == 0 or r_at.size == 0:
+def _fixed(rising: np.ndarray, d: np.ndarray, level: np.ndarray, groups: int) -> list[tuple[float, float]]:
+    """(distance, level) of the echoes (one a group and distance) seen at one distance in
+    FIXED_SHARE of `groups` (slices, or blocks) in each direction: each rising cluster
+    paired with the nearest falling one within GATE_M, at their midpoint and the weaker
+    level. The two directions need not be seen in the same groups: an echo a few dB over
+    the noise is missed in some blocks of each (3 and 4 of 6)."""
+    rise = list(echoes.clusters(d[rising], level[rising], groups, FIXED_SHARE))
+    fall = list(echoes.clusters(d[~rising], level[~rising], groups, FIXED_SHARE))
+    if not rise or not fall:
         return []
-    j = nearest(f_at, r_at)
-    pair = np.abs(f_at[j] - r_at) <= GATE_M
-    if not pair.any():
-        return []
-    found = echoes.clusters(0.5 * (r_d[pair] + f_d[j[pair]]), np.minimum(r_s[pair], f_s[j[pair]]), groups,
-                            FIXED_SHARE)
-    return [(float(x), float(s)) for x, s, _ in found]
+    f_d = np.array([x for x, _, _ in fall])
+    f_s = np.array([lv for _, lv, _ in fall])
+    out = []
+    for x, lv, _ in rise:
+        j = int(np.argmin(np.abs(f_d - x)))
+        if abs(f_d[j] - x) <= GATE_M:
+            out.append((0.5 * (x + float(f_d[j])), min(float(lv), float(f_s[j]))))
+    return out
 
 
 def moving_spans(time_s, distance_m, velocity_mps, valid, e: echoes.Echoes,
@@ -260,11 +274,11 @@ def _margin(gap: float) -> float:
 
 
 def choose(rule: str, near_m: float | None, time_s, distance_m, velocity_mps, valid,
-           e: echoes.Echoes, level_db: float, band: tuple[float, float | None]) -> Choice:
+           e: echoes.Echoes, unambiguous_m: float, band: tuple[float, float | None]) -> Choice:
     """The target of a first conversion's pairs (valid, distances, velocities) and echo
-    table `e` (see the module); `level_db` is the tracked echo's level, `band` the
-    user's (lo, hi) in m."""
-    fixed, _ = fixed_echoes(e, level_db)
+    table `e` (see the module); `unambiguous_m` is the capture's unambiguous range,
+    `band` the user's (lo, hi) in m."""
+    fixed, _ = fixed_echoes(e, unambiguous_m)
     inband = (fixed >= band[0]) & (fixed < (band[1] or np.inf))
     fixed = fixed[inband]
     objects = _objects(fixed, time_s, distance_m, valid, e)

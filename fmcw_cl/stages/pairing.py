@@ -40,6 +40,9 @@ RESIDUAL_BLOCK = 4096      # pairs whose neighbours' predictions are taken at on
 SUPPORT = 2           # trusted neighbours needed to vouch for a pair
 ANCHOR_PAIRS = 2 * NEIGHBOURS + 1   # a run of valid pairs this long stands on its own
 ACCEL_MAX = 500.0     # m/s^2: how far a shorter run may stray from an anchor across its gap
+ANCHOR_GAP_S = 5e-3   # ... a gap at most this long (over 5 ms the bound exceeds 2.6 mm and grows as dt^2)
+KINEMATIC_S = 2e-3    # pairs this close in time must agree as one body's motion (`_kinematic`)
+KINEMATIC_PAIRS = 48  # half-width (pairs) of the window searched for them (2.4 ms at 50 us)
 
 
 @dataclass(frozen=True)
@@ -288,7 +291,9 @@ def verify(t: np.ndarray, dist: np.ndarray, vel: np.ndarray, ok: np.ndarray) -> 
     pairs of the final set vouch for (`continuity`'s test, against the final set only).
 
     A pair vouched for by neighbours that are themselves rejected is rejected in turn,
-    until nothing changes; only the pairs near a change are tested again.
+    until nothing changes; only the pairs near a change are tested again. Between
+    rounds, the pairs that most valid pairs within KINEMATIC_S disagree with are dropped
+    (`_kinematic`); last, short runs need an anchor (`_anchored`).
 
     Returns
     -------
@@ -299,8 +304,47 @@ def verify(t: np.ndarray, dist: np.ndarray, vel: np.ndarray, ok: np.ndarray) -> 
     ok = np.asarray(ok, bool).copy()
     unsupported = np.zeros(ok.size, bool)
     _vouched(t, dist, vel, ok, unsupported)
+    while _kinematic(t, dist, vel, ok):
+        _vouched(t, dist, vel, ok, unsupported)
     _anchored(t, dist, vel, ok, unsupported)
     return ok, unsupported
+
+
+def _agrees(ta, da, va, tb, db, vb):
+    """Whether pairs (ta, da, va) predict pairs (tb, db, vb) (s, m, m/s) as one body
+    whose acceleration stays within ACCEL_MAX: distance within JUMP_MAX_M + ACCEL_MAX
+    dt^2 / 8 of the trapezoid d_a + dt (v_a + v_b) / 2 (its error bound for any such
+    motion), velocity within ACCEL_MAX |dt| + CONSISTENT_MPS. Symmetric in a and b."""
+    dt = tb - ta
+    pred = da + dt * 0.5 * (va + vb)
+    return ((np.abs(db - pred) <= JUMP_MAX_M + ACCEL_MAX * dt * dt / 8)
+            & (np.abs(vb - va) <= ACCEL_MAX * np.abs(dt) + CONSISTENT_MPS))
+
+
+def _kinematic(t, dist, vel, ok) -> bool:
+    """Drop, in place, the pairs of `ok` that most of the other pairs of `ok` within
+    KINEMATIC_S disagree with (`_agrees`); whether any was dropped.
+
+    The neighbours' test spans 0.4 ms, over which a velocity a few m/s off moves the
+    prediction by less than its tolerance: a wrong echo followed for a few ms (a
+    Doppler image beside a wall, one direction's peak on another echo) passes it while
+    its velocities disagree with its own distances' course by cm. Over 2 ms the two
+    part; a right pair beside a few wrong ones keeps its majority.
+    """
+    agree = np.zeros(ok.size, np.int32)
+    near = np.zeros(ok.size, np.int32)
+    for k in range(1, min(KINEMATIC_PAIRS, ok.size - 1) + 1):      # pairs k apart, both ways at once
+        a, b = slice(0, ok.size - k), slice(k, ok.size)
+        both = ok[a] & ok[b] & (t[b] - t[a] <= KINEMATIC_S)
+        with np.errstate(invalid="ignore"):
+            yes = both & _agrees(t[a], dist[a], vel[a], t[b], dist[b], vel[b])
+        near[a] += both
+        near[b] += both
+        agree[a] += yes
+        agree[b] += yes
+    drop = ok & (2 * agree < near)
+    ok[drop] = False
+    return bool(drop.any())
 
 
 def _vouched(t, dist, vel, ok, unsupported) -> None:
@@ -326,19 +370,15 @@ def _vouched(t, dist, vel, ok, unsupported) -> None:
 def _anchored(t, dist, vel, ok, unsupported) -> None:
     """Runs of valid pairs (no gap wider than NEIGHBOURS pairs, each pair predicting the
     next as below) shorter than ANCHOR_PAIRS vouch for each other only: such a run stays
-    valid where the anchor run nearest on either side predicts its end across the gap,
-    distance within JUMP_MAX_M + ACCEL_MAX dt^2 / 8 and velocity within ACCEL_MAX dt;
-    else every pair of it is unsupported (a wrong echo followed for a few pairs is
-    self-consistent)."""
+    valid where the anchor run nearest on either side predicts its end (`_agrees`)
+    across a gap of at most ANCHOR_GAP_S; else every pair of it is unsupported (a wrong
+    echo followed for a few pairs is self-consistent)."""
     idx = np.flatnonzero(ok)
     if idx.size == 0:
         return
 
     def agrees(a, b):                           # pair a predicts pair b (arrays or ints)
-        dt = t[b] - t[a]
-        pred = dist[a] + dt * 0.5 * (vel[a] + vel[b])
-        return ((np.abs(dist[b] - pred) <= JUMP_MAX_M + ACCEL_MAX * dt * dt / 8)
-                & (np.abs(vel[b] - vel[a]) <= ACCEL_MAX * np.abs(dt) + CONSISTENT_MPS))
+        return _agrees(t[a], dist[a], vel[a], t[b], dist[b], vel[b])
 
     # a run ends at a gap, or where the next valid pair leaves its kinematics (a wrong
     # echo beside right pairs joins no run of theirs)
@@ -352,7 +392,7 @@ def _anchored(t, dist, vel, ok, unsupported) -> None:
         k = np.searchsorted(firsts, r[0])         # anchors[k - 1] lies before r, anchors[k] after
         sides = ([(anchors[k - 1][-1], r[0])] if k > 0 else []) + \
                 ([(anchors[k][0], r[-1])] if k < len(anchors) else [])
-        if not any(bool(agrees(a, b)) for a, b in sides):
+        if not any(abs(t[b] - t[a]) <= ANCHOR_GAP_S and bool(agrees(a, b)) for a, b in sides):
             ok[r] = False
             unsupported[r] = True
 
