@@ -9,8 +9,9 @@ A first conversion tracks the strongest echo of the user's band [--min-range,
   its Doppler shift cancels its motion, is no fixed echo), at their midpoint, in at
   least FIXED_SHARE of the capture's 10 ms slices, at any level: a wall, a window, a
   lens, or a target at rest for most of the capture (a target at rest 12 dB below a
-  wall is still the target). An echo at 2 to HARMONICS times the distance of a stronger
-  one (folded at the unambiguous range) is its harmonic, not an object. The peaks of
+  wall is still the target). An echo within HARMONIC_M of 2 to HARMONICS times the
+  distance of one HARMONIC_DB stronger (folded at the unambiguous range) is its
+  harmonic, not an object. The peaks of
   the surveyed half-sweeps' mean spectra (echoes.mean_peaks) count alike, a block of
   them for a slice: an echo too weak for the CFAR in single half-sweeps is a rival
   all the same;
@@ -29,7 +30,9 @@ The rule (`--target`):
   one that stays while the target is elsewhere is another object, and the pairs within
   GATE_M of it are ``ambiguous``. With no moving echo and several fixed echoes, or
   several moving echoes, the rule cannot tell which is the target: every pair on one of
-  them is ``ambiguous``. With one echo, it is the target.
+  them is ``ambiguous``. With one echo, it is the target, unless OTHERS_SHARE of the
+  half-sweeps hold other echoes in the band (something neither fixed nor found
+  moving): then the pairs on it are ``ambiguous``.
 - ``moving``: as auto, and a capture without a moving echo is refused.
 - ``nearest``: the nearest fixed echo or moving span, left alone in its gap (the other
   echoes' nearer ends bound it).
@@ -63,7 +66,12 @@ MIN_TRAVEL_M = 0.01   # a moving echo's verified pairs span at least this (a bia
 TOGETHER_S = 2e-3    # pairs this close in time but APART_M apart are two moving echoes
 SPAN_KEY_M = 1e3     # slices' sort keys lie this far apart (beyond any distance)
 AWAY_SHARE = 0.5      # a fixed echo seen in this share of the slices where the target is away is an object
-HARMONICS = 3         # a weaker fixed echo at 2..HARMONICS times a stronger one's distance is its harmonic
+OTHERS_SHARE = 0.1    # "one echo" only while fewer half-sweeps than this share hold another echo (false
+                      # alarms: under 1 %; a rail's start under noise at full scale beside a wall: 47 %)
+HARMONICS = 3         # a fixed echo at 2..HARMONICS times the distance of a far stronger one ...
+HARMONIC_M = 0.002    # ... within this (a distortion's tone lies at the multiple of the bin) ...
+HARMONIC_DB = 20.0    # ... and this much weaker is its harmonic (a target at rest 8.6 mm from twice
+                      # a wall's distance, as strong, is none)
 
 
 @dataclass
@@ -130,14 +138,14 @@ def fixed_echoes(e: echoes.Echoes, unambiguous_m: float) -> tuple[np.ndarray, np
 
 
 def harmonic(d: np.ndarray, level: np.ndarray, unambiguous_m: float) -> np.ndarray:
-    """Which echoes (distances `d` m, levels dB) lie within GATE_M of 2..HARMONICS times
-    the distance of a stronger one, folded into [0, unambiguous_m] as a real beat's
-    tone folds at the resampled Nyquist frequency."""
+    """Which echoes (distances `d` m, levels dB) lie within HARMONIC_M of 2..HARMONICS
+    times the distance of one at least HARMONIC_DB stronger, folded into [0,
+    unambiguous_m] as a real beat's tone folds at the resampled Nyquist frequency."""
     m = np.arange(2, HARMONICS + 1)
     at = np.mod(d[:, None] * m, 2 * unambiguous_m)                  # (echo, multiple)
     at = np.minimum(at, 2 * unambiguous_m - at)
-    near = np.abs(d[None, :, None] - at[:, None, :]).min(axis=2) <= GATE_M   # (source, echo)
-    return np.any(near & (level[:, None] > level[None, :]), axis=0)
+    near = np.abs(d[None, :, None] - at[:, None, :]).min(axis=2) <= HARMONIC_M   # (source, echo)
+    return np.any(near & (level[:, None] >= level[None, :] + HARMONIC_DB), axis=0)
 
 
 def _sharp(e: echoes.Echoes) -> list[tuple[float, float]]:
@@ -303,6 +311,11 @@ def choose(rule: str, near_m: float | None, time_s, distance_m, velocity_mps, va
     elif spans:
         target = (spans[0], True)
     elif fixed.size <= 1:
+        seen = _others(e, fixed, band)
+        if fixed.size and seen >= OTHERS_SHARE:      # an echo that is neither fixed nor found moving
+            return Choice(name, fixed, objects, None, False, band, fixed.copy(),
+                          note=f"no echo moves, but {100 * seen:.0f} % of the half-sweeps hold other echoes "
+                               f"than the fixed echo at {_list(fixed)}: the target cannot be told apart")
         return Choice(name, fixed, objects, None, False, band, note="one echo: the target")
     else:                     # still echoes only: the rule cannot tell which is the target
         return Choice(name, fixed, objects, None, False, band, fixed.copy(),
@@ -321,6 +334,16 @@ def choose(rule: str, near_m: float | None, time_s, distance_m, velocity_mps, va
     if within.size:
         note += f"; ambiguous where it passes the fixed echoes at {_list(within)}"
     return Choice(name, fixed, objects, (lo, hi), moving, new, within, note)
+
+
+def _others(e: echoes.Echoes, fixed: np.ndarray, band) -> float:
+    """The share of the half-sweeps whose CFAR echoes include one inside `band` that is
+    not the tracked peak and lies APART_M or more from every fixed echo."""
+    sweeps = np.unique(e.time_s).size
+    inside = (e.distance_m >= band[0]) & (e.distance_m < (band[1] or np.inf)) & ~e.tracked
+    if fixed.size:
+        inside &= np.abs(e.distance_m[:, None] - fixed[None, :]).min(axis=1) >= APART_M
+    return np.unique(e.time_s[inside]).size / sweeps if sweeps else 0.0
 
 
 def _list(xs) -> str:
