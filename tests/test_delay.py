@@ -129,3 +129,35 @@ def test_a_line_through_unsettled_trials_gives_the_root_and_its_error():
     assert abs(np.mean(roots) - 1.0) < 0.05
     assert 0.8 < np.median(errors) / np.std(roots) < 1.3
     assert line_root(x, 0.01 + 0.001 * x, sigma) is None          # its root outside the trials
+
+
+def test_a_refinement_that_ends_off_its_root_states_the_miss_as_uncertainty(monkeypatch):
+    """A noisy capture's secant steps: 0.171, 0.141, then 0.117 m/s (7.6 of its sigmas)
+    at -18.4 samples, and a trial without runs ends the search. The delay is not at a
+    root, so the uncertainty holds the miss: about 8 samples, not the 1.0 of its sigma
+    alone (the capture's numpy refinement lands 54 samples away)."""
+    from dataclasses import dataclass
+
+    trials = {-29.88: (0.1708, 0.0100), -27.88: (0.1409, 0.0164)}
+
+    def mismatch(held, plan, lag, processor):
+        mps, sigma = trials.get(round(lag, 2), (0.1168, 0.0154) if lag < 0 else (np.nan, np.nan))
+        return refine.Mismatch(mps, sigma, 0.236)
+
+    @dataclass(frozen=True)
+    class Plan:
+        lag: float = -29.88
+        lag_refined: bool = False
+        lag_mismatch_mps: float = np.nan
+        lag_sigma_samples: float = np.nan
+        lag_sigma_mps: float = np.nan
+        lag_sigma_m: float = np.nan
+        lag_at_m: float = np.nan
+
+    monkeypatch.setattr(refine, "stretches", lambda cap, plan, processor: [])
+    monkeypatch.setattr(refine, "mismatch", mismatch)
+    got = refine.refine_lag(None, Plan(), None)
+    assert got.lag_refined and abs(got.lag - -18.43) < 0.05
+    slope = (0.1409 - 0.1708) / 2
+    assert got.lag_sigma_samples == pytest.approx(np.hypot(0.0154, 0.1168) / abs(slope), rel=1e-6)
+    assert got.lag_sigma_samples > 7.5 and got.lag_sigma_mps > 0.1
