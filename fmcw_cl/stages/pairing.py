@@ -43,6 +43,9 @@ ACCEL_MAX = 500.0     # m/s^2: how far a shorter run may stray from an anchor ac
 ANCHOR_GAP_S = 5e-3   # ... a gap at most this long (over 5 ms the bound exceeds 2.6 mm and grows as dt^2)
 KINEMATIC_S = 2e-3    # pairs this close in time must agree as one body's motion (`_kinematic`)
 KINEMATIC_PAIRS = 48  # half-width (pairs) of the window searched for them (2.4 ms at 50 us)
+DRIFT_S = 5e-3        # a run of valid pairs this long ...
+DRIFT_MPS = 0.3       # ... whose distance leaves its integrated velocity this fast is dropped (a sync
+                      # delay's error leaves at most ~0.1 m/s; a wrong echo held 25 ms: 0.94 m/s)
 
 
 @dataclass(frozen=True)
@@ -293,7 +296,8 @@ def verify(t: np.ndarray, dist: np.ndarray, vel: np.ndarray, ok: np.ndarray) -> 
     A pair vouched for by neighbours that are themselves rejected is rejected in turn,
     until nothing changes; only the pairs near a change are tested again. Between
     rounds, the pairs that most valid pairs within KINEMATIC_S disagree with are dropped
-    (`_kinematic`); last, short runs need an anchor (`_anchored`).
+    (`_kinematic`), and runs whose distance leaves their integrated velocity
+    (`_drifting`); last, short runs need an anchor (`_anchored`).
 
     Returns
     -------
@@ -304,7 +308,7 @@ def verify(t: np.ndarray, dist: np.ndarray, vel: np.ndarray, ok: np.ndarray) -> 
     ok = np.asarray(ok, bool).copy()
     unsupported = np.zeros(ok.size, bool)
     _vouched(t, dist, vel, ok, unsupported)
-    while _kinematic(t, dist, vel, ok):
+    while _kinematic(t, dist, vel, ok) | _drifting(t, dist, vel, ok):
         _vouched(t, dist, vel, ok, unsupported)
     _anchored(t, dist, vel, ok, unsupported)
     return ok, unsupported
@@ -347,6 +351,36 @@ def _kinematic(t, dist, vel, ok) -> bool:
     return bool(drop.any())
 
 
+def _runs(t, dist, vel, ok) -> list[np.ndarray]:
+    """The runs of the valid pairs `ok` (indices): cut at gaps of more than NEIGHBOURS
+    pairs and where the next valid pair leaves its kinematics (a wrong echo beside right
+    pairs joins no run of theirs)."""
+    idx = np.flatnonzero(ok)
+    if idx.size == 0:
+        return []
+    a, b = idx[:-1], idx[1:]
+    cut = np.flatnonzero((b - a > NEIGHBOURS) | ~_agrees(t[a], dist[a], vel[a], t[b], dist[b], vel[b])) + 1
+    return np.split(idx, cut)
+
+
+def _drifting(t, dist, vel, ok) -> bool:
+    """Drop, in place, the runs (`_runs`) of at least DRIFT_S whose distance less the
+    integral of their velocity has a least-squares slope beyond DRIFT_MPS; whether any
+    was. Within 2 ms a velocity 1 m/s off moves the prediction by 2 mm, against a
+    tolerance of 1.25: a wrong echo held at one distance for 25 ms with a velocity of
+    0.94 m/s passes `_kinematic`; over its run it drifts by 23 mm."""
+    dropped = False
+    for r in _runs(t, dist, vel, ok):
+        if r.size < 3 or t[r[-1]] - t[r[0]] < DRIFT_S:
+            continue
+        tc = t[r] - t[r].mean()
+        left = dist[r] - numeric.travelled(t[r], vel[r])
+        if abs(np.dot(tc, left - left.mean()) / np.dot(tc, tc)) > DRIFT_MPS:
+            ok[r] = False
+            dropped = True
+    return dropped
+
+
 def _vouched(t, dist, vel, ok, unsupported) -> None:
     """`verify`'s fixed point of the neighbours' test, in place."""
     rows = np.flatnonzero(ok)
@@ -373,17 +407,13 @@ def _anchored(t, dist, vel, ok, unsupported) -> None:
     valid where the anchor run nearest on either side predicts its end (`_agrees`)
     across a gap of at most ANCHOR_GAP_S; else every pair of it is unsupported (a wrong
     echo followed for a few pairs is self-consistent)."""
-    idx = np.flatnonzero(ok)
-    if idx.size == 0:
+    runs = _runs(t, dist, vel, ok)
+    if not runs:
         return
 
-    def agrees(a, b):                           # pair a predicts pair b (arrays or ints)
+    def agrees(a, b):                           # pair a predicts pair b
         return _agrees(t[a], dist[a], vel[a], t[b], dist[b], vel[b])
 
-    # a run ends at a gap, or where the next valid pair leaves its kinematics (a wrong
-    # echo beside right pairs joins no run of theirs)
-    cut = np.flatnonzero((np.diff(idx) > NEIGHBOURS) | ~agrees(idx[:-1], idx[1:])) + 1
-    runs = np.split(idx, cut)
     anchors = [r for r in runs if r.size >= ANCHOR_PAIRS]
     firsts = np.array([r[0] for r in anchors])
     for r in runs:
