@@ -6,15 +6,14 @@ A first conversion tracks the strongest echo of the user's band [--min-range,
 - a **fixed echo** is a distance where the echoes of each current direction cluster
   (within echoes.HIST_M), the two within GATE_M of each other (a sync delay's error
   parts them by a few mm; a moving target's plain peak in one direction only, where
-  its Doppler shift cancels its motion, is no fixed echo), at their midpoint, in at
-  least FIXED_SHARE of the capture's 10 ms slices, at any level: a wall, a window, a
+  its Doppler shift cancels its motion, is no fixed echo), at their midpoint, each in
+  at least FIXED_SHARE of the capture's 10 ms slices, at any level: a wall, a window, a
   lens, or a target at rest for most of the capture (a target at rest 12 dB below a
   wall is still the target). An echo within HARMONIC_M of 2 to HARMONICS times the
   distance of one HARMONIC_DB stronger (folded at the unambiguous range) is its
-  harmonic, not an object. The peaks of
-  the surveyed half-sweeps' mean spectra (echoes.mean_peaks) count alike, a block of
-  them for a slice: an echo too weak for the CFAR in single half-sweeps is a rival
-  all the same;
+  harmonic, not an object. The peaks of the surveyed half-sweeps' mean spectra
+  (echoes.mean_peaks) count alike, a block of them for a slice: an echo too weak for
+  the CFAR in single half-sweeps is a rival all the same;
 - a **moving echo** spans the distances of the verified pairs that move faster than
   MOVING_MPS and of the echoes found by their Doppler-smeared energy (echoes.hidden);
   those distances part into several moving echoes where APART_M of range holds none
@@ -64,10 +63,9 @@ APART_M = 0.02        # fixed echoes closer than this are one (a smeared peak's 
                       # target's span than this, a fixed echo is not left out of the band
 MIN_TRAVEL_M = 0.01   # a moving echo's verified pairs span at least this (a biased velocity is no motion)
 TOGETHER_S = 2e-3    # pairs this close in time but APART_M apart are two moving echoes
-SPAN_KEY_M = 1e3     # slices' sort keys lie this far apart (beyond any distance)
 AWAY_SHARE = 0.5      # a fixed echo seen in this share of the slices where the target is away is an object
 OTHERS_SHARE = 0.1    # "one echo" only while fewer half-sweeps than this share hold another echo (false
-                      # alarms: under 1 %; a rail's start under noise at full scale beside a wall: 47 %)
+                      # alarms: 0.4-2.8 %; a rail's start under noise at full scale beside a wall: 22 %)
 HARMONICS = 3         # a fixed echo at 2..HARMONICS times the distance of a far stronger one ...
 HARMONIC_M = 0.002    # ... within this (a distortion's tone lies at the multiple of the bin) ...
 HARMONIC_DB = 20.0    # ... and this much weaker is its harmonic (a target at rest 8.6 mm from twice
