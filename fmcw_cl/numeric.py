@@ -111,6 +111,14 @@ def travelled(t: np.ndarray, v: np.ndarray) -> np.ndarray:
     return np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * np.diff(t))])
 
 
+def line_slope(t: np.ndarray, r: np.ndarray) -> tuple[float, float]:
+    """Least-squares slope of r over t and its standard error for white residuals."""
+    tc = t - t.mean()
+    slope = float(np.dot(tc, r - r.mean()) / np.dot(tc, tc))
+    resid = r - r.mean() - slope * tc
+    return slope, float(np.sqrt(np.dot(resid, resid) / max(1, t.size - 2) / np.dot(tc, tc)))
+
+
 def nearest(sorted_a: np.ndarray, x: np.ndarray) -> np.ndarray:
     """Index of the element of `sorted_a` (ascending, not empty) nearest to each of
     `x`; on a tie the lower one."""

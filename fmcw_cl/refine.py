@@ -29,7 +29,7 @@ import numpy as np
 
 from .capture import Capture
 from .chunks import HELD_SLOT, held_chunks
-from .numeric import travelled
+from .numeric import line_slope, travelled
 from .stages import resample, sync
 
 STRETCHES = 3
@@ -67,24 +67,16 @@ def drift(t: np.ndarray, d: np.ndarray, v: np.ndarray) -> tuple[float, float]:
     full scale their variogram grows from 40 um at one pair to a plateau of 90 um at
     5-10), which the white residuals' error misses by a factor of two or so."""
     r = d - travelled(t, v)
-    slope, se = _slope(t, r)
+    slope, se = line_slope(t, r)
     keep = np.ones(t.size, bool)
     loo = []
     for block in np.array_split(np.arange(t.size), JACKKNIFE_BLOCKS):
         keep[block] = False
-        loo.append(_slope(t[keep], r[keep])[0])
+        loo.append(line_slope(t[keep], r[keep])[0])
         keep[block] = True
     g = len(loo)
     jack = float(np.sqrt((g - 1) / g * np.sum(np.square(np.subtract(loo, np.mean(loo))))))
     return slope, max(se, jack)
-
-
-def _slope(t: np.ndarray, r: np.ndarray) -> tuple[float, float]:
-    """Least-squares slope of r over t and its standard error for white residuals."""
-    tc = t - t.mean()
-    slope = float(np.dot(tc, r - r.mean()) / np.dot(tc, tc))
-    resid = r - r.mean() - slope * tc
-    return slope, float(np.sqrt(np.dot(resid, resid) / max(1, t.size - 2) / np.dot(tc, tc)))
 
 
 def stretches(cap: Capture, plan, processor) -> list[list[tuple]]:

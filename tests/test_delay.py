@@ -91,7 +91,8 @@ def test_the_drifts_error_holds_for_distances_correlated_over_pairs(phi):
     white or correlated over several pairs (AR(1), as the tracker's under noise at full
     scale): the slopes are unbiased and the stated error matches their spread over 300
     runs; with the correlation the white residuals' error alone is far too small."""
-    from fmcw_cl.refine import _slope, drift
+    from fmcw_cl.numeric import line_slope
+    from fmcw_cl.refine import drift
 
     rng = np.random.default_rng(3)
     t = np.arange(240) * 5e-5
@@ -106,7 +107,7 @@ def test_the_drifts_error_holds_for_distances_correlated_over_pairs(phi):
         slope, se = drift(t, d, v)
         slopes.append(slope)
         errors.append(se)
-        white.append(_slope(t, d)[1])
+        white.append(line_slope(t, d)[1])
     spread = np.std(slopes)
     assert abs(np.mean(slopes)) < 3 * spread / np.sqrt(len(slopes))
     assert 0.8 < np.sqrt(np.mean(np.square(errors))) / spread < 1.3

@@ -373,9 +373,8 @@ def _drifting(t, dist, vel, ok) -> bool:
     for r in _runs(t, dist, vel, ok):
         if r.size < 3 or t[r[-1]] - t[r[0]] < DRIFT_S:
             continue
-        tc = t[r] - t[r].mean()
         left = dist[r] - numeric.travelled(t[r], vel[r])
-        if abs(np.dot(tc, left - left.mean()) / np.dot(tc, tc)) > DRIFT_MPS:
+        if abs(numeric.line_slope(t[r], left)[0]) > DRIFT_MPS:
             ok[r] = False
             dropped = True
     return dropped
