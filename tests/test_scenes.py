@@ -257,21 +257,29 @@ def test_a_target_at_rest_near_twice_a_walls_distance_is_no_harmonic(tmp_path):
     assert "cannot be told apart" in track.attrs["target_choice"]
 
 
+def with_a_wrong_run(size, d0, noise_m, run, seed, d_run, v_run):
+    """A track of `size` pairs 50 us apart at 0.5 m/s from `d0` (m, noise `noise_m` rms)
+    whose pairs `run` follow another echo (d_run(t), v_run(t), the same noise), 20
+    invalid pairs either side of it: (t, d, v, ok, run)."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(size) * 50e-6
+    v = np.full(t.size, 0.5)
+    d = d0 + 0.5 * t + rng.normal(0, noise_m, t.size)
+    v[run] = v_run(t[run])
+    d[run] = d_run(t[run]) + rng.normal(0, noise_m, run.size)
+    ok = np.ones(t.size, bool)
+    ok[run[0] - 20:run[0]] = ok[run[-1] + 1:run[-1] + 21] = False
+    return t, d, v, ok, run
+
+
 def test_verification_drops_runs_whose_velocity_is_not_their_motion():
     """A run of 100 pairs (5 ms) on another echo's Doppler image: each 0.4 ms
     neighbourhood agrees within the noise, but the velocities (+2.2 m/s) are not the
     distances' course (-2.2 m/s): over 2 ms they part by 9 mm."""
     from fmcw_cl.stages import pairing
 
-    rng = np.random.default_rng(3)
-    t = np.arange(1000) * 50e-6
-    v = np.full(t.size, 0.5)
-    d = 0.25 + 0.5 * t + rng.normal(0, 0.2e-3, t.size)
-    ok = np.ones(t.size, bool)
-    w = np.arange(600, 700)
-    v[w] = 2.2
-    d[w] = 0.2608 - 2.2 * (t[w] - t[600]) + rng.normal(0, 0.2e-3, w.size)
-    ok[580:600] = ok[700:720] = False
+    t, d, v, ok, w = with_a_wrong_run(1000, 0.25, 0.2e-3, np.arange(600, 700), 3,
+                                      lambda t: 0.2608 - 2.2 * (t - t[0]), lambda t: np.full(t.size, 2.2))
     got, _ = pairing.verify(t, d, v, ok)
     assert not got[w].any()
     right = ok.copy()
@@ -316,15 +324,10 @@ def test_verification_drops_runs_whose_distance_leaves_their_velocity(monkeypatc
     prediction by less than the tolerance up to 1.1 ms); over the run it drifts 23 mm."""
     from fmcw_cl.stages import pairing
 
-    rng = np.random.default_rng(5)
-    t = np.arange(1200) * 50e-6
-    v = np.full(t.size, 0.5)
-    d = 0.06 + 0.5 * t + rng.normal(0, 50e-6, t.size)
-    ok = np.ones(t.size, bool)
-    w = np.arange(400, 900)
-    v[w] = 0.94 + rng.normal(0, 0.005, w.size)
-    d[w] = 0.0786 + rng.normal(0, 50e-6, w.size)
-    ok[380:400] = ok[900:920] = False
+    rng = np.random.default_rng(6)
+    t, d, v, ok, w = with_a_wrong_run(1200, 0.06, 50e-6, np.arange(400, 900), 5,
+                                      lambda t: np.full(t.size, 0.0786),
+                                      lambda t: 0.94 + rng.normal(0, 0.005, t.size))
     right = ok.copy()
     right[w] = False
     got, _ = pairing.verify(t, d, v, ok)
