@@ -229,7 +229,7 @@ def test_page_locked_slots_are_kept_for_the_next_captures(static_capture, monkey
 
         pool.use(none_left)
         got = pool.lease(1234)
-        assert got.size == 1234 and got.dtype == np.int16
+        assert got.size == 1234 and got.dtype == np.int16 and got.base is None
     finally:
         pool.use(None)
         pool.clear()
