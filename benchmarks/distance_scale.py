@@ -13,10 +13,9 @@ stated sigma, and the bias at 0.7 m (bias over distance times 0.7 m) by percenti
 from __future__ import annotations
 
 import argparse
-import tempfile
-from pathlib import Path
 
 import numpy as np
+from scratch import folder
 
 from fmcw_cl.backend import make_processor
 from fmcw_cl.capture import Capture
@@ -31,7 +30,7 @@ def main() -> None:
     ap.add_argument("--tables", type=int, default=200)
     ap.add_argument("--table-noise-mhz", type=float, default=20.0)
     args = ap.parse_args()
-    tmp = Path(tempfile.mkdtemp(prefix="fmcw-scale-"))
+    tmp = folder(None, "fmcw-distance-")
     be = make_processor("auto")
     cfg = SimulationConfig(table_noise_hz=args.table_noise_mhz * 1e6)
     bias, sigma, dist = [], [], []

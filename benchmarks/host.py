@@ -13,9 +13,10 @@ with PYTHONPATH=DIR, alternately with the other, in one session.
 from __future__ import annotations
 
 import argparse
-import tempfile
 import time
 from pathlib import Path
+
+from scratch import folder
 
 from fmcw_cl.backend import make_processor
 from fmcw_cl.engine import process
@@ -31,7 +32,7 @@ def main() -> None:
     args = ap.parse_args()
     captures = args.captures
     if not captures:
-        tmp = Path(tempfile.mkdtemp(prefix="fmcw-host-"))
+        tmp = folder(None, "fmcw-host-")
         for seed, (name, scene, seconds) in enumerate((("rail", rail, 1.0), ("jump", jump, 0.3),
                                                         ("static", static, 0.5)), 1):
             captures.append(tmp / f"{name}.h5")

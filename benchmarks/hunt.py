@@ -11,11 +11,10 @@ headroom) on a third, each on its own seed. Default options, the default backend
 """
 
 import argparse
-import tempfile
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
+from scratch import folder
 
 from fmcw_cl.backend import make_processor
 from fmcw_cl.capture import Capture
@@ -26,10 +25,9 @@ from fmcw_cl.simulator import LAB, jump, rail, simulate_capture, static
 parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
 parser.add_argument("--seed", type=int, default=1, help="seed of the draws")
 parser.add_argument("--count", type=int, default=40, help="captures")
-parser.add_argument("--out", default=None, help="folder for the captures (default: a temporary one)")
+parser.add_argument("--out", default=None, help="folder for the captures, kept (default: a removed temp dir)")
 args = parser.parse_args()
-out = Path(args.out or tempfile.mkdtemp(prefix="fmcw-hunt-"))
-out.mkdir(parents=True, exist_ok=True)
+out = folder(args.out, "fmcw-hunt-")
 rng = np.random.default_rng(args.seed)
 be = make_processor("auto")
 total = 0

@@ -13,11 +13,10 @@ down so that noise never clips: noise peaks at full scale it cannot make yet), a
 """
 
 import argparse
-import tempfile
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
+from scratch import folder
 
 from fmcw_cl.backend import make_processor
 from fmcw_cl.capture import Capture
@@ -26,9 +25,8 @@ from fmcw_cl.evaluate import invalid_reasons, valid_errors
 from fmcw_cl.simulator import LAB, jump, rail, simulate_capture, static
 
 parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-parser.add_argument("--out", default=None, help="folder for the captures (default: a temporary one)")
-out = Path(parser.parse_args().out or tempfile.mkdtemp(prefix="fmcw-lab-"))
-out.mkdir(parents=True, exist_ok=True)
+parser.add_argument("--out", default=None, help="folder for the captures, kept (default: a removed temp dir)")
+out = folder(parser.parse_args().out, "fmcw-lab-")
 be = make_processor("auto")
 scenes = []
 for s in (1, 2, 3):

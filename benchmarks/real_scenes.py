@@ -11,10 +11,10 @@ be 0.
 """
 
 import argparse
-import tempfile
 from pathlib import Path
 
 import numpy as np
+from scratch import folder
 
 import fmcw_cl
 from fmcw_cl.backend import make_processor
@@ -23,9 +23,8 @@ from fmcw_cl.engine import process
 from fmcw_cl.evaluate import invalid_reasons, valid_errors
 
 parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-parser.add_argument("--out", default=None, help="folder for the captures (default: a temporary one)")
-out = Path(parser.parse_args().out or tempfile.mkdtemp(prefix="fmcw-real-"))
-out.mkdir(parents=True, exist_ok=True)
+parser.add_argument("--out", default=None, help="folder for the captures, kept (default: a removed temp dir)")
+out = folder(parser.parse_args().out, "fmcw-real-")
 lab_jump = {"scenario": "jump", "snr_db": 0.0, "speckle_ms": 3.0}
 scenes = [("jump + wall 1500 at 0.42 m, speckle", s, dict(lab_jump, reflectors=((0.42, 1500.0),)))
           for s in (1, 2, 3)]

@@ -14,11 +14,11 @@ import argparse
 import json
 import subprocess
 import sys
-import tempfile
 import time
 from pathlib import Path
 
 import h5py
+from scratch import folder
 
 from fmcw_cl.capture import Capture, CaptureWriter
 from fmcw_cl.simulator import simulate_capture, static
@@ -59,9 +59,9 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--lengths", type=int, nargs="+", default=[1, 2, 5, 10])
     ap.add_argument("--backends", nargs="+", default=["numpy", "opencl"])
-    ap.add_argument("--dir", type=Path, default=None, help="Where the captures go (default: a temp dir).")
+    ap.add_argument("--dir", type=Path, default=None, help="captures kept here (default: a removed temp dir)")
     args = ap.parse_args()
-    d = args.dir or Path(tempfile.mkdtemp(prefix="fmcw-scale-"))
+    d = folder(args.dir, "fmcw-scale-")
     base = d / "static_1s.h5"
     if not base.exists():
         simulate_capture(base, static(1.0, 0.3), 1.0, seed=1)

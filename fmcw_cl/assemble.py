@@ -27,6 +27,13 @@ def _fill_gaps(t_mid: np.ndarray, period: float) -> np.ndarray:
     return np.concatenate(fill) if fill else np.zeros(0)
 
 
+def _spectrum(parts: list[ChunkMeasurements]) -> tuple[np.ndarray, int] | None:
+    """The chunks' surveyed plain power summed per direction, and the half-sweeps of a
+    direction summed (None: no chunk surveyed)."""
+    got = [p for p in parts if p.spectrum is not None]
+    return (sum(p.spectrum for p in got), sum(p.spectrum_rows for p in got)) if got else None
+
+
 def assemble(plan: Plan, parts: list[ChunkMeasurements], processor: ChunkProcessor, seconds: float,
              choice: target.Choice | None = None) -> Track:
     """The track from the owned pairs of all chunks, in capture order: missing periods
@@ -75,7 +82,8 @@ def assemble(plan: Plan, parts: list[ChunkMeasurements], processor: ChunkProcess
                         Detections.interleave(res["echoes_rise"], res["echoes_fall"]),
                         plan.model.metres_per_bin,
                         np.inf if options.max_range is None else options.max_range,
-                        {k: np.concatenate([p.survey[k] for p in parts]) for k in SURVEY_KEYS})
+                        {k: np.concatenate([p.survey[k] for p in parts]) for k in SURVEY_KEYS},
+                        _spectrum(parts))
     lut = plan.lut
     attrs = {
         "points": options.points,

@@ -23,7 +23,7 @@ from .assemble import assemble
 from .backend import make_processor
 from .capture import Capture
 from .chunks import capture_parts, split_ranges
-from .engine import check_tuning, choose_target, process, with_choice
+from .engine import check_tuning, chosen, process, with_choice
 from .errors import FmcwError
 from .options import Options
 from .plan import make_plan
@@ -190,7 +190,8 @@ def _collect(client, jobs: dict, samples: dict, refused: list, backend: str, dev
             made = _Made(*got[0][1:])
             track = assemble(plan, parts, made, time.perf_counter() - started, choice)
             if choice is None:                    # the first pass: which echo is the target
-                choice = choose_target(plan, track)
+                with Capture(cap) as c:
+                    choice = chosen(c, plan, NumpyProcessor(), track)
                 if choice.band_m != plan.options.band_m:    # its band: the ranges again
                     submit_ranges(cap, out, plan.with_band(choice.band_m), cuts, choice)
                     continue

@@ -19,6 +19,12 @@ direction (`block_sums`), and each mean spectrum's peaks are listed (`mean_peaks
 the mean of K exponential noise bins is Gamma(K)/K, so its noise fluctuates sqrt(K)
 less and an echo a few dB over the noise is found in every block (fixed echoes,
 fmcw_cl.target).
+
+Both tests take a bin's noise from the louder of its two sides' training bins, so an
+echo a few resolution cells beside a louder one is not found: those training bins hold
+the louder echo. The surveyed half-sweeps' plain spectra summed over the whole capture
+(`Echoes.spectrum`) are searched for such echoes too (`masked_peaks`): a peak outside
+any louder echo's main lobe that stands over the quieter side's training bins.
 """
 
 from __future__ import annotations
@@ -48,6 +54,7 @@ MEAN_ROWS = 12        # surveyed half-sweeps of a direction a mean spectrum (12 
 # conversion imports no scipy; tests/test_echoes.py checks the table)
 MEAN_LIMITS = np.array([36.9873, 14.0629, 9.2355, 7.1597, 5.9977, 5.2500, 4.7258, 4.3361, 4.0340,
                         3.7922, 3.5937, 3.4276])
+LOBE_BINS = cfar.GUARD // 2   # the Hann main lobe's half-width in padded bins (2x padding)
 MEAN_KEYS = ("mean_time_s", "mean_rising", "peak_time_s", "peak_rising", "peak_distance_m", "peak_snr_db")
 
 
@@ -68,6 +75,9 @@ class Echoes:
     means : dict of arrays (MEAN_KEYS) of the surveyed half-sweeps' mean spectra: per
         mean spectrum its pairs' mean time (s) and direction, per peak (`mean_peaks`)
         its mean spectrum's time and direction, distance (m) and power over the noise (dB).
+    spectrum : (2, nfft/2) the surveyed half-sweeps' mean plain power spectrum over the
+        capture, rising then falling ((2, 0) without a survey); `spectrum_rows` the
+        half-sweeps of a direction in it, `metres_per_bin` its bins' distance (m).
     """
 
     time_s: np.ndarray
@@ -77,6 +87,19 @@ class Echoes:
     tracked: np.ndarray
     persistent: dict
     means: dict = field(default_factory=lambda: no_means())
+    spectrum: np.ndarray = field(default_factory=lambda: np.zeros((2, 0)))
+    spectrum_rows: int = 0
+    metres_per_bin: float = float("nan")
+
+    def masked(self, lo_m: float, hi_m: float) -> np.ndarray:
+        """The distances (m) of the echoes beside louder ones in either direction's
+        `spectrum` (`masked_peaks`) between lo_m and hi_m."""
+        if self.spectrum_rows == 0:
+            return np.zeros(0)
+        lo = max(0, int(np.ceil(lo_m / self.metres_per_bin)))
+        d = np.concatenate([masked_peaks(mean, self.spectrum_rows, lo)[0] for mean in self.spectrum])
+        d *= self.metres_per_bin
+        return d[d < hi_m]
 
     @property
     def rival(self) -> tuple[float, float, bool] | None:
@@ -105,10 +128,12 @@ def is_tracked(distance_m, tracked_m):
 
 def table(t_sweep: np.ndarray, rising: np.ndarray, tracked_m: np.ndarray, level_db: np.ndarray,
           det: Detections, metres_per_bin: float, max_range_m: float = np.inf,
-          survey: dict | None = None) -> Echoes:
+          survey: dict | None = None, spectrum: tuple[np.ndarray, int] | None = None) -> Echoes:
     """The detections of half-sweeps (times t_sweep, directions, tracked plain distances
     and de-chirped SNRs) as a flat table, with the persistent echoes (sharp, and diffuse
-    from the `survey` of `hidden`: time_s, ratio, distance_m, found)."""
+    from the `survey` of `hidden`: time_s, ratio, distance_m, found) and the surveyed
+    half-sweeps' plain power summed per direction over the capture, with the half-sweeps
+    of a direction summed (`spectrum`)."""
     rows, slots = ragged(np.zeros(det.count.size, np.int64), np.minimum(det.count, det.bin.shape[1]))
     dist = det.bin[rows, slots] * metres_per_bin
     tracked = is_tracked(dist, tracked_m[rows])
@@ -118,7 +143,9 @@ def table(t_sweep: np.ndarray, rising: np.ndarray, tracked_m: np.ndarray, level_
     pers = persistent(t_sweep, level_db, t_sweep[rows], dist, snr, tracked, survey)
     pers["in_band"] = pers["distance_m"] < max_range_m
     means = no_means() if survey is None else {k: np.asarray(survey[k]) for k in MEAN_KEYS}
-    return Echoes(t_sweep[rows], dist, snr.astype(np.float32), rising[rows], tracked, pers, means)
+    total, count = spectrum if spectrum is not None and spectrum[1] else (np.zeros((2, 0)), 0)
+    return Echoes(t_sweep[rows], dist, snr.astype(np.float32), rising[rows], tracked, pers, means,
+                  total / max(count, 1), count, metres_per_bin)
 
 
 def no_means() -> dict:
@@ -173,6 +200,52 @@ def mean_peaks(sums: np.ndarray, counts: np.ndarray, lo: int) -> tuple[np.ndarra
     peak = cfar.is_peak(mean, rows, cols + k0)
     rows, cols = rows[peak], cols[peak]
     return rows, interpolate(mean, rows, cols + k0), 10 * np.log10(ratio[rows, cols])
+
+
+def masked_peaks(mean: np.ndarray, rows: int, lo: int) -> tuple[np.ndarray, np.ndarray]:
+    """The echoes of a mean power spectrum that stand beside a louder one: (fractional
+    bin, power over the noise in dB) of each.
+
+    Parameters
+    ----------
+    mean : (nfft/2,) mean of `rows` power spectra.
+    lo : first bin of the search band.
+
+    `mean_peaks` wants an echo to be the largest of its +-cfar.GUARD bins and to stand
+    over the louder side's training bins: beside a louder echo neither holds (a target 10
+    padded bins, five resolution cells, beyond a wall and 5 dB under it, 25 dB over the
+    noise, has the wall's main lobe within its +-8 bins and the wall's power in its
+    training bins). Here a bin is such an echo where it is the largest of its +-LOBE_BINS
+    (outside the Hann main lobe of any louder echo: the lobes beyond it fall away
+    steadily), a louder echo of `mean_peaks` lies within cfar.GUARD + cfar.TRAIN of it
+    beyond those, it stands over the quieter side's training bins by `mean_peaks`'
+    factor for `rows` spectra (at most MEAN_ROWS), and it is no echo of `mean_peaks`.
+    """
+    half = mean.size
+    reach = cfar.GUARD + cfar.TRAIN
+    k = np.arange(lo + reach, half - reach)
+    if rows == 0 or k.size == 0:
+        return np.zeros(0), np.zeros(0)
+    c = np.concatenate([[0.0], np.cumsum(mean)])
+    left = (c[k - cfar.GUARD] - c[k - reach]) / cfar.TRAIN
+    right = (c[k + reach + 1] - c[k + cfar.GUARD + 1]) / cfar.TRAIN
+    p = mean[k]
+    near = np.ones(k.size, bool)                     # the largest of its +-LOBE_BINS
+    for d in range(1, LOBE_BINS + 1):
+        near &= (p > mean[k - d]) & (p >= mean[k + d])
+    limit = MEAN_LIMITS[min(rows, MEAN_ROWS) - 1]
+    rows0 = np.zeros(k.size, np.int64)
+    listed = cfar.is_peak(mean[None, :], rows0, k) & (p > limit * np.maximum(left, right))
+    # the louder echo: one `mean_peaks` lists, LOBE_BINS + 1 .. reach bins away (a slope's
+    # skirt, louder towards the band's start, is none)
+    echo = np.zeros(half)
+    echo[k[listed]] = p[listed]
+    most = np.lib.stride_tricks.sliding_window_view(echo, reach - LOBE_BINS).max(axis=1)
+    louder = np.maximum(most[k - reach], most[k + LOBE_BINS + 1]) > p
+    found = near & louder & (p > limit * np.minimum(left, right)) & ~listed
+    k = k[found]
+    over = 10 * np.log10(mean[k] / np.minimum(left, right)[found])
+    return interpolate(mean[None, :], rows0[: k.size], k), over
 
 
 def persistent(t_sweep: np.ndarray, level_db: np.ndarray, t: np.ndarray, dist: np.ndarray,

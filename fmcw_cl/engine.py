@@ -2,7 +2,8 @@
 
 `process` makes the capture's plan (`plan`), streams its chunks through a chunk
 processor (`chunks`, `processor`), assembles the track (`assemble`), chooses the target
-and, where the target is alone in a band of its own, converts once more in that band;
+(a lone fixed echo after a second look beside it: `second_look`) and, where the target
+is alone in a band of its own, converts once more in that band;
 last it checks that the laser's chirp still matches its table (`refine`) and, where it
 is far off, converts once more with a chirp calibrated on the capture's own rest
 (`rest_calibration`), or marks every pair uncalibrated.
@@ -24,6 +25,7 @@ from .options import Options
 from .plan import TABLE, Plan, make_plan
 from .processor import ChunkMeasurements, ChunkProcessor, NumpyProcessor
 from .refine import WIDTH_LIMIT, peak_width_ratio, refine_lag, stillest
+from .second_look import moving_beside
 from .stages import faults
 from .track import Track
 
@@ -53,7 +55,7 @@ def process(path, options: Options | None = None, processor: ChunkProcessor | No
             plan = make_plan(cap, options, processor=processor)
             parts = capture_parts(cap, plan, processor, progress=progress)
             track = assemble(plan, parts, processor, time.perf_counter() - started)
-            choice = choose_target(plan, track)
+            choice = chosen(cap, plan, processor, track)
             if choice.band_m != plan.options.band_m:          # the target alone in its band: again
                 plan = plan.with_band(choice.band_m)
                 parts = capture_parts(cap, plan, processor, progress=progress)
@@ -77,12 +79,22 @@ def with_choice(plan: Plan, parts: list[ChunkMeasurements], processor: ChunkProc
     return track
 
 
-def choose_target(plan: Plan, track: Track) -> target.Choice:
-    """The target of a first conversion (fmcw_cl.target.choose)."""
+def chosen(cap: Capture, plan: Plan, processor: ChunkProcessor, track: Track) -> target.Choice:
+    """The target of a first conversion `track` (choose_target), with a second look
+    (fmcw_cl.second_look, by `processor`) beside a lone fixed echo."""
+    choice = choose_target(plan, track)
+    if choice.lone:
+        choice = choose_target(plan, track, moving_beside(cap, plan, processor, float(choice.fixed_m[0])))
+    return choice
+
+
+def choose_target(plan: Plan, track: Track, beside: list | None = None) -> target.Choice:
+    """The target of a first conversion (fmcw_cl.target.choose), with the moving echoes
+    a second look found beside a lone fixed echo (`beside`, fmcw_cl.second_look)."""
     try:
         return target.choose(plan.options.target, plan.options.target_near, track.time_s, track.distance_m,
                              track.velocity_mps, track.valid, track.echoes, plan.lut.unambiguous_range_m,
-                             plan.options.band_m)
+                             plan.options.band_m, beside)
     except ValueError as exc:
         raise CaptureError(plan.info.path, str(exc)) from None
 

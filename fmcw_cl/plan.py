@@ -151,13 +151,16 @@ def shaped(lut: Lut, half_sweep_s: float) -> tuple[np.ndarray, pairing.DopplerMo
     return win, pairing.doppler_model(lut, half_sweep_s, spectrum.fft_length(lut.points), win)
 
 
+MIN_RANGE_SHARE = 0.9   # a band starts below this share of the unambiguous range
+
+
 def make_search(options: Options, lut: Lut, model: pairing.DopplerModel) -> Search:
     """The band [min_range, max_range) in padded bins (the tracked peak is its
     strongest); the plain pass lists every echo of the band. The band must lie inside
     the unambiguous range of this capture's bandwidth."""
     unamb = lut.unambiguous_range_m
     lo, top = options.band_m
-    if not lo < 0.9 * unamb:
+    if not lo < MIN_RANGE_SHARE * unamb:
         raise FmcwError(f"{said('min_range', lo)} m is not below the unambiguous range "
                         f"{unamb:.3f} m of {said('points', options.points)}")
     if top is not None and top > unamb:

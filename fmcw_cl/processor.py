@@ -50,6 +50,8 @@ class ChunkMeasurements:
     reason: np.ndarray
     survey: dict          # echoes.hidden of every SURVEY_STRIDE-th pair's half-sweeps
     clipped_codes: int = 0  # beat codes at full scale in the chunk's core (to a block at its edges)
+    spectrum: np.ndarray | None = None   # (2, nfft/2) the surveyed half-sweeps' plain power, summed
+    spectrum_rows: int = 0               # per direction (rising, falling), over this many of each
 
 
 def clipping(chunk: Chunk, info) -> tuple:
@@ -268,8 +270,10 @@ class ChunkProcessor(pairing.SpectrumOps):
         reason = faults.reasons(sel.valid, sel.heard, chunk.clip, alias, sel.continuous)
         sel.valid[:] = reason == faults.OK
         table = no_survey() if surveyed is None else survey.table(surveyed, chunk.times, plan.model)
+        spectrum = (None, 0) if surveyed is None else survey.spectrum(surveyed)
         t_r, t_f = chunk.times
-        return ChunkMeasurements(t_r[chunk.own], t_f[chunk.own], sel, reason, table, chunk.clipped_codes)
+        return ChunkMeasurements(t_r[chunk.own], t_f[chunk.own], sel, reason, table, chunk.clipped_codes,
+                                 *spectrum)
 
     def resample_pairs(self, codes, jobs, win, times: pairing.Times, before: Pending | None = None
                        ) -> tuple[list, pairing.Times, Later | None]:
@@ -379,6 +383,11 @@ class Survey:
                 "distance_m": np.concatenate([g[1] * model.metres_per_bin for g in got]),
                 "found": np.concatenate([g[2] for g in got]),
                 **dict(zip(echoes.MEAN_KEYS, map(np.concatenate, zip(*means, strict=True)), strict=True))}
+
+    def spectrum(self, got: list) -> tuple[np.ndarray, int]:
+        """The surveyed half-sweeps' plain power spectra summed per direction (rising,
+        falling), from survey_each's results `got`, and how many of a direction."""
+        return np.stack([g[3].sum(axis=0, dtype=np.float64) for g in got]), int(self.idx.size)
 
 
 def no_survey() -> dict:

@@ -31,7 +31,10 @@ The rule (`--target`):
   several moving echoes, the rule cannot tell which is the target: every pair on one of
   them is ``ambiguous``. With one echo, it is the target, unless OTHERS_SHARE of the
   half-sweeps hold other echoes in the band (something neither fixed nor found
-  moving): then the pairs on it are ``ambiguous``.
+  moving), or the capture's mean spectra hold an echo within APART_M of it that its
+  power hides from the CFAR (`echoes.masked_peaks`): then the pairs on it are
+  ``ambiguous``. Before that, the moving echoes a second look beside it finds
+  (fmcw_cl.second_look; `Choice.lone` asks for one) join the choice.
 - ``moving``: as auto, and a capture without a moving echo is refused.
 - ``nearest``: the nearest fixed echo or moving span, left alone in its gap (the other
   echoes' nearer ends bound it).
@@ -87,6 +90,7 @@ class Choice:
     ambiguous_m : fixed echoes inside the band that the target cannot be told from.
     ambiguous_spans_m : (k, 2) moving echoes' spans (m) the rule cannot tell apart.
     note : what was chosen and why, one line.
+    lone : one fixed echo was taken for the target before a second look beside it.
     """
 
     rule: str
@@ -98,6 +102,7 @@ class Choice:
     ambiguous_m: np.ndarray = field(default_factory=lambda: np.zeros(0))
     note: str = ""
     ambiguous_spans_m: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    lone: bool = False      # one fixed echo taken for the target, before a second look beside it
 
     @property
     def undecided(self) -> bool:
@@ -193,9 +198,18 @@ def _fixed(rising: np.ndarray, d: np.ndarray, level: np.ndarray, groups: int) ->
     return out
 
 
-def moving_spans(time_s, distance_m, velocity_mps, valid, e: echoes.Echoes,
-                 band) -> list[tuple[float, float]]:
-    """(lo, hi) of each moving echo's distances (m) inside `band`, nearest first.
+def smeared(e: echoes.Echoes, band) -> np.ndarray:
+    """The distances (m) of the echoes found by their Doppler-smeared energy (the echo
+    table's diffuse persistent echoes) inside `band`."""
+    p = e.persistent
+    d = p["distance_m"]
+    return d[p["diffuse"] & (d >= band[0]) & (d < (band[1] or np.inf))]
+
+
+def moving_spans(time_s, distance_m, velocity_mps, valid, diffuse: np.ndarray) -> list[tuple[float, float]]:
+    """(lo, hi) of each moving echo's distances (m), nearest first, from the verified
+    pairs and the distances of the echoes found by their Doppler-smeared energy
+    (`diffuse`, m: `smeared`).
 
     The fast verified pairs part where APART_M of range holds none; neighbouring parts
     are one echo unless both were measured within TOGETHER_S (one target cannot be in
@@ -214,13 +228,10 @@ def moving_spans(time_s, distance_m, velocity_mps, valid, e: echoes.Echoes,
             parts.append((t[g], d[g]))
     # pairs must travel (a biased velocity is no motion)
     parts = [(pt, pd) for pt, pd in parts if pd.size >= 3 and np.ptp(pd) >= MIN_TRAVEL_M]
-    p = e.persistent
-    diffuse = p["diffuse"] & (p["distance_m"] >= band[0]) & (p["distance_m"] < (band[1] or np.inf))
-    smeared = p["distance_m"][diffuse]
     if not parts:                               # a slice's smeared energy is evidence alone
-        parts = [(np.zeros(0), smeared)] if smeared.size else []
+        parts = [(np.zeros(0), diffuse)] if diffuse.size else []
     else:
-        for x in smeared:
+        for x in diffuse:
             k = int(np.argmin([min(abs(x - pd.min()), abs(x - pd.max())) for _, pd in parts]))
             parts[k] = (parts[k][0], np.append(parts[k][1], x))
     return sorted((float(np.percentile(pd, 1)), float(np.percentile(pd, 99))) for _, pd in parts)
@@ -280,18 +291,23 @@ def _margin(gap: float) -> float:
 
 
 def choose(rule: str, near_m: float | None, time_s, distance_m, velocity_mps, valid,
-           e: echoes.Echoes, unambiguous_m: float, band: tuple[float, float | None]) -> Choice:
+           e: echoes.Echoes, unambiguous_m: float, band: tuple[float, float | None],
+           beside: list[tuple[float, float]] | None = None) -> Choice:
     """The target of a first conversion's pairs (valid, distances, velocities) and echo
     table `e` (see the module); `unambiguous_m` is the capture's unambiguous range,
-    `band` the user's (lo, hi) in m."""
+    `band` the user's (lo, hi) in m. A lone fixed echo (`auto`, `moving`) comes back
+    with `lone` set until `beside`, the moving echoes found beside it by a second look
+    (fmcw_cl.second_look), is given."""
     fixed, _ = fixed_echoes(e, unambiguous_m)
     inband = (fixed >= band[0]) & (fixed < (band[1] or np.inf))
     fixed = fixed[inband]
     objects = _objects(fixed, time_s, distance_m, valid, e)
-    spans = moving_spans(time_s, distance_m, velocity_mps, valid, e, band)
+    spans = sorted(moving_spans(time_s, distance_m, velocity_mps, valid, smeared(e, band)) + (beside or []))
     name = rule if near_m is None else f"near {near_m:g} m"
     if rule == "strongest" and near_m is None:
         return Choice(name, fixed, objects, None, False, band, note="the strongest echo of the band")
+    if rule == "moving" and not spans and near_m is None and beside is None and fixed.size == 1:
+        return Choice(name, fixed, objects, None, False, band, note="one echo: the target", lone=True)
     if rule == "moving" and not spans and near_m is None:
         raise ValueError(f"no moving echo found ({said('target', 'moving')}): choose another "
                          f"{said('target')}")
@@ -314,7 +330,14 @@ def choose(rule: str, near_m: float | None, time_s, distance_m, velocity_mps, va
             return Choice(name, fixed, objects, None, False, band, fixed.copy(),
                           note=f"no echo moves, but {100 * seen:.0f} % of the half-sweeps hold other echoes "
                                f"than the fixed echo at {_list(fixed)}: the target cannot be told apart")
-        return Choice(name, fixed, objects, None, False, band, note="one echo: the target")
+        hidden = _beside(e, fixed[0], band) if fixed.size else []
+        if hidden:                                    # an echo the CFAR cannot see beside the fixed one
+            return Choice(name, fixed, objects, None, False, band, fixed.copy(),
+                          note=f"no echo moves, but the capture's mean spectra hold another echo at "
+                               f"{_list(hidden)} beside the fixed echo at {_list(fixed)}: the target "
+                               "cannot be told apart")
+        return Choice(name, fixed, objects, None, False, band, note="one echo: the target",
+                      lone=beside is None and fixed.size == 1)
     else:                     # still echoes only: the rule cannot tell which is the target
         return Choice(name, fixed, objects, None, False, band, fixed.copy(),
                       note=f"no echo moves: the fixed echoes at {_list(fixed)} cannot be told apart")
@@ -341,6 +364,17 @@ def _others(e: echoes.Echoes, fixed_m: float, band) -> float:
     inside = ((e.distance_m >= band[0]) & (e.distance_m < (band[1] or np.inf)) & ~e.tracked
               & (np.abs(e.distance_m - fixed_m) >= APART_M))
     return np.unique(e.time_s[inside]).size / sweeps if sweeps else 0.0
+
+
+def _beside(e: echoes.Echoes, fixed_m: float, band) -> list[float]:
+    """The distances (m) of the echoes within APART_M of the fixed echo at `fixed_m` that
+    its power hides from the CFAR, in either direction's mean spectrum over the capture
+    (echoes.masked_peaks), inside `band`: a second object at rest a few resolution cells
+    away, or a moving target's Doppler-shifted peak in one direction; the two directions'
+    within GATE_M as one, at their mean."""
+    d = e.masked(band[0], band[1] or np.inf)
+    d = np.sort(d[np.abs(d - fixed_m) < APART_M])
+    return [float(np.mean(g)) for g in np.split(d, np.flatnonzero(np.diff(d) > GATE_M) + 1) if g.size]
 
 
 def _list(xs) -> str:

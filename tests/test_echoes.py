@@ -135,3 +135,37 @@ def test_block_sums_and_their_rows():
     np.testing.assert_array_equal(echoes.block_sums(x, 2), [x[0] + x[1], x[2] + x[3], x[4]])
     np.testing.assert_array_equal(echoes.block_rows(5, 2), [2, 2, 1])
     assert echoes.block_sums(np.zeros((0, 3)), 2).shape == (0, 3) and echoes.block_rows(0, 2).size == 0
+
+
+def hann_tone(half: int, at: float, points: int = 1000) -> np.ndarray:
+    """The power spectrum (nfft = 2 half bins) of a Hann-windowed tone at padded bin `at`,
+    peak 1: the shape of an echo in the plain spectra."""
+    j = np.arange(points)
+    win = 0.5 - 0.5 * np.cos(2 * np.pi * (j + 0.5) / points)
+    p = np.abs(np.fft.rfft(win * np.cos(2 * np.pi * at * j / (2 * half)), 2 * half)[:half]) ** 2
+    return p / p.max()
+
+
+def test_masked_peaks_find_an_echo_beside_a_louder_one_and_no_false_one():
+    """A capture's mean spectrum (600 half-sweeps) of a wall 30 dB over the noise and a
+    target 10 padded bins beyond it, 5 dB under: `mean_peaks` finds the wall alone (the
+    target is under the wall's main lobe within its +-8 bins and under its power in the
+    training bins), `masked_peaks` the target. Neither the wall's own lobes, alone or 50
+    dB over the noise, nor pure noise (4000 spectra of 12 rows), nor a slope's skirt
+    give one."""
+    rng = np.random.default_rng(11)
+    half, lo, rows = 1024, 40, 600
+    noise = rng.gamma(rows, 1.0 / rows, (3, half))                  # means of 600 exponential bins
+    wall, target = 1e3 * hann_tone(half, 389.0), 1e3 * 10 ** -0.5 * hann_tone(half, 399.3)
+    both = noise[0] + wall + target
+    _, b, _ = echoes.mean_peaks(both[None, :], np.array([rows]), lo)
+    assert np.allclose(b, [389.0], atol=0.5)
+    at, over = echoes.masked_peaks(both, rows, lo)
+    assert np.allclose(at, [399.3], atol=0.5) and 20 < over[0] < 26
+    for alone in (noise[1] + wall, noise[2] + 100 * wall):
+        assert echoes.masked_peaks(alone, rows, lo)[0].size == 0
+    k = 12
+    spectra = rng.exponential(1.0, (4000, k, half)).mean(axis=1)
+    assert sum(echoes.masked_peaks(m, k, lo)[0].size for m in spectra) == 0
+    slope = spectra[:40] * (1 + 30 * np.exp(-(np.arange(half) - lo) / 15.0))
+    assert sum(echoes.masked_peaks(m, k, lo)[0].size for m in slope) == 0

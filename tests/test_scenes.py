@@ -194,6 +194,25 @@ def test_a_target_at_rest_behind_a_far_stronger_wall_is_never_the_wall(tmp_path,
     assert np.all(np.abs(got.distance_m[got.valid] - 0.40) < 0.5e-3)
 
 
+@pytest.mark.parametrize("seed, noise", [(1, None), (2, 3000.0)])
+def test_a_target_at_rest_five_cells_beside_a_stronger_wall_is_never_the_wall(tmp_path, seed, noise):
+    """A lab's target at rest 4.7 mm (five resolution cells) beyond a wall of 1500 codes,
+    5 dB under it: the wall's main lobe and power hide it from the CFAR and the mean
+    spectra's test, and "one echo: the target" put every pair on the wall, 4.7 mm off.
+    The capture's mean spectra show it (echoes.masked_peaks): the wall is ambiguous."""
+    from fmcw_cl.simulator import LAB
+
+    path = tmp_path / "beside.h5"
+    lab = LAB if noise is None else replace(LAB, noise_codes=noise, headroom=None)
+    simulate_capture(path, static(0.05, 0.1827), 0.05, seed=seed,
+                     config=replace(lab, reflectors=((0.178, 1500.0),)))
+    track = process(path)
+    with Capture(path) as cap:
+        assert wrong(track, cap.truth()) == 0
+    assert (track.reason == faults.AMBIGUOUS).mean() > 0.9
+    assert "another echo at 0.183 m beside the fixed echo at 0.178 m" in track.attrs["target_choice"]
+
+
 @pytest.mark.parametrize("seed", [1, 2])
 def test_a_take_off_through_a_far_stronger_wall_has_no_wrong_pair(tmp_path, seed):
     """The jump's take-off (0.09 -> 0.28 m at up to 7 m/s) through a wall at 0.20 m
@@ -226,6 +245,32 @@ def test_one_fixed_echo_among_many_others_is_not_one_echo(tmp_path):
     with Capture(path) as cap:
         assert wrong(track, cap.truth()) == 0
     assert "hold other echoes than the fixed echo at 0.259 m" in track.attrs["target_choice"]
+
+
+def test_a_take_off_too_weak_to_be_tracked_beside_a_wall_is_seen_by_a_second_look(tmp_path):
+    """The jump's take-off beside a wall at 0.277 m of 1500 codes under noise at full
+    scale: smeared by its Doppler term, the target is weaker than the wall in its plain
+    spectra, the tracker follows the wall, and "one echo: the target" put 931 valid pairs
+    on it, up to 193 mm off. Converted beside the wall, the trial stretches show the
+    moving echo: the wall is left out and the target tracked."""
+    from fmcw_cl.simulator import LAB, jump
+
+    path = tmp_path / "unseen.h5"
+    simulate_capture(path, jump(0.3), 0.05, seed=313, start_s=0.06,
+                     config=replace(LAB, noise_codes=3000.0, headroom=None, reflectors=((0.277, 1500.0),)))
+    track = process(path)
+    with Capture(path) as cap:
+        assert wrong(track, cap.truth()) == 0
+    assert track.attrs["target_moving"] and "fixed echoes at 0.277 m left out" in track.attrs["target_choice"]
+    assert track.valid.mean() > 0.2
+
+
+def test_the_second_look_converts_the_band_on_each_side_of_the_echo():
+    from fmcw_cl.second_look import sides
+
+    assert np.allclose(sides(0.30, (0.03, 0.45), 0.468), [(0.03, 0.27), (0.33, 0.45)])
+    assert sides(0.05, (0.03, None), 0.468) == [(0.08, None)]                # below: too narrow
+    assert sides(0.40, (0.03, None), 0.468) == [(0.03, 0.37)]                # above: starts too far
 
 
 def test_harmonics_of_a_far_stronger_echo_are_no_objects():
