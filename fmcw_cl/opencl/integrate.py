@@ -6,7 +6,7 @@ import numpy as np
 
 from ..stages.integrate import window
 from ..stages.spectrum import GUARD_BINS, Search
-from .buffers import Buffers, DeviceRows
+from .buffers import Buffers, DeviceRows, Packed
 from .context import Runtime, cl
 
 
@@ -21,13 +21,12 @@ def peaks(rt: Runtime, bufs: Buffers, store: DeviceRows, disp: np.ndarray, k: in
     before, after = window(k)
     # relative to the first row: float32 keeps 1e-4 bin over a chunk's displacement
     d_disp = bufs.upload("disp", np.asarray(disp - disp[0], np.float32))
-    d_bin, d_snr, d_count = (bufs.get(name, 4 * rows) for name in ("int_bin", "int_snr", "int_count"))
+    out = Packed(bufs, "integrated", [(np.float32, rows), (np.float32, rows), (np.int32, rows)])
+    d_bin, d_snr, d_count = out.buffers
     lsz = rt.group_size(16, 256)
     rt.kernel("integrate", "integrate_peak")(
         rt.queue, (rows * lsz,), (lsz,), store.buffer, np.int32(rows), np.int32(half), d_disp,
         np.int32(before), np.int32(after), np.int32(search.lo), np.int32(search.hi), np.int32(GUARD_BINS),
         d_bin, d_snr, d_count, cl.LocalMemory(4 * half), cl.LocalMemory(12 * lsz))
-    got = np.empty(rows, np.float32), np.empty(rows, np.float32), np.empty(rows, np.int32)
-    for host, dev in zip(got, (d_bin, d_snr, d_count), strict=True):
-        rt.copy(host, dev)
-    return got[0].astype(np.float64), got[1], got[2]
+    b, snr, count = out.download()                  # one copy of the three
+    return b.astype(np.float64), snr.copy(), count.copy()
