@@ -171,3 +171,13 @@ def test_moving_leg_at_minus_16_db(tmp_path):
         assert acc["distance_p95_m"] <= 0.25e-3, opts
         assert acc["velocity_p95_mps"] <= 0.03, opts
     assert track.attrs["integrated_sweeps_max"] >= 2
+
+
+def test_the_threshold_table_is_scipys():
+    from scipy.special import gammainccinv
+
+    n = np.arange(1, integrate.MAX_K + 1, dtype=np.float64)
+    want = 10 * np.log10(gammainccinv(n, integrate.false_alarm(integrate.TABLE_SNR_DB)) / n)
+    np.testing.assert_array_equal(integrate.THRESHOLDS_DB, want)
+    np.testing.assert_array_equal(integrate.threshold_db(np.array([1, 4, 32]), 10.0), want[[0, 3, 31]])
+    assert integrate.threshold_db(4, 8.0) < want[3]                     # off the table: computed

@@ -43,12 +43,27 @@ def false_alarm(snr_min_db: float) -> float:
     return float(np.exp(-(10 ** (snr_min_db / 10))))
 
 
+# threshold_db of 1 .. MAX_K spectra at the tracker's 10 dB (pairing.SNR_MIN_DB), to the
+# last bit of scipy's: a conversion imports no scipy (tests/test_integrate.py checks it)
+TABLE_SNR_DB = 10.0
+THRESHOLDS_DB = np.array([
+    10.0, 7.997150061955899, 6.941756164111155, 6.2497191720464045, 5.74636655437454,
+    5.356977529652508, 5.043098103578009, 4.782505946921427, 4.5612850886379706, 4.370189607672586,
+    4.202789907269483, 4.054449845218025, 3.9217262543304567, 3.8019983901303993, 3.6932296642084097,
+    3.5938090566854326, 3.5024424117559363, 3.4180760111586106, 3.3398416393275676, 3.267016320479192,
+    3.1989922951669483, 3.1352542843163493, 3.0753620315617147, 3.0189367294985763, 2.965650344981126,
+    2.9152171366662802, 2.867386850148548, 2.821939210927596, 2.7786794315492873, 2.737434518645273,
+    2.698050216315639, 2.6603884598028675])
+
+
 def threshold_db(count: np.ndarray | int, snr_min_db: float) -> np.ndarray:
     """SNR threshold (dB) of a peak integrated over `count` spectra with the false-alarm
     probability per bin that snr_min_db has for one spectrum."""
+    n = np.asarray(count, np.float64)
+    if snr_min_db == TABLE_SNR_DB and np.all((n >= 1) & (n <= MAX_K) & (n == np.round(n))):
+        return THRESHOLDS_DB[n.astype(np.int64) - 1]
     from scipy.special import gammainccinv  # imported where used: the command line starts fast
 
-    n = np.asarray(count, np.float64)
     return 10 * np.log10(gammainccinv(n, false_alarm(snr_min_db)) / n)
 
 
