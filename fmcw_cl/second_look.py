@@ -29,9 +29,9 @@ from .stages import faults
 
 MIN_SIDE_M = 0.02     # a side band narrower than this is not converted
 LOOK_K = 8            # half-sweeps of a direction integrated (stages.integrate) unless the user
-                      # set K: single ones missed 3 of 6 lab take-offs under noise at full
-                      # scale, 8 none; the automatic choice probes 16 and up to 32 on an empty
-                      # band's noise (a 50 ms static target: 350 ms more, 8: 25-50 ms)
+                      # set K: single ones missed 3 of 6 lab take-offs and landings under noise
+                      # at full scale, 8 none; the automatic choice probes 16 and up to 32 on an
+                      # empty band's noise (a 50 ms static target on PoCL: 350 ms more; 8: 80)
 
 
 def sides(fixed_m: float, band: tuple[float, float | None], unambiguous_m: float) -> list[tuple]:
