@@ -67,7 +67,7 @@ def backend():
 
 @pytest.mark.parametrize("rows,nfft,k", [(1, 2048, 4), (77, 2048, 5), (33, 4096, 16), (9, 128, 2),
                                          (40, 64, 32)])
-def test_integrate_kernel_matches_numpy(backend, rows, nfft, k):
+def test_integrate_kernel_matches_numpy(backend, kernel_variant, rows, nfft, k):
     """Random spectra, displacements of many bins (beyond the spectrum's ends too),
     odd and even windows, windows longer than the rows."""
     from fmcw_cl.opencl import integrate as k_integrate

@@ -1,4 +1,5 @@
-"""Launcher of kernels/integrate.cl (twin: fmcw_cl.stages.integrate.peaks)."""
+"""Launcher of kernels/integrate.cl, or of integrate_lanes.cl on CPU devices (twin:
+fmcw_cl.stages.integrate.peaks)."""
 
 from __future__ import annotations
 
@@ -23,10 +24,14 @@ def peaks(rt: Runtime, bufs: Buffers, store: DeviceRows, disp: np.ndarray, k: in
     d_disp = bufs.upload("disp", np.asarray(disp - disp[0], np.float32))
     out = Packed(bufs, "integrated", [(np.float32, rows), (np.float32, rows), (np.int32, rows)])
     d_bin, d_snr, d_count = out.buffers
-    lsz = rt.group_size(16, 256)
-    rt.kernel("integrate", "integrate_peak")(
-        rt.queue, (rows * lsz,), (lsz,), store.buffer, np.int32(rows), np.int32(half), d_disp,
-        np.int32(before), np.int32(after), np.int32(search.lo), np.int32(search.hi), np.int32(GUARD_BINS),
-        d_bin, d_snr, d_count, cl.LocalMemory(4 * half), cl.LocalMemory(12 * lsz))
+    args = (store.buffer, np.int32(rows), np.int32(half), d_disp, np.int32(before), np.int32(after),
+            np.int32(search.lo), np.int32(search.hi), np.int32(GUARD_BINS), d_bin, d_snr, d_count,
+            cl.LocalMemory(4 * half))
+    if rt.lanes and half % 8 == 0:      # CPUs: a row an item, eight bins a float8
+        rt.kernel("integrate", "integrate_lanes")(rt.queue, (rows,), (1,), *args, cl.LocalMemory(12))
+    else:
+        lsz = rt.group_size(16, 256)
+        rt.kernel("integrate", "integrate_peak")(rt.queue, (rows * lsz,), (lsz,), *args,
+                                                  cl.LocalMemory(12 * lsz))
     b, snr, count = out.download()                  # one copy of the three
     return b.astype(np.float64), snr.copy(), count.copy()
