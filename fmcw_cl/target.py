@@ -325,7 +325,7 @@ def choose(rule: str, near_m: float | None, time_s, distance_m, velocity_mps, va
     elif spans:
         target = (spans[0], True)
     elif fixed.size <= 1:
-        seen = _others(e, fixed[0], band) if fixed.size else 0.0
+        seen = _others(e, fixed[0], band, 2 * np.size(time_s)) if fixed.size else 0.0
         if seen >= OTHERS_SHARE:                      # an echo that is neither fixed nor found moving
             return Choice(name, fixed, objects, None, False, band, fixed.copy(),
                           note=f"no echo moves, but {100 * seen:.0f} % of the half-sweeps hold other echoes "
@@ -357,10 +357,12 @@ def choose(rule: str, near_m: float | None, time_s, distance_m, velocity_mps, va
     return Choice(name, fixed, objects, (lo, hi), moving, new, within, note)
 
 
-def _others(e: echoes.Echoes, fixed_m: float, band) -> float:
-    """The share of the half-sweeps whose CFAR echoes include one inside `band` that is
-    not the tracked peak and lies APART_M or more from the fixed echo at `fixed_m`."""
-    sweeps = np.unique(e.time_s).size
+def _others(e: echoes.Echoes, fixed_m: float, band, sweeps: int) -> float:
+    """The share of the capture's `sweeps` half-sweeps whose CFAR echoes include one
+    inside `band` that is not the tracked peak and lies APART_M or more from the fixed
+    echo at `fixed_m`. Of all half-sweeps, not of those with an echo: a weak target's
+    single half-sweeps rarely hold one (at -20 dB per sample 10 of 796, one of them a
+    false alarm)."""
     inside = ((e.distance_m >= band[0]) & (e.distance_m < (band[1] or np.inf)) & ~e.tracked
               & (np.abs(e.distance_m - fixed_m) >= APART_M))
     return np.unique(e.time_s[inside]).size / sweeps if sweeps else 0.0
