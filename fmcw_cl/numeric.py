@@ -119,6 +119,26 @@ def line_slope(t: np.ndarray, r: np.ndarray) -> tuple[float, float]:
     return slope, float(np.sqrt(np.dot(resid, resid) / max(1, t.size - 2) / np.dot(tc, tc)))
 
 
+def drift(t: np.ndarray, d: np.ndarray, v: np.ndarray, blocks: int = 0) -> tuple[float, float]:
+    """Least-squares slope (m/s) of the distances d (m) less the distance travelled at
+    the velocities v (m/s) over one run of times t (s), and its standard error: the slope
+    is zero for consistent kinematics, whatever the motion. The error is the white
+    residuals'; with `blocks` > 1, the larger of it and a jackknife's that leaves each of
+    that many blocks of the run out in turn (for distances correlated over pairs)."""
+    r = d - travelled(t, v)
+    slope, se = line_slope(t, r)
+    if blocks < 2:
+        return slope, se
+    keep = np.ones(t.size, bool)
+    loo = []
+    for block in np.array_split(np.arange(t.size), blocks):
+        keep[block] = False
+        loo.append(line_slope(t[keep], r[keep])[0])
+        keep[block] = True
+    jack = float(np.sqrt((blocks - 1) / blocks * np.sum(np.square(np.subtract(loo, np.mean(loo))))))
+    return slope, max(se, jack)
+
+
 def nearest(sorted_a: np.ndarray, x: np.ndarray) -> np.ndarray:
     """Index of the element of `sorted_a` (ascending, not empty) nearest to each of
     `x`; on a tie the lower one."""

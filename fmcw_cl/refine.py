@@ -27,9 +27,9 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from . import numeric
 from .capture import Capture
 from .chunks import HELD_SLOT, held_chunks
-from .numeric import line_slope, travelled
 from .stages import resample, sync
 
 STRETCHES = 3
@@ -60,23 +60,12 @@ class Mismatch:
 
 
 def drift(t: np.ndarray, d: np.ndarray, v: np.ndarray) -> tuple[float, float]:
-    """Least-squares slope (m/s) of d - integral of v over one run, and its standard
-    error: zero for consistent kinematics, whatever the motion. The error is the
-    larger of the white residuals' and a jackknife's over JACKKNIFE_BLOCKS blocks of
-    the run: the tracker's distances are correlated over several pairs (under noise at
-    full scale their variogram grows from 40 um at one pair to a plateau of 90 um at
-    5-10), which the white residuals' error misses by a factor of two or so."""
-    r = d - travelled(t, v)
-    slope, se = line_slope(t, r)
-    keep = np.ones(t.size, bool)
-    loo = []
-    for block in np.array_split(np.arange(t.size), JACKKNIFE_BLOCKS):
-        keep[block] = False
-        loo.append(line_slope(t[keep], r[keep])[0])
-        keep[block] = True
-    g = len(loo)
-    jack = float(np.sqrt((g - 1) / g * np.sum(np.square(np.subtract(loo, np.mean(loo))))))
-    return slope, max(se, jack)
+    """numeric.drift of one run, its error the larger of the white residuals' and a
+    jackknife's over JACKKNIFE_BLOCKS blocks: the tracker's distances are correlated
+    over several pairs (under noise at full scale their variogram grows from 40 um at
+    one pair to a plateau of 90 um at 5-10), which the white residuals' error misses by
+    a factor of two or so."""
+    return numeric.drift(t, d, v, JACKKNIFE_BLOCKS)
 
 
 def stretches(cap: Capture, plan, processor) -> list[list[tuple]]:

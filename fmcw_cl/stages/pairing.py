@@ -373,8 +373,7 @@ def _drifting(t, dist, vel, ok) -> bool:
     for r in _runs(t, dist, vel, ok):
         if r.size < 3 or t[r[-1]] - t[r[0]] < DRIFT_S:
             continue
-        left = dist[r] - numeric.travelled(t[r], vel[r])
-        if abs(numeric.line_slope(t[r], left)[0]) > DRIFT_MPS:
+        if abs(numeric.drift(t[r], dist[r], vel[r])[0]) > DRIFT_MPS:
             ok[r] = False
             dropped = True
     return dropped
