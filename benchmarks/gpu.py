@@ -40,13 +40,14 @@ from fmcw_cl.options import Options
 from fmcw_cl.simulator import rail, simulate_capture
 
 
-def captures(seconds: float, count: int, tmp: Path) -> list[Path]:
+def captures(seconds: float, count: int, folder: Path) -> list[Path]:
     """`count` captures of the guide rail of `seconds` (seeds 100 on), and two more for
-    warming up, last."""
+    warming up, last; those already in `folder` (`--captures`) are not written again."""
     paths = []
     for k in range(count + 2):
-        path = tmp / f"rail{k}.h5"
-        simulate_capture(path, rail(seconds + 0.1), seconds, seed=100 + k, start_s=0.1)
+        path = folder / f"rail{k}_{seconds:g}s.h5"
+        if not path.exists():
+            simulate_capture(path, rail(seconds + 0.1), seconds, seed=100 + k, start_s=0.1)
         paths.append(path)
     return paths
 
@@ -129,6 +130,8 @@ def main() -> None:
     ap.add_argument("--processes", type=int, nargs="*", default=[],
                     help="also the batch on local:N Dask clusters of these N (needs Dask)")
     ap.add_argument("--json", type=Path)
+    ap.add_argument("--captures", type=Path, help="folder where the batch's captures are kept and found "
+                    "(default: a removed temp dir)")
     args = ap.parse_args()
     rows = []
     if not args.batch_only:
@@ -142,7 +145,7 @@ def main() -> None:
         print(f"| {r['backend']} | {r['stage']} | {r['seconds']:.4f} | {r['real_time_multiple']:.2f} | "
               f"{f'{share:.0%}' if share == share else ''} | {host} |")
     with tempfile.TemporaryDirectory() as tmp:
-        paths = captures(args.seconds, args.batch, Path(tmp))
+        paths = captures(args.seconds, args.batch, args.captures or Path(tmp))
         got = batch(args.device, args.seconds, paths)
         for b in got:
             host = f", host CPU {b['host_cpu_ms_per_s']:.0f} ms per s" if b["workers"] == 1 else ""

@@ -204,6 +204,9 @@ def test_gpu_benchmark_batch_runs_anywhere(tmp_path):
     gpu = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(gpu)
     paths = gpu.captures(0.01, 2, tmp_path)
+    written = [p.stat().st_mtime_ns for p in paths]
+    assert gpu.captures(0.01, 2, tmp_path) == paths                   # kept, found again
+    assert [p.stat().st_mtime_ns for p in paths] == written
     one, two = gpu.batch(None, 0.01, paths)
     assert (one["workers"], two["workers"]) == (1, 2) and one["default"] != two["default"]
     for got in (one, two):
@@ -212,9 +215,10 @@ def test_gpu_benchmark_batch_runs_anywhere(tmp_path):
         assert got["process_cpu_cores"] > 0 and "Oclgrind" not in got["device"]
     assert one["host_cpu_ms_per_s"] > 0
     singles = gpu.alone(None, 0.01, paths)
-    assert [r["capture"] for r in singles] == ["rail0.h5", "rail1.h5"]
+    assert [r["capture"] for r in singles] == ["rail0_0.01s.h5", "rail1_0.01s.h5"]
     assert all(r["real_time_multiple"] == pytest.approx(0.01 / r["wall_s"]) for r in singles)
     spread = gpu.processes(None, 0.01, paths, 2, tmp_path)
     assert spread["processes"] == 2 and spread["captures"] == 2
     assert spread["real_time_multiple"] == pytest.approx(0.02 / spread["wall_s"])
-    assert sorted(p.name for p in (tmp_path / "tracks2").iterdir()) == ["rail0.track.h5", "rail1.track.h5"]
+    tracks = sorted(p.name for p in (tmp_path / "tracks2").iterdir())
+    assert tracks == ["rail0_0.01s.track.h5", "rail1_0.01s.track.h5"]
