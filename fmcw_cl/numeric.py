@@ -90,7 +90,8 @@ def savgol_derivative(x: np.ndarray, window: int, order: int, delta: float) -> n
     # least-squares solution that holds the linear coefficient (powers of t - half)
     weights = np.linalg.pinv(np.vander(t - half, order + 1, increasing=True))[1] / delta
     out = np.empty_like(x)
-    out[half: x.size - half] = np.lib.stride_tricks.sliding_window_view(x, window) @ weights
+    # a sum of products, not a matrix product: BLAS threads (line_slope)
+    out[half: x.size - half] = np.sum(np.lib.stride_tricks.sliding_window_view(x, window) * weights, axis=1)
     for edge, at in ((slice(0, window), slice(0, half)),
                      (slice(x.size - window, x.size), slice(x.size - half, x.size))):
         slope = np.polyder(np.polyfit(t, x[edge], order))
@@ -113,10 +114,13 @@ def travelled(t: np.ndarray, v: np.ndarray) -> np.ndarray:
 
 def line_slope(t: np.ndarray, r: np.ndarray) -> tuple[float, float]:
     """Least-squares slope of r over t and its standard error for white residuals."""
-    tc = t - t.mean()
-    slope = float(np.dot(tc, r - r.mean()) / np.dot(tc, tc))
-    resid = r - r.mean() - slope * tc
-    return slope, float(np.sqrt(np.dot(resid, resid) / max(1, t.size - 2) / np.dot(tc, tc)))
+    # sums of products, not np.dot: OpenBLAS spreads a dot product of more than some 10 000
+    # values over threads that then spin (a 16-core GPU host: 9 cores busy in a batch)
+    tc, rc = t - t.mean(), r - r.mean()
+    tt = float(np.sum(tc * tc))
+    slope = float(np.sum(tc * rc)) / tt
+    resid = rc - slope * tc
+    return slope, float(np.sqrt(np.sum(resid * resid) / max(1, t.size - 2) / tt))
 
 
 def drift(t: np.ndarray, d: np.ndarray, v: np.ndarray, blocks: int = 0) -> tuple[float, float]:

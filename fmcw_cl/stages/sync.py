@@ -210,7 +210,7 @@ def line_fit_sums(x: np.ndarray, centre: np.ndarray, half: int, spike: float
         bad = np.abs(w[r, c] - med) > spike
         w[r[bad], c[bad]] = med[bad]
     w = w[:, 2:-2]
-    return w.sum(axis=1), w @ np.arange(-half, half + 1, dtype=np.float64)
+    return w.sum(axis=1), np.sum(w * np.arange(-half, half + 1, dtype=np.float64), axis=1)   # no BLAS threads
 
 
 def line_fit_crossing(s0: np.ndarray, s1: np.ndarray, centre: np.ndarray, half: int,
