@@ -101,6 +101,19 @@ class Echoes:
         d *= self.metres_per_bin
         return d[d < hi_m]
 
+    def peaks(self, lo_m: float, hi_m: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(rising, distances m, power over the noise dB) of the echoes of either
+        direction's `spectrum` (`mean_peaks`, at its limit for MEAN_ROWS spectra) between
+        lo_m and hi_m."""
+        if self.spectrum_rows == 0:
+            return np.zeros(0, bool), np.zeros(0), np.zeros(0)
+        lo = max(0, int(np.ceil(lo_m / self.metres_per_bin)))
+        counts = np.full(len(self.spectrum), self.spectrum_rows)
+        rows, b, db = mean_peaks(self.spectrum * self.spectrum_rows, counts, lo)
+        d = b * self.metres_per_bin
+        keep = d < hi_m
+        return rows[keep] == 0, d[keep], db[keep]
+
     @property
     def rival(self) -> tuple[float, float, bool] | None:
         """(distance m, level dB over the target, diffuse) of the persistent echo closest

@@ -29,12 +29,18 @@ The rule (`--target`):
   one that stays while the target is elsewhere is another object, and the pairs within
   GATE_M of it are ``ambiguous``. With no moving echo and several fixed echoes, or
   several moving echoes, the rule cannot tell which is the target: every pair on one of
-  them is ``ambiguous``. With one echo, it is the target, unless OTHERS_SHARE of the
+  them is ``ambiguous``. With no echo at all at a slice's or a block's level, the
+  echoes of the capture's mean spectra (`Echoes.peaks`) stand for the fixed ones; with
+  none there either, every pair is ``ambiguous`` (nothing tells the tracker's peaks
+  from noise). With one echo, it is the target, unless OTHERS_SHARE of all the
   half-sweeps hold other echoes in the band (something neither fixed nor found
-  moving), or the capture's mean spectra hold an echo within APART_M of it that its
-  power hides from the CFAR (`echoes.masked_peaks`): then the pairs on it are
-  ``ambiguous``. Before that, the moving echoes a second look beside it finds
-  (fmcw_cl.second_look; `Choice.lone` asks for one) join the choice.
+  moving), or the capture's mean spectra hold another echo (one within APART_M of it
+  that its power hides from the CFAR, `echoes.masked_peaks`, or a peak more than
+  GATE_M from it, its harmonics excepted), or they put it at two distances more than
+  SPLIT_M apart in the two directions (a conversion that moves an echo at rest: the
+  sync delay or the chirp off): then the pairs on it are ``ambiguous``. Before that,
+  the moving echoes a second look beside it finds (fmcw_cl.second_look;
+  `Choice.lone` asks for one) join the choice.
 - ``moving``: as auto, and a capture without a moving echo is refused.
 - ``nearest``: the nearest fixed echo or moving span, left alone in its gap (the other
   echoes' nearer ends bound it).
@@ -69,6 +75,7 @@ TOGETHER_S = 2e-3    # pairs this close in time but APART_M apart are two moving
 AWAY_SHARE = 0.5      # a fixed echo seen in this share of the slices where the target is away is an object
 OTHERS_SHARE = 0.1    # "one echo" only while fewer half-sweeps than this share hold another echo (false
                       # alarms: 0.4-2.8 %; a rail's start under noise at full scale beside a wall: 22 %)
+SPLIT_M = 0.002       # a fixed echo's directions this far apart in the mean spectra: the conversion is off
 HARMONICS = 3         # a fixed echo at 2..HARMONICS times the distance of a far stronger one ...
 HARMONIC_M = 0.002    # ... within this (a distortion's tone lies at the multiple of the bin) ...
 HARMONIC_DB = 20.0    # ... and this much weaker is its harmonic (a target at rest 8.6 mm from twice
@@ -198,6 +205,16 @@ def _fixed(rising: np.ndarray, d: np.ndarray, level: np.ndarray, groups: int) ->
     return out
 
 
+def _whole(e: echoes.Echoes, band) -> np.ndarray:
+    """The distances (m) of the echoes of the capture's mean spectra (Echoes.peaks), the
+    two directions' within GATE_M as one, at their mean: a target at rest at -20 dB per
+    sample over 10 ms is too weak for the CFAR's slices and the survey's blocks, and
+    stands over the noise of one direction's mean spectrum of 13 half-sweeps."""
+    _, d, _ = e.peaks(band[0], band[1] or np.inf)
+    d = np.sort(d)
+    return np.array([np.mean(g) for g in np.split(d, np.flatnonzero(np.diff(d) > GATE_M) + 1) if g.size])
+
+
 def smeared(e: echoes.Echoes, band) -> np.ndarray:
     """The distances (m) of the echoes found by their Doppler-smeared energy (the echo
     table's diffuse persistent echoes) inside `band`."""
@@ -301,8 +318,10 @@ def choose(rule: str, near_m: float | None, time_s, distance_m, velocity_mps, va
     fixed, _ = fixed_echoes(e, unambiguous_m)
     inband = (fixed >= band[0]) & (fixed < (band[1] or np.inf))
     fixed = fixed[inband]
-    objects = _objects(fixed, time_s, distance_m, valid, e)
     spans = sorted(moving_spans(time_s, distance_m, velocity_mps, valid, smeared(e, band)) + (beside or []))
+    if fixed.size == 0 and not spans:   # none at a slice's or a block's level: those the capture's show
+        fixed = _whole(e, band)
+    objects = _objects(fixed, time_s, distance_m, valid, e)
     name = rule if near_m is None else f"near {near_m:g} m"
     if rule == "strongest" and near_m is None:
         return Choice(name, fixed, objects, None, False, band, note="the strongest echo of the band")
@@ -324,25 +343,35 @@ def choose(rule: str, near_m: float | None, time_s, distance_m, velocity_mps, va
                            "cannot be told apart")
     elif spans:
         target = (spans[0], True)
-    elif fixed.size <= 1:
-        seen = _others(e, fixed[0], band, 2 * np.size(time_s)) if fixed.size else 0.0
+    elif fixed.size == 0:
+        target = None
+    elif fixed.size == 1:
+        seen = _others(e, fixed[0], band, 2 * np.size(time_s))
         if seen >= OTHERS_SHARE:                      # an echo that is neither fixed nor found moving
             return Choice(name, fixed, objects, None, False, band, fixed.copy(),
                           note=f"no echo moves, but {100 * seen:.0f} % of the half-sweeps hold other echoes "
                                f"than the fixed echo at {_list(fixed)}: the target cannot be told apart")
-        hidden = _beside(e, fixed[0], band) if fixed.size else []
-        if hidden:                                    # an echo the CFAR cannot see beside the fixed one
+        hidden = _besides(e, fixed[0], band, unambiguous_m)
+        if hidden:                                    # an echo too weak or too near for the CFAR
             return Choice(name, fixed, objects, None, False, band, fixed.copy(),
                           note=f"no echo moves, but the capture's mean spectra hold another echo at "
-                               f"{_list(hidden)} beside the fixed echo at {_list(fixed)}: the target "
+                               f"{_list(hidden)} besides the fixed echo at {_list(fixed)}: the target "
                                "cannot be told apart")
+        split = _split(e, fixed[0], band)
+        if split is not None:                         # a conversion that moves an echo at rest
+            return Choice(name, fixed, objects, None, False, band, fixed.copy(),
+                          note=f"no echo moves, but the fixed echo at {_list(fixed)} lies at "
+                               f"{split[0]:.4f} m rising and {split[1]:.4f} m falling in the capture's mean "
+                               "spectra (the sync delay or the chirp off): the target cannot be told apart")
         return Choice(name, fixed, objects, None, False, band, note="one echo: the target",
-                      lone=beside is None and fixed.size == 1)
+                      lone=beside is None)
     else:                     # still echoes only: the rule cannot tell which is the target
         return Choice(name, fixed, objects, None, False, band, fixed.copy(),
                       note=f"no echo moves: the fixed echoes at {_list(fixed)} cannot be told apart")
-    if target is None:
-        return Choice(name, fixed, objects, None, False, band, note="no echo found")
+    if target is None:        # nothing the tracker's peaks could be told from noise by
+        return Choice(name, fixed, objects, None, False, band, fixed.copy(),
+                      ambiguous_spans_m=np.array([[band[0], band[1] or unambiguous_m]]),
+                      note="no echo found, fixed or moving: the tracker's peaks cannot be told from noise")
     (lo, hi), moving = target
     outside = (fixed < lo - APART_M) | (fixed > hi + APART_M)
     # the other moving echoes bound the band by their nearer ends
@@ -368,15 +397,41 @@ def _others(e: echoes.Echoes, fixed_m: float, band, sweeps: int) -> float:
     return np.unique(e.time_s[inside]).size / sweeps if sweeps else 0.0
 
 
-def _beside(e: echoes.Echoes, fixed_m: float, band) -> list[float]:
-    """The distances (m) of the echoes within APART_M of the fixed echo at `fixed_m` that
-    its power hides from the CFAR, in either direction's mean spectrum over the capture
-    (echoes.masked_peaks), inside `band`: a second object at rest a few resolution cells
-    away, or a moving target's Doppler-shifted peak in one direction; the two directions'
-    within GATE_M as one, at their mean."""
-    d = e.masked(band[0], band[1] or np.inf)
-    d = np.sort(d[np.abs(d - fixed_m) < APART_M])
+def _besides(e: echoes.Echoes, fixed_m: float, band, unambiguous_m: float) -> list[float]:
+    """The distances (m) of the other echoes that either direction's mean spectrum over
+    the capture holds inside `band`, the two directions' within GATE_M as one, at their
+    mean:
+    - within APART_M of the fixed echo at `fixed_m`, those its power hides from the CFAR
+      (echoes.masked_peaks): a second object at rest a few resolution cells away, or a
+      moving target's Doppler-shifted peak in one direction;
+    - the peaks (echoes.mean_peaks) more than GATE_M from it, but its harmonics
+      (`harmonic`): an object at rest too weak for a half-sweep's CFAR, seen over the
+      capture (at noise at full scale, a target 5.6 dB over the noise in the mean
+      spectra had 7 CFAR echoes in 1996 half-sweeps, as many as the false alarms, and
+      the wall seen in 28 was taken for it), or the peaks of a blend of echoes around
+      the fixed one (walls at 0.404 and 0.435 m, the target at 0.416 m between)."""
+    lo, hi = band[0], band[1] or np.inf
+    near = e.masked(lo, hi)
+    _, d, db = e.peaks(lo, hi)
+    own = np.abs(d - fixed_m) <= GATE_M
+    level = np.max(db[own]) if own.any() else -np.inf        # the fixed echo's, where a peak
+    far = ~own & ~harmonic(np.r_[fixed_m, d], np.r_[level, db], unambiguous_m)[1:]
+    d = np.sort(np.r_[near[np.abs(near - fixed_m) < APART_M], d[far]])
     return [float(np.mean(g)) for g in np.split(d, np.flatnonzero(np.diff(d) > GATE_M) + 1) if g.size]
+
+
+def _split(e: echoes.Echoes, fixed_m: float, band) -> tuple[float, float] | None:
+    """(rising, falling) distances (m) of the fixed echo at `fixed_m` in the two
+    directions' mean spectra over the capture (their peaks within GATE_M of it nearest
+    to it) where they lie more than SPLIT_M apart: an echo at rest lies at one distance
+    in both, unless the conversion is off (a sync delay 55 samples off under noise at
+    full scale: a wall at 0.2325 and 0.2401 m, and the target beside it lost)."""
+    rising, d, _ = e.peaks(band[0], band[1] or np.inf)
+    near = np.abs(d - fixed_m) <= GATE_M
+    if not (near & rising).any() or not (near & ~rising).any():
+        return None
+    r, f = (d[m][np.argmin(np.abs(d[m] - fixed_m))] for m in (near & rising, near & ~rising))
+    return (float(r), float(f)) if abs(r - f) > SPLIT_M else None
 
 
 def _list(xs) -> str:
