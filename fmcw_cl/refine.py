@@ -154,12 +154,18 @@ def refine_lag(cap: Capture, plan, processor):
     slope = (ms[1].mps - ms[0].mps) / STEP_SAMPLES
     moves = (ms[1].distance_m - ms[0].distance_m) / STEP_SAMPLES
     settled = False
-    while len(xs) < MAX_EVALUATIONS and np.isfinite(ms[-1].mps) and np.isfinite(ms[-2].mps):
-        step = (ms[-1].mps - ms[-2].mps) / (xs[-1] - xs[-2])
-        if step == 0:
-            break
-        nxt = float(np.clip(xs[-1] - ms[-1].mps / step, lag0 - MAX_SHIFT_SAMPLES, lag0 + MAX_SHIFT_SAMPLES))
-        done = abs(nxt - xs[-1]) < TOLERANCE_SAMPLES
+    while len(xs) < MAX_EVALUATIONS:
+        a, b = [k for k, m in enumerate(ms) if np.isfinite(m.mps)][-2:]
+        if not np.isfinite(ms[-1].mps):
+            # a trial without runs (under noise at full scale, some 9 samples from the
+            # root): half way back to the last one with runs, not the search's end
+            nxt = 0.5 * (xs[-1] + xs[b])
+        else:
+            step = (ms[b].mps - ms[a].mps) / (xs[b] - xs[a])
+            if step == 0:
+                break
+            nxt = float(np.clip(xs[b] - ms[b].mps / step, lag0 - MAX_SHIFT_SAMPLES, lag0 + MAX_SHIFT_SAMPLES))
+        done = abs(nxt - xs[b]) < TOLERANCE_SAMPLES
         xs.append(nxt)
         ms.append(mismatch(held, plan, nxt, processor))
         # converged, or what is left is small against its own uncertainty: a further

@@ -162,3 +162,38 @@ def test_a_refinement_that_ends_off_its_root_states_the_miss_as_uncertainty(monk
     slope = (0.1409 - 0.1708) / 2
     assert got.lag_sigma_samples == pytest.approx(np.hypot(0.0154, 0.1168) / abs(slope), rel=1e-6)
     assert got.lag_sigma_samples > 7.5 and got.lag_sigma_mps > 0.1
+
+
+def test_a_trial_without_runs_does_not_end_the_delay_search(monkeypatch):
+    """Under noise at full scale a trial near the root may hold no run of valid pairs
+    (its mismatch NaN): the search goes half way back to the last trial with runs and
+    on, where it ended there (a lab capture's delay 55 samples off on OpenCL)."""
+    from dataclasses import dataclass
+
+    from fmcw_cl import refine
+
+    @dataclass
+    class Plan:
+        lag: float
+        lag_refined: bool = False
+        lag_mismatch_mps: float = float("nan")
+        lag_sigma_samples: float = float("nan")
+        lag_sigma_mps: float = float("nan")
+        lag_sigma_m: float = float("nan")
+        lag_at_m: float = float("nan")
+
+    root, tried = 36.5, []
+
+    def mismatch(held, plan, lag, processor):       # linear, and no runs 5-12 samples below the root
+        tried.append(lag)
+        if root - 12 < lag < root - 5:
+            return refine.Mismatch(float("nan"), float("nan"), float("nan"))
+        noise = 7e-4 if lag == -29.8 else 0.0       # the first secant step lands in the gap
+        return refine.Mismatch(-0.0023 * (lag - root) + noise, 0.001, 0.2363)
+
+    monkeypatch.setattr(refine, "stretches", lambda cap, plan, processor: [])
+    monkeypatch.setattr(refine, "mismatch", mismatch)
+    got = refine.refine_lag(None, Plan(lag=-29.8), None)
+    assert any(root - 12 < x < root - 5 for x in tried)             # the search met the gap
+    assert got.lag_refined and abs(got.lag - root) < 0.1
+    assert len(tried) <= refine.MAX_EVALUATIONS
