@@ -74,7 +74,7 @@ MIN_TRAVEL_M = 0.01   # a moving echo's verified pairs span at least this (a bia
 TOGETHER_S = 2e-3    # pairs this close in time but APART_M apart are two moving echoes
 AWAY_SHARE = 0.5      # a fixed echo seen in this share of the slices where the target is away is an object
 OTHERS_SHARE = 0.1    # "one echo" only while fewer half-sweeps than this share hold another echo (false
-                      # alarms: 0.1-0.8 % of all; a rail's start under noise at full scale beside a wall: 22 %)
+                      # alarms: 0.1-0.8 % of all; a rail start under noise at full scale beside a wall: 22 %)
 SPLIT_M = 0.002       # a fixed echo's directions this far apart in the mean spectra: the conversion is off
 HARMONICS = 3         # a fixed echo at 2..HARMONICS times the distance of a far stronger one ...
 HARMONIC_M = 0.002    # ... within this (a distortion's tone lies at the multiple of the bin) ...
