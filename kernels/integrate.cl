@@ -6,20 +6,24 @@
 // The spectra stay on the device from spectrum_peak (fft.cl, keep_power); only the
 // peaks come back. Twin: fmcw_cl.stages.integrate.peaks.
 
-__kernel void integrate_peak(__global const float *power,   // (rows, half_n)
-                             const int rows,
-                             const int half_n,
-                             __global const float *disp,    // (rows,) target displacement, bins
-                             const int before,
-                             const int after,
-                             const int lo,
-                             const int hi,
-                             const int guard,
-                             __global float *bin,           // (rows,)
-                             __global float *snr,           // (rows,)
-                             __global int *count,           // (rows,)
-                             __local float *pw,             // half_n
-                             __local float *scratch)        // 3 per work-item
+// The parameters of both variants (integrate_lanes.cl: CPU devices), in launch order.
+#define INTEGRATE_PARAMS                                                                         \
+    __global const float *power,   /* (rows, half_n) */                                          \
+    const int rows,                                                                              \
+    const int half_n,                                                                            \
+    __global const float *disp,    /* (rows,) target displacement, bins */                       \
+    const int before,                                                                            \
+    const int after,                                                                             \
+    const int lo,                                                                                \
+    const int hi,                                                                                \
+    const int guard,                                                                             \
+    __global float *bin,           /* (rows,) */                                                 \
+    __global float *snr,           /* (rows,) */                                                 \
+    __global int *count,           /* (rows,) */                                                 \
+    __local float *pw,             /* half_n */                                                  \
+    __local float *scratch         /* 3 per work-item */
+
+__kernel void integrate_peak(INTEGRATE_PARAMS)
 {
     const int i = get_group_id(0);
     const int lid = get_local_id(0);

@@ -5,21 +5,9 @@
 // vector loads. PoCL runs integrate_peak's per-bin loop over the window as scalar code
 // (the kernel has loops of its own). Twin: fmcw_cl.stages.integrate.peaks.
 
-__kernel void integrate_lanes(__global const float *power,   // (rows, half_n), half_n % 8 == 0
-                              const int rows,
-                              const int half_n,
-                              __global const float *disp,    // (rows,) target displacement, bins
-                              const int before,
-                              const int after,
-                              const int lo,
-                              const int hi,
-                              const int guard,
-                              __global float *bin,           // (rows,)
-                              __global float *snr,           // (rows,)
-                              __global int *count,           // (rows,)
-                              __local float8 *acc,           // half_n / 8
-                              __local float *scratch)        // 3
+__kernel void integrate_lanes(INTEGRATE_PARAMS)     // half_n % 8 == 0
 {
+    __local float8 *acc = (__local float8 *)pw;
     const int i = get_group_id(0);
     const int blocks = half_n / 8;
     const int j0 = i - before < 0 ? 0 : i - before;
@@ -52,7 +40,6 @@ __kernel void integrate_lanes(__global const float *power,   // (rows, half_n), 
     }
     const float inv = 1.0f / (float)(j1 - j0 + 1);
     for (int q = 0; q < blocks; ++q) acc[q] *= inv;
-    local_peak((__local const float *)acc, half_n, lo, hi, guard, scratch, (__local int *)(scratch + 1),
-               scratch + 2, bin + i, snr + i);
+    local_peak(pw, half_n, lo, hi, guard, scratch, (__local int *)(scratch + 1), scratch + 2, bin + i, snr + i);
     count[i] = j1 - j0 + 1;
 }
