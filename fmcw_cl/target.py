@@ -35,12 +35,12 @@ The rule (`--target`):
   from noise). With one echo, it is the target, unless OTHERS_SHARE of all the
   half-sweeps hold other echoes in the band (something neither fixed nor found
   moving), or the capture's mean spectra hold another echo (one within APART_M of it
-  that its power hides from the CFAR, `echoes.masked_peaks`, or a peak more than
-  GATE_M from it, its harmonics excepted), or they put it at two distances more than
-  SPLIT_M apart in the two directions (a conversion that moves an echo at rest: the
-  sync delay or the chirp off): then the pairs on it are ``ambiguous``. Before that,
-  the moving echoes a second look beside it finds (fmcw_cl.second_look;
-  `Choice.lone` asks for one) join the choice.
+  that its power hides from the CFAR, `echoes.masked_peaks`, or a peak of both
+  directions more than GATE_M from it, its harmonics excepted), or they put it at two
+  distances more than SPLIT_M apart in the two directions (a conversion that moves an
+  echo at rest: the sync delay or the chirp off): then the pairs on it are
+  ``ambiguous``. Before that, the moving echoes a second look beside it finds
+  (fmcw_cl.second_look; `Choice.lone` asks for one) join the choice.
 - ``moving``: as auto, and a capture without a moving echo is refused.
 - ``nearest``: the nearest fixed echo or moving span, left alone in its gap (the other
   echoes' nearer ends bound it).
@@ -404,19 +404,23 @@ def _besides(e: echoes.Echoes, fixed_m: float, band, unambiguous_m: float) -> li
     - within APART_M of the fixed echo at `fixed_m`, those its power hides from the CFAR
       (echoes.masked_peaks): a second object at rest a few resolution cells away, or a
       moving target's Doppler-shifted peak in one direction;
-    - the peaks (echoes.mean_peaks) more than GATE_M from it, but its harmonics
-      (`harmonic`): an object at rest too weak for a half-sweep's CFAR, seen over the
+    - the peaks (echoes.mean_peaks) more than GATE_M from it in both directions within
+      GATE_M of each other, but its harmonics (`harmonic`): an object at rest too weak
+      for a half-sweep's CFAR, seen over the
       capture (at noise at full scale, a target 5.6 dB over the noise in the mean
       spectra had 7 CFAR echoes in 1996 half-sweeps, as many as the false alarms, and
       the wall seen in 28 was taken for it), or the peaks of a blend of echoes around
       the fixed one (walls at 0.404 and 0.435 m, the target at 0.416 m between)."""
     lo, hi = band[0], band[1] or np.inf
     near = e.masked(lo, hi)
-    _, d, db = e.peaks(lo, hi)
+    rising, d, db = e.peaks(lo, hi)
     own = np.abs(d - fixed_m) <= GATE_M
     level = np.max(db[own]) if own.any() else -np.inf        # the fixed echo's, where a peak
     far = ~own & ~harmonic(np.r_[fixed_m, d], np.r_[level, db], unambiguous_m)[1:]
-    d = np.sort(np.r_[near[np.abs(near - fixed_m) < APART_M], d[far]])
+    # far off, an object at rest in both directions: a clipped stretch's distortion puts
+    # peaks 7 dB over the noise into one direction's mean spectrum or the other's
+    far = [x for x, _ in _fixed(rising[far], d[far], db[far], 1)]
+    d = np.sort(np.r_[near[np.abs(near - fixed_m) < APART_M], far])
     return [float(np.mean(g)) for g in np.split(d, np.flatnonzero(np.diff(d) > GATE_M) + 1) if g.size]
 
 

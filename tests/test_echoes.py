@@ -169,3 +169,36 @@ def test_masked_peaks_find_an_echo_beside_a_louder_one_and_no_false_one():
     assert sum(echoes.masked_peaks(m, k, lo)[0].size for m in spectra) == 0
     slope = spectra[:40] * (1 + 30 * np.exp(-(np.arange(half) - lo) / 15.0))
     assert sum(echoes.masked_peaks(m, k, lo)[0].size for m in slope) == 0
+
+
+def test_the_capture_mean_spectra_tests_of_one_echo():
+    """target's tests of a lone fixed echo on the capture's mean spectra (200 half-sweeps
+    a direction, the echo 30 dB over the noise at 0.188 m): its two directions 6 padded
+    bins (2.8 mm) apart are a split (`_split`), 1 bin apart none; a weak peak far off in
+    both directions is another echo (`_besides`), in one direction only (a clipped
+    stretch's distortion, 7 dB over the noise) or at twice the distance 25 dB under (a
+    harmonic) none."""
+    from fmcw_cl import target
+
+    rng = np.random.default_rng(5)
+    half, rows, mpb = 1024, 200, 0.47e-3
+    band = (0.03, None)
+
+    def table(rise, fall):
+        spectrum = rng.gamma(rows, 1.0 / rows, (2, half)) + np.array([rise, fall])
+        none = np.zeros(0)
+        return echoes.Echoes(none, none, none, none.astype(bool), none.astype(bool), {},
+                             spectrum=spectrum, spectrum_rows=rows, metres_per_bin=mpb)
+
+    echo = 1e3 * hann_tone(half, 400.0)
+    fixed_m = 400 * mpb
+    moved = 1e3 * hann_tone(half, 406.0)
+    r, f = target._split(table(echo, moved), fixed_m, band)
+    assert abs(r - fixed_m) < 1e-4 and abs(f - 406 * mpb) < 1e-4
+    assert target._split(table(echo, 1e3 * hann_tone(half, 401.0)), fixed_m, band) is None
+    weak = 4.0 * hann_tone(half, 700.0)                             # 7 dB over the noise's mean
+    got = target._besides(table(echo + weak, echo + weak), fixed_m, band, 0.47)
+    assert len(got) == 1 and abs(got[0] - 700 * mpb) < 2e-4
+    assert target._besides(table(echo + weak, echo), fixed_m, band, 0.47) == []
+    harmonic = 10 ** -2.5 * 1e3 * hann_tone(half, 800.0)
+    assert target._besides(table(echo + harmonic, echo + harmonic), fixed_m, band, 0.47) == []
