@@ -31,8 +31,7 @@ The rule (`--target`):
   several moving echoes, the rule cannot tell which is the target: every pair on one of
   them is ``ambiguous``. With no echo at all at a slice's or a block's level, the
   echoes of the capture's mean spectra (`Echoes.peaks`) stand for the fixed ones; with
-  none there either, every pair is ``ambiguous`` (nothing tells the tracker's peaks
-  from noise). With one echo, it is the target, unless OTHERS_SHARE of all the
+  none there either, the verified pairs stand. With one echo, it is the target, unless OTHERS_SHARE of all the
   half-sweeps hold other echoes in the band (something neither fixed nor found
   moving), or the capture's mean spectra hold another echo (one within APART_M of it
   that its power hides from the CFAR, `echoes.masked_peaks`, or a peak of both
@@ -368,10 +367,9 @@ def choose(rule: str, near_m: float | None, time_s, distance_m, velocity_mps, va
     else:                     # still echoes only: the rule cannot tell which is the target
         return Choice(name, fixed, objects, None, False, band, fixed.copy(),
                       note=f"no echo moves: the fixed echoes at {_list(fixed)} cannot be told apart")
-    if target is None:        # nothing the tracker's peaks could be told from noise by
-        return Choice(name, fixed, objects, None, False, band, fixed.copy(),
-                      ambiguous_spans_m=np.array([[band[0], band[1] or unambiguous_m]]),
-                      note="no echo found, fixed or moving: the tracker's peaks cannot be told from noise")
+    if target is None:        # no echo to tell the target from (a 1.2 ms capture of a fast target)
+        return Choice(name, fixed, objects, None, False, band, note="no echo found, fixed or moving: the "
+                                                                    "verified pairs stand")
     (lo, hi), moving = target
     outside = (fixed < lo - APART_M) | (fixed > hi + APART_M)
     # the other moving echoes bound the band by their nearer ends
