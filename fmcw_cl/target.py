@@ -31,13 +31,13 @@ The rule (`--target`):
   several moving echoes, the rule cannot tell which is the target: every pair on one of
   them is ``ambiguous``. With no echo at all at a slice's or a block's level, the
   echoes of the capture's mean spectra (`Echoes.peaks`) stand for the fixed ones; with
-  none there either, the verified pairs stand. With one echo, it is the target, unless OTHERS_SHARE of all the
-  half-sweeps hold other echoes in the band (something neither fixed nor found
-  moving), or the capture's mean spectra hold another echo (one within APART_M of it
-  that its power hides from the CFAR, `echoes.masked_peaks`, or a peak of both
-  directions more than GATE_M from it, its harmonics excepted), or they put it at two
-  distances more than SPLIT_M apart in the two directions (a conversion that moves an
-  echo at rest: the sync delay or the chirp off): then the pairs on it are
+  none there either, the verified pairs stand. With one echo, it is the target, unless
+  OTHERS_SHARE of all the half-sweeps hold other echoes in the band (something neither
+  fixed nor found moving), or the capture's mean spectra hold another echo (one within
+  APART_M of it that its power hides from the CFAR, `echoes.masked_peaks`, or a peak of
+  both directions more than GATE_M from it, its harmonics excepted), or they put it at
+  two distances more than SPLIT_M apart in the two directions (a conversion that moves
+  an echo at rest: the sync delay or the chirp off): then the pairs on it are
   ``ambiguous``. Before that, the moving echoes a second look beside it finds
   (fmcw_cl.second_look; `Choice.lone` asks for one) join the choice.
 - ``moving``: as auto, and a capture without a moving echo is refused.
@@ -404,11 +404,11 @@ def _besides(e: echoes.Echoes, fixed_m: float, band, unambiguous_m: float) -> li
       moving target's Doppler-shifted peak in one direction;
     - the peaks (echoes.mean_peaks) more than GATE_M from it in both directions within
       GATE_M of each other, but its harmonics (`harmonic`): an object at rest too weak
-      for a half-sweep's CFAR, seen over the
-      capture (at noise at full scale, a target 5.6 dB over the noise in the mean
-      spectra had 7 CFAR echoes in 1996 half-sweeps, as many as the false alarms, and
-      the wall seen in 28 was taken for it), or the peaks of a blend of echoes around
-      the fixed one (walls at 0.404 and 0.435 m, the target at 0.416 m between)."""
+      for a half-sweep's CFAR, seen over the capture (at noise at full scale, a target
+      5.6 dB over the noise in the mean spectra had 7 CFAR echoes in 1996 half-sweeps,
+      as many as the false alarms, and the wall seen in 28 was taken for it), or the
+      peaks of a blend of echoes around the fixed one (walls at 0.404 and 0.435 m, the
+      target at 0.416 m between)."""
     lo, hi = band[0], band[1] or np.inf
     near = e.masked(lo, hi)
     rising, d, db = e.peaks(lo, hi)
