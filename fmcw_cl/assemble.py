@@ -58,7 +58,7 @@ def assemble(plan: Plan, parts: list[ChunkMeasurements], processor: ChunkProcess
 
     reason_owned = np.concatenate([p.reason for p in parts])
     if choice is not None:
-        reason_owned = target.ambiguous(reason_owned, res["distance"], choice)
+        reason_owned = target.ambiguous(reason_owned, t_mid, res["distance"], res["velocity"], choice)
     if options.dechirp:         # the paper's method (--no-dechirp) is reported as the paper did
         reason_owned = faults.verified(t_mid, res["distance"], res["velocity"], reason_owned)
     res["valid"] = reason_owned == faults.OK

@@ -91,10 +91,11 @@ def chosen(cap: Capture, plan: Plan, processor: ChunkProcessor, track: Track) ->
 def choose_target(plan: Plan, track: Track, beside: list | None = None) -> target.Choice:
     """The target of a first conversion (fmcw_cl.target.choose), with the moving echoes
     a second look found beside a lone fixed echo (`beside`, fmcw_cl.second_look)."""
+    clipped = track.reason is not None and bool(np.any(track.reason == faults.CLIPPED))
     try:
         return target.choose(plan.options.target, plan.options.target_near, track.time_s, track.distance_m,
                              track.velocity_mps, track.valid, track.echoes, plan.lut.unambiguous_range_m,
-                             plan.options.band_m, beside)
+                             plan.options.band_m, beside, clipped)
     except ValueError as exc:
         raise CaptureError(plan.info.path, str(exc)) from None
 

@@ -31,7 +31,8 @@ The rule (`--target`):
   several moving echoes, the rule cannot tell which is the target: every pair on one of
   them is ``ambiguous``. With no echo at all at a slice's or a block's level, the
   echoes of the capture's mean spectra (`Echoes.peaks`) stand for the fixed ones; with
-  none there either, the verified pairs stand. With one echo, it is the target, unless
+  none there either, the verified pairs in motion stand (`ambiguous` below). With one
+  echo, it is the target, unless
   OTHERS_SHARE of all the half-sweeps hold other echoes in the band (something neither
   fixed nor found moving), or the capture's mean spectra hold another echo (one within
   APART_M of it that its power hides from the CFAR, `echoes.masked_peaks`, or a peak of
@@ -57,9 +58,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import echoes
-from .numeric import group_median, nearest
+from .numeric import drift, group_median, nearest
 from .options import said
 from .stages import faults
+from .stages.pairing import DRIFT_MPS
 
 RULES = ("auto", "moving", "nearest", "strongest")
 FIXED_SHARE = 0.5     # of the slices a fixed echo is seen in
@@ -97,6 +99,7 @@ class Choice:
     ambiguous_spans_m : (k, 2) moving echoes' spans (m) the rule cannot tell apart.
     note : what was chosen and why, one line.
     lone : one fixed echo was taken for the target before a second look beside it.
+    unseen_rest : no echo was found, fixed or moving: the pairs at rest are ambiguous.
     """
 
     rule: str
@@ -109,11 +112,12 @@ class Choice:
     note: str = ""
     ambiguous_spans_m: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     lone: bool = False      # one fixed echo taken for the target, before a second look beside it
+    unseen_rest: bool = False   # no echo at all: the pairs at rest (under MOVING_MPS) stand on none
 
     @property
     def undecided(self) -> bool:
-        """Whether some pairs are ambiguous under this choice."""
-        return bool(self.ambiguous_m.size or self.ambiguous_spans_m.size)
+        """Whether some pairs may be ambiguous under this choice."""
+        return bool(self.ambiguous_m.size or self.ambiguous_spans_m.size or self.unseen_rest)
 
     def attrs(self) -> dict:
         return {"target_rule": self.rule,
@@ -308,12 +312,13 @@ def _margin(gap: float) -> float:
 
 def choose(rule: str, near_m: float | None, time_s, distance_m, velocity_mps, valid,
            e: echoes.Echoes, unambiguous_m: float, band: tuple[float, float | None],
-           beside: list[tuple[float, float]] | None = None) -> Choice:
+           beside: list[tuple[float, float]] | None = None, clipped: bool = False) -> Choice:
     """The target of a first conversion's pairs (valid, distances, velocities) and echo
     table `e` (see the module); `unambiguous_m` is the capture's unambiguous range,
     `band` the user's (lo, hi) in m. A lone fixed echo (`auto`, `moving`) comes back
     with `lone` set until `beside`, the moving echoes found beside it by a second look
-    (fmcw_cl.second_look), is given."""
+    (fmcw_cl.second_look), is given. `clipped`: some pairs are clipped (their distortion
+    puts peaks into the mean spectra)."""
     fixed, _ = fixed_echoes(e, unambiguous_m)
     inband = (fixed >= band[0]) & (fixed < (band[1] or np.inf))
     fixed = fixed[inband]
@@ -350,7 +355,7 @@ def choose(rule: str, near_m: float | None, time_s, distance_m, velocity_mps, va
             return Choice(name, fixed, objects, None, False, band, fixed.copy(),
                           note=f"no echo moves, but {100 * seen:.0f} % of the half-sweeps hold other echoes "
                                f"than the fixed echo at {_list(fixed)}: the target cannot be told apart")
-        hidden = _besides(e, fixed[0], band, unambiguous_m)
+        hidden = _besides(e, fixed[0], band, unambiguous_m, clipped)
         if hidden:                                    # an echo too weak or too near for the CFAR
             return Choice(name, fixed, objects, None, False, band, fixed.copy(),
                           note=f"no echo moves, but the capture's mean spectra hold another echo at "
@@ -367,9 +372,9 @@ def choose(rule: str, near_m: float | None, time_s, distance_m, velocity_mps, va
     else:                     # still echoes only: the rule cannot tell which is the target
         return Choice(name, fixed, objects, None, False, band, fixed.copy(),
                       note=f"no echo moves: the fixed echoes at {_list(fixed)} cannot be told apart")
-    if target is None:        # no echo to tell the target from (a 1.2 ms capture of a fast target)
-        return Choice(name, fixed, objects, None, False, band, note="no echo found, fixed or moving: the "
-                                                                    "verified pairs stand")
+    if target is None:        # no echo: a moving target seen too briefly stands, one at rest on nothing
+        return Choice(name, fixed, objects, None, False, band, unseen_rest=True,
+                      note="no echo found, fixed or moving: the verified pairs in motion stand")
     (lo, hi), moving = target
     outside = (fixed < lo - APART_M) | (fixed > hi + APART_M)
     # the other moving echoes bound the band by their nearer ends
@@ -395,29 +400,31 @@ def _others(e: echoes.Echoes, fixed_m: float, band, sweeps: int) -> float:
     return np.unique(e.time_s[inside]).size / sweeps if sweeps else 0.0
 
 
-def _besides(e: echoes.Echoes, fixed_m: float, band, unambiguous_m: float) -> list[float]:
+def _besides(e: echoes.Echoes, fixed_m: float, band, unambiguous_m: float, clipped: bool = False
+             ) -> list[float]:
     """The distances (m) of the other echoes that either direction's mean spectrum over
     the capture holds inside `band`, the two directions' within GATE_M as one, at their
     mean:
     - within APART_M of the fixed echo at `fixed_m`, those its power hides from the CFAR
       (echoes.masked_peaks): a second object at rest a few resolution cells away, or a
       moving target's Doppler-shifted peak in one direction;
-    - the peaks (echoes.mean_peaks) more than GATE_M from it in both directions within
-      GATE_M of each other, but its harmonics (`harmonic`): an object at rest too weak
-      for a half-sweep's CFAR, seen over the capture (at noise at full scale, a target
-      5.6 dB over the noise in the mean spectra had 7 CFAR echoes in 1996 half-sweeps,
-      as many as the false alarms, and the wall seen in 28 was taken for it), or the
-      peaks of a blend of echoes around the fixed one (walls at 0.404 and 0.435 m, the
-      target at 0.416 m between)."""
+    - the peaks (echoes.mean_peaks) more than GATE_M from it, but its harmonics
+      (`harmonic`): an object at rest too weak for a half-sweep's CFAR, seen over the
+      capture (at noise at full scale, a target 5.6-5.8 dB over the noise in the mean
+      spectra had 7 CFAR echoes in 1996 half-sweeps, as many as the false alarms, and the
+      wall seen in 28 was taken for it; in one direction only, the other's just under
+      the limit), or the peaks of a blend of echoes around the fixed one (walls at 0.404
+      and 0.435 m, the target at 0.416 m between). Where some pairs are `clipped`, only
+      peaks of both directions within GATE_M of each other: a clipped stretch's
+      distortion puts peaks 7 dB over the noise into one direction's mean spectrum or the
+      other's."""
     lo, hi = band[0], band[1] or np.inf
     near = e.masked(lo, hi)
     rising, d, db = e.peaks(lo, hi)
     own = np.abs(d - fixed_m) <= GATE_M
     level = np.max(db[own]) if own.any() else -np.inf        # the fixed echo's, where a peak
     far = ~own & ~harmonic(np.r_[fixed_m, d], np.r_[level, db], unambiguous_m)[1:]
-    # far off, an object at rest in both directions: a clipped stretch's distortion puts
-    # peaks 7 dB over the noise into one direction's mean spectrum or the other's
-    far = [x for x, _ in _fixed(rising[far], d[far], db[far], 1)]
+    far = [x for x, _ in _fixed(rising[far], d[far], db[far], 1)] if clipped else d[far]
     d = np.sort(np.r_[near[np.abs(near - fixed_m) < APART_M], far])
     return [float(np.mean(g)) for g in np.split(d, np.flatnonzero(np.diff(d) > GATE_M) + 1) if g.size]
 
@@ -440,10 +447,20 @@ def _list(xs) -> str:
     return ", ".join(f"{x:.3f}" for x in xs) + " m"
 
 
-def ambiguous(code: np.ndarray, distance_m: np.ndarray, choice: Choice) -> np.ndarray:
+def ambiguous(code: np.ndarray, time_s: np.ndarray, distance_m: np.ndarray, velocity_mps: np.ndarray,
+              choice: Choice) -> np.ndarray:
     """`code` with the OK pairs within GATE_M of the choice's ambiguous echoes (fixed
-    echoes and moving spans) set to faults.AMBIGUOUS."""
+    echoes and moving spans) set to faults.AMBIGUOUS; with no echo found
+    (`Choice.unseen_rest`), those slower than MOVING_MPS, or all where their distances
+    do not follow their velocities (numeric.drift beyond pairing.DRIFT_MPS: a wall at
+    rest read at 0.35 m/s under a sync delay 77 samples off)."""
     out = code.copy()
+    if choice.unseen_rest:
+        ok = out == faults.OK
+        still = ~(np.abs(velocity_mps) >= MOVING_MPS)
+        if ok.sum() >= 3 and abs(drift(time_s[ok], distance_m[ok], velocity_mps[ok])[0]) > DRIFT_MPS:
+            still[:] = True
+        out[ok & still] = faults.AMBIGUOUS
     spans = [(f, f) for f in choice.ambiguous_m] + [tuple(s) for s in choice.ambiguous_spans_m]
     for lo, hi in spans:
         near = (distance_m >= lo - GATE_M) & (distance_m <= hi + GATE_M)

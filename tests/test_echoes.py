@@ -174,10 +174,10 @@ def test_masked_peaks_find_an_echo_beside_a_louder_one_and_no_false_one():
 def test_the_capture_mean_spectra_tests_of_one_echo():
     """target's tests of a lone fixed echo on the capture's mean spectra (200 half-sweeps
     a direction, the echo 30 dB over the noise at 0.188 m): its two directions 6 padded
-    bins (2.8 mm) apart are a split (`_split`), 1 bin apart none; a weak peak far off in
-    both directions is another echo (`_besides`), in one direction only (a clipped
-    stretch's distortion, 7 dB over the noise) or at twice the distance 25 dB under (a
-    harmonic) none."""
+    bins (2.8 mm) apart are a split (`_split`), 1 bin apart none; a weak peak far off is
+    another echo (`_besides`), in one direction only too, but not where some pairs are
+    clipped (a clipped stretch's distortion, 7 dB over the noise), and at twice the
+    distance 25 dB under (a harmonic) none."""
     from fmcw_cl import target
 
     rng = np.random.default_rng(5)
@@ -199,6 +199,8 @@ def test_the_capture_mean_spectra_tests_of_one_echo():
     weak = 4.0 * hann_tone(half, 700.0)                             # 7 dB over the noise's mean
     got = target._besides(table(echo + weak, echo + weak), fixed_m, band, 0.47)
     assert len(got) == 1 and abs(got[0] - 700 * mpb) < 2e-4
-    assert target._besides(table(echo + weak, echo), fixed_m, band, 0.47) == []
+    one = table(echo + weak, echo)                                  # in one direction only
+    assert len(target._besides(one, fixed_m, band, 0.47)) == 1
+    assert target._besides(one, fixed_m, band, 0.47, clipped=True) == []
     harmonic = 10 ** -2.5 * 1e3 * hann_tone(half, 800.0)
     assert target._besides(table(echo + harmonic, echo + harmonic), fixed_m, band, 0.47) == []
