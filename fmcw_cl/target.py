@@ -213,9 +213,13 @@ def _whole(e: echoes.Echoes, band) -> np.ndarray:
     two directions' within GATE_M as one, at their mean: a target at rest at -20 dB per
     sample over 10 ms is too weak for the CFAR's slices and the survey's blocks, and
     stands over the noise of one direction's mean spectrum of 13 half-sweeps."""
-    _, d, _ = e.peaks(band[0], band[1] or np.inf)
+    return np.asarray(_merged(e.peaks(band[0], band[1] or np.inf)[1]))
+
+
+def _merged(d: np.ndarray) -> list[float]:
+    """Distances (m) sorted, those within GATE_M of the next as one, at their mean."""
     d = np.sort(d)
-    return np.array([np.mean(g) for g in np.split(d, np.flatnonzero(np.diff(d) > GATE_M) + 1) if g.size])
+    return [float(np.mean(g)) for g in np.split(d, np.flatnonzero(np.diff(d) > GATE_M) + 1) if g.size]
 
 
 def smeared(e: echoes.Echoes, band) -> np.ndarray:
@@ -425,8 +429,7 @@ def _besides(e: echoes.Echoes, fixed_m: float, band, unambiguous_m: float, clipp
     level = np.max(db[own]) if own.any() else -np.inf        # the fixed echo's, where a peak
     far = ~own & ~harmonic(np.r_[fixed_m, d], np.r_[level, db], unambiguous_m)[1:]
     far = [x for x, _ in _fixed(rising[far], d[far], db[far], 1)] if clipped else d[far]
-    d = np.sort(np.r_[near[np.abs(near - fixed_m) < APART_M], far])
-    return [float(np.mean(g)) for g in np.split(d, np.flatnonzero(np.diff(d) > GATE_M) + 1) if g.size]
+    return _merged(np.r_[near[np.abs(near - fixed_m) < APART_M], far])
 
 
 def _split(e: echoes.Echoes, fixed_m: float, band) -> tuple[float, float] | None:
