@@ -6,23 +6,31 @@
 // removed, and its coarse lag, the largest |cross-correlation| (twin: sync.period_delays).
 
 // Each row of the low-passed beat (channel 0) and sync (channel 1), `edge` samples left
-// out at each end, less its mean: one work-item a row of a channel.
+// out at each end, less its mean: a work-group a row of a channel, its work-items
+// summing every lsz-th sample and then adding their sums in a tree (lsz a power of two).
+// With one work-item a group (CPUs) the sum runs in the samples' order.
 __kernel void delay_centre(__global const float *y,     // (rows, m): low-passed beat
                            __global const float *z,     // (rows, m): low-passed sync
                            const int m,
                            const int rows,
                            const int edge,
-                           __global float *yz)          // (2, rows, n), n = m - 2 edge
+                           __global float *yz,          // (2, rows, n), n = m - 2 edge
+                           __local real *part)          // (lsz,)
 {
-    const int g = get_global_id(0);
-    if (g >= 2 * rows) return;
+    const int g = get_group_id(0), lid = get_local_id(0), lsz = get_local_size(0);
     const int r = g < rows ? g : g - rows, n = m - 2 * edge;
     __global const float *x = (g < rows ? y : z) + (size_t)r * m + edge;
     real sum = 0;
-    for (int i = 0; i < n; ++i) sum += (real)x[i];
-    const real mean = sum / (real)n;
+    for (int i = lid; i < n; i += lsz) sum += (real)x[i];
+    part[lid] = sum;
+    barrier(CLK_LOCAL_MEM_FENCE);
+    for (int s = lsz / 2; s > 0; s /= 2) {
+        if (lid < s) part[lid] += part[lid + s];
+        barrier(CLK_LOCAL_MEM_FENCE);
+    }
+    const real mean = part[0] / (real)n;
     __global float *o = yz + (size_t)g * n;
-    for (int i = 0; i < n; ++i) o[i] = (float)((real)x[i] - mean);
+    for (int i = lid; i < n; i += lsz) o[i] = (float)((real)x[i] - mean);
 }
 
 // The cross-correlation of each row's sync with its beat's middle: c[r, k] = sum_i

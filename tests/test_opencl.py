@@ -588,11 +588,12 @@ def test_delay_fit_kernel_matches_numpy(backend, rows, n, period):
 
 
 @pytest.mark.parametrize("n", [200_003, 9_000])
-def test_delay_estimate_on_the_device_equals_numpy(backend, n):
+def test_delay_estimate_on_the_device_equals_numpy(backend, kernel_variant, n):
     """The sync delay's estimate from the codes on the device (low-pass, trimmed and
     centred rows, coarse lags, fits: OpenCLProcessor.period_delays, one download) against
     the device's stages driven from the host (the rows down, centred and correlated by
-    numpy, up again) and numpy's: stretches of an odd length whose lags reach both ends
+    numpy, up again) and numpy's, with each variant of the rows' centring (a row a
+    work-item, a row a work-group): stretches of an odd length whose lags reach both ends
     of the coarse search, a lab's weak triangle (+-150 codes under 600 rms), a row of
     noise alone. Against the stages: the same NaNs, lags within 1e-4 samples; against
     numpy on the rows with a triangle: the same NaNs, lags within 0.03 samples (1e-3

@@ -226,6 +226,11 @@ class Runtime:
         return "cl_khr_fp64" in self.device.extensions
 
     @property
+    def real(self) -> type:
+        """The kernels' `real` (kernels/real.cl): double where the device has it."""
+        return np.float64 if self.fp64 else np.float32
+
+    @property
     def zero_copy(self) -> bool:
         """Whether a buffer over host memory is the host memory (a real CPU device)."""
         return rank(self.device) == CPU

@@ -7,7 +7,9 @@ import numpy as np
 from ..stages import lpf, sync
 from . import lpf as k_lpf
 from .buffers import Buffers, Packed
-from .context import Runtime
+from .context import Runtime, cl
+
+CENTRE_LOCAL = 256   # work-items a row of delay_centre on GPUs
 
 
 def period_delays(rt: Runtime, bufs: Buffers, beat: np.ndarray, sy: np.ndarray, sample_rate_hz: float,
@@ -26,8 +28,12 @@ def period_delays(rt: Runtime, bufs: Buffers, beat: np.ndarray, sy: np.ndarray, 
     yz = bufs.get("delay_yz", 8 * rows * n)
     lags = 2 * span + 1
     d_c, coarse = bufs.get("delay_c", 8 * rows * lags), bufs.get("delay_coarse", 4 * rows)
-    rt.kernel("delay", "delay_centre")(rt.queue, *rt.items(2 * rows), *low.buffers, np.int32(m),
-                                       np.int32(rows), np.int32(edge), yz)
+    # a row a work-group (CPUs: of one work-item): on an H100 a row a work-item took 5.7 ms,
+    # the most of any kernel of a capture
+    lsz = 1 if rt.lanes else min(CENTRE_LOCAL, rt.device.max_work_group_size)
+    part = cl.LocalMemory(np.dtype(rt.real).itemsize * lsz)
+    rt.kernel("delay", "delay_centre")(rt.queue, (2 * rows * lsz,), (lsz,), *low.buffers, np.int32(m),
+                                       np.int32(rows), np.int32(edge), yz, part)
     rt.kernel("delay", "delay_correlate")(rt.queue, *rt.items(rows * lags), yz, np.int32(n), np.int32(rows),
                                           np.int32(span), d_c)
     rt.kernel("delay", "delay_coarse")(rt.queue, *rt.items(rows), d_c, np.int32(rows), np.int32(span), coarse)

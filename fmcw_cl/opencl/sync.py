@@ -39,11 +39,6 @@ def levels(rt: Runtime, d_sampled, n: int, d_head) -> None:
                                      cl.LocalMemory(LEVEL_LOCAL))
 
 
-def real(rt: Runtime) -> type:
-    """The kernels' `real`: double where the device has it."""
-    return np.float64 if rt.fp64 else np.float32
-
-
 def fitted(rt: Runtime, bufs: Buffers, x: np.ndarray, half_period: float) -> sync.Fitted:
     """sync.fitted on the device, from the codes to both line fits of every crossing
     (`launch_fits`), by one copy: the level's percentiles and each span's crossings."""
@@ -88,7 +83,7 @@ def launch_fits(rt: Runtime, bufs: Buffers, x: np.ndarray, half_period: float, r
     each = ((spans,), (1,)) if rt.lanes else rt.items(spans)
     rt.kernel("sync", "span_ends")(rt.queue, *each, d_sums, np.int32(m), np.int32(SPAN), d_head, d_ends)
     rt.kernel("sync", "span_carries")(rt.queue, (1,), (1,), d_ends, np.int32(spans), d_head, np.int32(factor),
-                                      real(rt)(sync.SPIKE), d_params)
+                                      rt.real(sync.SPIKE), d_params)
     rt.kernel("sync", "span_crossings")(rt.queue, *each, d_sums, np.int32(m), np.int32(SPAN), d_head, d_ends,
                                         np.int32(factor), np.int32(half), np.int32(x.size), np.int32(cap),
                                         d_centre, d_direction)
@@ -135,7 +130,7 @@ def line_fits(rt: Runtime, bufs: Buffers, x: np.ndarray, centre: np.ndarray, hal
     out = np.empty((n, 3), np.int64)
     if n:
         d = bufs.get("fit_sums", out.nbytes)
-        parts = [(np.int32, n), (real(rt), 2)]
+        parts = [(np.int32, n), (rt.real, 2)]
         d_centre, d_params = Packed(bufs, "fit_in", parts).upload(centre, [level, spike])
         _launch_fits(rt, _codes(bufs, x), d_centre, n, half, d_params, x.size, d)
         rt.copy(out, d)
