@@ -381,6 +381,51 @@ def test_verification_drops_runs_whose_distance_leaves_their_velocity(monkeypatc
     assert pairing.verify(t, d, v, ok)[0][w].mean() > 0.5       # the 2 ms test alone keeps most
 
 
+def test_verification_drops_a_short_run_that_drifts(monkeypatch):
+    """Hunt seed 3, capture 46: the rail's start beside a wall; a wrong echo held at
+    0.0797 m with a velocity of 0.90 m/s, which the target passes. The run of 4.95 ms
+    where the target meets it, cut from the rest, is right for its first 1.5 ms and then
+    stays on the wrong echo while the target moves on by 3.5 mm: shorter than DRIFT_S,
+    but its drift is 20 standard errors. Right short runs under noise, their velocity
+    0.1 m/s off (a sync delay's error), stay."""
+    from fmcw_cl.stages import pairing
+
+    rng = np.random.default_rng(46)
+    t = np.arange(1000) * 50e-6
+    meet = np.arange(400, 500)                     # 4.95 ms; the target passes 0.0797 m in its first ms
+    tm = t - t[meet[10]]
+    true_v = 0.91 + 22.5 * tm
+    true_d = 0.0797 + 0.91 * tm + 11.25 * tm**2
+    d = true_d + rng.normal(0, 40e-6, t.size)
+    v = true_v + rng.normal(0, 0.005, t.size)
+    ok = np.ones(t.size, bool)
+    ok[380:400] = ok[500:520] = False
+    ghost = meet[30:]
+    d[ghost] = 0.0797 + rng.normal(0, 40e-6, ghost.size)
+    v[ghost] = 0.90 + rng.normal(0, 0.005, ghost.size)
+    assert true_d[ghost[-1]] - 0.0797 > 3e-3
+    got, _ = pairing.verify(t, d, v, ok)
+    assert not got[ghost].any()
+    right = ok.copy()
+    right[meet] = False
+    assert got[right].mean() >= 0.98
+    monkeypatch.setattr(pairing, "DRIFT_SHORT_S", pairing.DRIFT_S)
+    assert pairing.verify(t, d, v, ok)[0][ghost].mean() > 0.5        # runs of DRIFT_S alone keep it
+
+    # right runs of 2-5 ms, 0.2 mm of noise, velocities 0.1 m/s off: none dropped for a drift
+    monkeypatch.undo()
+    for seed in range(5):
+        rng = np.random.default_rng(seed)
+        d = true_d + rng.normal(0, 0.2e-3, t.size)
+        v = true_v + 0.1 + rng.normal(0, 0.02, t.size)
+        ok = np.ones(t.size, bool)
+        for gap in range(0, t.size, 80):           # runs of 60 pairs (2.95 ms)
+            ok[gap:gap + 20] = False
+        dropped = ok.copy()
+        pairing._drifting(t, d, v, dropped)
+        assert dropped.sum() == ok.sum()
+
+
 def test_speckle_fades_are_flagged_never_wrong(tmp_path):
     path = realistic(tmp_path / "speckle.h5", seed=32, speckle_s=3e-3)
     acc, track = scored(path)

@@ -46,6 +46,9 @@ KINEMATIC_PAIRS = 48  # half-width (pairs) of the window searched for them (2.4 
 DRIFT_S = 5e-3        # a run of valid pairs this long ...
 DRIFT_MPS = 0.3       # ... whose distance leaves its integrated velocity this fast is dropped (a sync
                       # delay's error leaves at most ~0.1 m/s; a wrong echo held 25 ms: 0.94 m/s)
+DRIFT_SHORT_S = 2e-3  # a shorter run down to this long is dropped where its drift is also ...
+DRIFT_SIGMAS = 5.0    # ... this many standard errors (a jackknife's over DRIFT_BLOCKS blocks: the
+DRIFT_BLOCKS = 6      # distances are correlated over pairs)
 
 
 @dataclass(frozen=True)
@@ -295,9 +298,10 @@ def verify(t: np.ndarray, dist: np.ndarray, vel: np.ndarray, ok: np.ndarray) -> 
 
     A pair vouched for by neighbours that are themselves rejected is rejected in turn,
     until nothing changes; only the pairs near a change are tested again. Between
-    rounds, the pairs that most valid pairs within KINEMATIC_S disagree with are dropped
-    (`_kinematic`), and runs whose distance leaves their integrated velocity
-    (`_drifting`); last, short runs need an anchor (`_anchored`).
+    rounds, runs whose distance leaves their integrated velocity are dropped
+    (`_drifting`; first: the next test cuts such a run into pieces too short for it),
+    and the pairs that most valid pairs within KINEMATIC_S disagree with
+    (`_kinematic`); last, short runs need an anchor (`_anchored`).
 
     Returns
     -------
@@ -308,7 +312,7 @@ def verify(t: np.ndarray, dist: np.ndarray, vel: np.ndarray, ok: np.ndarray) -> 
     ok = np.asarray(ok, bool).copy()
     unsupported = np.zeros(ok.size, bool)
     _vouched(t, dist, vel, ok, unsupported)
-    while _kinematic(t, dist, vel, ok) | _drifting(t, dist, vel, ok):
+    while _drifting(t, dist, vel, ok) | _kinematic(t, dist, vel, ok):
         _vouched(t, dist, vel, ok, unsupported)
     _anchored(t, dist, vel, ok, unsupported)
     return ok, unsupported
@@ -364,16 +368,25 @@ def _runs(t, dist, vel, ok) -> list[np.ndarray]:
 
 
 def _drifting(t, dist, vel, ok) -> bool:
-    """Drop, in place, the runs (`_runs`) of at least DRIFT_S whose distance less the
-    integral of their velocity has a least-squares slope beyond DRIFT_MPS; whether any
-    was. Within 2 ms a velocity 1 m/s off moves the prediction by 2 mm, against a
-    tolerance of 1.25: a wrong echo held at one distance for 25 ms with a velocity of
-    0.94 m/s passes `_kinematic`; over its run it drifts by 23 mm."""
+    """Drop, in place, the runs (`_runs`) whose distance less the integral of their
+    velocity has a least-squares slope beyond DRIFT_MPS: those of at least DRIFT_S, and
+    those of at least DRIFT_SHORT_S where the slope is also DRIFT_SIGMAS standard errors
+    (numeric.drift's jackknife); whether any was. Within 2 ms a velocity 1 m/s off
+    moves the prediction by 2 mm, against a tolerance of 1.25: a wrong echo held at one
+    distance for 25 ms with a velocity of 0.94 m/s passes `_kinematic`; over its run it
+    drifts by 23 mm. Its last 4.95 ms, where the target came within 2-3.5 mm of it and
+    the run was cut from the rest, drifted at -0.74 m/s, 20 standard errors."""
     dropped = False
     for r in _runs(t, dist, vel, ok):
-        if r.size < 3 or t[r[-1]] - t[r[0]] < DRIFT_S:
+        span = t[r[-1]] - t[r[0]]
+        if r.size < 3 or not span >= DRIFT_SHORT_S:
             continue
-        if abs(numeric.drift(t[r], dist[r], vel[r])[0]) > DRIFT_MPS:
+        if span >= DRIFT_S:
+            drifts = abs(numeric.drift(t[r], dist[r], vel[r])[0]) > DRIFT_MPS
+        else:
+            slope, se = numeric.drift(t[r], dist[r], vel[r], DRIFT_BLOCKS)
+            drifts = abs(slope) > max(DRIFT_MPS, DRIFT_SIGMAS * se)
+        if drifts:
             ok[r] = False
             dropped = True
     return dropped
