@@ -6,7 +6,9 @@
 // The spectra stay on the device from spectrum_peak (fft.cl, keep_power); only the
 // peaks come back. Twin: fmcw_cl.stages.integrate.peaks.
 
-// The parameters of both variants (integrate_lanes.cl: CPU devices), in launch order.
+// The parameters both variants (integrate_lanes.cl: CPU devices) begin with, in launch
+// order; each declares its local buffers with their own types (a buffer read as float8
+// is declared float8, so that the device aligns it for that).
 #define INTEGRATE_PARAMS                                                                         \
     __global const float *power,   /* (rows, half_n) */                                          \
     const int rows,                                                                              \
@@ -19,11 +21,11 @@
     const int guard,                                                                             \
     __global float *bin,           /* (rows,) */                                                 \
     __global float *snr,           /* (rows,) */                                                 \
-    __global int *count,           /* (rows,) */                                                 \
-    __local float *pw,             /* half_n */                                                  \
-    __local float *scratch         /* 3 per work-item */
+    __global int *count            /* (rows,) */
 
-__kernel void integrate_peak(INTEGRATE_PARAMS)
+__kernel void integrate_peak(INTEGRATE_PARAMS,
+                             __local float *pw,             // half_n
+                             __local float *scratch)        // 3 per work-item
 {
     const int i = get_group_id(0);
     const int lid = get_local_id(0);

@@ -5,9 +5,10 @@
 // vector loads. PoCL runs integrate_peak's per-bin loop over the window as scalar code
 // (the kernel has loops of its own). Twin: fmcw_cl.stages.integrate.peaks.
 
-__kernel void integrate_lanes(INTEGRATE_PARAMS)     // half_n % 8 == 0
+__kernel void integrate_lanes(INTEGRATE_PARAMS,        // half_n % 8 == 0
+                              __local float8 *acc,      // half_n / 8
+                              __local float *scratch)   // 3
 {
-    __local float8 *acc = (__local float8 *)pw;
     const int i = get_group_id(0);
     const int blocks = half_n / 8;
     const int j0 = i - before < 0 ? 0 : i - before;
@@ -40,6 +41,7 @@ __kernel void integrate_lanes(INTEGRATE_PARAMS)     // half_n % 8 == 0
     }
     const float inv = 1.0f / (float)(j1 - j0 + 1);
     for (int q = 0; q < blocks; ++q) acc[q] *= inv;
-    local_peak(pw, half_n, lo, hi, guard, scratch, (__local int *)(scratch + 1), scratch + 2, bin + i, snr + i);
+    local_peak((__local const float *)acc, half_n, lo, hi, guard, scratch, (__local int *)(scratch + 1),
+               scratch + 2, bin + i, snr + i);
     count[i] = j1 - j0 + 1;
 }
