@@ -914,3 +914,20 @@ def monkeypatch_count(monkeypatch, module, name: str) -> list[int]:
 
     monkeypatch.setattr(module, name, counted)
     return calls
+
+
+def test_no_kernel_reads_a_scalar_local_buffer_as_vectors():
+    """A local buffer read as floatN (intN, ...) is declared so: a device need align a
+    local argument for its declared type only, and a CPU device never shows the fault.
+    While `integrate_lanes` read a float buffer as float8, the H100's check failed there
+    (OUT_OF_RESOURCES); a cast the other way (float8 buffer, float reads) is safe."""
+    import re
+    from pathlib import Path
+
+    cast = re.compile(r"\(\s*__local\s+(?:const\s+)?(?:u?char|u?short|u?int|u?long|float|double|half)"
+                      r"(?:2|3|4|8|16)\s*\*\s*\)")
+    kernels = Path(__file__).resolve().parents[1] / "kernels"
+    hits = [f"{p.name}:{i}: {line.strip()}" for p in sorted(kernels.glob("*.cl"))
+            for i, line in enumerate(p.read_text().splitlines(), 1) if cast.search(line)]
+    assert len(list(kernels.glob("*.cl"))) > 10
+    assert hits == []
