@@ -95,7 +95,8 @@ class Choice:
     span_m : (lo, hi) of the target's distances (m), None when no echo is the target.
     moving : the target was chosen for its motion.
     band_m : the band (lo, hi) it is tracked in (m; hi None: to the end of the range).
-    ambiguous_m : fixed echoes inside the band that the target cannot be told from.
+    ambiguous_m : echoes inside the band that the target cannot be told from (fixed, or
+        found in the capture's mean spectra only).
     ambiguous_spans_m : (k, 2) moving echoes' spans (m) the rule cannot tell apart.
     note : what was chosen and why, one line.
     lone : one fixed echo was taken for the target before a second look beside it.
@@ -361,7 +362,9 @@ def choose(rule: str, near_m: float | None, time_s, distance_m, velocity_mps, va
                                f"than the fixed echo at {_list(fixed)}: the target cannot be told apart")
         hidden = _besides(e, fixed[0], band, unambiguous_m, clipped)
         if hidden:                                    # an echo too weak or too near for the CFAR
-            return Choice(name, fixed, objects, None, False, band, fixed.copy(),
+            # the tracker may follow either: a wall the target's CFAR echoes outnumber, its
+            # pairs 16 mm from the fixed echo (noise at full scale)
+            return Choice(name, fixed, objects, None, False, band, np.sort(np.r_[fixed, hidden]),
                           note=f"no echo moves, but the capture's mean spectra hold another echo at "
                                f"{_list(hidden)} besides the fixed echo at {_list(fixed)}: the target "
                                "cannot be told apart")

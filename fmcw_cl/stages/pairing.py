@@ -298,10 +298,9 @@ def verify(t: np.ndarray, dist: np.ndarray, vel: np.ndarray, ok: np.ndarray) -> 
 
     A pair vouched for by neighbours that are themselves rejected is rejected in turn,
     until nothing changes; only the pairs near a change are tested again. Between
-    rounds, runs whose distance leaves their integrated velocity are dropped
-    (`_drifting`; first: the next test cuts such a run into pieces too short for it),
-    and the pairs that most valid pairs within KINEMATIC_S disagree with
-    (`_kinematic`); last, short runs need an anchor (`_anchored`).
+    rounds, the pairs that most valid pairs within KINEMATIC_S disagree with are dropped
+    (`_kinematic`), and runs whose distance leaves their integrated velocity
+    (`_drifting`); last, short runs need an anchor (`_anchored`).
 
     Returns
     -------
@@ -312,7 +311,7 @@ def verify(t: np.ndarray, dist: np.ndarray, vel: np.ndarray, ok: np.ndarray) -> 
     ok = np.asarray(ok, bool).copy()
     unsupported = np.zeros(ok.size, bool)
     _vouched(t, dist, vel, ok, unsupported)
-    while _drifting(t, dist, vel, ok) | _kinematic(t, dist, vel, ok):
+    while _kinematic(t, dist, vel, ok) | _drifting(t, dist, vel, ok):
         _vouched(t, dist, vel, ok, unsupported)
     _anchored(t, dist, vel, ok, unsupported)
     return ok, unsupported
