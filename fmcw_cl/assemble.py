@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import __version__, echoes, target
+from . import __version__, echoes, target, wall_images
 from .errors import CaptureError
 from .plan import DELAY_BOUND_MPS, Plan, delay_reliable
 from .processor import SURVEY_KEYS, ChunkMeasurements, ChunkProcessor
@@ -58,7 +58,11 @@ def assemble(plan: Plan, parts: list[ChunkMeasurements], processor: ChunkProcess
 
     reason_owned = np.concatenate([p.reason for p in parts])
     if choice is not None:
-        reason_owned = target.ambiguous(reason_owned, t_mid, res["distance"], res["velocity"], choice)
+        dechirped_at = res["velocity"] if options.dechirp else np.zeros(t_mid.size)
+        imaged = wall_images.confused(dechirped_at, (res["dechirped_rise"], res["dechirped_fall"]),
+                                      (res["dechirped_snr_rise"], res["dechirped_snr_fall"]), choice.walls_m,
+                                      choice.walls_db, plan.model, plan.window, reason_owned == faults.OK)
+        reason_owned = target.ambiguous(reason_owned, t_mid, res["distance"], res["velocity"], choice, imaged)
     if options.dechirp:         # the paper's method (--no-dechirp) is reported as the paper did
         reason_owned = faults.verified(t_mid, res["distance"], res["velocity"], reason_owned)
     res["valid"] = reason_owned == faults.OK

@@ -72,8 +72,9 @@ def process(path, options: Options | None = None, processor: ChunkProcessor | No
 def with_choice(plan: Plan, parts: list[ChunkMeasurements], processor: ChunkProcessor, seconds: float,
                 track: Track, choice: target.Choice) -> Track:
     """The first conversion's `track` with a target `choice` that kept its band: made
-    again where the choice makes pairs ambiguous, else its attributes added."""
-    if choice.undecided:
+    again where the choice makes pairs ambiguous (or may: fixed echoes not the target
+    show in de-chirped half-sweeps, fmcw_cl.wall_images), else its attributes added."""
+    if choice.undecided or choice.walls_m.size:
         return assemble(plan, parts, processor, seconds, choice)
     track.attrs.update(choice.attrs())
     return track

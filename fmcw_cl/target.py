@@ -101,6 +101,9 @@ class Choice:
     note : what was chosen and why, one line.
     lone : one fixed echo was taken for the target before a second look beside it.
     unseen_rest : no echo was found, fixed or moving: the pairs at rest are ambiguous.
+    walls_m, walls_db : the fixed echoes that are not the target (out of its band, or
+        ambiguous with it; the user's band's too) and their levels (dB over the floor):
+        their images in de-chirped half-sweeps (fmcw_cl.wall_images).
     """
 
     rule: str
@@ -114,6 +117,8 @@ class Choice:
     ambiguous_spans_m: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     lone: bool = False      # one fixed echo taken for the target, before a second look beside it
     unseen_rest: bool = False   # no echo at all: the pairs at rest (under MOVING_MPS) stand on none
+    walls_m: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    walls_db: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     @property
     def undecided(self) -> bool:
@@ -271,7 +276,10 @@ def _together(a: np.ndarray, b: np.ndarray) -> bool:
 def _objects(fixed: np.ndarray, time_s, distance_m, valid, e: echoes.Echoes) -> np.ndarray:
     """Whether each fixed echo stays while the tracked target is elsewhere: seen in
     AWAY_SHARE of the slices (of >= 20 valid pairs) whose valid pairs' median lies more
-    than GATE_M from it (so in every slice, when there is none)."""
+    than GATE_M from it (so in every slice, when there is none), by the CFAR (in
+    echoes.PRESENT of the slice's half-sweeps) or at a peak of a mean spectrum of the
+    slice (a wall of 150 codes, found by the mean spectra alone, stood at 0.309 m while a
+    take-off went on below it: taken for the target at rest, 374 pairs on it were valid)."""
     if fixed.size == 0 or time_s.size == 0:
         return np.zeros(fixed.size, bool)
     t0 = time_s.min()
@@ -285,11 +293,15 @@ def _objects(fixed: np.ndarray, time_s, distance_m, valid, e: echoes.Echoes) -> 
     ke, de = ke[inside], e.distance_m[inside]
     first = np.r_[True, np.diff(e.time_s[inside]) != 0]
     sweeps = np.bincount(ke[first], minlength=nslices)
+    kp = ((e.means["peak_time_s"] - t0) // echoes.SLICE_S).astype(np.int64)
+    inside = (kp >= 0) & (kp < nslices)
+    kp, dp = kp[inside], e.means["peak_distance_m"][inside]
     out = np.zeros(fixed.size, bool)
     for n, f in enumerate(fixed):
         away = full & (np.abs(mid - f) > GATE_M)
         hits = np.bincount(ke[np.abs(de - f) <= 1.5 * echoes.HIST_M], minlength=nslices)
-        seen = away & (sweeps > 0) & (hits >= echoes.PRESENT * sweeps)
+        peaks = np.bincount(kp[np.abs(dp - f) <= 1.5 * echoes.HIST_M], minlength=nslices)
+        seen = away & (((sweeps > 0) & (hits >= echoes.PRESENT * sweeps)) | (peaks > 0))
         out[n] = not away.any() or seen.sum() >= AWAY_SHARE * away.sum()
     return out
 
@@ -324,7 +336,23 @@ def choose(rule: str, near_m: float | None, time_s, distance_m, velocity_mps, va
     with `lone` set until `beside`, the moving echoes found beside it by a second look
     (fmcw_cl.second_look), is given. `clipped`: some pairs are clipped (their distortion
     puts peaks into the mean spectra)."""
-    fixed, _ = fixed_echoes(e, unambiguous_m)
+    found = fixed_echoes(e, unambiguous_m)
+    choice = _choose(rule, near_m, time_s, distance_m, velocity_mps, valid, e, unambiguous_m, band, beside,
+                     clipped, found[0])
+    # the fixed echoes that are not the target: out of its band, or ambiguous with it
+    hi = np.inf if choice.band_m[1] is None else choice.band_m[1]
+    d, level = found
+    other = (d < choice.band_m[0]) | (d >= hi)
+    if choice.ambiguous_m.size:
+        other |= np.min(np.abs(d[:, None] - choice.ambiguous_m[None, :]), axis=1) <= GATE_M
+    choice.walls_m, choice.walls_db = d[other], level[other]
+    return choice
+
+
+def _choose(rule: str, near_m: float | None, time_s, distance_m, velocity_mps, valid,
+            e: echoes.Echoes, unambiguous_m: float, band: tuple[float, float | None],
+            beside: list[tuple[float, float]] | None, clipped: bool, fixed: np.ndarray) -> Choice:
+    """`choose` with the capture's fixed echoes `fixed` (m)."""
     inband = (fixed >= band[0]) & (fixed < (band[1] or np.inf))
     fixed = fixed[inband]
     spans = sorted(moving_spans(time_s, distance_m, velocity_mps, valid, smeared(e, band)) + (beside or []))
@@ -454,9 +482,10 @@ def _list(xs) -> str:
 
 
 def ambiguous(code: np.ndarray, time_s: np.ndarray, distance_m: np.ndarray, velocity_mps: np.ndarray,
-              choice: Choice) -> np.ndarray:
+              choice: Choice, imaged: np.ndarray | None = None) -> np.ndarray:
     """`code` with the OK pairs within GATE_M of the choice's ambiguous echoes (fixed
-    echoes and moving spans) set to faults.AMBIGUOUS; with no echo found
+    echoes and moving spans) or `imaged` (a half-sweep's peak may be the image of a
+    fixed echo, fmcw_cl.wall_images) set to faults.AMBIGUOUS; with no echo found
     (`Choice.unseen_rest`), those slower than MOVING_MPS, or all where their distances
     do not follow their velocities (numeric.drift beyond pairing.DRIFT_MPS: a wall at
     rest read at 0.35 m/s under a sync delay 77 samples off)."""
@@ -471,4 +500,6 @@ def ambiguous(code: np.ndarray, time_s: np.ndarray, distance_m: np.ndarray, velo
     for lo, hi in spans:
         near = (distance_m >= lo - GATE_M) & (distance_m <= hi + GATE_M)
         out[(out == faults.OK) & near] = faults.AMBIGUOUS
+    if imaged is not None:
+        out[(out == faults.OK) & imaged] = faults.AMBIGUOUS
     return out

@@ -1,0 +1,81 @@
+"""Where a fixed echo shows in a half-sweep de-chirped for a moving target.
+
+The tracker de-chirps each half-sweep at its pair's velocity v (stages.pairing). A still
+echo at W is then multiplied by the same exp(-2 pi i v beta_j): its tone at +W, and at
+-W its mirror (the beat is real), move by about -v k and smear over the chirp's
+nonlinear part. This *image* of a wall left out of the target's band can lie inside
+the band: at 5 m/s (the simulator's lab table) 137 mm from the wall, 32 mm wide at half
+power, its peak 14 dB under the wall's own (at 1 m/s: 28 mm, 6 mm, 7 dB). Where the
+target's peak in one direction fades (or folds into the lowest bins), the tracker may
+follow the image: in a landing beside a wall of 1500 codes at 0.087 m, the falling
+half-sweeps of 41 pairs followed its image for 2.2 ms, the pairs 45 mm off with
+velocities 1.7 m/s off and consistent with them.
+
+A half-sweep's peak cannot be told from an image whose core (its half-power part) it
+lies in, where the image comes within IMAGE_MARGIN_DB of the peak's own level: the
+image's level there is the wall's level
+(target.fixed_echoes) plus the power of the de-chirped window at that offset, relative
+to an unsmeared tone's peak (`image_gain_db`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .stages.pairing import DopplerModel
+
+IMAGE_MARGIN_DB = 3.0   # a peak this far above an image at its place may still be the image: the
+                        # levels are measured apart (CFAR tables, peak over the band's mean); on
+                        # pairs that followed an image, its estimate lay 1.7 dB under to 6.2 over
+IMAGE_CORE_DB = 3.0     # ... where it lies in the image's core: in its tails the image is a slope, no
+                        # peak (the pairs that followed an image lay 1.7 dB under its top at most)
+IMAGE_REACH_M = 0.01    # images are computed for peaks within this of the image's centre ...
+IMAGE_REACH_SHARE = 0.6  # ... plus this share of its shift |v k|: it holds 20 dB of its
+                         # power within 0.4 of the shift of its centre
+VELOCITY_STEP = 5e-3     # m/s: an image moves 0.14 mm (0.3 bins) a step
+BLOCK = 256              # velocities whose spectra are taken at once
+
+
+def image_gain_db(beta: np.ndarray, velocity: np.ndarray, offset_m: np.ndarray, window: np.ndarray,
+                  model: DopplerModel) -> tuple[np.ndarray, np.ndarray]:
+    """Power (dB, relative to the peak of an unsmeared tone) of a still tone's image in
+    half-sweeps de-chirped at `velocity` (m/s, one per offset) by the Doppler basis
+    `beta`: at `offset_m` (m) from the tone (nearest bin of the padded FFT), and at the
+    image's own peak. The velocities are rounded to VELOCITY_STEP (the image moves by
+    0.07 mm at most): one spectrum per step of the velocities asked, however many pairs."""
+    own = np.sum(window) ** 2
+    k = np.mod(np.round(np.asarray(offset_m) / model.metres_per_bin).astype(np.int64), model.nfft)
+    speeds, which = np.unique(np.round(np.asarray(velocity) / VELOCITY_STEP), return_inverse=True)
+    at, top = np.empty(k.size), np.empty(k.size)
+    for a in range(0, speeds.size, BLOCK):          # (velocities, nfft) spectra, a block at a time
+        v = VELOCITY_STEP * speeds[a:a + BLOCK, None]
+        power = np.abs(np.fft.fft(window * np.exp(-2j * np.pi * v * beta), model.nfft, axis=1)) ** 2
+        mine = (which >= a) & (which < a + BLOCK)
+        at[mine] = power[which[mine] - a, k[mine]]
+        top[mine] = power.max(axis=1)[which[mine] - a]
+    with np.errstate(divide="ignore"):
+        return 10 * np.log10(at / own), 10 * np.log10(top / own)
+
+
+def confused(velocity: np.ndarray, peaks_m: tuple, snr_db: tuple, walls_m: np.ndarray, walls_db: np.ndarray,
+             model: DopplerModel, window: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """Which pairs of `rows` (a boolean mask) have a half-sweep whose de-chirped peak
+    (`peaks_m`: rising, falling; m) could be the image of a fixed echo that is not the
+    target (`walls_m`, their levels `walls_db`, dB over the floor): the peak lies in the
+    image's core (within IMAGE_CORE_DB of the image's own peak) and the image there comes
+    within IMAGE_MARGIN_DB of the peak's level (`snr_db`: rising, falling). The
+    half-sweeps were de-chirped at `velocity` (m/s, per pair)."""
+    out = np.zeros(rows.size, bool)
+    v = np.asarray(velocity, np.float64)
+    for beta, k, peak, snr in zip((model.beta_rise, model.beta_fall), (model.k_rise, model.k_fall),
+                                  peaks_m, snr_db, strict=True):
+        shift = -v * k                               # where the image's centre lies from its tone
+        reach = IMAGE_REACH_M + IMAGE_REACH_SHARE * np.abs(shift)
+        for wall, level in zip(walls_m, walls_db, strict=True):
+            for tone in (wall, -wall):               # the tone and its mirror
+                offset = peak - tone
+                idx = np.flatnonzero(rows & ~out & (np.abs(offset - shift) <= reach))
+                if idx.size:
+                    at, top = image_gain_db(beta, v[idx], offset[idx], window, model)
+                    out[idx] = (at >= top - IMAGE_CORE_DB) & (level + at >= snr[idx] - IMAGE_MARGIN_DB)
+    return out
