@@ -397,26 +397,32 @@ def _drifting(t, dist, vel, ok) -> bool:
 
 def _bridged(t, dist, vel, ok) -> bool:
     """Drop, in place, the runs (`_runs`) at rest (median speed under REST_MPS) that the
-    nearest runs in motion on either side (END_PAIRS long at least) pass by: those two
-    join as one body across it (`_agrees` of their facing ends, each the medians of
-    END_PAIRS pairs, at most BRIDGE_S apart) while it joins neither; whether any was. A
+    nearest runs on either side whose facing ends move (END_PAIRS long at least) pass
+    by: those two join as one body across it (`_agrees` of their facing ends, each the
+    medians of END_PAIRS pairs, at most BRIDGE_S apart) while it joins neither; whether
+    any was. A
     wall the fixed echoes' tables miss (a rail's target passing 4 mm from one of 400
     codes) holds the tracker for 5 ms at a time: self-consistent, its pairs at rest, up to
     18 mm from where the target went on."""
     runs = _runs(t, dist, vel, ok)
-    speeds = [abs(float(np.median(vel[r]))) for r in runs]
-    moving = [i for i, r in enumerate(runs) if speeds[i] >= REST_MPS and r.size >= END_PAIRS]
 
     def end(r, last):
         k = r[-END_PAIRS:] if last else r[:END_PAIRS]
         return float(np.median(t[k])), float(np.median(dist[k])), float(np.median(vel[k]))
 
+    # the runs long enough to have ends, and whether each end moves (a landing's last run
+    # comes to rest: its median speed is no matter)
+    long = [i for i, r in enumerate(runs) if r.size >= END_PAIRS]
+    ends = {i: (end(runs[i], False), end(runs[i], True)) for i in long}
     dropped = False
     for i, r in enumerate(runs):
-        j = np.searchsorted(moving, i)
-        if speeds[i] >= REST_MPS or r.size < 3 or j == 0 or j == len(moving):
+        if r.size < 3 or abs(float(np.median(vel[r]))) >= REST_MPS:
             continue
-        before, after = end(runs[moving[j - 1]], True), end(runs[moving[j]], False)
+        before = [j for j in long if j < i and abs(ends[j][1][2]) >= REST_MPS]
+        after = [j for j in long if j > i and abs(ends[j][0][2]) >= REST_MPS]
+        if not before or not after:
+            continue
+        before, after = ends[before[-1]][1], ends[after[0]][0]
         if (after[0] - before[0] <= BRIDGE_S and _agrees(*before, *after)
                 and not _agrees(*before, *end(r, False)) and not _agrees(*end(r, True), *after)):
             ok[r] = False
