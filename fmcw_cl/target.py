@@ -296,9 +296,9 @@ def _objects(fixed: np.ndarray, time_s, distance_m, valid, e: echoes.Echoes) -> 
     ke, de = ke[inside], e.distance_m[inside]
     first = np.r_[True, np.diff(e.time_s[inside]) != 0]
     sweeps = np.bincount(ke[first], minlength=nslices)
-    kp = ((e.means["peak_time_s"] - t0) // echoes.SLICE_S).astype(np.int64)
-    inside = (kp >= 0) & (kp < nslices)
-    kp, dp = kp[inside], e.means["peak_distance_m"][inside]
+    kp = ((e.means["peak_time_s"] - t0) // echoes.SLICE_S).astype(np.int64)     # the mean spectra's peaks
+    kept = (kp >= 0) & (kp < nslices)
+    kp, dp = kp[kept], e.means["peak_distance_m"][kept]
     out = np.zeros(fixed.size, bool)
     for n, f in enumerate(fixed):
         away = full & (np.abs(mid - f) > GATE_M)

@@ -39,22 +39,25 @@ BLOCK = 256              # velocities whose spectra are taken at once
 def image_gain_db(beta: np.ndarray, velocity: np.ndarray, offset_m: np.ndarray, window: np.ndarray,
                   model: DopplerModel) -> tuple[np.ndarray, np.ndarray]:
     """Power (dB, relative to the peak of an unsmeared tone) of a still tone's image in
-    half-sweeps de-chirped at `velocity` (m/s, one per offset) by the Doppler basis
-    `beta`: at `offset_m` (m) from the tone (nearest bin of the padded FFT), and at the
-    image's own peak. The velocities are rounded to VELOCITY_STEP (the image moves by
-    0.07 mm at most): one spectrum per step of the velocities asked, however many pairs."""
+    half-sweeps de-chirped at `velocity` (m/s, one per pair) by the Doppler basis `beta`:
+    at `offset_m` (m; one per pair, or rows of them, each row another tone) from the tone
+    (nearest bin of the padded FFT), and at the image's own peak (one per pair). The
+    velocities are rounded to VELOCITY_STEP (the image moves by 0.07 mm at most): one
+    spectrum per step of the velocities asked, however many pairs and tones."""
     own = np.sum(window) ** 2
-    k = np.mod(np.round(np.asarray(offset_m) / model.metres_per_bin).astype(np.int64), model.nfft)
+    offset_m = np.asarray(offset_m)
+    k = np.mod(np.round(np.atleast_2d(offset_m) / model.metres_per_bin).astype(np.int64), model.nfft)
     speeds, which = np.unique(np.round(np.asarray(velocity) / VELOCITY_STEP), return_inverse=True)
-    at, top = np.empty(k.size), np.empty(k.size)
+    at, top = np.empty(k.shape), np.empty(k.shape[1])
     for a in range(0, speeds.size, BLOCK):          # (velocities, nfft) spectra, a block at a time
         v = VELOCITY_STEP * speeds[a:a + BLOCK, None]
         power = np.abs(np.fft.fft(window * np.exp(-2j * np.pi * v * beta), model.nfft, axis=1)) ** 2
-        mine = (which >= a) & (which < a + BLOCK)
-        at[mine] = power[which[mine] - a, k[mine]]
-        top[mine] = power.max(axis=1)[which[mine] - a]
+        mine = np.flatnonzero((which >= a) & (which < a + BLOCK))
+        rows = which[mine] - a
+        at[:, mine] = power[rows[None, :], k[:, mine]]
+        top[mine] = power.max(axis=1)[rows]
     with np.errstate(divide="ignore"):
-        return 10 * np.log10(at / own), 10 * np.log10(top / own)
+        return 10 * np.log10(at / own).reshape(offset_m.shape), 10 * np.log10(top / own)
 
 
 def confused(velocity: np.ndarray, peaks_m: tuple, snr_db: tuple, walls_m: np.ndarray, walls_db: np.ndarray,
@@ -67,15 +70,17 @@ def confused(velocity: np.ndarray, peaks_m: tuple, snr_db: tuple, walls_m: np.nd
     half-sweeps were de-chirped at `velocity` (m/s, per pair)."""
     out = np.zeros(rows.size, bool)
     v = np.asarray(velocity, np.float64)
+    tones = np.concatenate([walls_m, -np.asarray(walls_m)])      # each wall's tone and its mirror
+    levels = np.concatenate([walls_db, walls_db])
     for beta, k, peak, snr in zip((model.beta_rise, model.beta_fall), (model.k_rise, model.k_fall),
                                   peaks_m, snr_db, strict=True):
-        shift = -v * k                               # where the image's centre lies from its tone
-        reach = IMAGE_REACH_M + IMAGE_REACH_SHARE * np.abs(shift)
-        for wall, level in zip(walls_m, walls_db, strict=True):
-            for tone in (wall, -wall):               # the tone and its mirror
-                offset = peak - tone
-                idx = np.flatnonzero(rows & ~out & (np.abs(offset - shift) <= reach))
-                if idx.size:
-                    at, top = image_gain_db(beta, v[idx], offset[idx], window, model)
-                    out[idx] = (at >= top - IMAGE_CORE_DB) & (level + at >= snr[idx] - IMAGE_MARGIN_DB)
+        shift = -v * k                               # where an image's centre lies from its tone
+        offset = peak[None, :] - tones[:, None]      # (tones, pairs)
+        near = rows & (np.abs(offset - shift) <= IMAGE_REACH_M + IMAGE_REACH_SHARE * np.abs(shift))
+        idx = np.flatnonzero(near.any(axis=0))
+        if idx.size:                                 # one spectrum per velocity for all tones
+            at, top = image_gain_db(beta, v[idx], offset[:, idx], window, model)
+            core = at >= top - IMAGE_CORE_DB
+            strong = levels[:, None] + at >= snr[idx] - IMAGE_MARGIN_DB
+            out[idx] |= (near[:, idx] & core & strong).any(axis=0)
     return out

@@ -400,10 +400,9 @@ def _bridged(t, dist, vel, ok) -> bool:
     nearest runs on either side whose facing ends move (END_PAIRS long at least) pass
     by: those two join as one body across it (`_agrees` of their facing ends, each the
     medians of END_PAIRS pairs, at most BRIDGE_S apart) while it joins neither; whether
-    any was. A
-    wall the fixed echoes' tables miss (a rail's target passing 4 mm from one of 400
-    codes) holds the tracker for 5 ms at a time: self-consistent, its pairs at rest, up to
-    18 mm from where the target went on."""
+    any was. A wall the fixed echoes' tables miss (a rail's target passing 4 mm from one
+    of 400 codes) holds the tracker for 5 ms at a time: self-consistent, its pairs at
+    rest, up to 18 mm from where the target went on."""
     runs = _runs(t, dist, vel, ok)
 
     def end(r, last):
