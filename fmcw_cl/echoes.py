@@ -48,6 +48,8 @@ EXPLAIN_BINS = 16     # padded bins either side of a peak counted as its energy
 HIDDEN_SIGMAS = 5.0   # unexplained energy must stand this far above the noise of its sum
 SHARP = 0.9           # the target's energy within +-3 bins over +-EXPLAIN_BINS (a lone peak: >= 0.96)
 RIVAL_DB = 10.0       # a persistent echo this close to the tracked target's level is reported
+AT_REST_M = 0.01      # unexplained energy whose directions' centres lie this close has no Doppler shift
+                      # (0.17 m/s): an echo at rest the CFAR missed beside a louder one, not a smeared one
 MEAN_ROWS = 12        # surveyed half-sweeps of a direction a mean spectrum (12 x 16 periods: 9.6 ms)
 # the factor white noise's mean of K spectra (K = 1 .. MEAN_ROWS) exceeds over the
 # training mean with probability cfar.PFA: scipy.stats.f.isf(PFA, 2K, K TRAIN) (the
@@ -70,8 +72,14 @@ class Echoes:
     persistent : dict of arrays per persistent echo and slice: time_s (slice centre),
         distance_m (median), snr_db (median), share (of the slice's half-sweeps),
         relative_db (over the tracked target's level in the slice), in_band (below
-        --max-range), diffuse (found by its unexplained energy, not as a sharp echo;
-        its snr_db is then the target's level plus relative_db).
+        --max-range), diffuse (found by its unexplained energy, not as a sharp echo).
+        An echo found by its unexplained energy (`hidden`) in half-sweeps of both
+        directions lies at the mean of the two directions' median centres, whose Doppler
+        shifts cancel (one direction's alone, where the other's lies below the band or
+        folds: a take-off's rising centres), its snr_db the target's level plus
+        relative_db; it is diffuse unless both directions' centres lie within AT_REST_M
+        (then an echo at rest that the CFAR missed beside a louder one: a wall 10 mm
+        before a target at rest, whose energy was taken for a moving echo behind it).
     means : dict of arrays (MEAN_KEYS) of the surveyed half-sweeps' mean spectra: per
         mean spectrum its pairs' mean time (s) and direction, per peak (`mean_peaks`)
         its mean spectrum's time and direction, distance (m) and power over the noise (dB).
@@ -297,8 +305,14 @@ def persistent(t_sweep: np.ndarray, level_db: np.ndarray, t: np.ndarray, dist: n
         s = np.flatnonzero(kept & (total >= 4) & (hits >= PRESENT * total))
         with np.errstate(divide="ignore"):
             rel = 10 * np.log10(group_median(g_hit, np.asarray(survey["ratio"])[at_hit], slices)[s])
-        dist_s = group_median(g_hit, np.asarray(survey["distance_m"])[at_hit], slices)[s]
-        rows.append((s, dist_s, level[s] + rel, hits[s] / total[s], rel, np.ones(s.size, bool)))
+        # each direction's centres carry its Doppler shift, the two opposite: their mean has none
+        up = np.asarray(survey["rising"], bool)[at_hit]
+        d = np.asarray(survey["distance_m"])[at_hit]
+        rise, fall = (group_median(g_hit[m], d[m], slices)[s] for m in (up, ~up))
+        both = np.isfinite(rise) & np.isfinite(fall)
+        dist = np.where(both, 0.5 * (rise + fall), group_median(g_hit, d, slices)[s])
+        moving = ~both | (np.abs(fall - rise) >= AT_REST_M)
+        rows.append((s, dist, level[s] + rel, hits[s] / total[s], rel, moving))
     cols = [np.concatenate(c) for c in zip(*rows, strict=True)]
     order = np.argsort(cols[0], kind="stable")  # by slice: its sharp echoes by distance, then its diffuse one
     out = dict(zip(keys, (edges[cols[0][order]] + SLICE_S / 2, *(c[order] for c in cols[1:])), strict=True))
@@ -320,8 +334,13 @@ def hidden(plain: np.ndarray, dechirped: np.ndarray, lo: int, tracked_bin: np.nd
     Returns
     -------
     ratio : (R,) unexplained over the tracked target's energy.
-    centroid : (R,) bin of the unexplained energy's centre (NaN: none).
-    found : (R,) the target's peak is sharp and the ratio reaches RIVAL_DB, HIDDEN_SIGMAS over
+    centroid : (R,) bin of the unexplained energy's centre away from the plain peak, its
+        power over the floor the weight (NaN: not found). Unclipped: the noise's clipped
+        power, about a third of the floor in every bin, drew a landing's centres 0.04-0.13
+        m towards the band's middle. It carries the half-sweep's Doppler shift (+0.13 m
+        rising at -5 m/s), which one direction cannot tell from distance (`persistent`).
+    found : (R,) the target's peak is sharp, the ratio reaches RIVAL_DB, and the energy and
+        its part away from the plain peak (the centroid's weights) stand HIDDEN_SIGMAS over
         the noise.
     """
     r, half = plain.shape
@@ -342,11 +361,13 @@ def hidden(plain: np.ndarray, dechirped: np.ndarray, lo: int, tracked_bin: np.nd
         ratio = np.where(target != 0, unexplained / target, 0.0)
     # the noise of a sum of n correlated (2x padded) exponential bins: floor sqrt(2 n)
     noise = floor * np.sqrt(2.0 * np.sum(~explained, axis=1))
-    found = (target > 0) & sharp & (ratio >= 10 ** (-RIVAL_DB / 10)) & (unexplained > HIDDEN_SIGMAS * noise)
     at_target = np.abs(k[None, :] - np.rint(plain_bin)[:, None]) <= EXPLAIN_BINS
-    w = np.clip(excess, 0, None) * ~explained * ~at_target
+    w = excess * ~explained * ~at_target        # unclipped: the noise adds nothing on average
+    away = np.sum(w, axis=1)
+    found = ((target > 0) & sharp & (ratio >= 10 ** (-RIVAL_DB / 10)) & (unexplained > HIDDEN_SIGMAS * noise)
+             & (away > HIDDEN_SIGMAS * noise))
     with np.errstate(divide="ignore", invalid="ignore"):
-        centroid = np.sum(w * k[None, :], axis=1) / np.sum(w, axis=1)
+        centroid = np.where(found, np.sum(w * k[None, :], axis=1) / away, np.nan)
     return ratio, centroid, found
 
 

@@ -34,7 +34,7 @@ if TYPE_CHECKING:
 CHECK_STRIDE = 4             # the 2N-point range check runs on every 4th pair near the limit,
 CHECK_STRIDE_FAR = 16        # ... every 16th where every distance of the chunk is below
 CHECK_NEAR = 0.75            # this share of the unambiguous range
-SURVEY_KEYS = ("time_s", "ratio", "distance_m", "found", *echoes.MEAN_KEYS)
+SURVEY_KEYS = ("time_s", "rising", "ratio", "distance_m", "found", *echoes.MEAN_KEYS)
 
 
 @dataclass
@@ -379,6 +379,7 @@ class Survey:
             means.append((t_mean, np.full(t_mean.size, rising), t_mean[block], np.full(block.size, rising),
                           b * model.metres_per_bin, snr))
         return {"time_s": np.concatenate([t[self.idx] for t in times]),
+                "rising": np.repeat([True, False], self.idx.size),
                 "ratio": np.concatenate([g[0] for g in got]),
                 "distance_m": np.concatenate([g[1] * model.metres_per_bin for g in got]),
                 "found": np.concatenate([g[2] for g in got]),

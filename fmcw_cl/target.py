@@ -13,7 +13,9 @@ A first conversion tracks the strongest echo of the user's band [--min-range,
   distance of one HARMONIC_DB stronger (folded at the unambiguous range) is its
   harmonic, not an object. The peaks of the surveyed half-sweeps' mean spectra
   (echoes.mean_peaks) count alike, a block of them for a slice: an echo too weak for
-  the CFAR in single half-sweeps is a rival all the same;
+  the CFAR in single half-sweeps is a rival all the same. Fixed echoes within APART_M
+  of each other are one, at the strongest, which stands for them all (its ambiguity
+  and the band's edges beside it cover them);
 - a **moving echo** spans the distances of the verified pairs that move faster than
   MOVING_MPS and of the echoes found by their Doppler-smeared energy (echoes.hidden);
   those distances part into several moving echoes where APART_M of range holds none
@@ -25,9 +27,12 @@ The rule (`--target`):
   measure motion); the fixed echoes it does not reach are left out of the band, which
   becomes the gap between them that holds the moving echo's span (each edge
   WALL_MARGIN_M inside the fixed echo, or half way to the span where that is nearer). A fixed echo
-  inside the span is the target at rest when it fades with the target's departure;
-  one that stays while the target is elsewhere is another object, and the pairs within
-  GATE_M of it are ``ambiguous``. With no moving echo and several fixed echoes, or
+  inside the span (or within APART_M of its ends) is the target at rest when it fades
+  with the target's departure; one that stays while the target is elsewhere is another
+  object, and the pairs within GATE_M of it are ``ambiguous`` (where the span comes
+  from the smeared energy alone, while the first conversion held the object, the part
+  beside the objects that holds most of the smeared energy's slices is tracked
+  instead: the object would hold the tracker again). With no moving echo and several fixed echoes, or
   several moving echoes, the rule cannot tell which is the target: every pair on one of
   them is ``ambiguous``. With no echo at all at a slice's or a block's level, the
   echoes of the capture's mean spectra (`Echoes.peaks`) stand for the fixed ones; with
@@ -62,7 +67,7 @@ import numpy as np
 
 from . import echoes
 from .numeric import drift, group_median, nearest
-from .options import said
+from .options import RANGE_GAP_M, said
 from .stages import faults
 from .stages.pairing import DRIFT_MPS
 
@@ -140,11 +145,13 @@ class Choice:
                 "target_choice": self.note}
 
 
-def fixed_echoes(e: echoes.Echoes, unambiguous_m: float) -> tuple[np.ndarray, np.ndarray]:
+def fixed_echoes(e: echoes.Echoes, unambiguous_m: float, found: list | None = None
+                 ) -> tuple[np.ndarray, np.ndarray]:
     """(distances m, levels dB) of the fixed echoes of an echo table (see the module):
-    the CFAR's echoes clustered in each slice, and the peaks of the mean spectra, less
-    the harmonics of stronger ones (a detector's or a converter's distortion)."""
-    found = sorted([*_sharp(e), *_averaged(e)])
+    the CFAR's echoes clustered in each slice, and the peaks of the mean spectra
+    (`found`, from `_found`, where at hand), less the harmonics of stronger ones (a
+    detector's or a converter's distortion)."""
+    found = _found(e) if found is None else found
     out_d: list[float] = []
     out_s: list[float] = []
     for x, level in found:
@@ -157,6 +164,12 @@ def fixed_echoes(e: echoes.Echoes, unambiguous_m: float) -> tuple[np.ndarray, np
     d, s = np.asarray(out_d), np.asarray(out_s)
     keep = ~harmonic(d, s, unambiguous_m)
     return d[keep], s[keep]
+
+
+def _found(e: echoes.Echoes) -> list[tuple[float, float]]:
+    """(distance m, level dB) of every fixed echo of the two tables, in order, before
+    those within APART_M of each other are one."""
+    return sorted([*_sharp(e), *_averaged(e)])
 
 
 def harmonic(d: np.ndarray, level: np.ndarray, unambiguous_m: float) -> np.ndarray:
@@ -310,9 +323,10 @@ def _objects(fixed: np.ndarray, time_s, distance_m, valid, e: echoes.Echoes) -> 
 
 
 def _gap(span: tuple[float, float], fixed: np.ndarray, band) -> tuple[float, float | None]:
-    """The band around `span` that leaves out the fixed echoes outside it."""
+    """The band around `span` that leaves out the echoes whose (lo, hi) (m) are the rows
+    of `fixed` (all outside it)."""
     lo, hi = band
-    below, above = fixed[fixed < span[0] - APART_M], fixed[fixed > span[1] + APART_M]
+    below, above = fixed[fixed[:, 1] < span[0], 1], fixed[fixed[:, 0] > span[1], 0]
     if below.size:
         f = below.max()
         lo = max(lo, f + _margin(span[0] - f))
@@ -339,9 +353,17 @@ def choose(rule: str, near_m: float | None, time_s, distance_m, velocity_mps, va
     with `lone` set until `beside`, the moving echoes found beside it by a second look
     (fmcw_cl.second_look), is given. `clipped`: some pairs are clipped (their distortion
     puts peaks into the mean spectra)."""
-    found = fixed_echoes(e, unambiguous_m)
+    listed = _found(e)
+    found = fixed_echoes(e, unambiguous_m, listed)
+    # each fixed echo stands for those within APART_M of it (walls 12.6 mm apart are one)
+    members = np.asarray([x for x, _ in listed])
+    groups = [members[np.abs(members - f) < APART_M] for f in found[0]]
+    extent = np.array([(min(f, g.min()), max(f, g.max())) for f, g in zip(found[0], groups, strict=True)])
     choice = _choose(rule, near_m, time_s, distance_m, velocity_mps, valid, e, unambiguous_m, band, beside,
-                     clipped, found[0])
+                     clipped, found[0], extent.reshape(-1, 2))
+    if choice.ambiguous_m.size:   # with the echoes each one stands for
+        near = np.min(np.abs(members[:, None] - choice.ambiguous_m[None, :]), axis=1) < APART_M
+        choice.ambiguous_m = np.union1d(choice.ambiguous_m, members[near])
     # the fixed echoes that are not the target: out of its band, or ambiguous with it
     hi = np.inf if choice.band_m[1] is None else choice.band_m[1]
     d, level = found
@@ -354,13 +376,17 @@ def choose(rule: str, near_m: float | None, time_s, distance_m, velocity_mps, va
 
 def _choose(rule: str, near_m: float | None, time_s, distance_m, velocity_mps, valid,
             e: echoes.Echoes, unambiguous_m: float, band: tuple[float, float | None],
-            beside: list[tuple[float, float]] | None, clipped: bool, fixed: np.ndarray) -> Choice:
-    """`choose` with the capture's fixed echoes `fixed` (m)."""
+            beside: list[tuple[float, float]] | None, clipped: bool, fixed: np.ndarray,
+            extent: np.ndarray) -> Choice:
+    """`choose` with the capture's fixed echoes `fixed` (m) and the (lo, hi) of the echoes
+    each stands for, `extent` (m)."""
     inband = (fixed >= band[0]) & (fixed < (band[1] or np.inf))
-    fixed = fixed[inband]
-    spans = sorted(moving_spans(time_s, distance_m, velocity_mps, valid, smeared(e, band)) + (beside or []))
+    fixed, extent = fixed[inband], extent[inband]
+    diffuse = smeared(e, band)
+    spans = sorted(moving_spans(time_s, distance_m, velocity_mps, valid, diffuse) + (beside or []))
     if fixed.size == 0 and not spans:   # none at a slice's or a block's level: those the capture's show
         fixed = _whole(e, band)
+        extent = np.c_[fixed, fixed]
     objects = _objects(fixed, time_s, distance_m, valid, e)
     name = rule if near_m is None else f"near {near_m:g} m"
     if rule == "strongest" and near_m is None:
@@ -425,17 +451,58 @@ def _choose(rule: str, near_m: float | None, time_s, distance_m, velocity_mps, v
         return Choice(name, fixed, objects, None, False, band, unseen_rest=True,
                       note="no echo found, fixed or moving: the verified pairs in motion stand")
     (lo, hi), moving = target
-    outside = (fixed < lo - APART_M) | (fixed > hi + APART_M)
+    outside = (extent[:, 1] < lo - APART_M) | (extent[:, 0] > hi + APART_M)
     # the other moving echoes bound the band by their nearer ends
     others = [a if a > hi else b for a, b in spans if (a, b) != (lo, hi)]
-    new = _gap((lo, hi), np.concatenate([fixed[outside], others]), band)
-    within = fixed[~outside & objects] if moving else np.zeros(0)
+    inner = ~outside & objects if moving else np.zeros(fixed.size, bool)
+    within = fixed[inner]
     what = (f"the moving echo at {lo:.3f}-{hi:.3f} m" if moving else f"the echo at {lo:.3f} m")
+    bounds = np.concatenate([extent[outside], np.c_[others, others]])
+    new = _gap((lo, hi), bounds, band)
+    on = np.zeros(valid.shape, bool)
+    for a, b in extent[inner]:
+        on |= (distance_m >= a - GATE_M) & (distance_m <= b + GATE_M)
+    held = valid.any() and (on & valid).sum() >= 0.5 * valid.sum()
+    if held and not np.any(valid & (np.abs(velocity_mps) >= MOVING_MPS)):
+        # found by its smeared energy alone, while the first conversion held an object (half
+        # its verified pairs on one): the objects inside its span would hold the tracker again
+        # (a take-off through a wall of 800 codes: every pair on the wall). The part beside
+        # them it was found in is tracked.
+        part = _part_band((lo, hi), extent[inner], diffuse, bounds, band)
+        if part is not None:
+            new = part
+            outside |= objects & ((extent[:, 1] < new[0]) | (extent[:, 0] >= (new[1] or np.inf)))
+            what += " (one side of the fixed echoes inside it tracked: they would hold the tracker)"
+            within = np.zeros(0)
     left = fixed[outside]
     note = what + (f", fixed echoes at {_list(left)} left out" if left.size else "")
     if within.size:
         note += f"; ambiguous where it passes the fixed echoes at {_list(within)}"
     return Choice(name, fixed, objects, (lo, hi), moving, new, within, note)
+
+
+def _part_band(span: tuple[float, float], cuts: np.ndarray, found: np.ndarray, bounds: np.ndarray, band
+               ) -> tuple[float, float | None] | None:
+    """The band of the part of `span` (m) beside the (lo, hi) `cuts` (m) within APART_M
+    of it that holds most of the distances where smeared energy was `found` (m): `_gap`
+    of the part with the other echoes `bounds` ((lo, hi) rows, m), its edge GATE_M from a
+    cut (nearer, the pairs are `ambiguous` anyway). None where no part holds more than
+    half of them (the target may spend as long on either side, and leave the band where
+    the tracker takes what it holds: a rail's start 14 mm before a wall of 3000 codes,
+    one slice found on each side, left the band and 49 pairs were valid 25 mm off) or
+    the band is narrower than options.RANGE_GAP_M."""
+    cuts = cuts[np.argsort(cuts[:, 0])]
+    starts, ends = np.r_[-np.inf, cuts[:, 1]], np.r_[cuts[:, 0], np.inf]
+    held = np.array([np.sum((found > x) & (found < y)) for x, y in zip(starts, ends, strict=True)])
+    k = int(np.argmax(held))
+    if 2 * held[k] <= found.size:
+        return None
+    a, b = max(float(starts[k]), span[0]), min(float(ends[k]), span[1])
+    cut_a, cut_b = k > 0, k < cuts.shape[0]
+    lo, hi = _gap((max(a, span[0]), min(b, span[1])), bounds, band)
+    lo = max(lo, a + GATE_M) if cut_a else lo
+    hi = (b - GATE_M if hi is None else min(hi, b - GATE_M)) if cut_b else hi
+    return None if hi is not None and hi - lo < RANGE_GAP_M else (lo, hi)
 
 
 def _elsewhere(distance_m: np.ndarray, valid: np.ndarray, fixed_m: np.ndarray,

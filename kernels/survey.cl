@@ -13,11 +13,11 @@
 // power over their floors, kt and kp the tracked peak's bins (de-chirped, plain),
 // explained: another echo's bins cover k. The target's energy (and its core), the
 // energy nothing explains (and its bins), and the weights of its centroid away from the
-// plain peak. Conditionals only: see hidden_lanes.
+// plain peak (power over the floor, unclipped). Conditionals only: see hidden_lanes.
 #define SURVEY_BIN(T, k, ed, e, kt, kp, explained)                                           \
     {                                                                                        \
         const T off_ = ABS(k - kt);                                                          \
-        const T w_ = (explained) ? 0.0f : (((ABS(k - kp) > explain) & (e > 0.0f)) ? e : 0.0f); \
+        const T w_ = (explained) ? 0.0f : ((ABS(k - kp) > explain) ? e : 0.0f);               \
         target += off_ <= explain ? ed : 0.0f;                                               \
         near += off_ <= 3.0f ? ed : 0.0f;                                                    \
         excess_sum += (explained) ? 0.0f : e;                                                \
@@ -130,9 +130,11 @@ __kernel void hidden(__global const float *plain,      // (rows, half_n)
         const float unexplained = excess_sum - target;
         const float q = target != 0.0f ? unexplained / target : 0.0f;
         const float noise = floor_p * sqrt(2.0f * free_bins);
+        const int hit = target > 0.0f && near >= sharp * target && q >= rival && unexplained > sigmas * noise
+                        && w_sum > sigmas * noise;
         ratio[r] = q;
-        centroid[r] = w_sum > 0.0f ? wk_sum / w_sum : NAN;
-        found[r] = target > 0.0f && near >= sharp * target && q >= rival && unexplained > sigmas * noise;
+        centroid[r] = hit ? wk_sum / w_sum : NAN;
+        found[r] = hit;
     }
 }
 
@@ -218,8 +220,9 @@ __kernel void hidden_lanes(__global const float *plain, __global const float *de
     const float8 unexplained = excess_sum - target;
     const float8 qr = target != 0.0f ? unexplained / target : 0.0f;
     const float8 noise = floor_p * sqrt(2.0f * free_bins);
-    const int8 hit = (target > 0.0f) & (near >= sharp * target) & (qr >= rival) & (unexplained > sigmas * noise);
-    const float8 cen = w_sum > 0.0f ? wk_sum / w_sum : NAN;
+    const int8 hit = (target > 0.0f) & (near >= sharp * target) & (qr >= rival) & (unexplained > sigmas * noise)
+                     & (w_sum > sigmas * noise);
+    const float8 cen = hit ? wk_sum / w_sum : NAN;
     float qv[8], cv[8];
     int hv[8];
     vstore8(qr, 0, qv);

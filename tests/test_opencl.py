@@ -751,7 +751,8 @@ def test_range_check_and_survey_in_one_trip_equal_each_alone(backend, kernel_var
                                                                                       strict=True):
             np.testing.assert_array_equal(found, found0)
             np.testing.assert_allclose(ratio, ratio0, rtol=1e-3, atol=1e-4)
-            np.testing.assert_allclose(centroid, centroid0, rtol=1e-4)
+            # bins: float32 sums of unclipped weights, a centre near bin 0 within 2e-4 of numpy's
+            np.testing.assert_allclose(centroid, centroid0, rtol=1e-4, atol=1e-3)
             assert sums.shape == sums0.shape and sums.shape[0] == -(-ratio.size // echoes.MEAN_ROWS)
             np.testing.assert_allclose(sums, sums0, rtol=2e-4, atol=1e-3 * sums0.max())
 
@@ -814,23 +815,26 @@ def test_a_chunk_makes_one_trip_each_way(backend, wall_capture, monkeypatch):
                                          (25, 2048, 50)])
 def test_survey_kernel_matches_numpy(backend, kernel_variant, rows, nfft, lo):
     """The echo survey (kernels/survey.cl against echoes.hidden): a target, sometimes a
-    rival the other echoes explain or not, noise; medians of odd and even band sizes."""
+    smeared rival the other echoes explain or not, sometimes a sharp one no echo
+    explains, noise; medians of odd and even band sizes."""
     from fmcw_cl.stages import pairing
 
     rng = np.random.default_rng(rows + nfft)
     points = nfft // 2 - 7
     j = np.arange(points)
     x = rng.normal(0, 30, (2 * rows + 3, points))
-    tone = lambda b: np.cos(2 * np.pi * b / nfft * j)  # noqa: E731
-    target, rival = lo + 0.3 * (nfft // 2 - lo), lo + 0.7 * (nfft // 2 - lo)
+    tone = lambda b, span=0.0: np.cos(2 * np.pi / nfft * (b * j + span * (j**2 / (2 * points) - j / 2)))  # noqa: E731
+    band = nfft // 2 - lo
+    target, rival, lump = lo + 0.3 * band, lo + 0.7 * band, lo + 0.5 * band
     x += 400 * tone(target)
-    x[::2] += 300 * tone(rival)
+    x[::2] += 300 * tone(rival, min(60, band / 4))   # smeared over up to 60 bins
+    x[1::4] += 300 * tone(lump)
     x *= np.hanning(points)
     pick = np.sort(rng.choice(x.shape[0], rows, replace=False))
     beta = rng.uniform(-3, 3, points)
     v = rng.uniform(-0.1, 0.1, rows)
     others = np.full((rows, 3), np.nan)
-    others[::3, 1] = rival                          # explained in every third row
+    others[::3] = rival + np.array([-20, 0, 20])    # explained in every third row
     args = (beta, v, nfft, pick, lo, np.full(rows, target), np.full(rows, target), others)
     got = backend.survey(x.astype(np.float32), *args)
     want = pairing.NUMPY.survey(x, *args)
