@@ -485,8 +485,9 @@ def _part_band(span: tuple[float, float], cuts: np.ndarray, found: np.ndarray, b
                ) -> tuple[float, float | None] | None:
     """The band of the part of `span` (m) beside the (lo, hi) `cuts` (m) within APART_M
     of it that holds most of the distances where smeared energy was `found` (m): `_gap`
-    of the part with the other echoes `bounds` ((lo, hi) rows, m), its edge GATE_M from a
-    cut (nearer, the pairs are `ambiguous` anyway). None where no part holds more than
+    of the part (clipped to the span) with the other echoes `bounds` ((lo, hi) rows, m),
+    its edge at a cut GATE_M inside the part (nearer, the pairs are `ambiguous` anyway).
+    None where no part holds more than
     half of them (the target may spend as long on either side, and leave the band where
     the tracker takes what it holds: a rail's start 14 mm before a wall of 3000 codes,
     one slice found on each side, left the band and 49 pairs were valid 25 mm off) or
@@ -499,7 +500,7 @@ def _part_band(span: tuple[float, float], cuts: np.ndarray, found: np.ndarray, b
         return None
     a, b = max(float(starts[k]), span[0]), min(float(ends[k]), span[1])
     cut_a, cut_b = k > 0, k < cuts.shape[0]
-    lo, hi = _gap((max(a, span[0]), min(b, span[1])), bounds, band)
+    lo, hi = _gap((a, b), bounds, band)
     lo = max(lo, a + GATE_M) if cut_a else lo
     hi = (b - GATE_M if hi is None else min(hi, b - GATE_M)) if cut_b else hi
     return None if hi is not None and hi - lo < RANGE_GAP_M else (lo, hi)
