@@ -339,15 +339,9 @@ class Capture:
             Chunk i in slot `held` + i, its own, of its own length instead (a consumer
             that keeps every chunk: the arrays are the pool's, touched before).
         """
-        if periods < 1:
-            raise ValueError("periods must be >= 1")
-        stop = self.info.samples if stop is None else min(stop, self.info.samples)
         core = max(1, round(periods * self.info.samples_per_period))
         size = min(core + 2 * margin, self.info.samples)
-        for i, core_start in enumerate(range(int(start), stop, core)):
-            core_stop = min(core_start + core, stop)
-            lo = max(0, core_start - margin)
-            hi = min(self.info.samples, core_stop + margin)
+        for i, (lo, hi, core_start, core_stop) in enumerate(self.chunk_spans(periods, margin, start, stop)):
             if held is not None:
                 beat, sync = self.read_into(lo, hi, *self.slot(held + i, hi - lo))
             elif not slots:
@@ -355,6 +349,18 @@ class Capture:
             else:
                 beat, sync = self.read_into(lo, hi, *self.slot(i % slots, size))
             yield Chunk(lo, beat, sync, core_start, core_stop)
+
+    def chunk_spans(self, periods: int, margin: int = 0, start: int = 0, stop: int | None = None
+                    ) -> Iterator[tuple[int, int, int, int]]:
+        """The samples (start, stop, core start, core stop) of each chunk of `chunks`."""
+        if periods < 1:
+            raise ValueError("periods must be >= 1")
+        stop = self.info.samples if stop is None else min(stop, self.info.samples)
+        core = max(1, round(periods * self.info.samples_per_period))
+        for core_start in range(int(start), stop, core):
+            core_stop = min(core_start + core, stop)
+            hi = min(self.info.samples, core_stop + margin)
+            yield max(0, core_start - margin), hi, core_start, core_stop
 
     def truth(self) -> Truth | None:
         """The simulator's true trajectory, or None when the capture has none."""

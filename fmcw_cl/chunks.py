@@ -13,6 +13,8 @@ from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
 from typing import TYPE_CHECKING
 
+import numpy as np
+
 from .capture import Capture, CaptureInfo, Chunk
 from .options import Options
 from .stages import sync
@@ -87,11 +89,26 @@ def read_chunks(cap: Capture, options: Options, start: int = 0, stop: int | None
 HELD_SLOT = READ_SLOTS     # the first of the capture's slots that held chunks take
 
 
-def held_chunks(cap: Capture, options: Options, start: int, stop: int, slot: int = HELD_SLOT) -> list[Chunk]:
-    """The chunks of `options` whose cores lie in samples [start, stop), each in arrays
-    of its own, the capture's slots `slot`, `slot` + 1, ... (pooled memory, touched
-    before: Capture.slot): for a caller that converts the same samples more than once."""
-    return list(cap.chunks(options.chunk_periods, margin_samples(cap.info, options), start, stop, held=slot))
+def held_end_to_end(cap: Capture, options: Options, ranges: list[tuple[int, int]], slot: int = HELD_SLOT
+                    ) -> tuple[np.ndarray, list[Chunk], list[int], list[int]]:
+    """The chunks of `options` whose cores lie in each sample range [start, stop) of
+    `ranges`, read once, end to end, into the capture's slot `slot` (pooled memory,
+    touched before: Capture.slot): for a caller that converts the same samples more than
+    once, the chunks together (ChunkProcessor.process_apart).
+
+    Returns the beat codes of them all, the chunks (their arrays views into the slot),
+    where each chunk's codes start in the first, and the range each chunk lies in."""
+    margin = margin_samples(cap.info, options)
+    spans = [(k, *span) for k, (a, b) in enumerate(ranges)
+             for span in cap.chunk_spans(options.chunk_periods, margin, a, b)]
+    sizes = [hi - lo for _, lo, hi, *_ in spans]
+    offsets = np.cumsum([0, *sizes]).tolist()
+    beat, sync = cap.slot(slot, offsets[-1])
+    chunks = []
+    for (_, lo, hi, core_start, core_stop), at in zip(spans, offsets, strict=False):
+        b, s = cap.read_into(lo, hi, beat[at: at + hi - lo], sync[at: at + hi - lo])
+        chunks.append(Chunk(lo, b, s, core_start, core_stop))
+    return beat, chunks, offsets[:-1], [k for k, *_ in spans]
 
 
 def capture_parts(cap: Capture, plan: Plan, processor: ChunkProcessor, start: int = 0,

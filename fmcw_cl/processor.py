@@ -24,7 +24,7 @@ import numpy as np
 
 from . import echoes
 from .errors import FmcwError
-from .stages import faults, lpf, pairing, resample, sync
+from .stages import faults, integrate, lpf, pairing, resample, sync
 from .stages.spectrum import Search
 
 if TYPE_CHECKING:
@@ -67,6 +67,19 @@ class Prepared:
 
     turns: sync.TurningPoints
     clip_counts: np.ndarray
+
+
+@dataclass(frozen=True)
+class Held:
+    """Chunks read once to be converted again and again (the delay's trial stretches):
+    their beat codes end to end in `beat`, chunk k's from `offsets[k]` (its arrays are
+    views into it), what `prepare` found in each, and the stretch each belongs to."""
+
+    beat: np.ndarray
+    chunks: list
+    offsets: list[int]
+    prepared: list[Prepared]
+    stretch: list[int]
 
 
 @dataclass
@@ -221,19 +234,12 @@ class ChunkProcessor(pairing.SpectrumOps):
         before, self._pending = self._pending, None
         if prepared is None:
             prepared = ahead[1] if ahead is not None and ahead[0] is chunk else self.prepare(chunk, info)
-        hs = sync.half_sweeps(prepared.turns, plan.lag)
-        fits = resample.inside(hs.start, hs.length, plan.lut, chunk.beat.size)
-        r = np.flatnonzero(hs.rising[:-1] & ~hs.rising[1:] & (hs.segment[:-1] == hs.segment[1:])
-                           & fits[:-1] & fits[1:])
-        if r.size == 0:
+        found = self._pairs(chunk, prepared)
+        if found is None:
             return [] if before is None else [self._finished(before, self.check_and_survey(before))]
-        f = r + 1
-        fs = info.sample_rate_hz
-        t_r = (chunk.start + hs.centre[r]) / fs
-        t_f = (chunk.start + hs.centre[f]) / fs
+        hs, r, f, times = found
         jobs = [(hs.start[r], hs.length[r], plan.lut.u_rise), (hs.start[f], hs.length[f], plan.lut.u_fall)]
-        (xr, xf), times, landed = self.resample_pairs(chunk.beat, jobs, plan.window, pairing.Times(t_r, t_f),
-                                                      before)
+        (xr, xf), times, landed = self.resample_pairs(chunk.beat, jobs, plan.window, times, before)
         nxt = following() if following is not None else None
         coming = None if nxt is None else self.prepare_later(nxt, info)
         self.ride(*(x for x in (landed, coming) if x is not None))
@@ -242,6 +248,82 @@ class ChunkProcessor(pairing.SpectrumOps):
         done = [] if before is None else [self._finished(before, landed.get())]
         if coming is not None:
             self._ahead = (nxt, coming.get())
+        mine = self._owned(chunk, prepared, found, res, (xr, xf))
+        if nxt is None or (mine.check is None and mine.survey is None):
+            return [*done, self._finished(mine, self.check_and_survey(mine))]
+        self._pending = mine
+        return done
+
+    def process_apart(self, held: Held) -> list[list[ChunkMeasurements]]:
+        """`[process(chunk, prepared) for each of held]` in one pass: every chunk's
+        pairs resampled and tracked together, each chunk's apart from the others'
+        (pairing.Times.groups), under an open plan without range check or survey (the
+        delay's trial conversions). Single half-sweeps are measured: where the options
+        leave the integration to the chunk, a chunk whose single pairs are too weak for
+        that (pairing.track_pairs) is converted again on its own, as `process` does;
+        where they set it, every chunk is."""
+        plan = self.plan
+        if plan is None:
+            raise FmcwError("a chunk processor must be opened with a plan before it processes")
+        items = list(zip(held.chunks, held.prepared, strict=True))
+        if plan.check is not None or plan.survey or plan.options.integrate not in (None, 1):
+            return [self.process(c, p) for c, p in items]
+        found = [self._pairs(c, p) for c, p in items]
+        sides = [[], []]                                  # each direction's jobs, all chunks
+        groups, rise, fall = [], [], []
+        for at, got in zip(held.offsets, found, strict=True):
+            if got is None:
+                continue
+            hs, r, f, times = got
+            groups.append(sum(map(np.size, rise)))
+            rise.append(times.rise)
+            fall.append(times.fall)
+            for side, idx in zip(sides, (r, f), strict=True):
+                side.append((hs.start[idx] + at, hs.length[idx]))
+        if not groups:
+            self.chunks += len(items)
+            return [[] for _ in items]
+        jobs = [(np.concatenate([a for a, _ in side]), np.concatenate([n for _, n in side]), u)
+                for side, u in zip(sides, (plan.lut.u_rise, plan.lut.u_fall), strict=True)]
+        times = pairing.Times(np.concatenate(rise), np.concatenate(fall), np.array(groups))
+        (xr, xf), times, _ = self.resample_pairs(held.beat, jobs, plan.window, times)
+        res = pairing.track_pairs(xr, xf, times, plan.model, plan.search, plan.options.iterations,
+                                  plan.options.dechirp, self, 1)
+        out, slices = [], iter(pairing.group_slices(times.groups, times.rise.size))
+        for (chunk, prepared), got in zip(items, found, strict=True):
+            one = None if got is None else res.take(next(slices))
+            if one is not None and plan.options.integrate is None and one.heard.mean() < integrate.AUTO_SHARE:
+                out.append(self.process(chunk, prepared))
+                continue
+            self.chunks += 1
+            if one is None:
+                out.append([])
+                continue
+            out.append([self._finished(self._owned(chunk, prepared, got, one, None), (None, None))])
+        return out
+
+    def _pairs(self, chunk: Chunk, prepared: Prepared) -> tuple | None:
+        """The half-sweeps of `chunk` under the open plan's delay, those of its pairs (the
+        rising and falling ones that lie whole in the chunk, of one segment) and the
+        pairs' Times (None: no pair)."""
+        plan = self.plan
+        hs = sync.half_sweeps(prepared.turns, plan.lag)
+        fits = resample.inside(hs.start, hs.length, plan.lut, chunk.beat.size)
+        r = np.flatnonzero(hs.rising[:-1] & ~hs.rising[1:] & (hs.segment[:-1] == hs.segment[1:])
+                           & fits[:-1] & fits[1:])
+        if r.size == 0:
+            return None
+        f = r + 1
+        fs = plan.info.sample_rate_hz
+        return hs, r, f, pairing.Times((chunk.start + hs.centre[r]) / fs, (chunk.start + hs.centre[f]) / fs)
+
+    def _owned(self, chunk: Chunk, prepared: Prepared, found: tuple, res: pairing.PairResult,
+               rows: tuple | None) -> Pending:
+        """The owned pairs of `chunk` (`found`: `_pairs`; `res`: their tracking) with their
+        clipping, and their range check and survey to run where the plan asks (`rows`:
+        the pairs' resampled half-sweeps, for the survey)."""
+        plan = self.plan
+        hs, r, f, times = found
         first = chunk.start + hs.start[r] + plan.lag      # sync time of the pair's first turn
         own = (first >= chunk.core_start) & (first < chunk.core_stop)
         sel = res.take(own)
@@ -253,13 +335,10 @@ class ChunkProcessor(pairing.SpectrumOps):
         # the core's clipped codes, counted once over the capture
         core = slice((chunk.core_start - chunk.start) // faults.CLIP_BLOCK,
                      -(-(chunk.core_stop - chunk.start) // faults.CLIP_BLOCK))
-        mine = Pending(chunk.beat, (t_r, t_f), own, sel, clip, int(counts[core].sum(dtype=np.int64)),
+        clipped = int(counts[core].sum(dtype=np.int64))
+        return Pending(chunk.beat, (times.rise, times.fall), own, sel, clip, clipped,
                        self._range_check(hs, r, f, sel) if plan.check is not None and r.size else None,
-                       self._survey((xr, xf), res, np.flatnonzero(own)) if plan.survey else None)
-        if nxt is None or (mine.check is None and mine.survey is None):
-            return [*done, self._finished(mine, self.check_and_survey(mine))]
-        self._pending = mine
-        return done
+                       self._survey(rows, res, np.flatnonzero(own)) if plan.survey else None)
 
     def _finished(self, chunk: Pending, got: tuple) -> ChunkMeasurements:
         """The measurements of a `chunk` whose range check and survey gave `got`."""

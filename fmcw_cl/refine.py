@@ -29,7 +29,8 @@ import numpy as np
 
 from . import numeric
 from .capture import Capture
-from .chunks import HELD_SLOT, held_chunks
+from .chunks import held_end_to_end
+from .processor import Held
 from .stages import resample, sync
 
 STRETCHES = 3
@@ -68,32 +69,40 @@ def drift(t: np.ndarray, d: np.ndarray, v: np.ndarray) -> tuple[float, float]:
     return numeric.drift(t, d, v, JACKKNIFE_BLOCKS)
 
 
-def stretches(cap: Capture, plan, processor) -> list[list[tuple]]:
+def stretches(cap: Capture, plan, processor) -> Held:
     """The trial stretches of `plan`'s capture, STRETCHES of STRETCH_PERIODS spread
-    through it: their chunks read once, each with what `processor.prepare` finds in it
-    (the trial conversions move only the delay)."""
+    through it: their chunks read once, end to end, each with what `processor.prepare`
+    finds in it (the trial conversions move only the delay)."""
     info = cap.info
     length = int(STRETCH_PERIODS * info.samples_per_period)
     starts = np.unique(np.linspace(0, max(0, info.samples - length), STRETCHES).astype(np.int64))
-    out, slot = [], HELD_SLOT
-    for a in starts:
-        chunks = held_chunks(cap, plan.options, int(a), int(a) + length, slot)
-        slot += len(chunks)
-        out.append([(c, processor.prepare(c, info)) for c in chunks])
+    ranges = [(int(a), int(a) + length) for a in starts]
+    beat, chunks, offsets, stretch = held_end_to_end(cap, plan.options, ranges)
+    return Held(beat, chunks, offsets, [processor.prepare(c, info) for c in chunks], stretch)
+
+
+def by_stretch(held: Held, converted: list[list]) -> list[list]:
+    """The measurements of each stretch of `held`, from those of each of its chunks."""
+    out = [[] for _ in range(max(held.stretch, default=-1) + 1)]
+    for k, parts in zip(held.stretch, converted, strict=True):
+        out[k] += parts
     return out
 
 
-def mismatch(held: list[list[tuple]], plan, lag: float, processor) -> Mismatch:
-    """The kinematic inconsistency of `plan` at `lag` over the trial stretches `held`
-    (`stretches`), each converted by `processor` (no range check, survey or echo list,
-    at most TRIAL_ITERATIONS de-chirp passes: distances and velocities alone)."""
+def trial_plan(plan, lag: float):
+    """`plan` at `lag` for a trial conversion: no range check, survey or echo list, at
+    most TRIAL_ITERATIONS de-chirp passes (distances and velocities alone)."""
     options = replace(plan.options, iterations=min(plan.options.iterations, TRIAL_ITERATIONS))
-    p = replace(plan, lag=lag, check=None, survey=False, search=replace(plan.search, echoes=False),
-                options=options)
-    processor.open(p)
+    return replace(plan, lag=lag, check=None, survey=False, search=replace(plan.search, echoes=False),
+                   options=options)
+
+
+def mismatch(held: Held, plan, lag: float, processor) -> Mismatch:
+    """The kinematic inconsistency of `plan` at `lag` over the trial stretches `held`
+    (`stretches`), converted together by `processor`, each apart (`trial_plan`)."""
+    processor.open(trial_plan(plan, lag))
     slopes, errors, dist = [], [], []
-    for chunks in held:
-        parts = [got for c, prep in chunks for got in processor.process(c, prep)]
+    for parts in by_stretch(held, processor.process_apart(held)):
         if not parts:
             continue
         t, d, v, ok = pairs_of(parts)

@@ -24,7 +24,7 @@ import numpy as np
 from . import target
 from .capture import Capture
 from .plan import MIN_RANGE_SHARE
-from .refine import pairs_of, stretches
+from .refine import by_stretch, pairs_of, stretches
 from .stages import faults
 
 MIN_SIDE_M = 0.02     # a side band narrower than this is not converted
@@ -54,8 +54,8 @@ def moving_beside(cap: Capture, plan, processor, fixed_m: float) -> list[tuple[f
         p = plan.with_band(band)
         processor.open(replace(p, check=None, survey=False, search=replace(p.search, echoes=False),
                                options=replace(p.options, integrate=p.options.integrate or LOOK_K)))
-        for chunks in held:
-            parts = [got for c, prep in chunks for got in processor.process(c, prep)]
+        converted = [processor.process(c, prep) for c, prep in zip(held.chunks, held.prepared, strict=True)]
+        for parts in by_stretch(held, converted):
             if not parts:
                 continue
             tt, dd, vv, _ = pairs_of(parts)

@@ -4,8 +4,10 @@
 // pair's new measurements into the state and its velocity, the continuity median and the
 // trusted pairs, the velocities interpolated over the trusted pairs, and the pairs whose
 // de-chirp velocity moved, listed in order for the next measurement (their count in
-// state[0], which the measurement reads). Twin: fmcw_cl.stages.pairing.passes, in double
-// precision as numpy's (a device without it runs the passes on the host).
+// state[0], which the measurement reads). Pairs in groups tracked apart (the delay's trial
+// stretches) are nobody's neighbours across their group's ends. Twin:
+// fmcw_cl.stages.pairing.passes, in double precision as numpy's (a device without it runs
+// the passes on the host).
 #pragma OPENCL FP_CONTRACT OFF
 #if defined(cl_khr_fp64)
 #pragma OPENCL EXTENSION cl_khr_fp64 : enable
@@ -35,14 +37,15 @@ void remove(double *w, const int n, const double x)
     for (; j < n - 1; ++j) w[j] = w[j + 1];
 }
 
-// np.interp(t[i], t[trusted], med[trusted]) for a pair between trusted pairs p <= i < n
-// (either absent: -1), numpy's arithmetic and its fallbacks where it makes a NaN.
+// np.interp(t[i], t[trusted], med[trusted]) over its group for a pair between the
+// group's trusted pairs p <= i < n (either absent: -1; both: 0), numpy's arithmetic and
+// its fallbacks where it makes a NaN.
 double interpolated(__global const double *t, __global const double *med, const int i,
-                    const int p, const int n, const int first, const int last)
+                    const int p, const int n)
 {
     if (p == i) return med[i];
-    if (p < 0) return med[first];
-    if (n < 0) return med[last];
+    if (p < 0) return n < 0 ? 0.0 : med[n];
+    if (n < 0) return med[p];
     const double slope = (med[n] - med[p]) / (t[n] - t[p]);
     double r = slope * (t[i] - t[p]) + med[p];
     if (isnan(r)) {
@@ -62,6 +65,8 @@ __kernel void track_pass(const int pairs, const int first, const int last,
                          const double metres_per_bin,
                          __global const double *t,            // s, the pairs' centres
                          __global const double *half_gap,     // s, half the sweeps' spacing
+                         __global const int *bounds,          // each pair's group: first pair, then
+                                                              // `pairs` on, its last
                          const double k_rise, const double k_fall,
                          __global double *d_r, __global double *d_f,     // m
                          __global float *s_r, __global float *s_f,       // dB
@@ -97,16 +102,17 @@ __kernel void track_pass(const int pairs, const int first, const int last,
         }
         barrier(CLK_GLOBAL_MEM_FENCE);
         if (!last) {
-            // the running median (ends extended) and the trusted pairs
+            // the running median (a group's ends extended) and the trusted pairs
             double w[2 * REACH_MAX + 1];
             const int size = 2 * reach + 1;
             int l = -1, f = -1;                       // the run's last and first trusted pair
             for (int i = a; i < b; ++i) {
-                if (i == a) {
-                    for (int k = 0; k < size; ++k) insert(w, k, vel[clamp(i - reach + k, 0, pairs - 1)]);
+                const int lo = bounds[i], hi = bounds[pairs + i];
+                if (i == a || lo != bounds[i - 1]) {
+                    for (int k = 0; k < size; ++k) insert(w, k, vel[clamp(i - reach + k, lo, hi)]);
                 } else {
-                    remove(w, size, vel[clamp(i - 1 - reach, 0, pairs - 1)]);
-                    insert(w, size - 1, vel[clamp(i + reach, 0, pairs - 1)]);
+                    remove(w, size, vel[clamp(i - 1 - reach, lo, hi)]);
+                    insert(w, size - 1, vel[clamp(i + reach, lo, hi)]);
                 }
                 const double m = w[reach];
                 med[i] = m;
@@ -122,22 +128,22 @@ __kernel void track_pass(const int pairs, const int first, const int last,
             ends[3 * lid + 1] = f;
             barrier(CLK_LOCAL_MEM_FENCE | CLK_GLOBAL_MEM_FENCE);
             // the next velocity of each pair (pairing.regularise) and whether it moved
-            int p = -1, n = -1, first_all = -1, last_all = -1;
+            int p = -1, n = -1;
             for (int k = 0; k < lsz; ++k) {
                 const int lk = ends[3 * k], fk = ends[3 * k + 1];
                 if (k < lid && lk >= 0) p = lk;
                 if (k > lid && fk >= 0 && n < 0) n = fk;
-                if (fk >= 0 && first_all < 0) first_all = fk;
-                if (lk >= 0) last_all = lk;
             }
             for (int i = a; i < b; ++i) {             // the trusted pair at or before each
                 if (trusted[i]) p = i;
                 prev[i] = p;
             }
             int moved = 0;
-            for (int i = b - 1; i >= a; --i) {        // ... and after
+            for (int i = b - 1; i >= a; --i) {        // ... and after, both in its group
                 if (trusted[i]) n = i;
-                const double v = first_all < 0 ? 0.0 : interpolated(t, med, i, prev[i], n, first_all, last_all);
+                const int pg = prev[i] >= bounds[i] ? prev[i] : -1;
+                const int ng = n >= 0 && n <= bounds[pairs + i] ? n : -1;
+                const double v = interpolated(t, med, i, pg, ng);
                 next[i] = v;
                 moved += fabs(v - vd[i]) >= stop;
             }

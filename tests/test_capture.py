@@ -147,26 +147,32 @@ def test_chunks_in_reused_slots_hold_the_same_samples(static_capture):
         assert seen[2] is seen[0] and seen[1] is not seen[0]
 
 
-def test_held_chunks_each_in_a_pooled_slot_of_their_own(static_capture):
-    """Held chunks (the delay refinement's trial stretches): every chunk's samples as a
-    fresh read, each in a slot of its own from `held` on, none sharing memory with
-    another or with the read-ahead's slots 0 and 1."""
-    from fmcw_cl.chunks import HELD_SLOT, held_chunks, margin_samples
+def test_held_chunks_lie_end_to_end_in_a_pooled_slot_of_their_own(static_capture):
+    """Held chunks (the delay refinement's trial stretches): every chunk of each range
+    as a fresh read, their codes end to end in one slot from `held` on (each chunk's
+    arrays views into it, where its offset says), none sharing memory with the
+    read-ahead's slots 0 and 1; a range that ends before the capture does, one that
+    starts in it and one past its end."""
+    from fmcw_cl.chunks import HELD_SLOT, held_end_to_end, margin_samples
     from fmcw_cl.options import Options
 
     with Capture(static_capture) as cap:
-        ring = [cap.slot(i, 10)[0] for i in (0, 1)]
+        ring = [a for i in (0, 1) for a in cap.slot(i, 10)]
         opts = Options(chunk_periods=20)
-        first = held_chunks(cap, opts, 1000, 400_000)
-        second = held_chunks(cap, opts, 500_000, 700_000, HELD_SLOT + len(first))
-        fresh = list(cap.chunks(20, margin=margin_samples(cap.info, opts), start=1000, stop=400_000))
-        assert len(first) == len(fresh) >= 2
-        for got, want in zip(first, fresh, strict=True):
+        n = cap.info.samples
+        ranges = [(1000, 400_000), (n - 150_000, n), (n + 10, n + 500)]
+        beat, chunks, offsets, which = held_end_to_end(cap, opts, ranges, HELD_SLOT)
+        fresh = [(k, c) for k, (a, b) in enumerate(ranges)
+                 for c in cap.chunks(20, margin=margin_samples(cap.info, opts), start=a, stop=b)]
+        assert len(chunks) == len(fresh) >= 4 and which == [k for k, _ in fresh] and 2 not in which
+        assert beat.size == sum(c.beat.size for c in chunks)
+        for got, (_, want), at in zip(chunks, fresh, offsets, strict=True):
+            assert (got.start, got.core_start, got.core_stop) == (want.start, want.core_start, want.core_stop)
             np.testing.assert_array_equal(got.beat, want.beat)
             np.testing.assert_array_equal(got.sync, want.sync)
-        arrays = [a for c in first + second for a in (c.beat, c.sync)] + ring
-        for i, a in enumerate(arrays):
-            assert not any(np.shares_memory(a, b) for b in arrays[i + 1:])
+            np.testing.assert_array_equal(beat[at: at + got.beat.size], want.beat)
+            assert np.shares_memory(got.beat, beat) and not np.shares_memory(got.beat, got.sync)
+        assert not any(np.shares_memory(x, a) for c in chunks for x in (c.beat, c.sync) for a in ring)
 
 
 def test_slots_return_to_the_pool_for_the_next_capture(static_capture, monkeypatch):

@@ -4,6 +4,8 @@ it to where a static target reads no velocity, with its uncertainty stated."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -197,3 +199,48 @@ def test_a_trial_without_runs_does_not_end_the_delay_search(monkeypatch):
     assert any(root - 12 < x < root - 5 for x in tried)             # the search met the gap
     assert got.lag_refined and abs(got.lag - root) < 0.1
     assert len(tried) <= refine.MAX_EVALUATIONS
+
+
+@pytest.mark.parametrize("name", ["numpy", "opencl"])
+def test_trial_stretches_converted_together_equal_each_converted_apart(tmp_path, monkeypatch, name):
+    """ChunkProcessor.process_apart (the delay's trial conversions: one pass, one trip
+    each way on a device) gives each chunk of the trial stretches the measurements of
+    its own conversion: chunks of 25 periods (several a stretch, odd counts of pairs,
+    one chunk's pairs tracked beside another's), at the true delay and 3 samples off, on
+    a weak lab's landing under noise at full scale. With the integration left to the
+    chunk, a chunk whose single pairs are too weak for it (here some are, some are not)
+    is converted on its own. Equal but for float rounding (the resampling's positions
+    are offset into the codes of all the chunks)."""
+    from fmcw_cl.backend import make_processor
+    from fmcw_cl.capture import Capture
+    from fmcw_cl.plan import make_plan
+
+    path = tmp_path / "landing.h5"
+    cfg = replace(LAB, headroom=None, snr_db=-15.0)
+    true = simulate_capture(path, jump(0.3), 0.05, start_s=0.18, seed=4, config=cfg)["sync_delay_samples"]
+    be = make_processor(name)
+    tol = 1e-9 if name == "numpy" else 2e-5
+    with Capture(path) as cap:
+        plan = make_plan(cap, Options(chunk_periods=25), lag=true, processor=be)
+        held = refine.stretches(cap, plan, be)
+        assert len(held.chunks) >= 9 and len(set(held.stretch)) == 3
+        for lag in (plan.lag, plan.lag + 3.0):
+            be.open(refine.trial_plan(plan, lag))
+            apart = [be.process(c, p) for c, p in zip(held.chunks, held.prepared, strict=True)]
+            alone, real = [], be.process           # the chunks process_apart converts on their own
+            monkeypatch.setattr(be, "process", lambda c, p, a=alone, real=real: a.append(c) or real(c, p))
+            together = be.process_apart(held)
+            assert 0 < len(alone) < len(held.chunks)
+            assert len(together) == len(apart)
+            for one, other in zip(together, apart, strict=True):
+                assert len(one) == len(other)
+                for a, b in zip(one, other, strict=True):
+                    np.testing.assert_array_equal(a.t_rise, b.t_rise)
+                    np.testing.assert_array_equal(a.reason, b.reason)
+                    np.testing.assert_array_equal(a.result.valid, b.result.valid)
+                    np.testing.assert_array_equal(a.result.integrated, b.result.integrated)
+                    for key in ("distance", "velocity", "dechirped_rise", "dechirped_fall"):
+                        np.testing.assert_allclose(getattr(a.result, key), getattr(b.result, key), rtol=0,
+                                                   atol=tol, err_msg=key)
+            monkeypatch.undo()
+            assert any(m.result.valid.any() for got in together for m in got)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -857,17 +859,20 @@ def test_survey_kernel_matches_numpy(backend, kernel_variant, rows, nfft, lo):
         np.testing.assert_array_equal(a, b)
 
 
-@pytest.mark.parametrize("scene,pairs,iterations", [("fold", 301, 6), ("fold", 301, 2), ("still", 40, 6),
-                                                    ("noise", 77, 6), ("fold", 5, 6),
-                                                    ("silent", 30, 6)])
+@pytest.mark.parametrize("scene,pairs,iterations,groups", [
+    ("fold", 301, 6, None), ("fold", 301, 2, None), ("still", 40, 6, None), ("noise", 77, 6, None),
+    ("fold", 5, 6, None), ("silent", 30, 6, None), ("fold", 301, 6, (0, 3, 4, 96, 107, 250)),
+    ("noise", 77, 6, (0, 40))])
 def test_tracker_passes_on_the_device_equal_the_host_passes(backend, kernel_variant, monkeypatch, scene,
-                                                            pairs, iterations):
+                                                            pairs, iterations, groups):
     """kernels/track.cl (the regularisation between the passes on the device, one copy
     each way) against pairing.passes driven by the same device's measurements: an
     accelerating target whose beat folds, with a fade (untrusted pairs interpolated)
     and noise; passes cut short by `iterations`; a still target (the passes stop
     after one); noise alone (few trusted pairs), silence (no spectrum at all); fewer
-    pairs than the median's window."""
+    pairs than the median's window; pairs in groups tracked apart (one of a single
+    pair, one of 11 inside the fade with no trusted pair, groups that split the
+    kernel's runs of pairs)."""
     from fmcw_cl.opencl import track as k_track
     from fmcw_cl.physics import C
     from fmcw_cl.stages import pairing
@@ -890,7 +895,7 @@ def test_tracker_passes_on_the_device_equal_the_host_passes(backend, kernel_vari
         noise = rng.normal(0, 0.3 if scene != "silent" else 0.0, (pairs, lut.points))
         x = amp[:, None] * np.cos(2 * np.pi * phase) + noise
         rows.append(k_spectrum.as_device(backend.bufs, (x - x.mean(axis=1, keepdims=True)) * win))
-    times = pairing.Times(t_mid - half_s / 2, t_mid + half_s / 2)
+    times = pairing.Times(t_mid - half_s / 2, t_mid + half_s / 2, groups and np.array(groups))
     search = Search(int(0.03 / model.metres_per_bin), model.nfft // 2, echoes=True)
     rows = tuple(rows)
     assert k_track.supported(backend.rt)
@@ -906,6 +911,10 @@ def test_tracker_passes_on_the_device_equal_the_host_passes(backend, kernel_vari
         np.testing.assert_array_equal(getattr(state, key), getattr(want, key), err_msg=key)
     if scene == "fold" and pairs > 100:
         assert np.ptp(state.vd) > 3.0            # the passes moved the de-chirp velocities
+    if groups is not None and scene == "fold":   # the groups changed what the passes decided
+        _, one = pairing.SpectrumOps.track(backend, rows, replace(times, groups=None), model, search,
+                                           iterations, True)
+        assert not np.array_equal(one.vd, state.vd)
 
 
 def monkeypatch_count(monkeypatch, module, name: str) -> list[int]:

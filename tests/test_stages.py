@@ -161,6 +161,24 @@ def test_tracker_resolves_folds_and_the_paper_method_does_not():
     assert np.abs(res.velocity[ok] - v[ok]).max() < 2e-3
     paper = pairing.track_pairs(xr, xf, times, model, Search(lo, model.nfft // 2), dechirp=False)
     assert np.percentile(np.abs(paper.distance - r), 95) > 5e-3   # centimetres off
+    # pairs in groups tracked apart are each group's own tracking, nobody's neighbours
+    # across a group's ends: a group of one pair, one of 11 with the target faded out
+    # (no trusted pair), and groups whose velocities differ at their ends
+    xr[120:131] = rng.normal(0, 0.3, (11, xr.shape[1])) * resample.window(1000)
+    edges = [0, 7, 8, 120, 131, 200, pairs]
+    groups = pairing.Times(times.rise, times.fall, np.array(edges[:-1]))
+    got = pairing.track_pairs(xr, xf, groups, model, Search(lo, model.nfft // 2), integrate_k=1)
+    each = [pairing.track_pairs(xr[a:b], xf[a:b], pairing.Times(times.rise[a:b], times.fall[a:b]), model,
+                                Search(lo, model.nfft // 2), integrate_k=1)
+            for a, b in zip(edges[:-1], edges[1:], strict=True)]
+    want = pairing.PairResult.concat(each)
+    for key in ("distance", "velocity", "valid", "continuous", "dechirped_rise", "dechirped_fall"):
+        np.testing.assert_array_equal(getattr(got, key), getattr(want, key), err_msg=key)
+    alone = pairing.track_pairs(xr, xf, times, model, Search(lo, model.nfft // 2), integrate_k=1)
+    assert not np.array_equal(alone.continuous, got.continuous) or not np.array_equal(alone.velocity,
+                                                                                       got.velocity)
+    with pytest.raises(ValueError, match="one half-sweep at a time"):
+        pairing.track_pairs(xr, xf, groups, model, Search(lo, model.nfft // 2), integrate_k=None)
 
 
 def test_acceleration_skips_gaps():

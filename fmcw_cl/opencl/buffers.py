@@ -107,11 +107,14 @@ class Buffers:
         return buf
 
     def lease(self, nbytes: int):
-        """A buffer of at least `nbytes` from the pool; give it back with `release`."""
+        """A buffer of at least `nbytes` from the pool, the smallest that holds them,
+        where it is at most twice their size: a large buffer stays for a large request
+        (a chunk's resampled rows), and a small request (the range check's quarter of
+        them) makes a buffer of its own once. Give it back with `release`."""
         nbytes = max(int(nbytes), 4)
-        for i, (size, _) in enumerate(self._free):
-            if size >= nbytes:
-                return self._free.pop(i)
+        fits = [i for i, (size, _) in enumerate(self._free) if nbytes <= size <= 2 * self._roomy(nbytes)]
+        if fits:
+            return self._free.pop(min(fits, key=lambda i: self._free[i][0]))
         nbytes = self._roomy(nbytes)
         return nbytes, self._new(cl.mem_flags.READ_WRITE, nbytes)
 

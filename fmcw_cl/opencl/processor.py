@@ -179,12 +179,12 @@ class OpenCLProcessor(ChunkProcessor):
             if before.survey is not None:
                 also = _survey_inputs(before.survey)
         if passes:
-            also = (*also, times.mid, times.half_gap)
+            also = (*also, times.mid, times.half_gap, times.bounds)
         rows, extra = k_resample.resample_groups(self.rt, self.bufs, groups, also)
         pairs = self._kept(rows[-1], win)
         if passes:
-            *extra, d_mid, d_half = extra
-            times = replace(times, device=(d_mid, d_half))
+            *extra, d_mid, d_half, d_bounds = extra
+            times = replace(times, device=(d_mid, d_half, d_bounds))
         if not fused:
             return pairs, times, landed
         out, read = self._check_and_survey(before, rows[0] if before.check is not None else None, extra)

@@ -26,7 +26,7 @@ def track(rt: Runtime, bufs: Buffers, rows: tuple[DeviceRows, DeviceRows], times
     """The plain pass of both directions (every echo with `search.echoes`) and up to
     `iterations` de-chirp passes, each regularising the velocities and re-measuring the
     pairs whose de-chirp velocity moved (the passes stop on the device when none did).
-    One copy goes up, the pairs' times (none where `times.device` holds them already),
+    One copy goes up, the pairs' times and groups (none where `times.device` holds them),
     and one comes down (the plain pass's results and the tracker's state, and `riders`:
     buffers.Rider, other steps' results).
 
@@ -43,8 +43,9 @@ def track(rt: Runtime, bufs: Buffers, rows: tuple[DeviceRows, DeviceRows], times
     state = [(f64, pairs), (f32, pairs), (f64, pairs), (f32, pairs), (f64, pairs)]   # d_r s_r d_f s_f vd
     out = Packed(bufs, "tracked", [*head, *state], riders)
     d_r, s_r, d_f, s_f, vd = out.buffers[len(head):]
-    d_mid, d_half = times.device or Packed(bufs, "track_times", [(f64, pairs), (f64, pairs)]).upload(
-        times.mid, times.half_gap)
+    d_mid, d_half, d_bounds = times.device or Packed(
+        bufs, "track_times", [(f64, pairs), (f64, pairs), (i32, 2 * pairs)]).upload(
+        times.mid, times.half_gap, times.bounds)
     d_state = bufs.get("track_state", 8)          # [pairs listed, passes stopped]: the first pass sets
     vel, med, nxt = (bufs.get(f"track_{n}", 8 * pairs) for n in ("vel", "med", "next"))
     trusted, prev, slot, listed, v32 = (bufs.get(f"track_{n}", 4 * pairs)
@@ -62,7 +63,7 @@ def track(rt: Runtime, bufs: Buffers, rows: tuple[DeviceRows, DeviceRows], times
     def launch(it: int) -> None:
         got = (out if it == 0 else again).buffers      # each direction's peaks: parts 0, 1 and 6, 7
         kernel(rt.queue, (lsz,), (lsz,), i32(pairs), i32(it == 0), i32(it == iterations),
-               *(got[i] for i in (0, 1, 6, 7)), slot, f64(model.metres_per_bin), d_mid, d_half,
+               *(got[i] for i in (0, 1, 6, 7)), slot, f64(model.metres_per_bin), d_mid, d_half, d_bounds,
                f64(model.k_rise), f64(model.k_fall), d_r, d_f, s_r, s_f, vd, i32(pairing.NEIGHBOURS),
                f32(pairing.SNR_MIN_DB), f64(pairing.CONSISTENT_MPS),
                f64(pairing.PLAIN_SHARE if it == 0 else 0.0), f64(pairing.STOP_MPS), vel, med, nxt, trusted,

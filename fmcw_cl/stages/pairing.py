@@ -281,7 +281,8 @@ def _tolerance(resid: np.ndarray, trusted: np.ndarray) -> float:
     return min(max(JUMP_M, JUMP_SIGMAS * sigma), JUMP_MAX_M)
 
 
-def continuity(t: np.ndarray, dist: np.ndarray, vel: np.ndarray, trusted: np.ndarray) -> np.ndarray:
+def continuity(t: np.ndarray, dist: np.ndarray, vel: np.ndarray, trusted: np.ndarray,
+               groups: np.ndarray | None = None) -> np.ndarray:
     """Which pairs' distances agree with what their trusted neighbours predict.
 
     Neighbour j (within NEIGHBOURS pairs) predicts d_j + (t_i - t_j) (v_i + v_j) / 2 for
@@ -290,8 +291,11 @@ def continuity(t: np.ndarray, dist: np.ndarray, vel: np.ndarray, trusted: np.nda
     standard deviations of all residuals (a noisy capture; at most JUMP_MAX_M), of its
     distance, and at least SUPPORT neighbours vouch for it. A noise peak in a fade, or
     both half-sweeps on another echo, moves both sweeps' distances alike: the velocity
-    test cannot see it, this one does.
+    test cannot see it, this one does. `groups`: each group of pairs on its own
+    (`group_slices`).
     """
+    if groups is not None:
+        return _each(groups, lambda g: continuity(t[g], dist[g], vel[g], trusted[g]), t.size, bool)
     resid, _ = _residuals(t, dist, vel, trusted)
     return resid <= _tolerance(resid, trusted)
 
@@ -479,18 +483,37 @@ def _anchored(t, dist, vel, ok, unsupported) -> None:
             unsupported[r] = True
 
 
-def running_median(v: np.ndarray) -> np.ndarray:
-    """Median of each pair's 2 NEIGHBOURS + 1 pairs (edges: nearest)."""
+def group_slices(groups: np.ndarray | None, pairs: int) -> list[slice]:
+    """The pairs of each group (`groups`: the first pair of each, 0 first; None: one
+    group of all `pairs`): pairs converted together but apart from one another (the
+    delay's trial stretches: ChunkProcessor.process_apart), which are nobody's neighbours
+    across a group's ends."""
+    edges = [0] if groups is None else [int(g) for g in groups]
+    return [slice(a, b) for a, b in zip(edges, [*edges[1:], pairs], strict=True) if b > a]
+
+
+def _each(groups: np.ndarray, step, pairs: int, dtype=np.float64) -> np.ndarray:
+    """`step(g)` of each group's slice g of `pairs`, laid end to end."""
+    parts = [step(g) for g in group_slices(groups, pairs)]
+    return np.concatenate(parts) if parts else np.zeros(0, dtype)
+
+
+def running_median(v: np.ndarray, groups: np.ndarray | None = None) -> np.ndarray:
+    """Median of each pair's 2 NEIGHBOURS + 1 pairs (edges, a group's too: nearest)."""
+    if groups is not None:
+        return _each(groups, lambda g: running_median(v[g]), v.size)
     return numeric.running_median(v, 2 * NEIGHBOURS + 1)
 
 
 def regularise(v: np.ndarray, trusted: np.ndarray, time: np.ndarray,
-               smooth: np.ndarray | None = None) -> np.ndarray:
+               smooth: np.ndarray | None = None, groups: np.ndarray | None = None) -> np.ndarray:
     """Continuity prior: running median of trusted velocities, gaps filled linearly
-    (`smooth`: running_median(v) when the caller has it)."""
+    (`smooth`: running_median(v) when the caller has it), each group on its own."""
+    smooth = running_median(v, groups) if smooth is None else smooth
+    if groups is not None:
+        return _each(groups, lambda g: regularise(v[g], trusted[g], time[g], smooth[g]), v.size)
     if not np.any(trusted):
         return np.zeros_like(v)
-    smooth = running_median(v) if smooth is None else smooth
     return np.interp(time, time[trusted], smooth[trusted])
 
 
@@ -541,9 +564,12 @@ def track_pairs(xr: np.ndarray, xf: np.ndarray, times: Times, model: DopplerMode
     ops : the spectrum steps (numpy's by default; a backend's).
     integrate_k : half-sweeps of a direction integrated per measurement (1: none; see
         stages.integrate); None chooses it from the pairs' SNR: 1 when at least
-        integrate.AUTO_SHARE of the single pairs are heard.
+        integrate.AUTO_SHARE of the single pairs are heard. Pairs in groups
+        (`times.groups`) take 1.
     """
     ops = ops or NUMPY
+    if times.groups is not None and integrate_k != 1:
+        raise ValueError("pairs tracked in groups apart are measured one half-sweep at a time")
     iterations = iterations if dechirp else 0
     # the plain pass (with every echo) does not depend on the integration: made once
     first, single = ops.track((xr, xf), times, model, search, iterations, integrate_k in (1, None))
@@ -576,11 +602,14 @@ def measured_snr(res: PairResult) -> float:
 @dataclass(frozen=True)
 class Times:
     """A chunk's pairs in time (s): each half-sweep's centre, the pair's centre and half
-    the time between its sweeps' centres; `device`: copies of (mid, half_gap) on a
-    device, where a processor took them up with the pairs' resampling positions."""
+    the time between its sweeps' centres; `groups`: the first pair of each group of pairs
+    tracked apart from the others (`group_slices`; None: one group); `device`: copies of
+    (mid, half_gap, bounds) on a device, where a processor took them up with the pairs'
+    resampling positions."""
 
     rise: np.ndarray
     fall: np.ndarray
+    groups: np.ndarray | None = None
     device: tuple | None = None
 
     @property
@@ -590,6 +619,15 @@ class Times:
     @property
     def half_gap(self) -> np.ndarray:
         return 0.5 * (self.fall - self.rise)
+
+    @property
+    def bounds(self) -> np.ndarray:
+        """(2 pairs,) int32: the first pair of each pair's group, then the last of each
+        (kernels/track.cl)."""
+        out = np.empty((2, self.rise.size), np.int32)
+        for g in group_slices(self.groups, self.rise.size):
+            out[:, g] = [[g.start], [g.stop - 1]]
+        return out.ravel()
 
 
 @dataclass
@@ -636,9 +674,9 @@ def passes(rows: tuple, times: Times, model: DopplerModel, search: Search, itera
         _, vel, _ = solve_pair(d_r, d_f, vd, half_gap, model)
         heard = (s_r >= snr_min) & (s_f >= snr_min)
         # the plain first pass smears fast targets: allow PLAIN_SHARE there, not later
-        med = running_median(vel)
+        med = running_median(vel, times.groups)
         tol = CONSISTENT_MPS + (PLAIN_SHARE * np.abs(med) if it == 0 else 0.0)
-        v_next = regularise(vel, heard & (np.abs(vel - med) < tol), t_mid, med)
+        v_next = regularise(vel, heard & (np.abs(vel - med) < tol), t_mid, med, times.groups)
         # the plain pass is the de-chirp at 0 m/s: a still pair is not measured again
         moved = np.flatnonzero(np.abs(v_next - vd) >= STOP_MPS)
         if moved.size == 0:
@@ -662,9 +700,10 @@ def result(first: tuple, state: Passes, times: Times, model: DopplerModel, dechi
     heard = (state.s_r >= snr_min) & (state.s_f >= snr_min)
     valid = heard
     if dechirp:
-        med = running_median(vel)
+        med = running_median(vel, times.groups)
         valid = valid & (np.abs(dv) < CONVERGED_MPS) & (np.abs(vel - med) < CONSISTENT_MPS)
-    continuous = continuity(times.mid, dist, vel, valid) if dechirp else np.ones(valid.size, bool)
+    continuous = (continuity(times.mid, dist, vel, valid, times.groups) if dechirp
+                  else np.ones(valid.size, bool))
     return PairResult(dist, vel, valid, d_r.copy(), d_f.copy(), s_r.copy(), s_f.copy(), state.d_r, state.d_f,
                       state.s_r, state.s_f, heard, continuous, state.count,
                       *(e_r or [None]), *(e_f or [None]))
