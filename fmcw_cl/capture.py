@@ -260,6 +260,8 @@ class Capture:
         self._fd = os.open(self.path, os.O_RDONLY) if any(self._extents) else None
         self._slots: list[tuple[np.ndarray, np.ndarray]] = []
         self._slots_lock = threading.Lock()     # the chunk reader's thread takes slots too
+        self.held: tuple | None = None          # (key, value) of what the held slot holds now
+                                                # (refine.stretches: read once, converted often)
 
     def __enter__(self) -> Capture:
         return self
@@ -272,6 +274,7 @@ class Capture:
             for a in pair:
                 pool.give(a)
         self._slots = []
+        self.held = None
         self._file.close()
         if self._fd is not None:
             os.close(self._fd)

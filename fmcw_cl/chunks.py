@@ -99,6 +99,8 @@ def held_end_to_end(cap: Capture, options: Options, ranges: list[tuple[int, int]
     Returns the beat codes of them all, the chunks (their arrays views into the slot),
     where each chunk's codes start in the first, and the range each chunk lies in."""
     margin = margin_samples(cap.info, options)
+    if slot == HELD_SLOT:
+        cap.held = None                  # what the slot held is gone
     spans = [(k, *span) for k, (a, b) in enumerate(ranges)
              for span in cap.chunk_spans(options.chunk_periods, margin, a, b)]
     sizes = [hi - lo for _, lo, hi, *_ in spans]

@@ -72,13 +72,20 @@ def drift(t: np.ndarray, d: np.ndarray, v: np.ndarray) -> tuple[float, float]:
 def stretches(cap: Capture, plan, processor) -> Held:
     """The trial stretches of `plan`'s capture, STRETCHES of STRETCH_PERIODS spread
     through it: their chunks read once, end to end, each with what `processor.prepare`
-    finds in it (the trial conversions move only the delay)."""
+    finds in it (the trial conversions move only the delay). Once a capture, chunk size
+    and processor: the second look converts them again (`Capture.held` keeps them while
+    nothing else takes their slot)."""
+    key = ("stretches", plan.options.chunk_periods, plan.options.context_periods, processor)
+    if cap.held is not None and cap.held[0] == key:
+        return cap.held[1]
     info = cap.info
     length = int(STRETCH_PERIODS * info.samples_per_period)
     starts = np.unique(np.linspace(0, max(0, info.samples - length), STRETCHES).astype(np.int64))
     ranges = [(int(a), int(a) + length) for a in starts]
     beat, chunks, offsets, stretch = held_end_to_end(cap, plan.options, ranges)
-    return Held(beat, chunks, offsets, [processor.prepare(c, info) for c in chunks], stretch)
+    held = Held(beat, chunks, offsets, [processor.prepare(c, info) for c in chunks], stretch)
+    cap.held = (key, held)
+    return held
 
 
 def by_stretch(held: Held, converted: list[list]) -> list[list]:

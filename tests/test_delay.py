@@ -244,3 +244,27 @@ def test_trial_stretches_converted_together_equal_each_converted_apart(tmp_path,
                                                    atol=tol, err_msg=key)
             monkeypatch.undo()
             assert any(m.result.valid.any() for got in together for m in got)
+
+
+@pytest.mark.parametrize("name", ["numpy", "opencl"])
+def test_the_second_look_converts_the_stretches_the_refinement_read(static_capture, monkeypatch, name):
+    """A lone fixed echo's second look converts the delay's trial stretches again, as
+    the refinement read and prepared them (`Capture.held`): one read a capture, and the
+    track is the one that reading them twice gave."""
+    from fmcw_cl import engine
+    from fmcw_cl.backend import make_processor
+    from fmcw_cl.capture import Capture
+
+    be = make_processor(name)
+    reads, looks = [], []
+    real_read, real_look = refine.held_end_to_end, engine.moving_beside
+    monkeypatch.setattr(refine, "held_end_to_end", lambda *a: reads.append(1) or real_read(*a))
+    monkeypatch.setattr(engine, "moving_beside", lambda *a: looks.append(1) or real_look(*a))
+    with monkeypatch.context() as m:            # nothing kept: the stretches read twice
+        m.setattr(Capture, "held", property(lambda self: None, lambda self, value: None), raising=False)
+        want = process(static_capture, Options(), be)
+    assert looks == [1] and reads == [1, 1]
+    got = process(static_capture, Options(), be)
+    assert looks == [1, 1] and reads == [1, 1, 1]
+    for key in ("distance_m", "velocity_mps", "valid", "reason"):
+        np.testing.assert_array_equal(getattr(got, key), getattr(want, key))
