@@ -309,7 +309,7 @@ class Capture:
         capture holds: borrowed from `fmcw_cl.pool` and given back when the capture is
         closed, so that memory is touched once per process, not per capture or chunk
         (the chunks take turns in slots 0 .. chunks.READ_SLOTS - 1, the sync delay's
-        stretches use slot 1, the delay refinement's held chunks chunks.HELD_SLOT on).
+        stretches use slot 1, the delay refinement's held chunks slot chunks.HELD_SLOT).
         What a slot held is overwritten by its next user, after `close` by another
         capture."""
         with self._slots_lock:

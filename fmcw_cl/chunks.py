@@ -86,7 +86,7 @@ def read_chunks(cap: Capture, options: Options, start: int = 0, stop: int | None
     return ReadAhead(cap.chunks(options.chunk_periods, margin, start, stop, slots=READ_SLOTS))
 
 
-HELD_SLOT = READ_SLOTS     # the first of the capture's slots that held chunks take
+HELD_SLOT = READ_SLOTS     # the capture's slot that held chunks take, end to end
 
 
 def held_end_to_end(cap: Capture, options: Options, ranges: list[tuple[int, int]], slot: int = HELD_SLOT
