@@ -89,23 +89,23 @@ def read_chunks(cap: Capture, options: Options, start: int = 0, stop: int | None
 HELD_SLOT = READ_SLOTS     # the capture's slot that held chunks take, end to end
 
 
-def held_end_to_end(cap: Capture, options: Options, ranges: list[tuple[int, int]], slot: int = HELD_SLOT
+def held_end_to_end(cap: Capture, options: Options, ranges: list[tuple[int, int]]
                     ) -> tuple[np.ndarray, list[Chunk], list[int], list[int]]:
     """The chunks of `options` whose cores lie in each sample range [start, stop) of
-    `ranges`, read once, end to end, into the capture's slot `slot` (pooled memory,
-    touched before: Capture.slot): for a caller that converts the same samples more than
-    once, the chunks together (ChunkProcessor.process_apart).
+    `ranges`, read once, end to end, into the capture's slot HELD_SLOT (pooled memory,
+    touched before: Capture.slot; what `Capture.held` said it held is gone): for a
+    caller that converts the same samples more than once, the chunks together
+    (ChunkProcessor.process_apart).
 
     Returns the beat codes of them all, the chunks (their arrays views into the slot),
     where each chunk's codes start in the first, and the range each chunk lies in."""
     margin = margin_samples(cap.info, options)
-    if slot == HELD_SLOT:
-        cap.held = None                  # what the slot held is gone
+    cap.held = None
     spans = [(k, *span) for k, (a, b) in enumerate(ranges)
              for span in cap.chunk_spans(options.chunk_periods, margin, a, b)]
     sizes = [hi - lo for _, lo, hi, *_ in spans]
     offsets = np.cumsum([0, *sizes]).tolist()
-    beat, sync = cap.slot(slot, offsets[-1])
+    beat, sync = cap.slot(HELD_SLOT, offsets[-1])
     chunks = []
     for (_, lo, hi, core_start, core_stop), at in zip(spans, offsets, strict=False):
         b, s = cap.read_into(lo, hi, beat[at: at + hi - lo], sync[at: at + hi - lo])

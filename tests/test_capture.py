@@ -149,7 +149,7 @@ def test_chunks_in_reused_slots_hold_the_same_samples(static_capture):
 
 def test_held_chunks_lie_end_to_end_in_a_pooled_slot_of_their_own(static_capture):
     """Held chunks (the delay refinement's trial stretches): every chunk of each range
-    as a fresh read, their codes end to end in one slot from `held` on (each chunk's
+    as a fresh read, their codes end to end in the slot HELD_SLOT (each chunk's
     arrays views into it, where its offset says), none sharing memory with the
     read-ahead's slots 0 and 1; a range that ends before the capture does, one that
     starts in it and one past its end."""
@@ -161,11 +161,12 @@ def test_held_chunks_lie_end_to_end_in_a_pooled_slot_of_their_own(static_capture
         opts = Options(chunk_periods=20)
         n = cap.info.samples
         ranges = [(1000, 400_000), (n - 150_000, n), (n + 10, n + 500)]
-        beat, chunks, offsets, which = held_end_to_end(cap, opts, ranges, HELD_SLOT)
+        beat, chunks, offsets, which = held_end_to_end(cap, opts, ranges)
         fresh = [(k, c) for k, (a, b) in enumerate(ranges)
                  for c in cap.chunks(20, margin=margin_samples(cap.info, opts), start=a, stop=b)]
         assert len(chunks) == len(fresh) >= 4 and which == [k for k, _ in fresh] and 2 not in which
         assert beat.size == sum(c.beat.size for c in chunks)
+        assert np.shares_memory(beat, cap.slot(HELD_SLOT, 1)[0])
         for got, (_, want), at in zip(chunks, fresh, offsets, strict=True):
             assert (got.start, got.core_start, got.core_stop) == (want.start, want.core_start, want.core_stop)
             np.testing.assert_array_equal(got.beat, want.beat)
