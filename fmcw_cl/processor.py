@@ -258,16 +258,18 @@ class ChunkProcessor(pairing.SpectrumOps):
         """`[process(chunk, prepared) for each of held]` in one pass: every chunk's
         pairs resampled and tracked together, each chunk's apart from the others'
         (pairing.Times.groups), under an open plan without range check or survey (the
-        delay's trial conversions). Single half-sweeps are measured: where the options
-        leave the integration to the chunk, a chunk whose single pairs are too weak for
-        that (pairing.track_pairs) is converted again on its own, as `process` does;
-        where they set it, every chunk is."""
+        delay's trial conversions, the second look). Where the options set the
+        integration, each chunk's windows end at its ends; where they leave it to the
+        chunk, single half-sweeps are measured, and a chunk whose single pairs are too
+        weak for that (pairing.track_pairs) is converted again on its own, as `process`
+        does."""
         plan = self.plan
         if plan is None:
             raise FmcwError("a chunk processor must be opened with a plan before it processes")
         items = list(zip(held.chunks, held.prepared, strict=True))
-        if plan.check is not None or plan.survey or plan.options.integrate not in (None, 1):
+        if plan.check is not None or plan.survey:
             return [self.process(c, p) for c, p in items]
+        k = plan.options.integrate
         found = [self._pairs(c, p) for c, p in items]
         sides = [[], []]                                  # each direction's jobs, all chunks
         groups, rise, fall = [], [], []
@@ -288,11 +290,11 @@ class ChunkProcessor(pairing.SpectrumOps):
         times = pairing.Times(np.concatenate(rise), np.concatenate(fall), np.array(groups))
         (xr, xf), times, _ = self.resample_pairs(held.beat, jobs, plan.window, times)
         res = pairing.track_pairs(xr, xf, times, plan.model, plan.search, plan.options.iterations,
-                                  plan.options.dechirp, self, 1)
+                                  plan.options.dechirp, self, k or 1)
         out, slices = [], iter(pairing.group_slices(times.groups, times.rise.size))
         for (chunk, prepared), got in zip(items, found, strict=True):
             one = None if got is None else res.take(next(slices))
-            if one is not None and plan.options.integrate is None and one.heard.mean() < integrate.AUTO_SHARE:
+            if one is not None and k is None and one.heard.mean() < integrate.AUTO_SHARE:
                 out.append(self.process(chunk, prepared))
                 continue
             self.chunks += 1

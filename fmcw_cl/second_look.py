@@ -47,15 +47,15 @@ def sides(fixed_m: float, band: tuple[float, float | None], unambiguous_m: float
 def moving_beside(cap: Capture, plan, processor, fixed_m: float) -> list[tuple[float, float]]:
     """The moving echoes (lo, hi m) of `plan`'s capture beside its lone fixed echo at
     `fixed_m`: the trial stretches converted by `processor` on each side of it (no range
-    check, survey or echo list), the pairs verified (faults.verified)."""
+    check, survey or echo list) together, each apart (ChunkProcessor.process_apart), the
+    pairs verified (faults.verified)."""
     held = stretches(cap, plan, processor)
     t, d, v, ok = [], [], [], []
     for band in sides(fixed_m, plan.options.band_m, plan.lut.unambiguous_range_m):
         p = plan.with_band(band)
         processor.open(replace(p, check=None, survey=False, search=replace(p.search, echoes=False),
                                options=replace(p.options, integrate=p.options.integrate or LOOK_K)))
-        converted = [processor.process(c, prep) for c, prep in zip(held.chunks, held.prepared, strict=True)]
-        for parts in by_stretch(held, converted):
+        for parts in by_stretch(held, processor.process_apart(held)):
             if not parts:
                 continue
             tt, dd, vv, _ = pairs_of(parts)

@@ -2,7 +2,9 @@
 // one direction, aligned along the track, then the peak of the sum (peak.cl, built into
 // the same program). One work-group per output row: for each bin b of row i, the mean
 // over rows j = i - before .. i + after (cut at the array's ends) of row j read at
-// b + disp[j] - disp[i] by linear interpolation (ends held), then local_peak on it.
+// b + disp[j] - disp[i] by linear interpolation (ends held), then local_peak on it;
+// the window is cut at the ends of row i's group too (rows converted together but apart:
+// `bounds` holds each row's group's first row, then each one's last).
 // The spectra stay on the device from spectrum_peak (fft.cl, keep_power); only the
 // peaks come back. Twin: fmcw_cl.stages.integrate.peaks.
 
@@ -14,6 +16,7 @@
     const int rows,                                                                              \
     const int half_n,                                                                            \
     __global const float *disp,    /* (rows,) target displacement, bins */                       \
+    __global const int *bounds,    /* (2 rows,) each row's group's first row, then last row */   \
     const int before,                                                                            \
     const int after,                                                                             \
     const int lo,                                                                                \
@@ -30,8 +33,8 @@ __kernel void integrate_peak(INTEGRATE_PARAMS,
     const int i = get_group_id(0);
     const int lid = get_local_id(0);
     const int lsz = get_local_size(0);
-    const int j0 = i - before < 0 ? 0 : i - before;
-    const int j1 = i + after > rows - 1 ? rows - 1 : i + after;
+    const int j0 = i - before < bounds[i] ? bounds[i] : i - before;
+    const int j1 = i + after > bounds[rows + i] ? bounds[rows + i] : i + after;
     const float inv = 1.0f / (float)(j1 - j0 + 1);
     const float d0 = disp[i];
     for (int b = lid; b < half_n; b += lsz) {

@@ -11,8 +11,8 @@ __kernel void integrate_lanes(INTEGRATE_PARAMS,        // half_n % 8 == 0
 {
     const int i = get_group_id(0);
     const int blocks = half_n / 8;
-    const int j0 = i - before < 0 ? 0 : i - before;
-    const int j1 = i + after > rows - 1 ? rows - 1 : i + after;
+    const int j0 = i - before < bounds[i] ? bounds[i] : i - before;
+    const int j1 = i + after > bounds[rows + i] ? bounds[rows + i] : i + after;
     const float d0 = disp[i];
     for (int q = 0; q < blocks; ++q) acc[q] = (float8)0.0f;
     for (int j = j0; j <= j1; ++j) {

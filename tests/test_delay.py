@@ -12,6 +12,7 @@ import pytest
 from fmcw_cl import refine
 from fmcw_cl.engine import process
 from fmcw_cl.options import Options
+from fmcw_cl.second_look import LOOK_K
 
 # a lab: an intensity triangle of +-150 codes under 600 codes rms, a 20 MHz G(I) table
 from fmcw_cl.simulator import LAB, SimulationConfig, jump, simulate_capture, static
@@ -117,6 +118,25 @@ def test_the_drifts_error_holds_for_distances_correlated_over_pairs(phi):
         assert np.median(white) < 0.6 * spread
 
 
+@pytest.mark.parametrize("pairs", [17, 61, 240])
+def test_the_drifts_jackknife_is_each_block_left_out_and_fitted_again(pairs):
+    """numeric.drift's jackknife from block sums equals fitting the run again without
+    each block (np.array_split's blocks: uneven where the blocks do not divide it)."""
+    from fmcw_cl.numeric import drift, line_slope, travelled
+
+    rng = np.random.default_rng(pairs)
+    t = 2.0 + np.sort(rng.choice(pairs + 20, pairs, replace=False)) * 5e-5
+    d = 0.3 + 1.5 * (t - 2.0) + np.cumsum(rng.normal(0, 40e-6, pairs))
+    v = 1.5 + rng.normal(0, 1e-3, pairs)
+    r = d - travelled(t, v)
+    loo = [line_slope(np.delete(t, b), np.delete(r, b))[0] for b in np.array_split(np.arange(pairs), 6)]
+    jack = np.sqrt(5 / 6 * np.sum(np.square(np.subtract(loo, np.mean(loo)))))
+    slope, se = drift(t, d, v, 6)
+    assert slope == line_slope(t, r)[0]
+    assert se == pytest.approx(max(jack, line_slope(t, r)[1]), rel=1e-9)
+    assert jack > line_slope(t, r)[1]                     # the jackknife's error is the one stated
+
+
 def test_a_line_through_unsettled_trials_gives_the_root_and_its_error():
     from fmcw_cl.refine import line_root
 
@@ -209,7 +229,8 @@ def test_trial_stretches_converted_together_equal_each_converted_apart(tmp_path,
     one chunk's pairs tracked beside another's), at the true delay and 3 samples off, on
     a weak lab's landing under noise at full scale. With the integration left to the
     chunk, a chunk whose single pairs are too weak for it (here some are, some are not)
-    is converted on its own. Equal but for float rounding (the resampling's positions
+    is converted on its own; with K given (the second look's), none is, and each chunk's
+    windows end at its ends. Equal but for float rounding (the resampling's positions
     are offset into the codes of all the chunks)."""
     from fmcw_cl.backend import make_processor
     from fmcw_cl.capture import Capture
@@ -224,13 +245,16 @@ def test_trial_stretches_converted_together_equal_each_converted_apart(tmp_path,
         plan = make_plan(cap, Options(chunk_periods=25), lag=true, processor=be)
         held = refine.stretches(cap, plan, be)
         assert len(held.chunks) >= 9 and len(set(held.stretch)) == 3
-        for lag in (plan.lag, plan.lag + 3.0):
-            be.open(refine.trial_plan(plan, lag))
+        for lag, k in ((plan.lag, None), (plan.lag + 3.0, None), (plan.lag, LOOK_K)):
+            trial = refine.trial_plan(plan, lag)
+            be.open(replace(trial, options=replace(trial.options, integrate=k)))
             apart = [be.process(c, p) for c, p in zip(held.chunks, held.prepared, strict=True)]
             alone, real = [], be.process           # the chunks process_apart converts on their own
             monkeypatch.setattr(be, "process", lambda c, p, a=alone, real=real: a.append(c) or real(c, p))
             together = be.process_apart(held)
-            assert 0 < len(alone) < len(held.chunks)
+            assert 0 < len(alone) < len(held.chunks) if k is None else not alone
+            if k is not None:
+                assert max(m.result.integrated.max() for got in together for m in got) == k
             assert len(together) == len(apart)
             for one, other in zip(together, apart, strict=True):
                 assert len(one) == len(other)

@@ -89,6 +89,22 @@ def test_integrate_kernel_matches_numpy(backend, kernel_variant, rows, nfft, k):
     np.testing.assert_array_equal(got[2], want[2])
     np.testing.assert_allclose(got[0], want[0], atol=2e-3)
     np.testing.assert_allclose(got[1], want[1], atol=2e-3)
+    # rows in groups (a group of one row, groups shorter than the window): windows cut at
+    # their group's ends, each group's displacement from its own first row
+    edges = np.unique(np.r_[0, rows // 3, rows // 3 + 1, (2 * rows) // 3, rows])
+    times = pairing.Times(np.arange(rows, dtype=float), np.arange(rows) + 0.5, edges[:-1])
+    grouped = disp - np.repeat(disp[edges[:-1]], np.diff(edges))
+    got = k_integrate.peaks(backend.rt, backend.bufs, store, grouped, k, search, times.bounds)
+    want = integrate.peaks(power, grouped, k, search, times.bounds)
+    np.testing.assert_array_equal(got[2], want[2])
+    np.testing.assert_allclose(got[0], want[0], atol=2e-3)
+    np.testing.assert_allclose(got[1], want[1], atol=2e-3)
+    each = [integrate.peaks(power[a:b], grouped[a:b], k, search)
+            for a, b in zip(edges[:-1], edges[1:], strict=True)]
+    np.testing.assert_array_equal(want[2], np.concatenate([e[2] for e in each]))
+    np.testing.assert_array_equal(want[0], np.concatenate([e[0] for e in each]))
+    if rows > 1 and k > 1:
+        assert not np.array_equal(want[2], integrate.peaks(power, grouped, k, search)[2])
 
 
 def test_kept_spectra_match_numpy(backend, kernel_variant):

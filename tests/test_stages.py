@@ -177,7 +177,20 @@ def test_tracker_resolves_folds_and_the_paper_method_does_not():
     alone = pairing.track_pairs(xr, xf, times, model, Search(lo, model.nfft // 2), integrate_k=1)
     assert not np.array_equal(alone.continuous, got.continuous) or not np.array_equal(alone.velocity,
                                                                                        got.velocity)
-    with pytest.raises(ValueError, match="one half-sweep at a time"):
+    # integrated, each group's windows end at its ends: a group of one pair counts one
+    # half-sweep, the faded group's windows hold none of its neighbours' echoes
+    got = pairing.track_pairs(xr, xf, groups, model, Search(lo, model.nfft // 2), integrate_k=4)
+    each = [pairing.track_pairs(xr[a:b], xf[a:b], pairing.Times(times.rise[a:b], times.fall[a:b]), model,
+                                Search(lo, model.nfft // 2), integrate_k=4)
+            for a, b in zip(edges[:-1], edges[1:], strict=True)]
+    want = pairing.PairResult.concat(each)
+    for key in ("distance", "velocity", "valid", "continuous", "integrated", "dechirped_snr_rise"):
+        np.testing.assert_array_equal(getattr(got, key), getattr(want, key), err_msg=key)
+    assert got.integrated[7] == 1 and not got.valid[120:131].any()
+    alone = pairing.track_pairs(xr, xf, times, model, Search(lo, model.nfft // 2), integrate_k=4)
+    assert not np.array_equal(alone.integrated, got.integrated)
+    assert not np.array_equal(alone.dechirped_snr_rise, got.dechirped_snr_rise)
+    with pytest.raises(ValueError, match="a given integration"):
         pairing.track_pairs(xr, xf, groups, model, Search(lo, model.nfft // 2), integrate_k=None)
 
 

@@ -11,20 +11,24 @@ from .buffers import Buffers, DeviceRows, Packed
 from .context import Runtime, cl
 
 
-def peaks(rt: Runtime, bufs: Buffers, store: DeviceRows, disp: np.ndarray, k: int, search: Search
-          ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def peaks(rt: Runtime, bufs: Buffers, store: DeviceRows, disp: np.ndarray, k: int, search: Search,
+          bounds: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(bin, SNR dB, count) of the tracked peak of each row's K-window integrated
     spectrum; `store` holds the power spectra (rows, nfft/2) on the device, `disp` each
-    row's target displacement in bins."""
+    row's target displacement in bins, `bounds` each row's group's first and last row
+    (None: one group)."""
     rows, half = store.shape
     if rows == 0:
         return np.zeros(0), np.zeros(0, np.float32), np.zeros(0, np.int32)
     before, after = window(k)
+    if bounds is None:
+        bounds = np.repeat(np.array([0, rows - 1], np.int32), rows)
     # relative to the first row: float32 keeps 1e-4 bin over a chunk's displacement
-    d_disp = bufs.upload("disp", np.asarray(disp - disp[0], np.float32))
+    d_disp, d_bounds = Packed(bufs, "disp", [(np.float32, rows), (np.int32, 2 * rows)]).upload(
+        np.asarray(disp - disp[0], np.float32), bounds)
     out = Packed(bufs, "integrated", [(np.float32, rows), (np.float32, rows), (np.int32, rows)])
     d_bin, d_snr, d_count = out.buffers
-    args = (store.buffer, np.int32(rows), np.int32(half), d_disp, np.int32(before), np.int32(after),
+    args = (store.buffer, np.int32(rows), np.int32(half), d_disp, d_bounds, np.int32(before), np.int32(after),
             np.int32(search.lo), np.int32(search.hi), np.int32(GUARD_BINS), d_bin, d_snr, d_count,
             cl.LocalMemory(4 * half))
     if rt.lanes and half % 8 == 0:      # CPUs: a row an item, eight bins a float8

@@ -325,10 +325,10 @@ class OpenCLProcessor(ChunkProcessor):
 
         return out, read
 
-    def integrated_peaks(self, store, disp, k, search):
+    def integrated_peaks(self, store, disp, k, search, bounds=None):
         if not self._fits(2 * store.shape[1]):       # (pairs, nfft / 2) power spectra
-            return pairing.NUMPY.integrated_peaks(store, disp, k, search)
-        return k_integrate.peaks(self.rt, self.bufs, store, disp, k, search)
+            return pairing.NUMPY.integrated_peaks(store, disp, k, search, bounds)
+        return k_integrate.peaks(self.rt, self.bufs, store, disp, k, search, bounds)
 
 
 def _riding(packed: Packed, make: Callable[[list], object]) -> Later:

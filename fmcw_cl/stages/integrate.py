@@ -92,7 +92,8 @@ def displacement(t: np.ndarray, v: np.ndarray) -> np.ndarray:
     return np.concatenate([[0.0], np.cumsum(step)])
 
 
-def integrate(power: np.ndarray, disp: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
+def integrate(power: np.ndarray, disp: np.ndarray, k: int, bounds: np.ndarray | None = None
+              ) -> tuple[np.ndarray, np.ndarray]:
     """Mean of the K-window of power spectra around each row, aligned.
 
     Parameters
@@ -102,6 +103,8 @@ def integrate(power: np.ndarray, disp: np.ndarray, k: int) -> tuple[np.ndarray, 
         at bin b + disp[j] - disp[i] for bin b of row i (linear interpolation, the
         ends held).
     k : half-sweeps per window (`window`); windows are cut at the array's ends.
+    bounds : (2 P,) int, optional: the first row of each row's group, then the last of
+        each (pairing.Times.bounds); windows are cut at their group's ends too.
 
     Returns
     -------
@@ -113,8 +116,9 @@ def integrate(power: np.ndarray, disp: np.ndarray, k: int) -> tuple[np.ndarray, 
     count = np.zeros(rows, np.int32)
     i = np.arange(rows)
     b = np.arange(bins)
+    first, last = (0, rows - 1) if bounds is None else (bounds[:rows], bounds[rows:])
     for m in range(-before, after + 1):
-        ok = (i + m >= 0) & (i + m < rows)
+        ok = (i + m >= first) & (i + m <= last)
         ii, jj = i[ok], i[ok] + m
         y = b[None, :] + (disp[jj] - disp[ii])[:, None]
         lo = np.floor(y)
@@ -131,8 +135,10 @@ def integrate(power: np.ndarray, disp: np.ndarray, k: int) -> tuple[np.ndarray, 
     return acc / count[:, None], count
 
 
-def peaks(power: np.ndarray, disp: np.ndarray, k: int, search: Search) -> tuple:
-    """(bin, SNR dB, count) of the tracked peak of each row's integrated spectrum."""
-    spec, count = integrate(power, disp, k)
+def peaks(power: np.ndarray, disp: np.ndarray, k: int, search: Search, bounds: np.ndarray | None = None
+          ) -> tuple:
+    """(bin, SNR dB, count) of the tracked peak of each row's integrated spectrum
+    (`integrate`; `bounds`: windows cut at each row's group's ends)."""
+    spec, count = integrate(power, disp, k, bounds)
     pk = find_peaks(spec, search.lo, search.hi)
     return pk.bin, pk.snr_db, count

@@ -32,7 +32,11 @@ CONSISTENT_MPS = 0.1  # a velocity this far from its neighbours' median is an ou
 PLAIN_SHARE = 0.2     # ... plus this share of |median| after the plain pass (its peaks smear)
 CONVERGED_MPS = 0.05  # final velocity correction must be below this (peak not smeared)
 NEIGHBOURS = 8        # half-width (pairs) of the continuity median
-STOP_MPS = 1e-3       # a pair is re-measured when its de-chirp velocity moves this much
+# a pair is re-measured when its de-chirp velocity moves this much: a de-chirp velocity
+# dv off moves the peak by dv k, which `solve_pair` takes out; what is left is of second
+# order (1e-3 -> 1e-2 moved the jump's and the rail's distances by 3.4 um at most, 0.6
+# um rms, velocities by 0.3 mm/s, and spared a third of the jump's de-chirped rows)
+STOP_MPS = 1e-2
 JUMP_M = 0.25e-3      # a distance this far from its neighbours' prediction is discontinuous
 JUMP_SIGMAS = 6.0     # ... or this many robust standard deviations of the chunk's residuals
 JUMP_MAX_M = 1e-3     # ... but never more than this
@@ -204,9 +208,11 @@ class SpectrumOps:
         store[slice(None) if rows is None else rows] = spec
         return store
 
-    def integrated_peaks(self, store, disp: np.ndarray, k: int, search: Search) -> tuple:
-        """(bin, SNR dB, count) of the K-window integrated spectra (stages.integrate)."""
-        return integrate.peaks(store, disp, k, search)
+    def integrated_peaks(self, store, disp: np.ndarray, k: int, search: Search,
+                         bounds: np.ndarray | None = None) -> tuple:
+        """(bin, SNR dB, count) of the K-window integrated spectra (stages.integrate;
+        `bounds`: each row's group's first and last row, None: one group)."""
+        return integrate.peaks(store, disp, k, search, bounds)
 
     def survey(self, x, beta, v, nfft: int, rows, lo: int, tracked_bin, plain_bin, others) -> tuple:
         """echoes.hidden of the rows `rows` of x: (ratio, centroid, found) from their plain
@@ -522,8 +528,11 @@ class _Windows:
     spectra are kept between the tracker's passes, re-made only for the rows whose
     de-chirp velocity moved."""
 
-    def __init__(self, ops, rows: tuple, model: DopplerModel, search: Search, k: int, t: np.ndarray):
-        self.ops, self.rows, self.model, self.search, self.k, self.t = ops, rows, model, search, k, t
+    def __init__(self, ops, rows: tuple, model: DopplerModel, search: Search, k: int, times: Times):
+        self.ops, self.rows, self.model, self.search, self.k = ops, rows, model, search, k
+        self.t, self.groups = times.mid, times.groups
+        # each group's windows end at its ends, its displacement starts at its start
+        self.bounds = None if times.groups is None else times.bounds
         self.betas = (model.beta_rise, model.beta_fall)
         self.stores = [ops.spectra(x, None, None, model.nfft) for x in rows]
 
@@ -535,10 +544,14 @@ class _Windows:
             every = None if moved.size == vd.size else moved
             self.stores = [self.ops.spectra(x, beta, vd[moved], m.nfft, every, store)
                            for x, beta, store in zip(self.rows, self.betas, self.stores, strict=True)]
-        disp = integrate.displacement(self.t, vd) / m.metres_per_bin
+        if self.groups is None:
+            disp = integrate.displacement(self.t, vd)
+        else:
+            disp = _each(self.groups, lambda g: integrate.displacement(self.t[g], vd[g]), vd.size)
+        disp = disp / m.metres_per_bin
         out = []
         for store in self.stores:
-            b, snr, count = self.ops.integrated_peaks(store, disp, self.k, self.search)
+            b, snr, count = self.ops.integrated_peaks(store, disp, self.k, self.search, self.bounds)
             out += [b * m.metres_per_bin, snr]
         return (*out, count)
 
@@ -565,11 +578,12 @@ def track_pairs(xr: np.ndarray, xf: np.ndarray, times: Times, model: DopplerMode
     integrate_k : half-sweeps of a direction integrated per measurement (1: none; see
         stages.integrate); None chooses it from the pairs' SNR: 1 when at least
         integrate.AUTO_SHARE of the single pairs are heard. Pairs in groups
-        (`times.groups`) take 1.
+        (`times.groups`) take a given K, whose windows end at their group's ends.
     """
     ops = ops or NUMPY
-    if times.groups is not None and integrate_k != 1:
-        raise ValueError("pairs tracked in groups apart are measured one half-sweep at a time")
+    if times.groups is not None and integrate_k is None:
+        raise ValueError("pairs tracked in groups apart take a given integration, not one chosen "
+                         "for them all")
     iterations = iterations if dechirp else 0
     # the plain pass (with every echo) does not depend on the integration: made once
     first, single = ops.track((xr, xf), times, model, search, iterations, integrate_k in (1, None))
@@ -666,7 +680,7 @@ def passes(rows: tuple, times: Times, model: DopplerModel, search: Search, itera
     (d_r, s_r, *_), (d_f, s_f, *_) = first
     d_r, d_f, s_r, s_f = (a.copy() for a in (d_r, d_f, s_r, s_f))   # updated in place
     count = np.ones(t_mid.size, np.int32)
-    windows = _Windows(ops, rows, model, search, k, t_mid) if k > 1 else None
+    windows = _Windows(ops, rows, model, search, k, times) if k > 1 else None
     if windows is not None:
         d_r, s_r, d_f, s_f, count = windows.measure(vd)
     snr_min = snr_floor(count, k)
