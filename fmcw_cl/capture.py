@@ -67,6 +67,11 @@ class CaptureInfo:
     def periods(self) -> float:
         return self.samples / self.samples_per_period
 
+    def core_samples(self, periods: int) -> int:
+        """Samples in the core of a chunk of `periods` modulation periods (chunks start at
+        multiples of this)."""
+        return max(1, round(periods * self.samples_per_period))
+
     @property
     def full_scale(self) -> int:
         """Largest positive ADC code, 2**(bits-1) - 1."""
@@ -342,8 +347,7 @@ class Capture:
             Chunk i in slot `held` + i, its own, of its own length instead (a consumer
             that keeps every chunk: the arrays are the pool's, touched before).
         """
-        core = max(1, round(periods * self.info.samples_per_period))
-        size = min(core + 2 * margin, self.info.samples)
+        size = min(self.info.core_samples(periods) + 2 * margin, self.info.samples)
         for i, (lo, hi, core_start, core_stop) in enumerate(self.chunk_spans(periods, margin, start, stop)):
             if held is not None:
                 beat, sync = self.read_into(lo, hi, *self.slot(held + i, hi - lo))
@@ -359,7 +363,7 @@ class Capture:
         if periods < 1:
             raise ValueError("periods must be >= 1")
         stop = self.info.samples if stop is None else min(stop, self.info.samples)
-        core = max(1, round(periods * self.info.samples_per_period))
+        core = self.info.core_samples(periods)
         for core_start in range(int(start), stop, core):
             core_stop = min(core_start + core, stop)
             hi = min(self.info.samples, core_stop + margin)

@@ -57,7 +57,7 @@ class ReadAhead:
 
 def core_samples(info: CaptureInfo, options: Options) -> int:
     """Samples in the core of one chunk (chunks start at multiples of this)."""
-    return max(1, round(options.chunk_periods * info.samples_per_period))
+    return info.core_samples(options.chunk_periods)
 
 
 def split_ranges(info: CaptureInfo, options: Options, seconds: float) -> list[tuple[int, int]]:
