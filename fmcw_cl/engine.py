@@ -16,7 +16,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from . import rest_calibration, target
+from . import heap, rest_calibration, target
 from .assemble import assemble
 from .capture import Capture
 from .chunks import capture_parts
@@ -48,6 +48,7 @@ def process(path, options: Options | None = None, processor: ChunkProcessor | No
     """
     options = options or Options()
     processor = processor or NumpyProcessor()
+    heap.keep_freed()
     started = time.perf_counter()
     try:
         with Capture(path) as cap:
