@@ -358,6 +358,8 @@ def _kinematic(t, dist, vel, ok) -> bool:
     for k in range(1, min(KINEMATIC_PAIRS, ok.size - 1) + 1):      # pairs k apart, both ways at once
         a, b = slice(0, ok.size - k), slice(k, ok.size)
         both = ok[a] & ok[b] & (t[b] - t[a] <= KINEMATIC_S)
+        if not both.any():                  # pairs k apart are all further apart than that
+            continue
         with np.errstate(invalid="ignore"):
             yes = both & _agrees(t[a], dist[a], vel[a], t[b], dist[b], vel[b])
         near[a] += both
