@@ -32,11 +32,7 @@ CONSISTENT_MPS = 0.1  # a velocity this far from its neighbours' median is an ou
 PLAIN_SHARE = 0.2     # ... plus this share of |median| after the plain pass (its peaks smear)
 CONVERGED_MPS = 0.05  # final velocity correction must be below this (peak not smeared)
 NEIGHBOURS = 8        # half-width (pairs) of the continuity median
-# a pair is re-measured when its de-chirp velocity moves this much: a de-chirp velocity
-# dv off moves the peak by dv k, which `solve_pair` takes out; what is left is of second
-# order (1e-3 -> 1e-2 moved the jump's and the rail's distances by 3.4 um at most, 0.6
-# um rms, velocities by 0.3 mm/s, and spared a third of the jump's de-chirped rows)
-STOP_MPS = 1e-2
+STOP_MPS = 1e-3       # a pair is re-measured when its de-chirp velocity moves this much
 JUMP_M = 0.25e-3      # a distance this far from its neighbours' prediction is discontinuous
 JUMP_SIGMAS = 6.0     # ... or this many robust standard deviations of the chunk's residuals
 JUMP_MAX_M = 1e-3     # ... but never more than this
