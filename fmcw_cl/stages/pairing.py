@@ -32,7 +32,8 @@ CONSISTENT_MPS = 0.1  # a velocity this far from its neighbours' median is an ou
 PLAIN_SHARE = 0.2     # ... plus this share of |median| after the plain pass (its peaks smear)
 CONVERGED_MPS = 0.05  # final velocity correction must be below this (peak not smeared)
 NEIGHBOURS = 8        # half-width (pairs) of the continuity median
-STOP_MPS = 1e-3       # a pair is re-measured when its de-chirp velocity moves this much
+STOP_MPS = 1e-3       # a pair is re-measured when its de-chirp velocity moves this much (at
+                      # 1e-2 hunted take-offs beside walls got wrong valid pairs)
 JUMP_M = 0.25e-3      # a distance this far from its neighbours' prediction is discontinuous
 JUMP_SIGMAS = 6.0     # ... or this many robust standard deviations of the chunk's residuals
 JUMP_MAX_M = 1e-3     # ... but never more than this
