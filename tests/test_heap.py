@@ -13,6 +13,9 @@ import numpy as np
 from fmcw_cl import heap
 if sys.argv[1] == "keep":
     assert heap.keep_freed()
+else:       # glibc's initial thresholds (its dynamic ones follow what the imports freed)
+    mallopt = ctypes.CDLL(None).mallopt
+    assert mallopt(heap.M_MMAP_THRESHOLD, 128 << 10) == 1 and mallopt(heap.M_TRIM_THRESHOLD, 128 << 10) == 1
 
 class Info(ctypes.Structure):                 # glibc's struct mallinfo2
     _fields_ = [(k, ctypes.c_size_t) for k in ("arena", "ordblks", "smblks", "hblks", "hblkhd", "usmblks",
@@ -28,8 +31,9 @@ print(mallinfo2().fordblks)
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="glibc's malloc")
 def test_freed_heap_is_kept_for_the_next_allocations():
-    """Without keep_freed, glibc gives the freed top of its heap back at once (the next
-    chunk's temporaries take page faults again); with it, the process keeps it."""
+    """With glibc's initial thresholds, arrays over 128 kB are mmapped and the freed top
+    of the heap goes back at once (the next chunk's temporaries take page faults
+    again); with keep_freed, the process keeps it."""
     free = {}
     for mode in ("default", "keep"):
         run = subprocess.run([sys.executable, "-c", CHURN, mode], capture_output=True, text=True, check=False)
