@@ -17,7 +17,7 @@ runs the same steps on a device. What the steps are, in order (`process`):
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -73,13 +73,23 @@ class Prepared:
 class Held:
     """Chunks read once to be converted again and again (the delay's trial stretches):
     their beat codes end to end in `beat`, chunk k's from `offsets[k]` (its arrays are
-    views into it), what `prepare` found in each, and the stretch each belongs to."""
+    views into it), what `prepare` found in each, the stretch each belongs to, and the
+    delay (samples) each is converted at (None: the open plan's)."""
 
     beat: np.ndarray
     chunks: list
     offsets: list[int]
     prepared: list[Prepared]
     stretch: list[int]
+    lags: list[float] | None = None
+
+    def at(self, lags: list[float]) -> Held:
+        """These chunks once at each delay of `lags`, converted in one pass: the stretches
+        of the j-th delay numbered after those of the ones before it."""
+        n = max(self.stretch, default=-1) + 1
+        return Held(self.beat, self.chunks * len(lags), self.offsets * len(lags), self.prepared * len(lags),
+                    [k + j * n for j in range(len(lags)) for k in self.stretch],
+                    [lag for lag in lags for _ in self.chunks])
 
 
 @dataclass
@@ -255,10 +265,10 @@ class ChunkProcessor(pairing.SpectrumOps):
         return done
 
     def process_apart(self, held: Held) -> list[list[ChunkMeasurements]]:
-        """`[process(chunk, prepared) for each of held]` in one pass: every chunk's
-        pairs resampled and tracked together, each chunk's apart from the others'
-        (pairing.Times.groups), under an open plan without range check or survey (the
-        delay's trial conversions, the second look). Where the options set the
+        """`[process(chunk, prepared) for each of held]` in one pass, each chunk at its
+        delay (`held.lags`): every chunk's pairs resampled and tracked together, each
+        chunk's apart from the others' (pairing.Times.groups), under an open plan without
+        range check or survey (the delay's trial conversions, the second look). Where the options set the
         integration, each chunk's windows end at its ends; where they leave it to the
         chunk, single half-sweeps are measured, and a chunk whose single pairs are too
         weak for that (pairing.track_pairs) is converted again on its own, as `process`
@@ -266,11 +276,12 @@ class ChunkProcessor(pairing.SpectrumOps):
         plan = self.plan
         if plan is None:
             raise FmcwError("a chunk processor must be opened with a plan before it processes")
-        items = list(zip(held.chunks, held.prepared, strict=True))
+        lags = held.lags or [plan.lag] * len(held.chunks)
+        items = list(zip(held.chunks, held.prepared, lags, strict=True))
         if plan.check is not None or plan.survey:
-            return [self.process(c, p) for c, p in items]
+            return [self._alone(*item) for item in items]
         k = plan.options.integrate
-        found = [self._pairs(c, p) for c, p in items]
+        found = [self._pairs(*item) for item in items]
         sides = [[], []]                                  # each direction's jobs, all chunks
         groups, rise, fall = [], [], []
         for at, got in zip(held.offsets, found, strict=True):
@@ -292,24 +303,33 @@ class ChunkProcessor(pairing.SpectrumOps):
         res = pairing.track_pairs(xr, xf, times, plan.model, plan.search, plan.options.iterations,
                                   plan.options.dechirp, self, k or 1)
         out, slices = [], iter(pairing.group_slices(times.groups, times.rise.size))
-        for (chunk, prepared), got in zip(items, found, strict=True):
+        for (chunk, prepared, lag), got in zip(items, found, strict=True):
             one = None if got is None else res.take(next(slices))
             if one is not None and k is None and one.heard.mean() < integrate.AUTO_SHARE:
-                out.append(self.process(chunk, prepared))
+                out.append(self._alone(chunk, prepared, lag))
                 continue
             self.chunks += 1
             if one is None:
                 out.append([])
                 continue
-            out.append([self._finished(self._owned(chunk, prepared, got, one, None), (None, None))])
+            out.append([self._finished(self._owned(chunk, prepared, got, one, None, lag), (None, None))])
         return out
 
-    def _pairs(self, chunk: Chunk, prepared: Prepared) -> tuple | None:
-        """The half-sweeps of `chunk` under the open plan's delay, those of its pairs (the
-        rising and falling ones that lie whole in the chunk, of one segment) and the
-        pairs' Times (None: no pair)."""
+    def _alone(self, chunk: Chunk, prepared: Prepared, lag: float) -> list[ChunkMeasurements]:
+        """`process(chunk, prepared)` at the delay `lag` (samples) of the open plan."""
         plan = self.plan
-        hs = sync.half_sweeps(prepared.turns, plan.lag)
+        self.plan = replace(plan, lag=lag)
+        try:
+            return self.process(chunk, prepared)
+        finally:
+            self.plan = plan
+
+    def _pairs(self, chunk: Chunk, prepared: Prepared, lag: float | None = None) -> tuple | None:
+        """The half-sweeps of `chunk` at the delay `lag` (samples; the open plan's when
+        None), those of its pairs (the rising and falling ones that lie whole in the
+        chunk, of one segment) and the pairs' Times (None: no pair)."""
+        plan = self.plan
+        hs = sync.half_sweeps(prepared.turns, plan.lag if lag is None else lag)
         fits = resample.inside(hs.start, hs.length, plan.lut, chunk.beat.size)
         r = np.flatnonzero(hs.rising[:-1] & ~hs.rising[1:] & (hs.segment[:-1] == hs.segment[1:])
                            & fits[:-1] & fits[1:])
@@ -320,13 +340,15 @@ class ChunkProcessor(pairing.SpectrumOps):
         return hs, r, f, pairing.Times((chunk.start + hs.centre[r]) / fs, (chunk.start + hs.centre[f]) / fs)
 
     def _owned(self, chunk: Chunk, prepared: Prepared, found: tuple, res: pairing.PairResult,
-               rows: tuple | None) -> Pending:
-        """The owned pairs of `chunk` (`found`: `_pairs`; `res`: their tracking) with their
-        clipping, and their range check and survey to run where the plan asks (`rows`:
-        the pairs' resampled half-sweeps, for the survey)."""
+               rows: tuple | None, lag: float | None = None) -> Pending:
+        """The owned pairs of `chunk` (`found`: `_pairs` at the delay `lag`, the open
+        plan's when None; `res`: their tracking) with their clipping, and their range
+        check and survey to run where the plan asks (`rows`: the pairs' resampled
+        half-sweeps, for the survey)."""
         plan = self.plan
         hs, r, f, times = found
-        first = chunk.start + hs.start[r] + plan.lag      # sync time of the pair's first turn
+        lag = plan.lag if lag is None else lag
+        first = chunk.start + hs.start[r] + lag      # sync time of the pair's first turn
         own = (first >= chunk.core_start) & (first < chunk.core_stop)
         sel = res.take(own)
         r, f = r[own], f[own]

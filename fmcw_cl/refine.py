@@ -104,12 +104,23 @@ def trial_plan(plan, lag: float):
                    options=options)
 
 
-def mismatch(held: Held, plan, lag: float, processor) -> Mismatch:
-    """The kinematic inconsistency of `plan` at `lag` over the trial stretches `held`
-    (`stretches`), converted together by `processor`, each apart (`trial_plan`)."""
-    processor.open(trial_plan(plan, lag))
+def mismatches(held: Held, plan, lags: list[float], processor) -> list[Mismatch]:
+    """The kinematic inconsistency of `plan` at each delay of `lags` over the trial
+    stretches `held` (`stretches`), all converted together by `processor` in one pass,
+    each stretch and delay apart (`trial_plan`)."""
+    processor.open(trial_plan(plan, lags[0]))
+    at = held.at(lags)
+    each = by_stretch(at, processor.process_apart(at))
+    n = len(each) // len(lags)
+    return [mismatch(each[j * n: (j + 1) * n]) for j in range(len(lags))]
+
+
+def mismatch(stretches: list[list]) -> Mismatch:
+    """The kinematic inconsistency of converted trial stretches (each a list of
+    ChunkMeasurements): their longest bridged runs' mean drift, its standard error and
+    the runs' mean distance."""
     slopes, errors, dist = [], [], []
-    for parts in by_stretch(held, processor.process_apart(held)):
+    for parts in stretches:
         if not parts:
             continue
         t, d, v, ok = pairs_of(parts)
@@ -163,7 +174,7 @@ def refine_lag(cap: Capture, plan, processor):
     lag0 = plan.lag
     held = stretches(cap, plan, processor)
     xs = [lag0, lag0 + STEP_SAMPLES]
-    ms = [mismatch(held, plan, x, processor) for x in xs]
+    ms = mismatches(held, plan, xs, processor)
     if not (np.isfinite(ms[0].mps) and np.isfinite(ms[1].mps)) or ms[1].mps == ms[0].mps:
         return plan
     # d(mismatch)/d(lag) and d(distance)/d(lag) from the first step: smooth in the lag
@@ -183,7 +194,7 @@ def refine_lag(cap: Capture, plan, processor):
             nxt = float(np.clip(xs[b] - ms[b].mps / step, lag0 - MAX_SHIFT_SAMPLES, lag0 + MAX_SHIFT_SAMPLES))
         done = abs(nxt - xs[b]) < TOLERANCE_SAMPLES
         xs.append(nxt)
-        ms.append(mismatch(held, plan, nxt, processor))
+        ms += mismatches(held, plan, [nxt], processor)
         # converged, or what is left is small against its own uncertainty: a further
         # trial conversion would move the delay by a fraction of its sigma
         settled = done or abs(ms[-1].mps) <= SETTLED * ms[-1].sigma_mps

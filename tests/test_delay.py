@@ -163,9 +163,9 @@ def test_a_refinement_that_ends_off_its_root_states_the_miss_as_uncertainty(monk
 
     trials = {-29.88: (0.1708, 0.0100), -27.88: (0.1409, 0.0164)}
 
-    def mismatch(held, plan, lag, processor):
-        mps, sigma = trials.get(round(lag, 2), (0.1168, 0.0154) if lag < 0 else (np.nan, np.nan))
-        return refine.Mismatch(mps, sigma, 0.236)
+    def mismatches(held, plan, lags, processor):
+        return [refine.Mismatch(*trials.get(round(lag, 2), (0.1168, 0.0154) if lag < 0 else (np.nan, np.nan)),
+                                0.236) for lag in lags]
 
     @dataclass(frozen=True)
     class Plan:
@@ -178,7 +178,7 @@ def test_a_refinement_that_ends_off_its_root_states_the_miss_as_uncertainty(monk
         lag_at_m: float = np.nan
 
     monkeypatch.setattr(refine, "stretches", lambda cap, plan, processor: [])
-    monkeypatch.setattr(refine, "mismatch", mismatch)
+    monkeypatch.setattr(refine, "mismatches", mismatches)
     got = refine.refine_lag(None, Plan(), None)
     assert got.lag_refined and abs(got.lag - -18.43) < 0.05
     slope = (0.1409 - 0.1708) / 2
@@ -206,7 +206,7 @@ def test_a_trial_without_runs_does_not_end_the_delay_search(monkeypatch):
 
     root, tried = 36.5, []
 
-    def mismatch(held, plan, lag, processor):       # linear, and no runs 5-12 samples below the root
+    def mismatch(lag):       # linear, and no runs 5-12 samples below the root
         tried.append(lag)
         if root - 12 < lag < root - 5:
             return refine.Mismatch(float("nan"), float("nan"), float("nan"))
@@ -214,7 +214,7 @@ def test_a_trial_without_runs_does_not_end_the_delay_search(monkeypatch):
         return refine.Mismatch(-0.0023 * (lag - root) + noise, 0.001, 0.2363)
 
     monkeypatch.setattr(refine, "stretches", lambda cap, plan, processor: [])
-    monkeypatch.setattr(refine, "mismatch", mismatch)
+    monkeypatch.setattr(refine, "mismatches", lambda held, plan, lags, processor: list(map(mismatch, lags)))
     got = refine.refine_lag(None, Plan(lag=-29.8), None)
     assert any(root - 12 < x < root - 5 for x in tried)             # the search met the gap
     assert got.lag_refined and abs(got.lag - root) < 0.1
@@ -226,8 +226,9 @@ def test_trial_stretches_converted_together_equal_each_converted_apart(tmp_path,
     """ChunkProcessor.process_apart (the delay's trial conversions: one pass, one trip
     each way on a device) gives each chunk of the trial stretches the measurements of
     its own conversion: chunks of 25 periods (several a stretch, odd counts of pairs,
-    one chunk's pairs tracked beside another's), at the true delay and 3 samples off, on
-    a weak lab's landing under noise at full scale. With the integration left to the
+    one chunk's pairs tracked beside another's), at the true delay and 3 samples off in
+    one pass (`Held.at`: each chunk twice, at each delay), on a weak lab's landing under
+    noise at full scale. With the integration left to the
     chunk, a chunk whose single pairs are too weak for it (here some are, some are not)
     is converted on its own; with K given (the second look's), none is, and each chunk's
     windows end at its ends. Equal but for float rounding (the resampling's positions
@@ -245,14 +246,17 @@ def test_trial_stretches_converted_together_equal_each_converted_apart(tmp_path,
         plan = make_plan(cap, Options(chunk_periods=25), lag=true, processor=be)
         held = refine.stretches(cap, plan, be)
         assert len(held.chunks) >= 9 and len(set(held.stretch)) == 3
-        for lag, k in ((plan.lag, None), (plan.lag + 3.0, None), (plan.lag, LOOK_K)):
-            trial = refine.trial_plan(plan, lag)
-            be.open(replace(trial, options=replace(trial.options, integrate=k)))
-            apart = [be.process(c, p) for c, p in zip(held.chunks, held.prepared, strict=True)]
+        for lags, k in (([plan.lag, plan.lag + 3.0], None), ([plan.lag], LOOK_K)):
+            apart = []
+            for lag in lags:
+                trial = refine.trial_plan(plan, lag)
+                be.open(replace(trial, options=replace(trial.options, integrate=k)))
+                apart += [be.process(c, p) for c, p in zip(held.chunks, held.prepared, strict=True)]
+            be.open(replace(be.plan, lag=lags[0]))
             alone, real = [], be.process           # the chunks process_apart converts on their own
             monkeypatch.setattr(be, "process", lambda c, p, a=alone, real=real: a.append(c) or real(c, p))
-            together = be.process_apart(held)
-            assert 0 < len(alone) < len(held.chunks) if k is None else not alone
+            together = be.process_apart(held.at(lags))
+            assert 0 < len(alone) < len(apart) if k is None else not alone
             if k is not None:
                 assert max(m.result.integrated.max() for got in together for m in got) == k
             assert len(together) == len(apart)
