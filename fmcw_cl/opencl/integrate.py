@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..stages.integrate import window
+from ..stages.pairing import group_bounds
 from ..stages.spectrum import GUARD_BINS, Search
 from .buffers import Buffers, DeviceRows, Packed
 from .context import Runtime, cl
@@ -21,8 +22,7 @@ def peaks(rt: Runtime, bufs: Buffers, store: DeviceRows, disp: np.ndarray, k: in
     if rows == 0:
         return np.zeros(0), np.zeros(0, np.float32), np.zeros(0, np.int32)
     before, after = window(k)
-    if bounds is None:
-        bounds = np.repeat(np.array([0, rows - 1], np.int32), rows)
+    bounds = group_bounds(None, rows) if bounds is None else bounds
     # relative to the first row: float32 keeps 1e-4 bin over a chunk's displacement
     d_disp, d_bounds = Packed(bufs, "disp", [(np.float32, rows), (np.int32, 2 * rows)]).upload(
         np.asarray(disp - disp[0], np.float32), bounds)

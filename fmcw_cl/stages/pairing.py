@@ -497,6 +497,15 @@ def group_slices(groups: np.ndarray | None, pairs: int) -> list[slice]:
     return [slice(a, b) for a, b in zip(edges, [*edges[1:], pairs], strict=True) if b > a]
 
 
+def group_bounds(groups: np.ndarray | None, pairs: int) -> np.ndarray:
+    """(2 pairs,) int32: the first pair of each pair's group (`group_slices`), then the
+    last of each: what a kernel is told of the groups."""
+    out = np.empty((2, pairs), np.int32)
+    for g in group_slices(groups, pairs):
+        out[:, g] = [[g.start], [g.stop - 1]]
+    return out.ravel()
+
+
 def _each(groups: np.ndarray, step, pairs: int, dtype=np.float64) -> np.ndarray:
     """`step(g)` of each group's slice g of `pairs`, laid end to end."""
     parts = [step(g) for g in group_slices(groups, pairs)]
@@ -635,12 +644,8 @@ class Times:
 
     @property
     def bounds(self) -> np.ndarray:
-        """(2 pairs,) int32: the first pair of each pair's group, then the last of each
-        (kernels/track.cl)."""
-        out = np.empty((2, self.rise.size), np.int32)
-        for g in group_slices(self.groups, self.rise.size):
-            out[:, g] = [[g.start], [g.stop - 1]]
-        return out.ravel()
+        """group_bounds of these pairs (kernels/track.cl)."""
+        return group_bounds(self.groups, self.rise.size)
 
 
 @dataclass
