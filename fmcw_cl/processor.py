@@ -268,11 +268,11 @@ class ChunkProcessor(pairing.SpectrumOps):
         """`[process(chunk, prepared) for each of held]` in one pass, each chunk at its
         delay (`held.lags`): every chunk's pairs resampled and tracked together, each
         chunk's apart from the others' (pairing.Times.groups), under an open plan without
-        range check or survey (the delay's trial conversions, the second look). Where the options set the
-        integration, each chunk's windows end at its ends; where they leave it to the
-        chunk, single half-sweeps are measured, and a chunk whose single pairs are too
-        weak for that (pairing.track_pairs) is converted again on its own, as `process`
-        does."""
+        range check or survey (the delay's trial conversions, the second look). Where the
+        options set the integration, each chunk's windows end at its ends; where they
+        leave it to the chunk, single half-sweeps are measured, and a chunk whose single
+        pairs are too weak for that (pairing.track_pairs) is converted again on its own,
+        as `process` does."""
         plan = self.plan
         if plan is None:
             raise FmcwError("a chunk processor must be opened with a plan before it processes")
