@@ -244,7 +244,7 @@ class ChunkProcessor(pairing.SpectrumOps):
         before, self._pending = self._pending, None
         if prepared is None:
             prepared = ahead[1] if ahead is not None and ahead[0] is chunk else self.prepare(chunk, info)
-        found = self._pairs(chunk, prepared)
+        found = self._pairs(chunk, prepared, plan.lag)
         if found is None:
             return [] if before is None else [self._finished(before, self.check_and_survey(before))]
         hs, r, f, times = found
@@ -258,7 +258,7 @@ class ChunkProcessor(pairing.SpectrumOps):
         done = [] if before is None else [self._finished(before, landed.get())]
         if coming is not None:
             self._ahead = (nxt, coming.get())
-        mine = self._owned(chunk, prepared, found, res, (xr, xf))
+        mine = self._owned(chunk, prepared, found, res, (xr, xf), plan.lag)
         if nxt is None or (mine.check is None and mine.survey is None):
             return [*done, self._finished(mine, self.check_and_survey(mine))]
         self._pending = mine
@@ -324,12 +324,12 @@ class ChunkProcessor(pairing.SpectrumOps):
         finally:
             self.plan = plan
 
-    def _pairs(self, chunk: Chunk, prepared: Prepared, lag: float | None = None) -> tuple | None:
-        """The half-sweeps of `chunk` at the delay `lag` (samples; the open plan's when
-        None), those of its pairs (the rising and falling ones that lie whole in the
-        chunk, of one segment) and the pairs' Times (None: no pair)."""
+    def _pairs(self, chunk: Chunk, prepared: Prepared, lag: float) -> tuple | None:
+        """The half-sweeps of `chunk` at the delay `lag` (samples), those of its pairs
+        (the rising and falling ones that lie whole in the chunk, of one segment) and the
+        pairs' Times (None: no pair)."""
         plan = self.plan
-        hs = sync.half_sweeps(prepared.turns, plan.lag if lag is None else lag)
+        hs = sync.half_sweeps(prepared.turns, lag)
         fits = resample.inside(hs.start, hs.length, plan.lut, chunk.beat.size)
         r = np.flatnonzero(hs.rising[:-1] & ~hs.rising[1:] & (hs.segment[:-1] == hs.segment[1:])
                            & fits[:-1] & fits[1:])
@@ -340,14 +340,13 @@ class ChunkProcessor(pairing.SpectrumOps):
         return hs, r, f, pairing.Times((chunk.start + hs.centre[r]) / fs, (chunk.start + hs.centre[f]) / fs)
 
     def _owned(self, chunk: Chunk, prepared: Prepared, found: tuple, res: pairing.PairResult,
-               rows: tuple | None, lag: float | None = None) -> Pending:
-        """The owned pairs of `chunk` (`found`: `_pairs` at the delay `lag`, the open
-        plan's when None; `res`: their tracking) with their clipping, and their range
-        check and survey to run where the plan asks (`rows`: the pairs' resampled
-        half-sweeps, for the survey)."""
+               rows: tuple | None, lag: float) -> Pending:
+        """The owned pairs of `chunk` (`found`: `_pairs` at the delay `lag`, samples;
+        `res`: their tracking) with their clipping, and their range check and survey to
+        run where the plan asks (`rows`: the pairs' resampled half-sweeps, for the
+        survey)."""
         plan = self.plan
         hs, r, f, times = found
-        lag = plan.lag if lag is None else lag
         first = chunk.start + hs.start[r] + lag      # sync time of the pair's first turn
         own = (first >= chunk.core_start) & (first < chunk.core_stop)
         sel = res.take(own)
