@@ -202,7 +202,8 @@ class ChunkProcessor(pairing.SpectrumOps):
         raise NotImplementedError
 
     def resample_each(self, codes, jobs, win):
-        """`resample` of each (starts, lengths, u) of `jobs` (a device: one upload)."""
+        """`resample` of each (starts, lengths, u[, runs]) of `jobs` (a device: one upload;
+        `runs`: counts of consecutive half-sweeps that a device resamples as if alone)."""
         raise NotImplementedError
 
     def resample(self, codes, starts, lengths, u, win):
@@ -296,7 +297,10 @@ class ChunkProcessor(pairing.SpectrumOps):
         if not groups:
             self.chunks += len(items)
             return [[] for _ in items]
-        jobs = [(np.concatenate([a for a, _ in side]), np.concatenate([n for _, n in side]), u)
+        # each chunk's half-sweeps a run of their own (resample_each) and a group of the
+        # tracker's (Times.groups): converted as if alone, whatever chunks and delays are beside
+        jobs = [(np.concatenate([a for a, _ in side]), np.concatenate([n for _, n in side]), u,
+                 [a.size for a, _ in side])
                 for side, u in zip(sides, (plan.lut.u_rise, plan.lut.u_fall), strict=True)]
         times = pairing.Times(np.concatenate(rise), np.concatenate(fall), np.array(groups))
         (xr, xf), times, _ = self.resample_pairs(held.beat, jobs, plan.window, times)
@@ -521,7 +525,7 @@ class NumpyProcessor(ChunkProcessor):
         return sync.sync_turning_points(codes, half_period)
 
     def resample_each(self, codes, jobs, win):
-        return [resample.resample(codes, starts, lengths, u, win) for starts, lengths, u in jobs]
+        return [resample.resample(codes, *job[:3], win) for job in jobs]
 
     def clip_counts(self, codes, block, full_scale):
         return faults.clip_counts(codes, block, full_scale)

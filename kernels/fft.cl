@@ -112,6 +112,25 @@ void load(__global const float *ra, __global const float *rb, __global const flo
 
 // A plain (real) half-sweep's spectrum is Hermitian, so plain rows go two to a
 // transform, Z = FFT(a + i b): A_k = (Z_k + conj Z_-k) / 2, B_k = (Z_k - conj Z_-k) / 2i.
+// Rows pair within their group (a chunk of the delay's trials), from its first row on,
+// a group's odd last row alone: a row's float rounding then depends on its group only.
+
+// The first sweep of plain transform g and the end of its group (`first`: the groups'
+// first rows, ascending from 0; `n`: all rows).
+int plain_transform(const int g, __global const int *first, const int groups, const int n, int *end)
+{
+    int t = g, a = 0;
+    *end = n;
+    for (int k = 0; k < groups; ++k) {
+        a = first[k];
+        *end = k + 1 < groups ? first[k + 1] : n;
+        const int c = (*end - a + 1) >> 1;          // the group's transforms
+        if (t < c) break;
+        t -= c;
+    }
+    return a + 2 * t;
+}
+
 // De-chirped rows are complex: one per transform, of the rows listed in `index` when
 // `indexed` (the tracker's later passes re-measure only the pairs whose velocity moved).
 __kernel void spectrum_peak(__global const float *x,          // (rows, points)
@@ -144,6 +163,9 @@ __kernel void spectrum_peak(__global const float *x,          // (rows, points)
                             __global int *echo_count,         // (sweeps,)
                             __global const int *listed,       // counted: listed[0] sweeps at most
                             const int counted,                // (the tracker's list, kernels/track.cl)
+                            __global const int *group_first,  // plain: each group's first row
+                            const int groups,
+                            const int plain,                  // plain: the transforms
                             __local float *re,                // nfft
                             __local float *im,                // nfft
                             __local float *pw,                // nfft/2
@@ -153,11 +175,12 @@ __kernel void spectrum_peak(__global const float *x,          // (rows, points)
     const int n = counted ? min(sweeps, listed[0]) : sweeps;
     // a transform a group; a counted launch has fewer groups than transforms, each
     // taking every get_num_groups-th (uniform in the group: barriers are safe)
-    for (int g = get_group_id(0); (dechirp ? g : 2 * g) < n; g += get_num_groups(0)) {
+    for (int g = get_group_id(0); g < (dechirp ? n : plain); g += get_num_groups(0)) {
         const int lid = get_local_id(0);
         const int lsz = get_local_size(0);
-        const int s = dechirp ? g : 2 * g;                // first sweep of this transform
-        const int rows = dechirp || s + 1 == n ? 1 : 2;
+        int end = n;
+        const int s = dechirp ? g : plain_transform(g, group_first, groups, n, &end);   // its first sweep
+        const int rows = dechirp || s + 1 == end ? 1 : 2;
         const float v = dechirp ? velocity[s] : 0.0f;
         __global const float *ra = x + (size_t)(indexed ? index[s] : s) * points;
         __global const float *rb = rows == 2 ? ra + points : 0;

@@ -202,28 +202,33 @@ __kernel void spectrum_lanes(__global const float *x, const int sweeps, const in
                              __global const float *scale, const int max_echoes,
                              __global float *echo_bin, __global float *echo_snr, __global int *echo_count,
                              __global const int *listed, const int counted,
+                             __global const int *group_first, const int groups, const int plain,
                              __local float8 *re,       // nfft
                              __local float8 *im,       // nfft
                              __local float8 *pw)       // nfft: the power of a transform's two rows
 {
     const int n = counted ? min(sweeps, listed[0]) : sweeps;
-    const int transforms = dechirp ? n : (n + 1) / 2;
+    const int transforms = dechirp ? n : plain;
     // eight transforms a group; a counted launch has fewer groups than blocks, each
     // taking every get_num_groups-th block (a listed few spread over all cores)
     for (int w = get_group_id(0); 8 * w < transforms; w += get_num_groups(0)) {
         __global const float *ra[8];
         __global const float *rb[8];
         int first[8];                                      // first sweep of each lane, -1: idle lane
+        int two[8];                                        // whether its plain transform has two rows
         float vl[8];
         for (int l = 0; l < 8; ++l) {
             const int g = 8 * w + l;
-            const int s = dechirp ? g : 2 * g;
             const int active = g < transforms;
+            int end = n;
+            const int s = dechirp || !active ? g : plain_transform(g, group_first, groups, n, &end);
             first[l] = active ? s : -1;
+            two[l] = !dechirp && active && s + 1 < end;
             const int row = active ? (indexed ? index[s] : s) : 0;
             ra[l] = x + (size_t)row * points;
-            // a plain row's partner; a lone last row pairs with itself (the copy is not reported)
-            rb[l] = !dechirp && active && s + 1 < n ? ra[l] + points : ra[l];
+            // a plain row's partner; a group's lone last row pairs with itself (the copy is
+            // not reported)
+            rb[l] = two[l] ? ra[l] + points : ra[l];
             vl[l] = dechirp && active ? velocity[s] : 0.0f;
         }
         const float8 v = vload8(0, vl);
@@ -285,7 +290,7 @@ __kernel void spectrum_lanes(__global const float *x, const int sweeps, const in
         for (int r = 0; r < rows; ++r) {
             __local const float8 *p_r = pw + r * half_n;
             int sweep[8];
-            for (int l = 0; l < 8; ++l) sweep[l] = first[l] >= 0 && (r == 0 || first[l] + 1 < n) ? first[l] + r : -1;
+            for (int l = 0; l < 8; ++l) sweep[l] = first[l] >= 0 && (r == 0 || two[l]) ? first[l] + r : -1;
             if (keep_power) {
                 for (int l = 0; l < 8; ++l) {
                     if (sweep[l] < 0) continue;

@@ -4,6 +4,9 @@
 // Positions: start + u_j L = base + lut_int_j + (offset + lut_frac_j + u_j dlen), where
 // lut_int + lut_frac = u_j L0 was split in float64 on the host and dlen = L - L0 is tiny,
 // so float32 keeps 1e-6 sample precision (u_j L in float32 would lose 2e-4).
+// A launch writes its half-sweeps' rows from row `first` of `out` on: one launch per run
+// of half-sweeps split at one L0 (a chunk of the delay's trials), each run's rows as if
+// resampled alone.
 // Two variants: `resample` (GPUs) a work-group per half-sweep, its work-items striding
 // over the points; `resample_lanes` (CPUs) a work-item per half-sweep, eight points at a
 // time in float8 lanes (PoCL vectorises across work-items only where a kernel has no
@@ -42,6 +45,7 @@ __kernel void resample(__global const short *codes,
                        __global const float *u,       // LUT: fractions of the half-sweep
                        __global const float *win,     // window
                        const int points,
+                       const int first,               // the row of out of this launch's first sweep
                        __global float *out,           // (sweeps, points)
                        __local float *scratch)
 {
@@ -51,7 +55,7 @@ __kernel void resample(__global const short *codes,
     const int b = base[s];
     const float off = offset[s];
     const float dl = dlen[s];
-    __global float *row = out + (size_t)s * points;
+    __global float *row = out + (size_t)(first + s) * points;
     float acc = 0.0f;
     for (int j = lid; j < points; j += lsz) {
         const float y = point(codes, b, off, dl, lut_int, lut_frac, u, j);
@@ -84,13 +88,14 @@ __kernel void resample_lanes(__global const short *codes,
                              __global const float *u,
                              __global const float *win,
                              const int points,
+                             const int first,
                              __global float *out)
 {
     const int s = get_global_id(0);
     const int b = base[s];
     const float off = offset[s];
     const float dl = dlen[s];
-    __global float *row = out + (size_t)s * points;
+    __global float *row = out + (size_t)(first + s) * points;
     const int whole = points & ~7;
     float8 acc = 0.0f;
     for (int j = 0; j < whole; j += 8) {

@@ -225,14 +225,17 @@ def test_a_trial_without_runs_does_not_end_the_delay_search(monkeypatch):
 def test_trial_stretches_converted_together_equal_each_converted_apart(tmp_path, monkeypatch, name):
     """ChunkProcessor.process_apart (the delay's trial conversions: one pass, one trip
     each way on a device) gives each chunk of the trial stretches the measurements of
-    its own conversion: chunks of 25 periods (several a stretch, odd counts of pairs,
+    its own conversion: chunks of 27 periods (several a stretch, odd counts of pairs,
     one chunk's pairs tracked beside another's), at the true delay and 3 samples off in
     one pass (`Held.at`: each chunk twice, at each delay), on a weak lab's landing under
     noise at full scale. With the integration left to the
     chunk, a chunk whose single pairs are too weak for it (here some are, some are not)
     is converted on its own; with K given (the second look's), none is, and each chunk's
     windows end at its ends. Equal but for float rounding (the resampling's positions
-    are offset into the codes of all the chunks)."""
+    are offset into the codes of all the chunks). Each delay's chunks are converted as in
+    a pass of their own, to the bit on a device too: the float32 resampling and the
+    plain transforms (two rows each) pair no chunk's rows with another's, though the
+    second delay's rows start at an odd row of the pass."""
     from fmcw_cl.backend import make_processor
     from fmcw_cl.capture import Capture
     from fmcw_cl.plan import make_plan
@@ -243,9 +246,13 @@ def test_trial_stretches_converted_together_equal_each_converted_apart(tmp_path,
     be = make_processor(name)
     tol = 1e-9 if name == "numpy" else 2e-5
     with Capture(path) as cap:
-        plan = make_plan(cap, Options(chunk_periods=25), lag=true, processor=be)
+        plan = make_plan(cap, Options(chunk_periods=27), lag=true, processor=be)
         held = refine.stretches(cap, plan, be)
         assert len(held.chunks) >= 9 and len(set(held.stretch)) == 3
+        be.open(plan)
+        pairs = [got[3].rise.size for c, p in zip(held.chunks, held.prepared, strict=True)
+                 if (got := be._pairs(c, p, plan.lag)) is not None]
+        assert sum(pairs) % 2 == 1          # a second delay's rows start at an odd row
         for lags, k in (([plan.lag, plan.lag + 3.0], None), ([plan.lag], LOOK_K)):
             apart = []
             for lag in lags:
@@ -272,6 +279,23 @@ def test_trial_stretches_converted_together_equal_each_converted_apart(tmp_path,
                                                    atol=tol, err_msg=key)
             monkeypatch.undo()
             assert any(m.result.valid.any() for got in together for m in got)
+            if len(lags) > 1:
+                n = len(held.chunks)
+                for j, lag in enumerate(lags):
+                    _assert_identical(together[j * n:(j + 1) * n], be.process_apart(held.at([lag])))
+
+
+def _assert_identical(one: list, other: list) -> None:
+    """Lists of chunks' measurements equal to the bit (echoes aside)."""
+    assert len(one) == len(other)
+    for x, y in zip(one, other, strict=True):
+        assert len(x) == len(y)
+        for a, b in zip(x, y, strict=True):
+            np.testing.assert_array_equal(a.t_rise, b.t_rise)
+            np.testing.assert_array_equal(a.reason, b.reason)
+            for key in a.result.__dataclass_fields__:
+                if isinstance(getattr(a.result, key), np.ndarray):
+                    np.testing.assert_array_equal(getattr(a.result, key), getattr(b.result, key), err_msg=key)
 
 
 @pytest.mark.parametrize("name", ["numpy", "opencl"])

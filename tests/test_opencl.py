@@ -115,6 +115,48 @@ def test_both_directions_in_one_trip_equal_each_alone(backend, kernel_variant, s
                 np.testing.assert_array_equal(getattr(got[2], k), getattr(alone[2], k))
 
 
+def test_runs_and_groups_of_rows_equal_each_alone(backend, kernel_variant):
+    """The chunks of one pass of the delay's trials: resample_each of half-sweeps in runs
+    (each run's positions split at its own median length) and the plain spectra of rows
+    in groups (two rows a transform, within a group only) give each run's and group's
+    rows bit for bit as alone, whatever is beside them: runs and groups of odd sizes,
+    one of a single row, one empty; the rows within float32 of numpy's."""
+    from fmcw_cl.stages import pairing
+    from fmcw_cl.stages.lut import build_lut
+
+    rng = np.random.default_rng(5)
+    codes = rng.integers(-3000, 3000, 200_003).astype(np.int16)
+    cur = np.linspace(0.16, 0.48, 50)
+    lut = build_lut(cur, 190e12 + 160e9 * ((cur - 0.16) / 0.32) ** 1.3, 0.16, 0.48, 500, 1.0)
+    win = resample.window(500)
+    runs = [71, 0, 120, 1, 51]
+    lengths = np.concatenate([np.full(n, 2500.0 + 3.3 * k) + rng.uniform(-1, 1, n) for k, n in enumerate(runs)])
+    starts = rng.uniform(10, 190_000, lengths.size)
+    u = lut.u_rise
+    (x,) = backend.resample_each(codes, [(starts, lengths, u, runs)], win)
+    got = x.get()
+    np.testing.assert_allclose(got, resample.resample(codes, starts, lengths, u, win), rtol=0, atol=0.02)
+    firsts = np.cumsum([0, *runs[:-1]])
+    alone = [backend.resample(codes, starts[a:a + n], lengths[a:a + n], u, win).get()
+             for a, n in zip(firsts, runs, strict=True) if n]
+    np.testing.assert_array_equal(got, np.concatenate(alone))
+    model = pairing.doppler_model(lut, 25e-6, 1024, win)
+    search = Search(3, 400, echoes=True)
+    groups = np.unique(firsts)            # the empty run's first row is the next one's
+    (dist, snr, det), = backend.measure_each([x], [model.beta_rise], None, model, search, groups=groups)
+    at = 0
+    for rows in alone:
+        (dist1, snr1, det1), = backend.measure_each([rows], [model.beta_rise], None, model, search)
+        part = slice(at, at + rows.shape[0])
+        np.testing.assert_array_equal(dist[part], dist1)
+        np.testing.assert_array_equal(snr[part], snr1)
+        for k in ("bin", "snr_db", "count"):
+            np.testing.assert_array_equal(getattr(det, k)[part], getattr(det1, k))
+        at += rows.shape[0]
+    whole = backend.measure_each([x], [model.beta_rise], None, model, search)[0]
+    assert not np.array_equal(whole[1], snr)     # in one group, rows pair across the groups' ends
+
+
 @pytest.mark.parametrize("nfft", [128, 2048])
 def test_power_spectra_of_several_row_counts_in_one_trip(backend, kernel_variant, nfft):
     """power_each (the tuning check's rising, falling and reference spectra): rows of

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import functools
 from collections.abc import Callable
-from dataclasses import replace
 
 import numpy as np
 
@@ -179,12 +178,11 @@ class OpenCLProcessor(ChunkProcessor):
             if before.survey is not None:
                 also = _survey_inputs(before.survey)
         if passes:
-            also = (*also, times.mid, times.half_gap, times.bounds)
+            also = (*also, *k_track.times_up(times))
         rows, extra = k_resample.resample_groups(self.rt, self.bufs, groups, also)
         pairs = self._kept(rows[-1], win)
         if passes:
-            *extra, d_mid, d_half, d_bounds = extra
-            times = replace(times, device=(d_mid, d_half, d_bounds))
+            extra, times = k_track.times_down(extra, times)
         if not fused:
             return pairs, times, landed
         out, read = self._check_and_survey(before, rows[0] if before.check is not None else None, extra)
@@ -201,14 +199,15 @@ class OpenCLProcessor(ChunkProcessor):
     def measure(self, x, beta, v, model, search, rows=None):
         return self.measure_each([x], [beta], v, model, search, rows)[0]
 
-    def measure_each(self, xs, betas, v, model, search, rows=None, riders: tuple = ()):
+    def measure_each(self, xs, betas, v, model, search, rows=None, riders: tuple = (), groups=None):
         """Twin: pairing.SpectrumOps.measure_each; one upload of the rows and velocities,
-        one download of every result (and of `riders`)."""
+        one download of every result (and of `riders`); plain rows paired within `groups`
+        (their first rows, None: one group)."""
         if not self._fits(model.nfft):
             return pairing.NUMPY.measure_each(xs, betas, v, model, search, rows)
         jobs = [(x, b, None) for x, b in zip(xs, betas, strict=True)]
         got = k_spectrum.measure_each(self.rt, self.bufs, jobs, v, model.nfft, search.lo, search.hi,
-                                      index=rows, echoes=search.echoes, riders=riders)
+                                      index=rows, echoes=search.echoes, riders=riders, groups=groups)
         return _measured(got, model, search)
 
     def track(self, rows, times, model, search, iterations, single):
@@ -220,10 +219,10 @@ class OpenCLProcessor(ChunkProcessor):
                                      self._landing())
         return tuple(_measured(first, model, search)), state
 
-    def plain_pass(self, rows, model, search):
+    def plain_pass(self, rows, model, search, groups=None):
         """Twin: pairing.SpectrumOps.plain_pass; its download carries the riders of `ride`."""
         return self.measure_each(rows, (model.beta_rise, model.beta_fall), None, model, search,
-                                 riders=self._landing())
+                                 riders=self._landing(), groups=groups)
 
     def power(self, x, beta, v, nfft, rows=None):
         """Power spectra of rows of x (plain, or de-chirped at v); twin: pairing.power."""

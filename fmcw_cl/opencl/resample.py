@@ -20,12 +20,22 @@ def codes_of(bufs: Buffers, codes: np.ndarray):
 
 def resample_each(rt: Runtime, bufs: Buffers, codes: np.ndarray, jobs: list, win: np.ndarray,
                   also: tuple = ()) -> list[DeviceRows]:
-    """Resampled, mean-removed, windowed half-sweeps of each (starts, lengths, u) of `jobs`
-    (a pair's rising and falling half-sweeps), (S, N) float32 each, left on the device
-    (twin: stages.resample.resample): `resample_groups` of one group, the device buffers
-    of `also` following the rows in the list returned."""
+    """Resampled, mean-removed, windowed half-sweeps of each (starts, lengths, u[, runs])
+    of `jobs` (a pair's rising and falling half-sweeps), (S, N) float32 each, left on the
+    device (twin: stages.resample.resample): `resample_groups` of one group, the device
+    buffers of `also` following the rows in the list returned."""
     rows, extra = resample_groups(rt, bufs, [(codes, jobs, win)], also)
     return rows[0] + extra
+
+
+def _runs(job: tuple) -> list[tuple[int, int]]:
+    """The (first, end) half-sweeps of each run of `job` (starts, lengths, u[, runs]):
+    `runs` counts consecutive half-sweeps whose positions are split at their own median
+    length, so that their float32 rows do not depend on the others' (the chunks of one
+    pass of the delay's trials); without it, one run."""
+    counts = job[3] if len(job) > 3 else (job[0].size,)
+    ends = np.cumsum(counts, dtype=np.int64)
+    return [(int(e - n), int(e)) for n, e in zip(counts, ends, strict=True) if n]
 
 
 def resample_groups(rt: Runtime, bufs: Buffers, groups: list, also: tuple = ()) -> tuple[list, list]:
@@ -37,16 +47,18 @@ def resample_groups(rt: Runtime, bufs: Buffers, groups: list, also: tuple = ()) 
     Returns the rows of each group's jobs, and the device buffers of `also`."""
     parts, values = [], []
     for _, jobs, _ in groups:
-        for starts, lengths, u in jobs:
-            sweeps, points = starts.size, u.size
-            base = np.floor(starts).astype(np.int32)
-            nominal = median(lengths) if sweeps else 0.0
-            whole = u * nominal
-            lut_int = np.floor(whole)
-            # the sweeps' positions and the LUT split at this nominal length
-            parts += [(np.int32, sweeps), (np.float32, sweeps), (np.float32, sweeps), (np.int32, points),
-                      (np.float32, points)]
-            values += [base, starts - base, np.asarray(lengths) - nominal, lut_int, whole - lut_int]
+        for job in jobs:
+            starts, lengths, u = job[:3]
+            for a, b in _runs(job):
+                nominal = median(lengths[a:b])
+                base = np.floor(starts[a:b]).astype(np.int32)
+                whole = u * nominal
+                lut_int = np.floor(whole)
+                # the sweeps' positions and the LUT split at this nominal length
+                parts += [(np.int32, b - a), (np.float32, b - a), (np.float32, b - a), (np.int32, u.size),
+                          (np.float32, u.size)]
+                values += [base, starts[a:b] - base, np.asarray(lengths[a:b]) - nominal, lut_int,
+                           whole - lut_int]
     parts += [(a.dtype, a.size) for a in also]
     buffers = Packed(bufs, "positions", parts).upload(*values, *also)
     out, i = [], 0
@@ -54,17 +66,18 @@ def resample_groups(rt: Runtime, bufs: Buffers, groups: list, also: tuple = ()) 
         d_codes = codes_of(bufs, codes)
         d_win = bufs.constant("win", win)
         rows_of = []
-        for starts, _, u in jobs:
-            sweeps, points = starts.size, u.size
-            rows = DeviceRows(bufs, sweeps, points)
+        for job in jobs:
+            starts, _, u = job[:3]
+            rows = DeviceRows(bufs, starts.size, u.size)
             rows_of.append(rows)
-            if sweeps:
-                args = (d_codes, *buffers[5 * i: 5 * i + 5], bufs.constant("u", u), d_win, np.int32(points))
+            for a, b in _runs(job):
+                args = (d_codes, *buffers[5 * i: 5 * i + 5], bufs.constant("u", u), d_win, np.int32(u.size),
+                        np.int32(a), rows.buffer)
                 if rt.lanes:
-                    rt.kernel("resample", "resample_lanes")(rt.queue, (sweeps,), (1,), *args, rows.buffer)
+                    rt.kernel("resample", "resample_lanes")(rt.queue, (b - a,), (1,), *args)
                 else:
-                    rt.kernel("resample", "resample")(rt.queue, (sweeps * GPU_LOCAL,), (GPU_LOCAL,), *args,
-                                                      rows.buffer, cl.LocalMemory(4 * GPU_LOCAL))
-            i += 1
+                    rt.kernel("resample", "resample")(rt.queue, ((b - a) * GPU_LOCAL,), (GPU_LOCAL,), *args,
+                                                      cl.LocalMemory(4 * GPU_LOCAL))
+                i += 1
         out.append(rows_of)
     return out, buffers[5 * i:]

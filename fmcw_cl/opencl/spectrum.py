@@ -103,8 +103,8 @@ def measure(rt: Runtime, bufs: Buffers, rows, beta: np.ndarray | None,
 def measure_each(rt: Runtime, bufs: Buffers, jobs: list, velocity: np.ndarray | None, nfft: int, lo: int,
                  hi: int | None = None, keep_power: bool = False, index: np.ndarray | None = None,
                  echoes: bool = False, scatter: bool = True, picked: tuple | None = None,
-                 out: Packed | None = None, first: int = 0, listed=None, riders: tuple = ()
-                 ) -> list[tuple] | None:
+                 out: Packed | None = None, first: int = 0, listed=None, riders: tuple = (),
+                 groups: np.ndarray | None = None, d_groups=None) -> list[tuple] | None:
     """`measure` of each (rows, beta, store) of `jobs` (rows of one shape: a pair's
     rising and falling half-sweeps) with the same picked rows, velocities and band: the
     picked rows and velocities go up once (`picked`: their device buffers, already up,
@@ -113,7 +113,9 @@ def measure_each(rt: Runtime, bufs: Buffers, jobs: list, velocity: np.ndarray | 
     comes back (None: `results` reads them after its download). `listed`: a device int, how
     many of the `picked` rows to de-chirp (at most all rows; the tracker's list of the
     pairs to measure again, kernels/track.cl), `velocity` then unused. `riders`
-    (buffers.Rider) come down with the results."""
+    (buffers.Rider) come down with the results. `groups`: the first row of each group
+    of rows whose plain spectra are taken as if alone (None: one group; `d_groups`: its
+    int32 copy on the device, where already up)."""
     up = {id(rows): as_device(bufs, rows) for rows, _, _ in jobs}      # a host array goes up once
     rows_of = [up[id(rows)] for rows, _, _ in jobs]
     sweeps, points = rows_of[0].shape
@@ -144,7 +146,11 @@ def measure_each(rt: Runtime, bufs: Buffers, jobs: list, velocity: np.ndarray | 
     if out is None:
         out = Packed(bufs, "measured", parts(jobs, sweeps, nfft, echoes, keep_power), riders)
     counted = (listed, 1) if listed is not None else (bufs.constant("index0", zeros(1), np.int32), 0)
-    transforms = sweeps if dechirp else (sweeps + 1) // 2    # plain rows: two per transform
+    transforms = sweeps if dechirp else plain_transforms(groups, sweeps)
+    if groups is None:
+        d_groups = bufs.constant("index0", zeros(1), np.int32)
+    elif d_groups is None:
+        d_groups = bufs.upload("groups", np.asarray(groups, np.int32))
     for i, (rows, (_, beta, store)) in enumerate(zip(rows_of, jobs, strict=True)):
         d_bin, d_snr, d_ebin, d_esnr, d_ecount, d_own = out.buffers[first + 6 * i: first + 6 * i + 6]
         d_power = store.buffer if store is not None else d_own
@@ -156,18 +162,19 @@ def measure_each(rt: Runtime, bufs: Buffers, jobs: list, velocity: np.ndarray | 
                 np.int32(store is not None and indexed and scatter),
                 np.int32(echoes), np.int32(cfar.GUARD), np.int32(cfar.TRAIN),
                 bufs.constant("cfar_scale", cfar_scales()), np.int32(m),
-                d_ebin, d_esnr, d_ecount, counted[0], np.int32(counted[1]))
+                d_ebin, d_esnr, d_ecount, counted[0], np.int32(counted[1]), d_groups,
+                np.int32(0 if groups is None else np.size(groups)), np.int32(transforms))
         if uses_lanes(rt, nfft):
-            groups = -(-transforms // LANES)
+            items = -(-transforms // LANES)
             if listed is not None:
-                groups = min(groups, counted_groups(rt))
-            rt.kernel("spectrum", "spectrum_lanes")(rt.queue, (groups,), (1,), *args,
+                items = min(items, counted_groups(rt))
+            rt.kernel("spectrum", "spectrum_lanes")(rt.queue, (items,), (1,), *args,
                                                     *(cl.LocalMemory(4 * LANES * nfft),) * 3)
         else:
             lsz = local_size(rt, nfft)
-            groups = transforms if listed is None else min(transforms, counted_groups(rt))
+            items = transforms if listed is None else min(transforms, counted_groups(rt))
             rt.kernel("spectrum", "spectrum_peak")(
-                rt.queue, (groups * lsz,), (lsz,), *args,
+                rt.queue, (items * lsz,), (lsz,), *args,
                 cl.LocalMemory(4 * nfft), cl.LocalMemory(4 * nfft), cl.LocalMemory(4 * half),
                 cl.LocalMemory(12 * lsz), cl.LocalMemory(half if echoes else 1))
     if deferred:
@@ -175,6 +182,14 @@ def measure_each(rt: Runtime, bufs: Buffers, jobs: list, velocity: np.ndarray | 
     if all(store is not None for _, _, store in jobs):      # the spectra stay for the next kernel
         return [(None, None, None)] * len(jobs)
     return results(out.download(), jobs, sweeps, nfft, echoes, keep_power)
+
+
+def plain_transforms(groups: np.ndarray | None, sweeps: int) -> int:
+    """Transforms of `sweeps` plain rows, two to a transform within each group (first
+    rows `groups`, None: one group), a group's odd last row alone (kernels/fft.cl)."""
+    if groups is None:
+        return (sweeps + 1) // 2
+    return int(np.sum((np.diff(np.append(groups, sweeps)) + 1) // 2))
 
 
 GROUPS_PER_UNIT = 8   # groups a compute unit of a counted launch (each loops over its share)

@@ -4,6 +4,8 @@ its `passes` without integration)."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from ..stages import pairing
@@ -18,6 +20,21 @@ REACH_MAX = 16      # the running median's half-width the kernel holds (kernels/
 def supported(rt: Runtime) -> bool:
     """Whether the device runs the passes: they decide in double precision, as numpy."""
     return rt.fp64 and pairing.NEIGHBOURS <= REACH_MAX
+
+
+def times_up(times: pairing.Times) -> tuple:
+    """What `track` reads of `times`: the pairs' centres and half gaps (s), their groups'
+    bounds and, where the pairs are in groups, each group's first pair (int32)."""
+    up = (times.mid, times.half_gap, times.bounds)
+    return up if times.groups is None else (*up, np.asarray(times.groups, np.int32))
+
+
+def times_down(buffers: list, times: pairing.Times) -> tuple[list, pairing.Times]:
+    """The device copies of `times_up(times)` off the end of `buffers`: the buffers
+    before them, and `times` holding them (Times.device)."""
+    n = len(times_up(times))
+    got = list(buffers[len(buffers) - n:])
+    return list(buffers[:len(buffers) - n]), replace(times, device=(*got[:3], got[3] if n > 3 else None))
 
 
 def track(rt: Runtime, bufs: Buffers, rows: tuple[DeviceRows, DeviceRows], times: pairing.Times,
@@ -43,15 +60,17 @@ def track(rt: Runtime, bufs: Buffers, rows: tuple[DeviceRows, DeviceRows], times
     state = [(f64, pairs), (f32, pairs), (f64, pairs), (f32, pairs), (f64, pairs)]   # d_r s_r d_f s_f vd
     out = Packed(bufs, "tracked", [*head, *state], riders)
     d_r, s_r, d_f, s_f, vd = out.buffers[len(head):]
-    d_mid, d_half, d_bounds = times.device or Packed(
-        bufs, "track_times", [(f64, pairs), (f64, pairs), (i32, 2 * pairs)]).upload(
-        times.mid, times.half_gap, times.bounds)
+    if times.device is None:
+        up = times_up(times)
+        _, times = times_down(Packed(bufs, "track_times", [(a.dtype, a.size) for a in up]).upload(*up), times)
+    d_mid, d_half, d_bounds, d_groups = times.device
     d_state = bufs.get("track_state", 8)          # [pairs listed, passes stopped]: the first pass sets
     vel, med, nxt = (bufs.get(f"track_{n}", 8 * pairs) for n in ("vel", "med", "next"))
     trusted, prev, slot, listed, v32 = (bufs.get(f"track_{n}", 4 * pairs)
                                         for n in ("trusted", "prev", "slot", "rows", "v32"))
     band = (model.nfft, search.lo, search.hi)
-    k_spectrum.measure_each(rt, bufs, plain, None, *band, echoes=search.echoes, out=out)
+    k_spectrum.measure_each(rt, bufs, plain, None, *band, echoes=search.echoes, out=out, groups=times.groups,
+                            d_groups=d_groups)
     dechirp = [(rows[0], model.beta_rise, None), (rows[1], model.beta_fall, None)]
     again = Packed(bufs, "track_pass", k_spectrum.parts(dechirp, pairs, model.nfft))
     kernel = rt.kernel("track", "track_pass")

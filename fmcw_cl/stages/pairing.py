@@ -179,13 +179,16 @@ class SpectrumOps:
         """The tracker's plain pass of both directions of `rows` (every echo with
         `search.echoes`) and, when `single`, its de-chirp passes without integration
         (`passes`; a backend: on the device, its state read once)."""
-        first = tuple(self.plain_pass(rows, model, search))
+        first = tuple(self.plain_pass(rows, model, search, times.groups))
         if not single:
             return first, None
         return first, passes(rows, times, model, replace(search, echoes=False), iterations, self, first, 1)
 
-    def plain_pass(self, rows: tuple, model: DopplerModel, search: Search) -> list[tuple]:
-        """`measure_each` of both directions of `rows` at 0 m/s: the tracker's first pass."""
+    def plain_pass(self, rows: tuple, model: DopplerModel, search: Search,
+                   groups: np.ndarray | None = None) -> list[tuple]:
+        """`measure_each` of both directions of `rows` at 0 m/s: the tracker's first pass
+        (`groups`: Times.groups, each measured as if alone; a backend that takes two rows a
+        transform pairs them within a group)."""
         return self.measure_each(rows, (model.beta_rise, model.beta_fall), None, model, search)
 
     def power(self, x, beta, v, nfft: int, rows=None) -> np.ndarray:
@@ -626,8 +629,8 @@ class Times:
     """A chunk's pairs in time (s): each half-sweep's centre, the pair's centre and half
     the time between its sweeps' centres; `groups`: the first pair of each group of pairs
     tracked apart from the others (`group_slices`; None: one group); `device`: copies of
-    (mid, half_gap, bounds) on a device, where a processor took them up with the pairs'
-    resampling positions."""
+    (mid, half_gap, bounds, groups or None) on a device, where a processor took them up
+    with the pairs' resampling positions."""
 
     rise: np.ndarray
     fall: np.ndarray
