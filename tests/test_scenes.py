@@ -558,6 +558,29 @@ def test_verification_drops_a_run_at_rest_that_the_motion_passes_by(monkeypatch)
     got, _ = pairing.verify(t, d, v, ok)
     assert not got[wall].any() and got[right].mean() >= 0.98
 
+    # three walls passed, a run too short to have ends beside one: each run at rest is
+    # judged by the nearest runs on either side whose facing ends move
+    t = np.arange(3000) * 50e-6
+    true_d = 0.060 + 0.7 * t
+    d = true_d + rng.normal(0, 40e-6, t.size)
+    v = 0.7 + rng.normal(0, 0.005, t.size)
+    ok = np.ones(t.size, bool)
+    walls = [np.arange(a, a + n) for a, n in ((400, 60), (1300, 100), (2300, 80))]
+    for w in walls:
+        d[w] = true_d[w[0]] - 3e-3 + rng.normal(0, 40e-6, w.size)
+        v[w] = rng.normal(0, 0.005, w.size)
+        ok[w[0] - 20:w[0]] = ok[w[-1] + 1:w[-1] + 11] = False
+    ok[1285:1290] = True                                # 5 pairs in the second handover
+    got, _ = pairing.verify(t, d, v, ok)
+    right = ok.copy()
+    for w in walls:
+        right[w] = False
+        assert not got[w].any()
+    assert got[right].mean() >= 0.98
+    monkeypatch.setattr(pairing, "REST_MPS", 0.0)
+    got, _ = pairing.verify(t, d, v, ok)
+    assert all(got[w].mean() > 0.9 for w in walls)
+
     # a target that stops for 5 ms and goes on (braking and starting at 400 m/s^2) is kept
     true_v = np.clip(np.maximum(0.7 - 400 * (t - 0.023), 400 * (t - 0.030)), 0.0, 0.7)
     true_d = 0.060 + np.r_[0.0, np.cumsum(0.5 * (true_v[1:] + true_v[:-1]) * np.diff(t))]

@@ -420,24 +420,30 @@ def _bridged(t, dist, vel, ok) -> bool:
     of 400 codes) holds the tracker for 5 ms at a time: self-consistent, its pairs at
     rest, up to 18 mm from where the target went on."""
     runs = _runs(t, dist, vel, ok)
+    if len(runs) < 3:
+        return False
 
     def end(r, last):
         k = r[-END_PAIRS:] if last else r[:END_PAIRS]
-        return float(np.median(t[k])), float(np.median(dist[k])), float(np.median(vel[k]))
+        return median(t[k]), median(dist[k]), median(vel[k])
 
-    # the runs long enough to have ends, and whether each end moves (a landing's last run
-    # comes to rest: its median speed is no matter)
-    long = [i for i, r in enumerate(runs) if r.size >= END_PAIRS]
-    ends = {i: (end(runs[i], False), end(runs[i], True)) for i in long}
+    # the runs long enough to have ends, and those whose last (first) end moves, in order
+    # (a landing's last run comes to rest: its median speed is no matter)
+    sizes = np.array([r.size for r in runs])
+    long = np.flatnonzero(sizes >= END_PAIRS)
+    if long.size < 2:
+        return False
+    moves = [np.abs(np.median(vel[np.stack([runs[i][k] for i in long])], axis=1)) >= REST_MPS
+             for k in (slice(-END_PAIRS, None), slice(END_PAIRS))]
+    leaving, arriving = long[moves[0]], long[moves[1]]
+    speed = numeric.group_median(np.repeat(np.arange(len(runs)), sizes), vel[np.concatenate(runs)], len(runs))
     dropped = False
-    for i, r in enumerate(runs):
-        if r.size < 3 or abs(float(np.median(vel[r]))) >= REST_MPS:
+    for i in np.flatnonzero((sizes >= 3) & ~(np.abs(speed) >= REST_MPS)):
+        b, a = np.searchsorted(leaving, i), np.searchsorted(arriving, i, side="right")
+        if b == 0 or a == arriving.size:
             continue
-        before = [j for j in long if j < i and abs(ends[j][1][2]) >= REST_MPS]
-        after = [j for j in long if j > i and abs(ends[j][0][2]) >= REST_MPS]
-        if not before or not after:
-            continue
-        before, after = ends[before[-1]][1], ends[after[0]][0]
+        r = runs[i]
+        before, after = end(runs[leaving[b - 1]], True), end(runs[arriving[a]], False)
         if (after[0] - before[0] <= BRIDGE_S and _agrees(*before, *after)
                 and not _agrees(*before, *end(r, False)) and not _agrees(*end(r, True), *after)):
             ok[r] = False
