@@ -3,10 +3,10 @@
 // removal and the window. Plain a*b+c code: PoCL's fma/mad builtins are slow.
 // Positions: start + u_j L = base + lut_int_j + (offset + lut_frac_j + u_j dlen), where
 // lut_int + lut_frac = u_j L0 was split in float64 on the host and dlen = L - L0 is tiny,
-// so float32 keeps 1e-6 sample precision (u_j L in float32 would lose 2e-4).
-// A launch writes its half-sweeps' rows from row `first` of `out` on: one launch per run
-// of half-sweeps split at one L0 (a chunk of the delay's trials), each run's rows as if
-// resampled alone.
+// so float32 keeps 1e-6 sample precision (u_j L in float32 would lose 2e-4). Sweeps in
+// runs (`runs` > 1: the chunks of one pass of the delay's trials) each have their run's
+// L0 (`run`: each sweep's; the LUT split once a run, one table after another), so that a
+// run's rows are those it would have alone.
 // Two variants: `resample` (GPUs) a work-group per half-sweep, its work-items striding
 // over the points; `resample_lanes` (CPUs) a work-item per half-sweep, eight points at a
 // time in float8 lanes (PoCL vectorises across work-items only where a kernel has no
@@ -42,10 +42,11 @@ __kernel void resample(__global const short *codes,
                        __global const float *dlen,    // length - L0, samples
                        __global const int *lut_int,   // floor(u_j L0)
                        __global const float *lut_frac,// u_j L0 - floor(u_j L0)
+                       __global const int *run,       // each sweep's run, read where runs > 1
+                       const int runs,
                        __global const float *u,       // LUT: fractions of the half-sweep
                        __global const float *win,     // window
                        const int points,
-                       const int first,               // the row of out of this launch's first sweep
                        __global float *out,           // (sweeps, points)
                        __local float *scratch)
 {
@@ -55,10 +56,11 @@ __kernel void resample(__global const short *codes,
     const int b = base[s];
     const float off = offset[s];
     const float dl = dlen[s];
-    __global float *row = out + (size_t)(first + s) * points;
+    const size_t at = runs > 1 ? (size_t)run[s] * points : 0;
+    __global float *row = out + (size_t)s * points;
     float acc = 0.0f;
     for (int j = lid; j < points; j += lsz) {
-        const float y = point(codes, b, off, dl, lut_int, lut_frac, u, j);
+        const float y = point(codes, b, off, dl, lut_int + at, lut_frac + at, u, j);
         row[j] = y;
         acc += y;
     }
@@ -85,23 +87,27 @@ __kernel void resample_lanes(__global const short *codes,
                              __global const float *dlen,
                              __global const int *lut_int,
                              __global const float *lut_frac,
+                             __global const int *run,
+                             const int runs,
                              __global const float *u,
                              __global const float *win,
                              const int points,
-                             const int first,
                              __global float *out)
 {
     const int s = get_global_id(0);
     const int b = base[s];
     const float off = offset[s];
     const float dl = dlen[s];
-    __global float *row = out + (size_t)(first + s) * points;
+    const size_t at = runs > 1 ? (size_t)run[s] * points : 0;
+    __global const int *li = lut_int + at;
+    __global const float *lf = lut_frac + at;
+    __global float *row = out + (size_t)s * points;
     const int whole = points & ~7;
     float8 acc = 0.0f;
     for (int j = 0; j < whole; j += 8) {
-        const float8 p = off + vload8(0, lut_frac + j) + vload8(0, u + j) * dl;
+        const float8 p = off + vload8(0, lf + j) + vload8(0, u + j) * dl;
         const int8 i = convert_int8(p + 16.0f) - 16;      // floor, as in `point`
-        const int8 k = b + vload8(0, lut_int + j) + i;
+        const int8 k = b + vload8(0, li + j) + i;
         const float8 y = keys8(p - convert_float8(i), GATHER8(k, -1), GATHER8(k, 0), GATHER8(k, 1),
                                GATHER8(k, 2));
         vstore8(y, 0, row + j);
@@ -109,7 +115,7 @@ __kernel void resample_lanes(__global const short *codes,
     }
     float total = sum8(acc);
     for (int j = whole; j < points; ++j) {
-        const float y = point(codes, b, off, dl, lut_int, lut_frac, u, j);
+        const float y = point(codes, b, off, dl, li, lf, u, j);
         row[j] = y;
         total += y;
     }

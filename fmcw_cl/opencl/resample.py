@@ -28,14 +28,28 @@ def resample_each(rt: Runtime, bufs: Buffers, codes: np.ndarray, jobs: list, win
     return rows[0] + extra
 
 
-def _runs(job: tuple) -> list[tuple[int, int]]:
-    """The (first, end) half-sweeps of each run of `job` (starts, lengths, u[, runs]):
-    `runs` counts consecutive half-sweeps whose positions are split at their own median
-    length, so that their float32 rows do not depend on the others' (the chunks of one
-    pass of the delay's trials); without it, one run."""
-    counts = job[3] if len(job) > 3 else (job[0].size,)
-    ends = np.cumsum(counts, dtype=np.int64)
-    return [(int(e - n), int(e)) for n, e in zip(counts, ends, strict=True) if n]
+def _split(job: tuple) -> list[np.ndarray]:
+    """The positions of `job` (starts, lengths, u[, runs]) split for the kernel (see
+    kernels/resample.cl): each sweep's integer sample, the fraction past it and its length
+    less its run's nominal length (the run's median), the LUT times each nominal length
+    in whole samples and fractions (one table a run), and each sweep's run. `runs` counts
+    consecutive sweeps whose rows must not depend on the others' (the chunks of one pass
+    of the delay's trials); without it, one run."""
+    starts, lengths, u = job[:3]
+    lengths = np.asarray(lengths, np.float64)
+    counts = np.asarray(job[3] if len(job) > 3 else [starts.size], np.int64)
+    counts = counts[counts > 0]
+    ends = np.cumsum(counts)
+    nominal = np.array([median(lengths[e - n: e]) for n, e in zip(counts, ends, strict=True)])
+    whole = nominal[:, None] * u
+    lut_int = np.floor(whole)
+    base = np.floor(starts).astype(np.int32)
+    run = np.repeat(np.arange(counts.size, dtype=np.int32), counts if counts.size > 1 else 0)
+    return [base, starts - base, lengths - np.repeat(nominal, counts), lut_int.ravel(),
+            (whole - lut_int).ravel(), run]
+
+
+KINDS = (np.int32, np.float32, np.float32, np.int32, np.float32, np.int32)   # `_split`'s arrays on the device
 
 
 def resample_groups(rt: Runtime, bufs: Buffers, groups: list, also: tuple = ()) -> tuple[list, list]:
@@ -45,20 +59,8 @@ def resample_groups(rt: Runtime, bufs: Buffers, groups: list, also: tuple = ()) 
     one array (`codes_of`).
 
     Returns the rows of each group's jobs, and the device buffers of `also`."""
-    parts, values = [], []
-    for _, jobs, _ in groups:
-        for job in jobs:
-            starts, lengths, u = job[:3]
-            for a, b in _runs(job):
-                nominal = median(lengths[a:b])
-                base = np.floor(starts[a:b]).astype(np.int32)
-                whole = u * nominal
-                lut_int = np.floor(whole)
-                # the sweeps' positions and the LUT split at this nominal length
-                parts += [(np.int32, b - a), (np.float32, b - a), (np.float32, b - a), (np.int32, u.size),
-                          (np.float32, u.size)]
-                values += [base, starts[a:b] - base, np.asarray(lengths[a:b]) - nominal, lut_int,
-                           whole - lut_int]
+    values = [x for _, jobs, _ in groups for job in jobs for x in _split(job)]
+    parts = [(kind, x.size) for x, kind in zip(values, KINDS * (len(values) // len(KINDS)), strict=True)]
     parts += [(a.dtype, a.size) for a in also]
     buffers = Packed(bufs, "positions", parts).upload(*values, *also)
     out, i = [], 0
@@ -66,18 +68,20 @@ def resample_groups(rt: Runtime, bufs: Buffers, groups: list, also: tuple = ()) 
         d_codes = codes_of(bufs, codes)
         d_win = bufs.constant("win", win)
         rows_of = []
-        for job in jobs:
-            starts, _, u = job[:3]
-            rows = DeviceRows(bufs, starts.size, u.size)
+        for starts, _, u, *runs in jobs:
+            sweeps, points = starts.size, u.size
+            rows = DeviceRows(bufs, sweeps, points)
             rows_of.append(rows)
-            for a, b in _runs(job):
-                args = (d_codes, *buffers[5 * i: 5 * i + 5], bufs.constant("u", u), d_win, np.int32(u.size),
-                        np.int32(a), rows.buffer)
+            if sweeps:
+                d_base, d_off, d_dlen, d_int, d_frac, d_run = buffers[6 * i: 6 * i + 6]
+                runs = np.count_nonzero(runs[0]) if runs else 1
+                args = (d_codes, d_base, d_off, d_dlen, d_int, d_frac, d_run, np.int32(runs),
+                        bufs.constant("u", u), d_win, np.int32(points))
                 if rt.lanes:
-                    rt.kernel("resample", "resample_lanes")(rt.queue, (b - a,), (1,), *args)
+                    rt.kernel("resample", "resample_lanes")(rt.queue, (sweeps,), (1,), *args, rows.buffer)
                 else:
-                    rt.kernel("resample", "resample")(rt.queue, ((b - a) * GPU_LOCAL,), (GPU_LOCAL,), *args,
-                                                      cl.LocalMemory(4 * GPU_LOCAL))
-                i += 1
+                    rt.kernel("resample", "resample")(rt.queue, (sweeps * GPU_LOCAL,), (GPU_LOCAL,), *args,
+                                                      rows.buffer, cl.LocalMemory(4 * GPU_LOCAL))
+            i += 1
         out.append(rows_of)
-    return out, buffers[5 * i:]
+    return out, buffers[6 * i:]
