@@ -35,11 +35,12 @@ def _spectrum(parts: list[ChunkMeasurements]) -> tuple[np.ndarray, int] | None:
 
 
 def assemble(plan: Plan, parts: list[ChunkMeasurements], processor: ChunkProcessor, seconds: float,
-             choice: target.Choice | None = None) -> Track:
+             choice: target.Choice | None = None, seen: echoes.Echoes | None = None) -> Track:
     """The track from the owned pairs of all chunks, in capture order: missing periods
     filled as invalid, pairs on an echo the target cannot be told from (`choice`)
     ambiguous, validity verified (faults.verified), acceleration, attributes.
-    `seconds`: the processing time."""
+    `seconds`: the processing time; `seen`: the echo table of these `parts` where already
+    made (a track of them assembled before), whatever the choice."""
     info, options = plan.info, plan.options
     if not parts:
         raise CaptureError(info.path, "no complete modulation period found in the sync channel")
@@ -81,13 +82,14 @@ def assemble(plan: Plan, parts: list[ChunkMeasurements], processor: ChunkProcess
 
     sweep_t = np.stack([t_r, t_f], axis=1).ravel()
     sweep_rising = np.tile([True, False], t_r.size)
-    seen = echoes.table(sweep_t, sweep_rising, interleave("dist_rise", "dist_fall"),
-                        interleave("dechirped_snr_rise", "dechirped_snr_fall"),
-                        Detections.interleave(res["echoes_rise"], res["echoes_fall"]),
-                        plan.model.metres_per_bin,
-                        np.inf if options.max_range is None else options.max_range,
-                        {k: np.concatenate([p.survey[k] for p in parts]) for k in SURVEY_KEYS},
-                        _spectrum(parts))
+    if seen is None:
+        seen = echoes.table(sweep_t, sweep_rising, interleave("dist_rise", "dist_fall"),
+                            interleave("dechirped_snr_rise", "dechirped_snr_fall"),
+                            Detections.interleave(res["echoes_rise"], res["echoes_fall"]),
+                            plan.model.metres_per_bin,
+                            np.inf if options.max_range is None else options.max_range,
+                            {k: np.concatenate([p.survey[k] for p in parts]) for k in SURVEY_KEYS},
+                            _spectrum(parts))
     lut = plan.lut
     attrs = {
         "points": options.points,

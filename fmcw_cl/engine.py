@@ -76,7 +76,7 @@ def with_choice(plan: Plan, parts: list[ChunkMeasurements], processor: ChunkProc
     again where the choice makes pairs ambiguous (or may: fixed echoes not the target
     show in de-chirped half-sweeps, fmcw_cl.wall_images), else its attributes added."""
     if choice.undecided or choice.walls_m.size:
-        return assemble(plan, parts, processor, seconds, choice)
+        return assemble(plan, parts, processor, seconds, choice, track.echoes)
     track.attrs.update(choice.attrs())
     return track
 

@@ -164,3 +164,32 @@ def test_read_ahead_peeks_at_the_next_item_and_reads_no_further():
             nxt = ahead.peek()
             seen.append((x, nxt, list(made)))
     assert seen == [(1, 2, [1, 2]), (2, 3, [1, 2, 3]), (3, None, [1, 2, 3])]
+
+
+def test_a_choice_beside_walls_keeps_the_first_assemblys_echo_table(tmp_path, monkeypatch):
+    """A choice that lists walls re-assembles the first conversion's pairs (their
+    ambiguity and the walls' images depend on it) with the echo table the first assembly
+    made of them, which the choice does not change: the track equals one whose table is
+    made again."""
+    from dataclasses import replace
+
+    from fmcw_cl import engine
+    from fmcw_cl.simulator import LAB, jump, simulate_capture
+
+    path = tmp_path / "take-off.h5"
+    walls = replace(LAB, reflectors=((0.25, 400.0),))
+    simulate_capture(path, jump(0.3), 0.05, seed=3, start_s=0.06, config=walls)
+    real, kept = engine.assemble, []
+
+    def assemble(*args, **kw):
+        kept.append(len(args) > 5 or kw.get("seen") is not None)
+        return real(*args, **kw)
+
+    monkeypatch.setattr(engine, "assemble", assemble)
+    track = process(path, Options())
+    assert kept == [False, True] and track.valid.any()
+    monkeypatch.setattr(engine, "assemble", lambda *args: real(*args[:5]))
+    again = process(path, Options())
+    for key in ("time_s", "distance_m", "velocity_mps", "valid", "reason"):
+        np.testing.assert_array_equal(getattr(track, key), getattr(again, key))
+    assert track.echoes.attrs() == again.echoes.attrs()
