@@ -177,12 +177,10 @@ class OpenCLProcessor(ChunkProcessor):
                 groups.insert(0, (before.beat, before.check.jobs, before.check.window))
             if before.survey is not None:
                 also = _survey_inputs(before.survey)
-        if passes:
-            also = (*also, *k_track.times_up(times))
+        also = (*also, *k_track.times_up(times, passes))
         rows, extra = k_resample.resample_groups(self.rt, self.bufs, groups, also)
         pairs = self._kept(rows[-1], win)
-        if passes:
-            extra, times = k_track.times_down(extra, times)
+        extra, times = k_track.times_down(extra, times, passes)
         if not fused:
             return pairs, times, landed
         out, read = self._check_and_survey(before, rows[0] if before.check is not None else None, extra)
@@ -199,15 +197,14 @@ class OpenCLProcessor(ChunkProcessor):
     def measure(self, x, beta, v, model, search, rows=None):
         return self.measure_each([x], [beta], v, model, search, rows)[0]
 
-    def measure_each(self, xs, betas, v, model, search, rows=None, riders: tuple = (), groups=None):
+    def measure_each(self, xs, betas, v, model, search, rows=None):
         """Twin: pairing.SpectrumOps.measure_each; one upload of the rows and velocities,
-        one download of every result (and of `riders`); plain rows paired within `groups`
-        (their first rows, None: one group)."""
+        one download of every result."""
         if not self._fits(model.nfft):
             return pairing.NUMPY.measure_each(xs, betas, v, model, search, rows)
         jobs = [(x, b, None) for x, b in zip(xs, betas, strict=True)]
         got = k_spectrum.measure_each(self.rt, self.bufs, jobs, v, model.nfft, search.lo, search.hi,
-                                      index=rows, echoes=search.echoes, riders=riders, groups=groups)
+                                      index=rows, echoes=search.echoes)
         return _measured(got, model, search)
 
     def track(self, rows, times, model, search, iterations, single):
@@ -219,10 +216,17 @@ class OpenCLProcessor(ChunkProcessor):
                                      self._landing())
         return tuple(_measured(first, model, search)), state
 
-    def plain_pass(self, rows, model, search, groups=None):
+    def plain_pass(self, rows, model, search, times=None):
         """Twin: pairing.SpectrumOps.plain_pass; its download carries the riders of `ride`."""
-        return self.measure_each(rows, (model.beta_rise, model.beta_fall), None, model, search,
-                                 riders=self._landing(), groups=groups)
+        riders = self._landing()
+        if not self._fits(model.nfft):
+            return super().plain_pass(rows, model, search, times)
+        jobs = [(x, b, None) for x, b in zip(rows, (model.beta_rise, model.beta_fall), strict=True)]
+        groups, device = (None, None) if times is None else (times.groups, times.device)
+        got = k_spectrum.measure_each(self.rt, self.bufs, jobs, None, model.nfft, search.lo, search.hi,
+                                      echoes=search.echoes, riders=riders, groups=groups,
+                                      d_groups=None if device is None else device[3])
+        return _measured(got, model, search)
 
     def power(self, x, beta, v, nfft, rows=None):
         """Power spectra of rows of x (plain, or de-chirped at v); twin: pairing.power."""

@@ -22,19 +22,24 @@ def supported(rt: Runtime) -> bool:
     return rt.fp64 and pairing.NEIGHBOURS <= REACH_MAX
 
 
-def times_up(times: pairing.Times) -> tuple:
-    """What `track` reads of `times`: the pairs' centres and half gaps (s), their groups'
-    bounds and, where the pairs are in groups, each group's first pair (int32)."""
-    up = (times.mid, times.half_gap, times.bounds)
+def times_up(times: pairing.Times, passes: bool = True) -> tuple:
+    """What the device reads of `times`: with the passes there (`track`), the pairs'
+    centres and half gaps (s) and their groups' bounds; where the pairs are in groups,
+    each group's first pair (int32: plain transforms pair rows within a group,
+    kernels/fft.cl)."""
+    up = (times.mid, times.half_gap, times.bounds) if passes else ()
     return up if times.groups is None else (*up, np.asarray(times.groups, np.int32))
 
 
-def times_down(buffers: list, times: pairing.Times) -> tuple[list, pairing.Times]:
-    """The device copies of `times_up(times)` off the end of `buffers`: the buffers
-    before them, and `times` holding them (Times.device)."""
-    n = len(times_up(times))
+def times_down(buffers: list, times: pairing.Times, passes: bool = True) -> tuple[list, pairing.Times]:
+    """The device copies of `times_up(times, passes)` off the end of `buffers`: the
+    buffers before them, and `times` holding them (Times.device, None where not up)."""
+    n = len(times_up(times, passes))
+    if n == 0:
+        return list(buffers), times
     got = list(buffers[len(buffers) - n:])
-    return list(buffers[:len(buffers) - n]), replace(times, device=(*got[:3], got[3] if n > 3 else None))
+    device = (*(got[:3] if passes else (None,) * 3), got[-1] if times.groups is not None else None)
+    return list(buffers[:len(buffers) - n]), replace(times, device=device)
 
 
 def track(rt: Runtime, bufs: Buffers, rows: tuple[DeviceRows, DeviceRows], times: pairing.Times,
@@ -60,7 +65,7 @@ def track(rt: Runtime, bufs: Buffers, rows: tuple[DeviceRows, DeviceRows], times
     state = [(f64, pairs), (f32, pairs), (f64, pairs), (f32, pairs), (f64, pairs)]   # d_r s_r d_f s_f vd
     out = Packed(bufs, "tracked", [*head, *state], riders)
     d_r, s_r, d_f, s_f, vd = out.buffers[len(head):]
-    if times.device is None:
+    if times.device is None or times.device[0] is None:
         up = times_up(times)
         _, times = times_down(Packed(bufs, "track_times", [(a.dtype, a.size) for a in up]).upload(*up), times)
     d_mid, d_half, d_bounds, d_groups = times.device

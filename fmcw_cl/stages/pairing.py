@@ -179,16 +179,16 @@ class SpectrumOps:
         """The tracker's plain pass of both directions of `rows` (every echo with
         `search.echoes`) and, when `single`, its de-chirp passes without integration
         (`passes`; a backend: on the device, its state read once)."""
-        first = tuple(self.plain_pass(rows, model, search, times.groups))
+        first = tuple(self.plain_pass(rows, model, search, times))
         if not single:
             return first, None
         return first, passes(rows, times, model, replace(search, echoes=False), iterations, self, first, 1)
 
     def plain_pass(self, rows: tuple, model: DopplerModel, search: Search,
-                   groups: np.ndarray | None = None) -> list[tuple]:
+                   times: Times | None = None) -> list[tuple]:
         """`measure_each` of both directions of `rows` at 0 m/s: the tracker's first pass
-        (`groups`: Times.groups, each measured as if alone; a backend that takes two rows a
-        transform pairs them within a group)."""
+        (`times`: the pairs'; each of its groups measured as if alone: a backend that takes
+        two rows a transform pairs them within a group)."""
         return self.measure_each(rows, (model.beta_rise, model.beta_fall), None, model, search)
 
     def power(self, x, beta, v, nfft: int, rows=None) -> np.ndarray:
