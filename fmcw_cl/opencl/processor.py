@@ -197,14 +197,17 @@ class OpenCLProcessor(ChunkProcessor):
     def measure(self, x, beta, v, model, search, rows=None):
         return self.measure_each([x], [beta], v, model, search, rows)[0]
 
-    def measure_each(self, xs, betas, v, model, search, rows=None):
+    def measure_each(self, xs, betas, v, model, search, rows=None, riders: tuple = (), times=None):
         """Twin: pairing.SpectrumOps.measure_each; one upload of the rows and velocities,
-        one download of every result."""
+        one download of every result (and of `riders`); plain rows paired within the groups
+        of `times` (pairing.Times, their copy on the device where it went up)."""
         if not self._fits(model.nfft):
             return pairing.NUMPY.measure_each(xs, betas, v, model, search, rows)
         jobs = [(x, b, None) for x, b in zip(xs, betas, strict=True)]
+        groups, device = (None, None) if times is None else (times.groups, times.device)
         got = k_spectrum.measure_each(self.rt, self.bufs, jobs, v, model.nfft, search.lo, search.hi,
-                                      index=rows, echoes=search.echoes)
+                                      index=rows, echoes=search.echoes, riders=riders, groups=groups,
+                                      d_groups=None if device is None else device[3])
         return _measured(got, model, search)
 
     def track(self, rows, times, model, search, iterations, single):
@@ -218,15 +221,8 @@ class OpenCLProcessor(ChunkProcessor):
 
     def plain_pass(self, rows, model, search, times=None):
         """Twin: pairing.SpectrumOps.plain_pass; its download carries the riders of `ride`."""
-        riders = self._landing()
-        if not self._fits(model.nfft):
-            return super().plain_pass(rows, model, search, times)
-        jobs = [(x, b, None) for x, b in zip(rows, (model.beta_rise, model.beta_fall), strict=True)]
-        groups, device = (None, None) if times is None else (times.groups, times.device)
-        got = k_spectrum.measure_each(self.rt, self.bufs, jobs, None, model.nfft, search.lo, search.hi,
-                                      echoes=search.echoes, riders=riders, groups=groups,
-                                      d_groups=None if device is None else device[3])
-        return _measured(got, model, search)
+        return self.measure_each(rows, (model.beta_rise, model.beta_fall), None, model, search,
+                                 riders=self._landing(), times=times)
 
     def power(self, x, beta, v, nfft, rows=None):
         """Power spectra of rows of x (plain, or de-chirped at v); twin: pairing.power."""

@@ -59,8 +59,9 @@ def resample_groups(rt: Runtime, bufs: Buffers, groups: list, also: tuple = ()) 
     one array (`codes_of`).
 
     Returns the rows of each group's jobs, and the device buffers of `also`."""
-    values = [x for _, jobs, _ in groups for job in jobs for x in _split(job)]
-    parts = [(kind, x.size) for x, kind in zip(values, KINDS * (len(values) // len(KINDS)), strict=True)]
+    split = [_split(job) for _, jobs, _ in groups for job in jobs]
+    values = [x for arrays in split for x in arrays]
+    parts = [(kind, x.size) for x, kind in zip(values, KINDS * len(split), strict=True)]
     parts += [(a.dtype, a.size) for a in also]
     buffers = Packed(bufs, "positions", parts).upload(*values, *also)
     out, i = [], 0
@@ -68,13 +69,13 @@ def resample_groups(rt: Runtime, bufs: Buffers, groups: list, also: tuple = ()) 
         d_codes = codes_of(bufs, codes)
         d_win = bufs.constant("win", win)
         rows_of = []
-        for starts, _, u, *runs in jobs:
+        for starts, _, u, *_ in jobs:
             sweeps, points = starts.size, u.size
             rows = DeviceRows(bufs, sweeps, points)
             rows_of.append(rows)
             if sweeps:
                 d_base, d_off, d_dlen, d_int, d_frac, d_run = buffers[6 * i: 6 * i + 6]
-                runs = np.count_nonzero(runs[0]) if runs else 1
+                runs = split[i][3].size // points                 # LUT tables, one a run
                 args = (d_codes, d_base, d_off, d_dlen, d_int, d_frac, d_run, np.int32(runs),
                         bufs.constant("u", u), d_win, np.int32(points))
                 if rt.lanes:
