@@ -66,15 +66,29 @@ def row_nanmedian(a: np.ndarray) -> np.ndarray:
     return 0.5 * (s[rows, (n - 1) // 2] + s[rows, n // 2])
 
 
-def running_median(x: np.ndarray, size: int) -> np.ndarray:
+def running_median(x: np.ndarray, size: int, ends: tuple | None = None) -> np.ndarray:
     """Median of each value's `size` (odd) neighbourhood, the ends extended with the end
-    values: scipy.ndimage.median_filter(x, size, mode="nearest") for finite x."""
+    values: scipy.ndimage.median_filter(x, size, mode="nearest") for finite x. `ends`:
+    each value's first and last index of its segment (int arrays), each segment filtered
+    on its own, in one call."""
     half = size // 2
-    if np.size(x) == 0:
+    x = np.asarray(x, np.float64)
+    if x.size == 0:
         return np.zeros(0)
-    windows = np.lib.stride_tricks.sliding_window_view(np.pad(np.asarray(x, np.float64), half, mode="edge"),
-                                                       size)
+    if ends is None:
+        windows = np.lib.stride_tricks.sliding_window_view(np.pad(x, half, mode="edge"), size)
+    else:
+        windows = x[window_index(x.size, half, ends)[0]]
     return np.partition(windows, half, axis=1)[:, half]
+
+
+def window_index(n: int, half: int, ends: tuple, at=slice(None)) -> tuple[np.ndarray, np.ndarray]:
+    """The neighbourhoods (2 half + 1 values, centred) of the values `at` of n (a slice or
+    indices) within their segments (`ends`: each value's segment's first and last index):
+    the (rows, 2 half + 1) indices clipped to the segment, and which lie in it."""
+    first, last = (np.asarray(e)[at][:, None] for e in ends)
+    idx = np.arange(n)[at][:, None] + np.arange(-half, half + 1)
+    return np.clip(idx, first, last), (idx >= first) & (idx <= last)
 
 
 def savgol_derivative(x: np.ndarray, window: int, order: int, delta: float) -> np.ndarray:

@@ -4,10 +4,11 @@
 // pair's new measurements into the state and its velocity, the continuity median and the
 // trusted pairs, the velocities interpolated over the trusted pairs, and the pairs whose
 // de-chirp velocity moved, listed in order for the next measurement (their count in
-// state[0], which the measurement reads). Pairs in groups tracked apart (the delay's trial
-// stretches) are nobody's neighbours across their group's ends. Twin:
-// fmcw_cl.stages.pairing.passes, in double precision as numpy's (a device without it runs
-// the passes on the host).
+// state[0], which the measurement reads). After the last pass, the verdict: which pairs
+// are valid and their continuity residuals (the host takes the tolerance). Pairs in groups
+// tracked apart (the delay's trial stretches) are nobody's neighbours across their group's
+// ends. Twins: fmcw_cl.stages.pairing.passes and .verdict, in double precision as numpy's
+// (a device without it runs the passes on the host).
 #pragma OPENCL FP_CONTRACT OFF
 #if defined(cl_khr_fp64)
 #pragma OPENCL EXTENSION cl_khr_fp64 : enable
@@ -174,5 +175,54 @@ __kernel void track_pass(const int pairs, const int first, const int last,
             }
         }
     }
+}
+
+// The pairs' verdict after the last pass, one work-item a pair (twin: pairing.verdict):
+// each pair's distance (m) and whether it is valid: both peaks heard, its last velocity
+// correction below `converged` and its velocity within `consistent` of the running median
+// of its group's (`vel`, the last pass's).
+__kernel void track_valid(const int pairs, const int reach,
+                          __global const double *d_r, __global const double *d_f,
+                          __global const float *s_r, __global const float *s_f,
+                          __global const double *vd, __global const double *half_gap,
+                          __global const int *bounds, __global const double *vel,
+                          const double k_rise, const double k_fall, const float snr_min,
+                          const double converged, const double consistent,
+                          __global double *dist, __global int *valid)
+{
+    const int i = get_global_id(0);
+    if (i >= pairs) return;
+    const double hg = half_gap[i];
+    const double dv = (d_f[i] - d_r[i] - 2.0 * vd[i] * hg) / (2.0 * hg + k_fall - k_rise);
+    dist[i] = 0.5 * (d_r[i] + d_f[i]) - 0.5 * dv * (k_rise + k_fall);
+    double w[2 * REACH_MAX + 1];
+    const int lo = bounds[i], hi = bounds[pairs + i];
+    for (int k = 0; k <= 2 * reach; ++k) insert(w, k, vel[clamp(i - reach + k, lo, hi)]);
+    valid[i] = s_r[i] >= snr_min && s_f[i] >= snr_min && fabs(dv) < converged
+               && fabs(vel[i] - w[reach]) < consistent;
+}
+
+// Each pair's continuity residual (m; twin: pairing._residuals): |its distance - the
+// median of what its valid neighbours within `reach` in its group predict|, infinite
+// with fewer than `support` of them.
+__kernel void track_residual(const int pairs, const int reach, const int support,
+                             __global const double *t, __global const int *bounds,
+                             __global const double *dist, __global const double *vel,
+                             __global const int *valid, __global double *resid)
+{
+    const int i = get_global_id(0);
+    if (i >= pairs) return;
+    double w[2 * REACH_MAX];
+    int n = 0, vouch = 0;
+    const int lo = max(bounds[i], i - reach), hi = min(bounds[pairs + i], i + reach);
+    for (int j = lo; j <= hi; ++j) {
+        if (j == i || !valid[j]) continue;
+        ++vouch;
+        const double p = dist[j] + (t[i] - t[j]) * 0.5 * (vel[i] + vel[j]);
+        if (!isnan(p)) insert(w, n++, p);
+    }
+    // numpy's median of no number: the last of the sorted NaNs
+    const double m = n > 0 ? 0.5 * (w[(n - 1) / 2] + w[n / 2]) : NAN;
+    resid[i] = vouch >= support ? fabs(dist[i] - m) : INFINITY;
 }
 #endif

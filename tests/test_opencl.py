@@ -911,7 +911,8 @@ def test_survey_kernel_matches_numpy(backend, kernel_variant, rows, nfft, lo):
 def test_tracker_passes_on_the_device_equal_the_host_passes(backend, kernel_variant, monkeypatch, scene,
                                                             pairs, iterations, groups):
     """kernels/track.cl (the regularisation between the passes on the device, one copy
-    each way) against pairing.passes driven by the same device's measurements: an
+    each way, and the verdict after them) against pairing.passes and pairing.verdict
+    driven by the same device's measurements: an
     accelerating target whose beat folds, with a fade (untrusted pairs interpolated)
     and noise; passes cut short by `iterations`; a still target (the passes stop
     after one); noise alone (few trusted pairs), silence (no spectrum at all); fewer
@@ -954,8 +955,14 @@ def test_tracker_passes_on_the_device_equal_the_host_passes(backend, kernel_vari
         np.testing.assert_array_equal(a[2].bin, b[2].bin)
     for key in ("d_r", "s_r", "d_f", "s_f", "vd", "count"):
         np.testing.assert_array_equal(getattr(state, key), getattr(want, key), err_msg=key)
+    # the verdict after the passes (kernels track_valid, track_residual)
+    valid, resid = pairing.verdict(want, times, model)
+    assert want.verdict is None
+    np.testing.assert_array_equal(state.verdict[0], valid)
+    np.testing.assert_array_equal(state.verdict[1], resid)
     if scene == "fold" and pairs > 100:
         assert np.ptp(state.vd) > 3.0            # the passes moved the de-chirp velocities
+        assert 0 < valid.sum() < pairs and np.isinf(resid).any() and np.ptp(resid[np.isfinite(resid)]) > 0
     if groups is not None and scene == "fold":   # the groups changed what the passes decided
         _, one = pairing.SpectrumOps.track(backend, rows, replace(times, groups=None), model, search,
                                            iterations, True)

@@ -174,6 +174,11 @@ def spectra(be, rng, group: str) -> None:
         want = pairing.SpectrumOps.track(be, (d_x, d_y), times, model, search, 3, True)[1]
         close("tracker passes (track_pass)", got.vd, want.vd, 1e-9)
         close("tracker passes, distances", got.d_r, want.d_r, 1e-9)
+        valid, resid = pairing.verdict(want, times, model)
+        close("tracker verdict (track_valid)", got.verdict[0], valid, 0)
+        # a residual is infinite with too few valid neighbours: -1 m here
+        close("tracker verdict, residuals (track_residual)", *(np.nan_to_num(r, posinf=-1.0)
+                                                              for r in (got.verdict[1], resid)), 1e-9)
     close("power spectra", be.power(d_x, None, None, nfft), pairing.power(x, None, None, nfft), 1e-5)
 
 

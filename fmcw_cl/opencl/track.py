@@ -1,6 +1,7 @@
 """Launcher of kernels/track.cl: the tracker's plain pass and de-chirp passes with the
-regularisation between them on the device (twin: fmcw_cl.stages.pairing.SpectrumOps.track,
-its `passes` without integration)."""
+regularisation between them on the device, and the pairs' verdict after them (twin:
+fmcw_cl.stages.pairing.SpectrumOps.track, its `passes` without integration, and
+pairing.verdict)."""
 
 from __future__ import annotations
 
@@ -49,22 +50,23 @@ def track(rt: Runtime, bufs: Buffers, rows: tuple[DeviceRows, DeviceRows], times
     `iterations` de-chirp passes, each regularising the velocities and re-measuring the
     pairs whose de-chirp velocity moved (the passes stop on the device when none did).
     One copy goes up, the pairs' times and groups (none where `times.device` holds them),
-    and one comes down (the plain pass's results and the tracker's state, and `riders`:
-    buffers.Rider, other steps' results).
+    and one comes down (the plain pass's results, the tracker's state and its verdict, and
+    `riders`: buffers.Rider, other steps' results).
 
     Returns
     -------
     first : measure_each's results of the plain pass, (Peaks, None, Detections or None)
         per direction.
-    state : the tracker's state after the passes.
+    state : the tracker's state after the passes, with its verdict (pairing.verdict).
     """
     pairs = rows[0].shape[0]
     f64, f32, i32 = np.float64, np.float32, np.int32
     plain = [(x, None, None) for x in rows]
     head = k_spectrum.parts(plain, pairs, model.nfft, search.echoes)
     state = [(f64, pairs), (f32, pairs), (f64, pairs), (f32, pairs), (f64, pairs)]   # d_r s_r d_f s_f vd
-    out = Packed(bufs, "tracked", [*head, *state], riders)
-    d_r, s_r, d_f, s_f, vd = out.buffers[len(head):]
+    judged = [(i32, pairs), (f64, pairs)]                                             # valid, residuals
+    out = Packed(bufs, "tracked", [*head, *state, *judged], riders)
+    d_r, s_r, d_f, s_f, vd, valid, resid = out.buffers[len(head):]
     if times.device is None or times.device[0] is None:
         up = times_up(times)
         _, times = times_down(Packed(bufs, "track_times", [(a.dtype, a.size) for a in up]).upload(*up), times)
@@ -98,6 +100,16 @@ def track(rt: Runtime, bufs: Buffers, rows: tuple[DeviceRows, DeviceRows], times
         k_spectrum.measure_each(rt, bufs, dechirp, None, *band, picked=(listed, v32), listed=d_state,
                                 out=again)
     launch(iterations)
+    # the verdict (pairing.verdict): one work-item a pair
+    dist = bufs.get("track_dist", 8 * pairs)
+    rt.kernel("track", "track_valid")(
+        rt.queue, *rt.items(pairs), i32(pairs), i32(pairing.NEIGHBOURS), d_r, d_f, s_r, s_f, vd, d_half,
+        d_bounds, vel, f64(model.k_rise), f64(model.k_fall), f32(pairing.SNR_MIN_DB),
+        f64(pairing.CONVERGED_MPS), f64(pairing.CONSISTENT_MPS), dist, valid)
+    rt.kernel("track", "track_residual")(
+        rt.queue, *rt.items(pairs), i32(pairs), i32(pairing.NEIGHBOURS), i32(pairing.SUPPORT), d_mid,
+        d_bounds, dist, vel, valid, resid)
     views = out.download()
     first = k_spectrum.results(views[: len(head)], plain, pairs, model.nfft, search.echoes)
-    return first, pairing.Passes(*(v.copy() for v in views[len(head):]), np.ones(pairs, np.int32))
+    *state, valid, resid = (v.copy() for v in views[len(head):])
+    return first, pairing.Passes(*state, np.ones(pairs, np.int32), verdict=(valid.astype(bool), resid))

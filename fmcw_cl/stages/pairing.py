@@ -245,11 +245,12 @@ def solve_pair(d_r, d_f, v0, half_gap, model: DopplerModel):
 
 
 def _residuals(t: np.ndarray, dist: np.ndarray, vel: np.ndarray, trusted: np.ndarray,
-               rows: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+               rows: np.ndarray | None = None, ends: tuple | None = None) -> tuple[np.ndarray, np.ndarray]:
     """For the pairs `rows` (all when None): |distance - the median prediction of its
-    trusted neighbours| (inf with fewer than SUPPORT of them) and how many there are."""
+    trusted neighbours| (inf with fewer than SUPPORT of them) and how many there are;
+    `ends` (group_ends): neighbours only within a pair's group."""
     if rows is not None and rows.size > dist.size // 4:     # cheaper on strided views
-        resid, support = _residuals(t, dist, vel, trusted)
+        resid, support = _residuals(t, dist, vel, trusted, ends=ends)
         return resid[rows], support[rows]
     # each row's window of 2 NEIGHBOURS + 1 pairs (itself in the middle): strided views
     # of the padded arrays, taken RESIDUAL_BLOCK rows at a time (the (rows, window)
@@ -259,16 +260,18 @@ def _residuals(t: np.ndarray, dist: np.ndarray, vel: np.ndarray, trusted: np.nda
                for a, fill in ((trusted, False), (t, 0.0), (dist, 0.0), (vel, 0.0))]
     blocks = [rows] if rows is not None else [slice(a, a + RESIDUAL_BLOCK)
                                               for a in range(0, dist.size, RESIDUAL_BLOCK)]
-    got = [_residuals_of(at, t, dist, vel, *windows) for at in blocks]
+    got = [_residuals_of(at, t, dist, vel, *windows, ends) for at in blocks]
     if len(got) == 1:
         return got[0]
     return np.concatenate([g[0] for g in got]), np.concatenate([g[1] for g in got])
 
 
-def _residuals_of(at, t, dist, vel, ok, tj, dj, vj) -> tuple[np.ndarray, np.ndarray]:
+def _residuals_of(at, t, dist, vel, ok, tj, dj, vj, ends) -> tuple[np.ndarray, np.ndarray]:
     """_residuals of the pairs `at` (a slice or indices), from the windows of the trusted
     flags, times, distances and velocities."""
     ok = np.array(ok[at])
+    if ends is not None:
+        ok &= numeric.window_index(dist.size, NEIGHBOURS, ends, at)[1]
     ok[:, NEIGHBOURS] = False                   # a pair does not vouch for itself
     support = ok.sum(axis=1)
     tj, dj, vj = tj[at], dj[at], vj[at]
@@ -300,10 +303,19 @@ def continuity(t: np.ndarray, dist: np.ndarray, vel: np.ndarray, trusted: np.nda
     test cannot see it, this one does. `groups`: each group of pairs on its own
     (`group_slices`).
     """
-    if groups is not None:
-        return _each(groups, lambda g: continuity(t[g], dist[g], vel[g], trusted[g]), t.size, bool)
-    resid, _ = _residuals(t, dist, vel, trusted)
-    return resid <= _tolerance(resid, trusted)
+    resid, _ = _residuals(t, dist, vel, trusted, ends=group_ends(groups, t.size))
+    return agreeing(resid, trusted, groups)
+
+
+def agreeing(resid: np.ndarray, trusted: np.ndarray, groups: np.ndarray | None = None) -> np.ndarray:
+    """`continuity` from the pairs' residuals (`_residuals`, m): within the tolerance of
+    their group's trusted pairs (`_tolerance`)."""
+    if groups is None:
+        return resid <= _tolerance(resid, trusted)
+    out = np.empty(resid.size, bool)
+    for g in group_slices(groups, resid.size):
+        out[g] = resid[g] <= _tolerance(resid[g], trusted[g])
+    return out
 
 
 def verify(t: np.ndarray, dist: np.ndarray, vel: np.ndarray, ok: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -509,10 +521,21 @@ def group_slices(groups: np.ndarray | None, pairs: int) -> list[slice]:
 def group_bounds(groups: np.ndarray | None, pairs: int) -> np.ndarray:
     """(2 pairs,) int32: the first pair of each pair's group (`group_slices`), then the
     last of each: what a kernel is told of the groups."""
-    out = np.empty((2, pairs), np.int32)
-    for g in group_slices(groups, pairs):
-        out[:, g] = [[g.start], [g.stop - 1]]
-    return out.ravel()
+    first, last = _ends(groups, pairs)
+    return np.concatenate([first, last]).astype(np.int32)
+
+
+def group_ends(groups: np.ndarray | None, pairs: int) -> tuple[np.ndarray, np.ndarray] | None:
+    """The first and last pair of each pair's group (`group_slices`); None for one group
+    (numeric.window_index's segments)."""
+    return None if groups is None or len(group_slices(groups, pairs)) < 2 else _ends(groups, pairs)
+
+
+def _ends(groups: np.ndarray | None, pairs: int) -> tuple[np.ndarray, np.ndarray]:
+    slices = group_slices(groups, pairs)
+    size = [g.stop - g.start for g in slices]
+    return (np.repeat([g.start for g in slices], size).astype(np.int64),
+            np.repeat([g.stop - 1 for g in slices], size).astype(np.int64))
 
 
 def _each(groups: np.ndarray, step, pairs: int, dtype=np.float64) -> np.ndarray:
@@ -523,9 +546,7 @@ def _each(groups: np.ndarray, step, pairs: int, dtype=np.float64) -> np.ndarray:
 
 def running_median(v: np.ndarray, groups: np.ndarray | None = None) -> np.ndarray:
     """Median of each pair's 2 NEIGHBOURS + 1 pairs (edges, a group's too: nearest)."""
-    if groups is not None:
-        return _each(groups, lambda g: running_median(v[g]), v.size)
-    return numeric.running_median(v, 2 * NEIGHBOURS + 1)
+    return numeric.running_median(v, 2 * NEIGHBOURS + 1, group_ends(groups, v.size))
 
 
 def regularise(v: np.ndarray, trusted: np.ndarray, time: np.ndarray,
@@ -670,10 +691,16 @@ class Passes:
     vd: np.ndarray
     count: np.ndarray
     k: int = 1
+    verdict: tuple | None = None      # (valid, residuals) where a device made them (`verdict`)
 
     @property
     def snr_min(self) -> np.ndarray | float:
         return snr_floor(self.count, self.k)
+
+    @property
+    def heard(self) -> np.ndarray:
+        """Both of a pair's peaks at least `snr_min`."""
+        return (self.s_r >= self.snr_min) & (self.s_f >= self.snr_min)
 
 
 def snr_floor(count: np.ndarray, k: int) -> np.ndarray | float:
@@ -718,19 +745,28 @@ def passes(rows: tuple, times: Times, model: DopplerModel, search: Search, itera
     return Passes(d_r, s_r, d_f, s_f, vd, count, k)
 
 
+def verdict(state: Passes, times: Times, model: DopplerModel) -> tuple[np.ndarray, np.ndarray]:
+    """Which pairs of the tracker's `state` are valid (both peaks heard, the last
+    velocity correction below CONVERGED_MPS, the velocity within CONSISTENT_MPS of its
+    running median) and their continuity residuals (m) against the valid pairs
+    (`_residuals`); each group on its own (twin: kernels/track.cl)."""
+    dist, vel, dv = solve_pair(state.d_r, state.d_f, state.vd, times.half_gap, model)
+    med = running_median(vel, times.groups)
+    valid = state.heard & (np.abs(dv) < CONVERGED_MPS) & (np.abs(vel - med) < CONSISTENT_MPS)
+    resid, _ = _residuals(times.mid, dist, vel, valid, ends=group_ends(times.groups, valid.size))
+    return valid, resid
+
+
 def result(first: tuple, state: Passes, times: Times, model: DopplerModel, dechirp: bool) -> PairResult:
     """The pairs' distances, velocities and validity from the plain pass `first` and
     the state after the de-chirp passes."""
     (d_r, s_r, *e_r), (d_f, s_f, *e_f) = first
-    dist, vel, dv = solve_pair(state.d_r, state.d_f, state.vd, times.half_gap, model)
-    snr_min = state.snr_min
-    heard = (state.s_r >= snr_min) & (state.s_f >= snr_min)
-    valid = heard
+    dist, vel, _ = solve_pair(state.d_r, state.d_f, state.vd, times.half_gap, model)
+    heard = state.heard
+    valid, continuous = heard, np.ones(heard.size, bool)
     if dechirp:
-        med = running_median(vel, times.groups)
-        valid = valid & (np.abs(dv) < CONVERGED_MPS) & (np.abs(vel - med) < CONSISTENT_MPS)
-    continuous = (continuity(times.mid, dist, vel, valid, times.groups) if dechirp
-                  else np.ones(valid.size, bool))
+        valid, resid = state.verdict or verdict(state, times, model)
+        continuous = agreeing(resid, valid, times.groups)
     return PairResult(dist, vel, valid, d_r.copy(), d_f.copy(), s_r.copy(), s_f.copy(), state.d_r, state.d_f,
                       state.s_r, state.s_f, heard, continuous, state.count,
                       *(e_r or [None]), *(e_f or [None]))
