@@ -57,7 +57,7 @@ double interpolated(__global const double *t, __global const double *med, const 
 }
 
 // One pass (`first`: the plain pass's, vd = 0; `last`: only the measurements into the
-// state). Each work-item takes a run of consecutive pairs. Nothing is done once the
+// state and the velocities' running median, for the verdict). Each work-item takes a run of consecutive pairs. Nothing is done once the
 // passes have stopped (state[1], from the first pass on: a pass moved no pair).
 __kernel void track_pass(const int pairs, const int first, const int last,
                          __global const float *bin_r, __global const float *snr_r,
@@ -102,8 +102,9 @@ __kernel void track_pass(const int pairs, const int first, const int last,
             vel[i] = vd[i] + dv;
         }
         barrier(CLK_GLOBAL_MEM_FENCE);
-        if (!last) {
-            // the running median (a group's ends extended) and the trusted pairs
+        {
+            // the running median (a group's ends extended; the last pass's for the
+            // verdict) and the trusted pairs
             double w[2 * REACH_MAX + 1];
             const int size = 2 * reach + 1;
             int l = -1, f = -1;                       // the run's last and first trusted pair
@@ -125,6 +126,7 @@ __kernel void track_pass(const int pairs, const int first, const int last,
                     if (f < 0) f = i;
                 }
             }
+            if (last) return;                         // uniform in the group
             ends[3 * lid] = l;
             ends[3 * lid + 1] = f;
             barrier(CLK_LOCAL_MEM_FENCE | CLK_GLOBAL_MEM_FENCE);
@@ -179,13 +181,13 @@ __kernel void track_pass(const int pairs, const int first, const int last,
 
 // The pairs' verdict after the last pass, one work-item a pair (twin: pairing.verdict):
 // each pair's distance (m) and whether it is valid: both peaks heard, its last velocity
-// correction below `converged` and its velocity within `consistent` of the running median
-// of its group's (`vel`, the last pass's).
-__kernel void track_valid(const int pairs, const int reach,
+// correction below `converged` and its velocity within `consistent` of its running median
+// (`vel`, `med`: the last pass's).
+__kernel void track_valid(const int pairs,
                           __global const double *d_r, __global const double *d_f,
                           __global const float *s_r, __global const float *s_f,
                           __global const double *vd, __global const double *half_gap,
-                          __global const int *bounds, __global const double *vel,
+                          __global const double *vel, __global const double *med,
                           const double k_rise, const double k_fall, const float snr_min,
                           const double converged, const double consistent,
                           __global double *dist, __global int *valid)
@@ -195,11 +197,8 @@ __kernel void track_valid(const int pairs, const int reach,
     const double hg = half_gap[i];
     const double dv = (d_f[i] - d_r[i] - 2.0 * vd[i] * hg) / (2.0 * hg + k_fall - k_rise);
     dist[i] = 0.5 * (d_r[i] + d_f[i]) - 0.5 * dv * (k_rise + k_fall);
-    double w[2 * REACH_MAX + 1];
-    const int lo = bounds[i], hi = bounds[pairs + i];
-    for (int k = 0; k <= 2 * reach; ++k) insert(w, k, vel[clamp(i - reach + k, lo, hi)]);
     valid[i] = s_r[i] >= snr_min && s_f[i] >= snr_min && fabs(dv) < converged
-               && fabs(vel[i] - w[reach]) < consistent;
+               && fabs(vel[i] - med[i]) < consistent;
 }
 
 // Each pair's continuity residual (m; twin: pairing._residuals): |its distance - the

@@ -103,8 +103,8 @@ def track(rt: Runtime, bufs: Buffers, rows: tuple[DeviceRows, DeviceRows], times
     # the verdict (pairing.verdict): one work-item a pair
     dist = bufs.get("track_dist", 8 * pairs)
     rt.kernel("track", "track_valid")(
-        rt.queue, *rt.items(pairs), i32(pairs), i32(pairing.NEIGHBOURS), d_r, d_f, s_r, s_f, vd, d_half,
-        d_bounds, vel, f64(model.k_rise), f64(model.k_fall), f32(pairing.SNR_MIN_DB),
+        rt.queue, *rt.items(pairs), i32(pairs), d_r, d_f, s_r, s_f, vd, d_half, vel, med, f64(model.k_rise),
+        f64(model.k_fall), f32(pairing.SNR_MIN_DB),
         f64(pairing.CONVERGED_MPS), f64(pairing.CONSISTENT_MPS), dist, valid)
     rt.kernel("track", "track_residual")(
         rt.queue, *rt.items(pairs), i32(pairs), i32(pairing.NEIGHBOURS), i32(pairing.SUPPORT), d_mid,
