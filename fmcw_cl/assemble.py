@@ -38,9 +38,10 @@ def assemble(plan: Plan, parts: list[ChunkMeasurements], processor: ChunkProcess
              choice: target.Choice | None = None, seen: echoes.Echoes | None = None) -> Track:
     """The track from the owned pairs of all chunks, in capture order: missing periods
     filled as invalid, pairs on an echo the target cannot be told from (`choice`)
-    ambiguous, validity verified (faults.verified), acceleration, attributes.
-    `seconds`: the processing time; `seen`: the echo table of these `parts` where already
-    made (a track of them assembled before), whatever the choice."""
+    ambiguous, validity verified (faults.verified, its tests by `processor`, whose name
+    and device the track records), acceleration, attributes. `seconds`: the processing
+    time; `seen`: the echo table of these `parts` where already made (a track of them
+    assembled before), whatever the choice."""
     info, options = plan.info, plan.options
     if not parts:
         raise CaptureError(info.path, "no complete modulation period found in the sync channel")
@@ -65,7 +66,7 @@ def assemble(plan: Plan, parts: list[ChunkMeasurements], processor: ChunkProcess
                                       choice.walls_db, plan.model, plan.window, reason_owned == faults.OK)
         reason_owned = target.ambiguous(reason_owned, t_mid, res["distance"], res["velocity"], choice, imaged)
     if options.dechirp:         # the paper's method (--no-dechirp) is reported as the paper did
-        reason_owned = faults.verified(t_mid, res["distance"], res["velocity"], reason_owned)
+        reason_owned = faults.verified(t_mid, res["distance"], res["velocity"], reason_owned, processor)
     res["valid"] = reason_owned == faults.OK
     valid = with_gaps(res["valid"], False)
     reason = with_gaps(reason_owned, faults.SYNC_GAP)

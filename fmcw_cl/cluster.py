@@ -28,6 +28,7 @@ from .errors import FmcwError
 from .options import Options
 from .plan import make_plan
 from .processor import NumpyProcessor
+from .stages import pairing
 from .track import track_path, write_track
 
 TASK_SECONDS = 1.0      # capture seconds per range task of a long capture
@@ -104,8 +105,9 @@ def _range(capture: str, plan, start: int, stop: int, backend: str, device: str 
         return capture_parts(cap, plan, stages, start, stop), stages.name, stages.device
 
 
-class _Made:
-    """What assemble() records of the backend that made the pairs."""
+class _Made(pairing.SpectrumOps):
+    """What assemble() records of the backend that made the pairs; the verification's
+    tests run in numpy here."""
 
     def __init__(self, name: str, device: str) -> None:
         self.name, self.device = name, device

@@ -59,7 +59,7 @@ def moving_beside(cap: Capture, plan, processor, fixed_m: float) -> list[tuple[f
             if not parts:
                 continue
             tt, dd, vv, _ = pairs_of(parts)
-            code = faults.verified(tt, dd, vv, np.concatenate([q.reason for q in parts]))
+            code = faults.verified(tt, dd, vv, np.concatenate([q.reason for q in parts]), processor)
             t.append(tt)
             d.append(dd)
             v.append(vv)

@@ -203,11 +203,12 @@ __kernel void track_valid(const int pairs,
 
 // Each pair's continuity residual (m; twin: pairing._residuals): |its distance - the
 // median of what its valid neighbours within `reach` in its group predict|, infinite
-// with fewer than `support` of them.
+// with fewer than `support` of them, and how many there are (`vouched`).
 __kernel void track_residual(const int pairs, const int reach, const int support,
                              __global const double *t, __global const int *bounds,
                              __global const double *dist, __global const double *vel,
-                             __global const int *valid, __global double *resid)
+                             __global const int *valid, __global double *resid,
+                             __global int *vouched)
 {
     const int i = get_global_id(0);
     if (i >= pairs) return;
@@ -223,5 +224,6 @@ __kernel void track_residual(const int pairs, const int reach, const int support
     // numpy's median of no number: the last of the sorted NaNs
     const double m = n > 0 ? 0.5 * (w[(n - 1) / 2] + w[n / 2]) : NAN;
     resid[i] = vouch >= support ? fabs(dist[i] - m) : INFINITY;
+    vouched[i] = vouch;
 }
 #endif

@@ -969,6 +969,44 @@ def test_tracker_passes_on_the_device_equal_the_host_passes(backend, kernel_vari
         assert not np.array_equal(one.vd, state.vd)
 
 
+@pytest.mark.parametrize("pairs", [0, 1, 2, 49, 3001])
+def test_verification_tests_on_the_device_equal_numpys(backend, pairs):
+    """kernels/verify.cl (`kinematic_drop`) and track.cl's `track_residual` over one
+    group against pairing.disagreed and pairing._residuals, and pairing.verify with them
+    against its numpy run: a take-off at 300 m/s^2 with wrong pairs (an echo 3 mm off
+    for 30 pairs, single noise peaks), gaps in time of 1 and 6 ms (beyond KINEMATIC_S),
+    a fade (few valid pairs: too few neighbours), NaN distances on invalid pairs; fewer
+    pairs than the kinematic and the continuity windows."""
+    from fmcw_cl.stages import pairing
+
+    rng = np.random.default_rng(pairs)
+    t = 0.01 + np.arange(pairs) * 50e-6
+    t[pairs // 3:] += 1e-3
+    t[2 * pairs // 3:] += 6e-3
+    v = 1.0 + 300.0 * (t - 0.01) + rng.normal(0, 0.01, pairs)
+    d = 0.1 + 0.5 * (v + 1.0) * (t - 0.01) + rng.normal(0, 30e-6, pairs)
+    d[pairs // 2: pairs // 2 + 30] += 3e-3                  # another echo, followed a while
+    d[rng.random(pairs) < 0.01] += rng.normal(0, 2e-3)      # single noise peaks
+    ok = rng.random(pairs) < 0.9
+    fade = slice(pairs // 4, pairs // 4 + 60)
+    ok[fade] &= rng.random(ok[fade].size) < 0.1
+    d[~ok & (rng.random(pairs) < 0.5)] = np.nan
+    want = pairing.disagreed(t, d, v, ok)
+    np.testing.assert_array_equal(backend.disagreed(t, d, v, ok), want)
+    resid, support = pairing._residuals(t, d, v, ok)
+    got = backend.residuals(t, d, v, ok)
+    np.testing.assert_array_equal(got[0], resid)
+    np.testing.assert_array_equal(got[1], support)
+    rows = np.flatnonzero(ok)[::3]
+    for a, b in zip(backend.residuals(t, d, v, ok, rows), pairing._residuals(t, d, v, ok, rows), strict=True):
+        np.testing.assert_array_equal(a, b)
+    for a, b in zip(pairing.verify(t, d, v, ok, backend), pairing.verify(t, d, v, ok), strict=True):
+        np.testing.assert_array_equal(a, b)
+    if pairs > 1000:      # the scene exercises both tests
+        assert 30 <= want.sum() < 0.2 * pairs
+        assert np.isinf(resid).any() and np.isfinite(resid).sum() > 0.8 * pairs
+
+
 def monkeypatch_count(monkeypatch, module, name: str) -> list[int]:
     """Count the calls of module.name (a one-item list, updated in place)."""
     calls, inner = [0], getattr(module, name)

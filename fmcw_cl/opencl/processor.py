@@ -29,6 +29,7 @@ from . import spectrum as k_spectrum
 from . import survey as k_survey
 from . import sync as k_sync
 from . import track as k_track
+from . import verify as k_verify
 from .buffers import Buffers, DeviceRows, Packed, page_locked
 from .context import Runtime, is_simulator, runtime
 
@@ -47,7 +48,7 @@ class OpenCLProcessor(ChunkProcessor):
     # whatever its size (0.4 s of capture: 160 MB of codes, 65 MB of resampled rows)
     chunk_default = 8192
     programs = ("lpf", "delay", "sync", "resample", "spectrum", "integrate", "survey", "faults", "track",
-                "copy")
+                "verify", "copy")
 
     def __init__(self, selector: str | None = None, rt: Runtime | None = None) -> None:
         super().__init__()
@@ -223,6 +224,21 @@ class OpenCLProcessor(ChunkProcessor):
         """Twin: pairing.SpectrumOps.plain_pass; its download carries the riders of `ride`."""
         return self.measure_each(rows, (model.beta_rise, model.beta_fall), None, model, search,
                                  riders=self._landing(), times=times)
+
+    def residuals(self, t, dist, vel, trusted, rows=None):
+        """Twin: pairing.SpectrumOps.residuals; every pair's on the device, where it has
+        double precision."""
+        if not k_track.supported(self.rt):
+            return super().residuals(t, dist, vel, trusted, rows)
+        resid, support = k_verify.residuals(self.rt, self.bufs, t, dist, vel, trusted)
+        return (resid, support) if rows is None else (resid[rows], support[rows])
+
+    def disagreed(self, t, dist, vel, ok):
+        """Twin: pairing.SpectrumOps.disagreed; on the device, where it has double
+        precision."""
+        if not k_track.supported(self.rt):
+            return super().disagreed(t, dist, vel, ok)
+        return k_verify.disagreed(self.rt, self.bufs, t, dist, vel, ok)
 
     def power(self, x, beta, v, nfft, rows=None):
         """Power spectra of rows of x (plain, or de-chirped at v); twin: pairing.power."""

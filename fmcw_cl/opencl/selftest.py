@@ -179,6 +179,14 @@ def spectra(be, rng, group: str) -> None:
         # a residual is infinite with too few valid neighbours: -1 m here
         close("tracker verdict, residuals (track_residual)", *(np.nan_to_num(r, posinf=-1.0)
                                                               for r in (got.verdict[1], resid)), 1e-9)
+        # the verification's tests on a track with an echo 3 mm off for 12 pairs
+        t = np.arange(60) * 50e-6
+        d = 0.1 + 0.5 * t + np.where((t > 1e-3) & (t < 1.6e-3), 3e-3, 0.0)
+        ok = np.arange(t.size) % 7 != 3
+        close("verification (kinematic_drop)", be.disagreed(t, d, np.full(t.size, 0.5), ok),
+              pairing.disagreed(t, d, np.full(t.size, 0.5), ok), 0)
+        close("verification, residuals (track_residual)", be.residuals(t, d, np.full(t.size, 0.5), ok)[0],
+              pairing._residuals(t, d, np.full(t.size, 0.5), ok)[0], 1e-9)
     close("power spectra", be.power(d_x, None, None, nfft), pairing.power(x, None, None, nfft), 1e-5)
 
 

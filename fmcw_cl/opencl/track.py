@@ -106,10 +106,18 @@ def track(rt: Runtime, bufs: Buffers, rows: tuple[DeviceRows, DeviceRows], times
         rt.queue, *rt.items(pairs), i32(pairs), d_r, d_f, s_r, s_f, vd, d_half, vel, med, f64(model.k_rise),
         f64(model.k_fall), f32(pairing.SNR_MIN_DB),
         f64(pairing.CONVERGED_MPS), f64(pairing.CONSISTENT_MPS), dist, valid)
-    rt.kernel("track", "track_residual")(
-        rt.queue, *rt.items(pairs), i32(pairs), i32(pairing.NEIGHBOURS), i32(pairing.SUPPORT), d_mid,
-        d_bounds, dist, vel, valid, resid)
+    residuals(rt, pairs, d_mid, d_bounds, dist, vel, valid, resid, bufs.get("track_vouched", 4 * pairs))
     views = out.download()
     first = k_spectrum.results(views[: len(head)], plain, pairs, model.nfft, search.echoes)
     *state, valid, resid = (v.copy() for v in views[len(head):])
     return first, pairing.Passes(*state, np.ones(pairs, np.int32), verdict=(valid.astype(bool), resid))
+
+
+def residuals(rt: Runtime, pairs: int, t, bounds, dist, vel, valid, resid, vouched) -> None:
+    """Launch kernels/track.cl's `track_residual` (twin: pairing._residuals): each pair's
+    continuity residual (m, into `resid`) against the `valid` pairs of its group
+    (`bounds`, group_bounds) and how many vouch for it (into `vouched`); `t`, `dist`,
+    `vel`: the pairs' centres (s), distances (m), velocities (m/s). Device buffers."""
+    i32 = np.int32
+    rt.kernel("track", "track_residual")(rt.queue, *rt.items(pairs), i32(pairs), i32(pairing.NEIGHBOURS),
+                                         i32(pairing.SUPPORT), t, bounds, dist, vel, valid, resid, vouched)

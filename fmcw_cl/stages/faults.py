@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .pairing import verify
+from .pairing import NUMPY, SpectrumOps, verify
 
 OK = 0
 SYNC_GAP = 1       # no pair measured here: dropped samples or a broken sync stretch
@@ -109,11 +109,12 @@ def reasons(valid: np.ndarray, heard: np.ndarray, clip: np.ndarray, alias: np.nd
     return code
 
 
-def verified(t: np.ndarray, distance: np.ndarray, velocity: np.ndarray, code: np.ndarray) -> np.ndarray:
+def verified(t: np.ndarray, distance: np.ndarray, velocity: np.ndarray, code: np.ndarray,
+             ops: SpectrumOps = NUMPY) -> np.ndarray:
     """The codes `code` of pairs at times t with the pairs that are OK but not vouched
-    for by enough OK neighbours (pairing.verify) set to UNVERIFIED, or DISCONTINUOUS
-    where their neighbours disagree with them."""
-    ok, unsupported = verify(t, distance, velocity, code == OK)
+    for by enough OK neighbours (pairing.verify, its tests by `ops`: a processor's)
+    set to UNVERIFIED, or DISCONTINUOUS where their neighbours disagree with them."""
+    ok, unsupported = verify(t, distance, velocity, code == OK, ops)
     out = code.copy()
     dropped = (code == OK) & ~ok
     out[dropped] = np.where(unsupported[dropped], UNVERIFIED, DISCONTINUOUS)

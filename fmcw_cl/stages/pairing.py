@@ -163,8 +163,9 @@ def measure(x: np.ndarray, beta: np.ndarray, v: np.ndarray | None, model: Dopple
 
 
 class SpectrumOps:
-    """The spectrum steps of the tracker in numpy; a backend swaps in its own
-    (opencl.processor.OpenCLProcessor), with the same arguments and results."""
+    """The spectrum steps of the tracker and the verification's tests in numpy; a
+    backend swaps in its own (opencl.processor.OpenCLProcessor), with the same arguments
+    and results."""
 
     def measure(self, x, beta, v, model: DopplerModel, search: Search, rows=None) -> tuple:
         return measure(x, beta, v, model, search, rows)
@@ -193,6 +194,14 @@ class SpectrumOps:
 
     def power(self, x, beta, v, nfft: int, rows=None) -> np.ndarray:
         return power(x, beta, v, nfft, rows)
+
+    def residuals(self, t, dist, vel, trusted, rows=None) -> tuple[np.ndarray, np.ndarray]:
+        """The continuity residuals (m) of the pairs `rows` (all when None) against the
+        `trusted` ones, and how many vouch for each (`_residuals`, one group)."""
+        return _residuals(t, dist, vel, trusted, rows)
+
+    def disagreed(self, t, dist, vel, ok) -> np.ndarray:
+        return disagreed(t, dist, vel, ok)
 
     def power_each(self, jobs: list, nfft: int) -> list[np.ndarray]:
         """`power` of each (x, beta, v) of `jobs`, rows of any count each (a backend: one
@@ -252,6 +261,8 @@ def _residuals(t: np.ndarray, dist: np.ndarray, vel: np.ndarray, trusted: np.nda
     if rows is not None and rows.size > dist.size // 4:     # cheaper on strided views
         resid, support = _residuals(t, dist, vel, trusted, ends=ends)
         return resid[rows], support[rows]
+    if dist.size == 0:
+        return np.zeros(0), np.zeros(0, np.int64)
     # each row's window of 2 NEIGHBOURS + 1 pairs (itself in the middle): strided views
     # of the padded arrays, taken RESIDUAL_BLOCK rows at a time (the (rows, window)
     # temporaries stay in cache), or copied for a subset of rows
@@ -318,7 +329,8 @@ def agreeing(resid: np.ndarray, trusted: np.ndarray, groups: np.ndarray | None =
     return out
 
 
-def verify(t: np.ndarray, dist: np.ndarray, vel: np.ndarray, ok: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def verify(t: np.ndarray, dist: np.ndarray, vel: np.ndarray, ok: np.ndarray, ops: SpectrumOps = NUMPY
+           ) -> tuple[np.ndarray, np.ndarray]:
     """Validity as a fixed point: of the pairs `ok`, those that at least SUPPORT other
     pairs of the final set vouch for (`continuity`'s test, against the final set only).
 
@@ -327,7 +339,8 @@ def verify(t: np.ndarray, dist: np.ndarray, vel: np.ndarray, ok: np.ndarray) -> 
     rounds, the pairs that most valid pairs within KINEMATIC_S disagree with are dropped
     (`_kinematic`), runs whose distance leaves their integrated velocity (`_drifting`),
     and runs at rest that the motion around them passes by (`_bridged`); last, short
-    runs need an anchor (`_anchored`).
+    runs need an anchor (`_anchored`). `ops`: whose `residuals` and `disagreed` (a
+    backend's: on its device).
 
     Returns
     -------
@@ -337,9 +350,9 @@ def verify(t: np.ndarray, dist: np.ndarray, vel: np.ndarray, ok: np.ndarray) -> 
     """
     ok = np.asarray(ok, bool).copy()
     unsupported = np.zeros(ok.size, bool)
-    _vouched(t, dist, vel, ok, unsupported)
-    while _kinematic(t, dist, vel, ok) | _drifting(t, dist, vel, ok) | _bridged(t, dist, vel, ok):
-        _vouched(t, dist, vel, ok, unsupported)
+    _vouched(t, dist, vel, ok, unsupported, ops)
+    while _kinematic(t, dist, vel, ok, ops) | _drifting(t, dist, vel, ok) | _bridged(t, dist, vel, ok):
+        _vouched(t, dist, vel, ok, unsupported, ops)
     _anchored(t, dist, vel, ok, unsupported)
     return ok, unsupported
 
@@ -355,9 +368,9 @@ def _agrees(ta, da, va, tb, db, vb):
             & (np.abs(vb - va) <= ACCEL_MAX * np.abs(dt) + CONSISTENT_MPS))
 
 
-def _kinematic(t, dist, vel, ok) -> bool:
+def _kinematic(t, dist, vel, ok, ops: SpectrumOps) -> bool:
     """Drop, in place, the pairs of `ok` that most of the other pairs of `ok` within
-    KINEMATIC_S disagree with (`_agrees`); whether any was dropped.
+    KINEMATIC_S disagree with (`disagreed`); whether any was dropped.
 
     The neighbours' test spans 0.4 ms, over which a velocity a few m/s off moves the
     prediction by less than its tolerance: a wrong echo followed for a few ms (a
@@ -365,6 +378,14 @@ def _kinematic(t, dist, vel, ok) -> bool:
     its velocities disagree with its own distances' course by cm. Over 2 ms the two
     part; a right pair beside a few wrong ones keeps its majority.
     """
+    drop = ops.disagreed(t, dist, vel, ok)
+    ok[drop] = False
+    return bool(drop.any())
+
+
+def disagreed(t: np.ndarray, dist: np.ndarray, vel: np.ndarray, ok: np.ndarray) -> np.ndarray:
+    """The pairs of `ok` (times s, distances m, velocities m/s) that most of the other
+    pairs of `ok` within KINEMATIC_S disagree with (`_agrees`; twin: kernels/verify.cl)."""
     agree = np.zeros(ok.size, np.int32)
     near = np.zeros(ok.size, np.int32)
     for k in range(1, min(KINEMATIC_PAIRS, ok.size - 1) + 1):      # pairs k apart, both ways at once
@@ -378,9 +399,7 @@ def _kinematic(t, dist, vel, ok) -> bool:
         near[b] += both
         agree[a] += yes
         agree[b] += yes
-    drop = ok & (2 * agree < near)
-    ok[drop] = False
-    return bool(drop.any())
+    return ok & (2 * agree < near)
 
 
 def _runs(t, dist, vel, ok) -> list[np.ndarray]:
@@ -463,12 +482,12 @@ def _bridged(t, dist, vel, ok) -> bool:
     return dropped
 
 
-def _vouched(t, dist, vel, ok, unsupported) -> None:
+def _vouched(t, dist, vel, ok, unsupported, ops: SpectrumOps) -> None:
     """`verify`'s fixed point of the neighbours' test, in place."""
     rows = np.flatnonzero(ok)
     tol = None
     while rows.size:
-        resid, support = _residuals(t, dist, vel, ok, rows)
+        resid, support = ops.residuals(t, dist, vel, ok, rows)
         tol = _tolerance(resid, ok[rows]) if tol is None else tol   # the capture's scatter, once
         drop = resid > tol
         if not drop.any():
