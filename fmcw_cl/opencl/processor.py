@@ -225,18 +225,22 @@ class OpenCLProcessor(ChunkProcessor):
         return self.measure_each(rows, (model.beta_rise, model.beta_fall), None, model, search,
                                  riders=self._landing(), times=times)
 
+    def _verifies(self, pairs: int) -> bool:
+        """Whether the verification's tests of `pairs` run on this device: it has double
+        precision, and they are many (k_verify.PAIRS_MIN)."""
+        return k_track.supported(self.rt) and pairs >= k_verify.PAIRS_MIN
+
     def residuals(self, t, dist, vel, trusted, rows=None):
-        """Twin: pairing.SpectrumOps.residuals; every pair's on the device, where it has
-        double precision."""
-        if not k_track.supported(self.rt):
+        """Twin: pairing.SpectrumOps.residuals; every pair's on the device (`_verifies`),
+        where the host would take them for every pair too (pairing.every_row)."""
+        if not (self._verifies(t.size) and pairing.every_row(rows, t.size)):
             return super().residuals(t, dist, vel, trusted, rows)
         resid, support = k_verify.residuals(self.rt, self.bufs, t, dist, vel, trusted)
         return (resid, support) if rows is None else (resid[rows], support[rows])
 
     def disagreed(self, t, dist, vel, ok):
-        """Twin: pairing.SpectrumOps.disagreed; on the device, where it has double
-        precision."""
-        if not k_track.supported(self.rt):
+        """Twin: pairing.SpectrumOps.disagreed; on the device (`_verifies`)."""
+        if not self._verifies(t.size):
             return super().disagreed(t, dist, vel, ok)
         return k_verify.disagreed(self.rt, self.bufs, t, dist, vel, ok)
 

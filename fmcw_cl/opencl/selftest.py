@@ -17,6 +17,7 @@ import sys
 import numpy as np
 
 from fmcw_cl.opencl import track as k_track
+from fmcw_cl.opencl import verify as k_verify
 from fmcw_cl.opencl.buffers import DeviceRows
 from fmcw_cl.opencl.context import cl
 from fmcw_cl.opencl.processor import OpenCLProcessor
@@ -180,13 +181,13 @@ def spectra(be, rng, group: str) -> None:
         close("tracker verdict, residuals (track_residual)", *(np.nan_to_num(r, posinf=-1.0)
                                                               for r in (got.verdict[1], resid)), 1e-9)
         # the verification's tests on a track with an echo 3 mm off for 12 pairs
-        t = np.arange(60) * 50e-6
-        d = 0.1 + 0.5 * t + np.where((t > 1e-3) & (t < 1.6e-3), 3e-3, 0.0)
-        ok = np.arange(t.size) % 7 != 3
-        close("verification (kinematic_drop)", be.disagreed(t, d, np.full(t.size, 0.5), ok),
-              pairing.disagreed(t, d, np.full(t.size, 0.5), ok), 0)
-        close("verification, residuals (track_residual)", be.residuals(t, d, np.full(t.size, 0.5), ok)[0],
-              pairing._residuals(t, d, np.full(t.size, 0.5), ok)[0], 1e-9)
+        track = [np.arange(60) * 50e-6]
+        track += [0.1 + 0.5 * track[0] + np.where((track[0] > 1e-3) & (track[0] < 1.6e-3), 3e-3, 0.0),
+                  np.full(60, 0.5), np.arange(60) % 7 != 3]
+        close("verification (kinematic_drop)", k_verify.disagreed(be.rt, be.bufs, *track),
+              pairing.disagreed(*track), 0)
+        close("verification, residuals (track_residual)", k_verify.residuals(be.rt, be.bufs, *track)[0],
+              pairing._residuals(*track)[0], 1e-9)
     close("power spectra", be.power(d_x, None, None, nfft), pairing.power(x, None, None, nfft), 1e-5)
 
 

@@ -258,7 +258,7 @@ def _residuals(t: np.ndarray, dist: np.ndarray, vel: np.ndarray, trusted: np.nda
     """For the pairs `rows` (all when None): |distance - the median prediction of its
     trusted neighbours| (inf with fewer than SUPPORT of them) and how many there are;
     `ends` (group_ends): neighbours only within a pair's group."""
-    if rows is not None and rows.size > dist.size // 4:     # cheaper on strided views
+    if rows is not None and every_row(rows, dist.size):
         resid, support = _residuals(t, dist, vel, trusted, ends=ends)
         return resid[rows], support[rows]
     if dist.size == 0:
@@ -275,6 +275,12 @@ def _residuals(t: np.ndarray, dist: np.ndarray, vel: np.ndarray, trusted: np.nda
     if len(got) == 1:
         return got[0]
     return np.concatenate([g[0] for g in got]), np.concatenate([g[1] for g in got])
+
+
+def every_row(rows: np.ndarray | None, pairs: int) -> bool:
+    """Whether `_residuals` of the pairs `rows` of `pairs` (None: all) are best taken for
+    every pair (strided views) and picked."""
+    return rows is None or rows.size > pairs // 4
 
 
 def _residuals_of(at, t, dist, vel, ok, tj, dj, vj, ends) -> tuple[np.ndarray, np.ndarray]:
