@@ -972,7 +972,7 @@ def test_tracker_passes_on_the_device_equal_the_host_passes(backend, kernel_vari
 @pytest.mark.parametrize("pairs", [0, 1, 2, 49, 5001])
 def test_verification_tests_on_the_device_equal_numpys(backend, monkeypatch, pairs):
     """kernels/verify.cl (`kinematic_drop`) and track.cl's `track_residual` over one
-    group against pairing.disagreed and pairing._residuals, and pairing.verify with the
+    group against pairing.disagreed and the numpy residuals, and pairing.verify with the
     processor's tests (on the device from PAIRS_MIN pairs) against its numpy run: a
     take-off at 300 m/s^2 with wrong pairs (an echo 3 mm off for 30 pairs, single noise
     peaks), gaps in time of 1 and 6 ms (beyond KINEMATIC_S), a fade (few valid pairs:
@@ -995,13 +995,13 @@ def test_verification_tests_on_the_device_equal_numpys(backend, monkeypatch, pai
     d[~ok & (rng.random(pairs) < 0.5)] = np.nan
     want = pairing.disagreed(t, d, v, ok)
     np.testing.assert_array_equal(k_verify.disagreed(backend.rt, backend.bufs, t, d, v, ok), want)
-    resid, support = pairing._residuals(t, d, v, ok)
+    resid, support = pairing.NUMPY.residuals(t, d, v, ok)
     got = k_verify.residuals(backend.rt, backend.bufs, t, d, v, ok)
     np.testing.assert_array_equal(got[0], resid)
     np.testing.assert_array_equal(got[1], support)
     launched = monkeypatch_count(monkeypatch, k_verify, "residuals")
     for rows in (np.flatnonzero(ok), np.flatnonzero(ok)[::9]):     # every pair's on the device, a few here
-        want_rows = pairing._residuals(t, d, v, ok, rows)
+        want_rows = pairing.NUMPY.residuals(t, d, v, ok, rows)
         for a, b in zip(backend.residuals(t, d, v, ok, rows), want_rows, strict=True):
             np.testing.assert_array_equal(a, b)
     assert launched == [int(pairs >= k_verify.PAIRS_MIN)]

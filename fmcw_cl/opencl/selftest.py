@@ -187,7 +187,7 @@ def spectra(be, rng, group: str) -> None:
         close("verification (kinematic_drop)", k_verify.disagreed(be.rt, be.bufs, *track),
               pairing.disagreed(*track), 0)
         close("verification, residuals (track_residual)", k_verify.residuals(be.rt, be.bufs, *track)[0],
-              pairing._residuals(*track)[0], 1e-9)
+              pairing.NUMPY.residuals(*track)[0], 1e-9)
     close("power spectra", be.power(d_x, None, None, nfft), pairing.power(x, None, None, nfft), 1e-5)
 
 

@@ -104,8 +104,8 @@ def track(rt: Runtime, bufs: Buffers, rows: tuple[DeviceRows, DeviceRows], times
     dist = bufs.get("track_dist", 8 * pairs)
     rt.kernel("track", "track_valid")(
         rt.queue, *rt.items(pairs), i32(pairs), d_r, d_f, s_r, s_f, vd, d_half, vel, med, f64(model.k_rise),
-        f64(model.k_fall), f32(pairing.SNR_MIN_DB),
-        f64(pairing.CONVERGED_MPS), f64(pairing.CONSISTENT_MPS), dist, valid)
+        f64(model.k_fall), f32(pairing.SNR_MIN_DB), f64(pairing.CONVERGED_MPS), f64(pairing.CONSISTENT_MPS),
+        dist, valid)
     residuals(rt, pairs, d_mid, d_bounds, dist, vel, valid, resid, bufs.get("track_vouched", 4 * pairs))
     views = out.download()
     first = k_spectrum.results(views[: len(head)], plain, pairs, model.nfft, search.echoes)
