@@ -57,8 +57,9 @@ double interpolated(__global const double *t, __global const double *med, const 
 }
 
 // One pass (`first`: the plain pass's, vd = 0; `last`: only the measurements into the
-// state and the velocities' running median, for the verdict). Each work-item takes a run of consecutive pairs. Nothing is done once the
-// passes have stopped (state[1], from the first pass on: a pass moved no pair).
+// state and the velocities' running median, for the verdict). Each work-item takes a run
+// of consecutive pairs. Nothing is done once the passes have stopped (state[1], from the
+// first pass on: a pass moved no pair).
 __kernel void track_pass(const int pairs, const int first, const int last,
                          __global const float *bin_r, __global const float *snr_r,
                          __global const float *bin_f, __global const float *snr_f,
@@ -102,79 +103,77 @@ __kernel void track_pass(const int pairs, const int first, const int last,
             vel[i] = vd[i] + dv;
         }
         barrier(CLK_GLOBAL_MEM_FENCE);
-        {
-            // the running median (a group's ends extended; the last pass's for the
-            // verdict) and the trusted pairs
-            double w[2 * REACH_MAX + 1];
-            const int size = 2 * reach + 1;
-            int l = -1, f = -1;                       // the run's last and first trusted pair
-            for (int i = a; i < b; ++i) {
-                const int lo = bounds[i], hi = bounds[pairs + i];
-                if (i == a || lo != bounds[i - 1]) {
-                    for (int k = 0; k < size; ++k) insert(w, k, vel[clamp(i - reach + k, lo, hi)]);
-                } else {
-                    remove(w, size, vel[clamp(i - 1 - reach, lo, hi)]);
-                    insert(w, size - 1, vel[clamp(i + reach, lo, hi)]);
-                }
-                const double m = w[reach];
-                med[i] = m;
-                const double tol = consistent + (share > 0.0 ? share * fabs(m) : 0.0);
-                const int ok = s_r[i] >= snr_min && s_f[i] >= snr_min && fabs(vel[i] - m) < tol;
-                trusted[i] = ok;
-                if (ok) {
-                    l = i;
-                    if (f < 0) f = i;
-                }
+        // the running median (a group's ends extended; the last pass's for the
+        // verdict) and the trusted pairs
+        double w[2 * REACH_MAX + 1];
+        const int size = 2 * reach + 1;
+        int l = -1, f = -1;                       // the run's last and first trusted pair
+        for (int i = a; i < b; ++i) {
+            const int lo = bounds[i], hi = bounds[pairs + i];
+            if (i == a || lo != bounds[i - 1]) {
+                for (int k = 0; k < size; ++k) insert(w, k, vel[clamp(i - reach + k, lo, hi)]);
+            } else {
+                remove(w, size, vel[clamp(i - 1 - reach, lo, hi)]);
+                insert(w, size - 1, vel[clamp(i + reach, lo, hi)]);
             }
-            if (last) return;                         // uniform in the group
-            ends[3 * lid] = l;
-            ends[3 * lid + 1] = f;
-            barrier(CLK_LOCAL_MEM_FENCE | CLK_GLOBAL_MEM_FENCE);
-            // the next velocity of each pair (pairing.regularise) and whether it moved
-            int p = -1, n = -1;
-            for (int k = 0; k < lsz; ++k) {
-                const int lk = ends[3 * k], fk = ends[3 * k + 1];
-                if (k < lid && lk >= 0) p = lk;
-                if (k > lid && fk >= 0 && n < 0) n = fk;
+            const double m = w[reach];
+            med[i] = m;
+            const double tol = consistent + (share > 0.0 ? share * fabs(m) : 0.0);
+            const int ok = s_r[i] >= snr_min && s_f[i] >= snr_min && fabs(vel[i] - m) < tol;
+            trusted[i] = ok;
+            if (ok) {
+                l = i;
+                if (f < 0) f = i;
             }
-            for (int i = a; i < b; ++i) {             // the trusted pair at or before each
-                if (trusted[i]) p = i;
-                prev[i] = p;
+        }
+        if (last) return;                         // uniform in the group
+        ends[3 * lid] = l;
+        ends[3 * lid + 1] = f;
+        barrier(CLK_LOCAL_MEM_FENCE | CLK_GLOBAL_MEM_FENCE);
+        // the next velocity of each pair (pairing.regularise) and whether it moved
+        int p = -1, n = -1;
+        for (int k = 0; k < lsz; ++k) {
+            const int lk = ends[3 * k], fk = ends[3 * k + 1];
+            if (k < lid && lk >= 0) p = lk;
+            if (k > lid && fk >= 0 && n < 0) n = fk;
+        }
+        for (int i = a; i < b; ++i) {             // the trusted pair at or before each
+            if (trusted[i]) p = i;
+            prev[i] = p;
+        }
+        int moved = 0;
+        for (int i = b - 1; i >= a; --i) {        // ... and after, both in its group
+            if (trusted[i]) n = i;
+            const int pg = prev[i] >= bounds[i] ? prev[i] : -1;
+            const int ng = n >= 0 && n <= bounds[pairs + i] ? n : -1;
+            const double v = interpolated(t, med, i, pg, ng);
+            next[i] = v;
+            moved += fabs(v - vd[i]) >= stop;
+        }
+        barrier(CLK_LOCAL_MEM_FENCE);
+        ends[3 * lid + 2] = moved;
+        barrier(CLK_LOCAL_MEM_FENCE);
+        // the moved pairs, listed in order
+        int at = 0, total = 0;
+        for (int k = 0; k < lsz; ++k) {
+            at += k < lid ? ends[3 * k + 2] : 0;
+            total += ends[3 * k + 2];
+        }
+        for (int i = a; i < b; ++i) {
+            const double v = next[i];
+            if (fabs(v - vd[i]) >= stop) {
+                vd[i] = v;
+                rows[at] = i;
+                v32[at] = (float)v;
+                slot[i] = at++;
+            } else {
+                slot[i] = -1;
             }
-            int moved = 0;
-            for (int i = b - 1; i >= a; --i) {        // ... and after, both in its group
-                if (trusted[i]) n = i;
-                const int pg = prev[i] >= bounds[i] ? prev[i] : -1;
-                const int ng = n >= 0 && n <= bounds[pairs + i] ? n : -1;
-                const double v = interpolated(t, med, i, pg, ng);
-                next[i] = v;
-                moved += fabs(v - vd[i]) >= stop;
-            }
-            barrier(CLK_LOCAL_MEM_FENCE);
-            ends[3 * lid + 2] = moved;
-            barrier(CLK_LOCAL_MEM_FENCE);
-            // the moved pairs, listed in order
-            int at = 0, total = 0;
-            for (int k = 0; k < lsz; ++k) {
-                at += k < lid ? ends[3 * k + 2] : 0;
-                total += ends[3 * k + 2];
-            }
-            for (int i = a; i < b; ++i) {
-                const double v = next[i];
-                if (fabs(v - vd[i]) >= stop) {
-                    vd[i] = v;
-                    rows[at] = i;
-                    v32[at] = (float)v;
-                    slot[i] = at++;
-                } else {
-                    slot[i] = -1;
-                }
-            }
-            barrier(CLK_GLOBAL_MEM_FENCE);
-            if (lid == 0) {
-                state[0] = total;
-                state[1] = total == 0;
-            }
+        }
+        barrier(CLK_GLOBAL_MEM_FENCE);
+        if (lid == 0) {
+            state[0] = total;
+            state[1] = total == 0;
         }
     }
 }
