@@ -4,11 +4,12 @@ benchmarks/README.md: on one device,
     python benchmarks/gpu.py [--device nvidia] [--seconds 1] [--batch 8] [--json FILE]
 
 1. every kernel against its numpy twin on the device (fmcw_cl.opencl.selftest);
-2. `fmcw-cl bench`'s table for numpy and the device (per stage, end to end, host CPU
+2. `fmcw-cl bench`'s table for numpy and the device (`--backends`; per stage, end to end, host CPU
    per second of capture, launches and copies per chunk);
 3. a batch: `--batch` captures of the guide rail, `--seconds` each, converted by one
-   warm backend as `fmcw-cl process` does (batch.process_each), one at a time and two
-   at once: the aggregate multiple of real time, file to track (page cache); and three
+   warm backend as `fmcw-cl process` does (batch.process_each), `--workers` at once
+   (1 and 2 unless given; each count twice, in order and back, the best of the two):
+   the aggregate multiple of real time, file to track (page cache); and three
    of them alone, each the second of two conversions by one warm backend. The backend
    warms up on captures of its own, so every capture of the batch is one it has not
    seen (where a kernel build waits for a new size, it shows: `benchmarks/README.md`,
@@ -19,7 +20,9 @@ benchmarks/README.md: on one device,
    at once, where the threads of 3 share one interpreter. Best of two runs after one
    that warms the workers up.
 
-Runs on any OpenCL device (PoCL too); the figures are ratios within one run.
+The captures (the bench's and the batch's) are written first, at once, a process each
+(a 1 s capture takes a core 20-40 s), into `--captures` where given, which keeps them for
+the next run. Runs on any OpenCL device (PoCL too); the figures are ratios within one run.
 """
 
 from __future__ import annotations
@@ -33,35 +36,33 @@ from pathlib import Path
 
 from fmcw_cl.backend import make_processor
 from fmcw_cl.batch import process_each
+from fmcw_cl.bench import captures as bench_captures
 from fmcw_cl.bench import run
 from fmcw_cl.engine import process
 from fmcw_cl.opencl.selftest import check
 from fmcw_cl.options import Options
-from fmcw_cl.simulator import rail, simulate_capture
+from fmcw_cl.simulator import rail, simulate_captures
 
 
-def captures(seconds: float, count: int, folder: Path) -> list[Path]:
+def captures(seconds: float, count: int, folder: Path) -> list[dict]:
     """`count` captures of the guide rail of `seconds` (seeds 100 on), and two more for
-    warming up, last; those already in `folder` (`--captures`) are not written again."""
-    paths = []
-    for k in range(count + 2):
-        path = folder / f"rail{k}_{seconds:g}s.h5"
-        if not path.exists():
-            simulate_capture(path, rail(seconds + 0.1), seconds, seed=100 + k, start_s=0.1)
-        paths.append(path)
-    return paths
+    warming up, last: jobs of `simulate_captures`."""
+    return [{"path": folder / f"rail{k}_{seconds:g}s.h5", "trajectory": rail(seconds + 0.1),
+             "duration_s": seconds, "seed": 100 + k, "start_s": 0.1} for k in range(count + 2)]
 
 
-def batch(device: str | None, seconds: float, paths: list[Path]) -> list[dict]:
+def batch(device: str | None, seconds: float, paths: list[Path], counts: list[int]) -> list[dict]:
     """Aggregate throughput of the captures of `paths` (`captures`) converted by
-    batch.process_each (`fmcw-cl process`), one at a time and two at once (the device's
-    own choice is the backend's `batch_workers`): a row each."""
+    batch.process_each (`fmcw-cl process`), each of `counts` at once (the device's own
+    choice is the backend's `batch_workers`), in order and back: a row each, the best of
+    its two runs."""
     count = len(paths) - 2
+    counts = list(dict.fromkeys(min(c, count) for c in counts))      # no more at once than captures
     be = make_processor("opencl", device)
-    # warm: programs built, both workers' buffers sized, on captures of their own
-    list(process_each(paths[count:], Options(), be, workers=2))
+    # warm: programs built, every worker's buffers sized, on captures of their own
+    list(process_each(paths[count:], Options(), be, workers=max(counts)))
     best: dict[int, dict] = {}
-    for workers in (1, 2, 2, 1):          # each twice, in both orders: the best of each
+    for workers in [*counts, *counts[::-1]]:
         wall, cpu, main = time.perf_counter(), os.times(), time.thread_time()
         for _, got in process_each(paths[:count], Options(), be, workers):
             if isinstance(got, Exception):
@@ -76,7 +77,7 @@ def batch(device: str | None, seconds: float, paths: list[Path]) -> list[dict]:
                "host_cpu_ms_per_s": 1e3 * main / total if workers == 1 else float("nan")}
         if workers not in best or wall < best[workers]["wall_s"]:
             best[workers] = row
-    return [best[1], best[2]]
+    return [best[w] for w in counts]
 
 
 def alone(device: str | None, seconds: float, paths: list[Path], count: int = 3) -> list[dict]:
@@ -127,26 +128,33 @@ def main() -> None:
     ap.add_argument("--seconds", type=float, default=1.0)
     ap.add_argument("--batch", type=int, default=8)
     ap.add_argument("--batch-only", action="store_true", help="only the batch (no check, no bench table)")
+    ap.add_argument("--workers", type=int, nargs="+", default=[1, 2], help="captures of the batch at once")
+    ap.add_argument("--backends", nargs="+", default=["numpy", "opencl"], choices=["numpy", "opencl"],
+                    help="the bench table's backends (numpy's rows take minutes for a 1 s capture)")
     ap.add_argument("--processes", type=int, nargs="*", default=[],
                     help="also the batch on local:N Dask clusters of these N (needs Dask)")
     ap.add_argument("--json", type=Path)
-    ap.add_argument("--captures", type=Path, help="folder where the batch's captures are kept and found "
-                    "(default: a removed temp dir)")
+    ap.add_argument("--captures", type=Path, help="folder where the bench's and the batch's captures are "
+                    "kept and found (default: a removed temp dir)")
     args = ap.parse_args()
-    rows = []
-    if not args.batch_only:
-        check(args.device)
-        rows = run(args.seconds, 1000, ("numpy", "opencl"), args.device)
-        print("\n| backend | stage | s | x real time | of end to end | host CPU ms per s |")
-        print("|---|---|---|---|---|---|")
-    for r in rows:
-        host = f"{r['host_cpu_ms_per_s']:.0f}" if "host_cpu_ms_per_s" in r else ""
-        share = r["share_of_end_to_end"]          # NaN: a scene's row, apart from the shares
-        print(f"| {r['backend']} | {r['stage']} | {r['seconds']:.4f} | {r['real_time_multiple']:.2f} | "
-              f"{f'{share:.0%}' if share == share else ''} | {host} |")
     with tempfile.TemporaryDirectory() as tmp:
-        paths = captures(args.seconds, args.batch, args.captures or Path(tmp))
-        got = batch(args.device, args.seconds, paths)
+        folder = args.captures or Path(tmp)
+        folder.mkdir(parents=True, exist_ok=True)
+        jobs = captures(args.seconds, args.batch, folder)
+        bench_jobs = [] if args.batch_only else bench_captures(args.seconds, folder)
+        paths = simulate_captures([*bench_jobs, *jobs])[len(bench_jobs):]      # all at once
+        rows = []
+        if not args.batch_only:
+            check(args.device)
+            rows = run(args.seconds, 1000, args.backends, args.device, folder=folder)
+            print("\n| backend | stage | s | x real time | of end to end | host CPU ms per s |")
+            print("|---|---|---|---|---|---|")
+        for r in rows:
+            host = f"{r['host_cpu_ms_per_s']:.0f}" if "host_cpu_ms_per_s" in r else ""
+            share = r["share_of_end_to_end"]          # NaN: a scene's row, apart from the shares
+            print(f"| {r['backend']} | {r['stage']} | {r['seconds']:.4f} | {r['real_time_multiple']:.2f} | "
+                  f"{f'{share:.0%}' if share == share else ''} | {host} |")
+        got = batch(args.device, args.seconds, paths, args.workers)
         for b in got:
             host = f", host CPU {b['host_cpu_ms_per_s']:.0f} ms per s" if b["workers"] == 1 else ""
             print(f"\nbatch: {b['captures']} captures of {args.seconds:g} s on {b['device']}, {b['workers']} "

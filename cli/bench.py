@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import click
 
@@ -20,7 +21,10 @@ from fmcw_cl.progress import Progress
               show_default=True)
 @click.option("--device", default=None, help="OpenCL device (see `fmcw-cl devices`).")
 @click.option("--json", "as_json", is_flag=True, help="Rows as JSON on stdout.")
-def command(seconds, points, backend, device, as_json):
+@click.option("--captures", "folder", type=click.Path(file_okay=False, path_type=Path), default=None,
+              help="Folder where the simulated captures are kept and found, for runs of the same "
+                   "--seconds to share (default: a temporary one).")
+def command(seconds, points, backend, device, as_json, folder):
     """Half-sweeps per second, MS/s and the multiple of real time, per stage and end to end.
 
     Real time is 100 MS/s per channel = 40 000 half-sweeps/s.
@@ -31,7 +35,9 @@ def command(seconds, points, backend, device, as_json):
     """
     backends = ("numpy", "opencl") if backend == "all" else (backend,)
     bar = Progress("simulating", enabled=None if not as_json else False, sample_rate_hz=100e6)
-    rows = run(seconds, points, backends, device, progress=bar)
+    if folder:
+        folder.mkdir(parents=True, exist_ok=True)
+    rows = run(seconds, points, backends, device, progress=bar, folder=folder)
     bar.close()
     if as_json:
         click.echo(json.dumps(rows, indent=2))

@@ -8,6 +8,7 @@ ratios within one run, on whatever else the machine is doing.
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import tempfile
 import time
@@ -21,7 +22,7 @@ from .capture import Capture
 from .engine import process
 from .options import Options
 from .plan import make_plan
-from .simulator import jump, rail, simulate_capture, static
+from .simulator import jump, rail, simulate_captures, static
 from .stages import resample, sync
 
 JUMP_S = 0.3      # the jump scenario's length (take-off to landing)
@@ -131,21 +132,34 @@ def _where_time_goes(be, fn, finish, seconds: float) -> dict:
     return got
 
 
+def captures(seconds: float, folder: Path) -> list[dict]:
+    """The bench's captures in `folder`, as jobs of `simulator.simulate_captures`: the
+    guide rail of `seconds`, a static target at 0.3 m as long, and the jump (its first
+    `JUMP_S` s at most)."""
+    jump_s = min(seconds, JUMP_S)
+    return [{"path": folder / f"bench_rail_{seconds:g}s.h5", "trajectory": rail(seconds + 0.1),
+             "duration_s": seconds, "seed": 1, "start_s": 0.1},
+            {"path": folder / f"bench_static_{seconds:g}s.h5", "trajectory": static(seconds, 0.3),
+             "duration_s": seconds, "seed": 2},
+            {"path": folder / f"bench_jump_{jump_s:g}s.h5", "trajectory": jump(JUMP_S), "duration_s": jump_s,
+             "seed": 3}]
+
+
 def run(seconds: float = 0.2, points: int = 1000, backends=("numpy", "opencl"),
-        device: str | None = None, progress=None) -> list[dict]:
+        device: str | None = None, progress=None, folder: Path | None = None) -> list[dict]:
     """Benchmark rows: backend, device, stage, seconds, half-sweeps/s, MS/s, x real time.
 
     Half-sweeps/s counts the half-sweeps of the whole capture for every stage, so
     the rows compare directly (the end-to-end rows include every pass and check).
+    The captures (`captures`) are kept and found in `folder` (those missing written at
+    once, a process each), else written to a temporary folder and removed.
     """
     rows = []
-    with tempfile.TemporaryDirectory() as tmp:
-        path = Path(tmp) / "bench.h5"
-        simulate_capture(path, rail(seconds + 0.1), seconds, seed=1, start_s=0.1, progress=progress)
-        scenes = {"static target": (Path(tmp) / "static.h5", seconds),
-                  f"jump ({min(seconds, JUMP_S):g} s)": (Path(tmp) / "jump.h5", min(seconds, JUMP_S))}
-        simulate_capture(scenes["static target"][0], static(seconds, 0.3), seconds, seed=2, progress=progress)
-        simulate_capture(Path(tmp) / "jump.h5", jump(JUMP_S), min(seconds, JUMP_S), seed=3, progress=progress)
+    with contextlib.ExitStack() as stack:
+        folder = Path(folder or stack.enter_context(tempfile.TemporaryDirectory()))
+        path, static_path, jump_path = simulate_captures(captures(seconds, folder), progress=progress)
+        scenes = {"static target": (static_path, seconds),
+                  f"jump ({min(seconds, JUMP_S):g} s)": (jump_path, min(seconds, JUMP_S))}
         for name in backends:
             rows += _stage_rows(make_processor(name, device), path, Options(points=points), seconds, scenes)
     return rows

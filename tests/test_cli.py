@@ -216,10 +216,13 @@ def test_shipped_samples_convert_without_warnings(tmp_path, fmcw, sample):
     assert track.attrs["tuning_matches"] and track.valid.all()
 
 
-def test_bench_rows_for_both_backends(fmcw):
+def test_bench_rows_for_both_backends(fmcw, tmp_path):
     """`bench --json`: every stage for each backend, with the device and figures that
-    agree with each other (a benchmark, so no speed is asserted)."""
-    rows = json.loads(fmcw("bench", "--seconds", "0.01", "--json").stdout)
+    agree with each other (a benchmark, so no speed is asserted); its captures kept in
+    `--captures` for the next run."""
+    rows = json.loads(fmcw("bench", "--seconds", "0.01", "--json", "--captures", tmp_path / "caps").stdout)
+    assert sorted(p.name for p in (tmp_path / "caps").iterdir()) == [
+        "bench_jump_0.01s.h5", "bench_rail_0.01s.h5", "bench_static_0.01s.h5"]
     stages = {r["stage"] for r in rows}
     scenes = {"end to end, static target", "end to end, jump (0.01 s)"}       # apart from the shares
     assert {"sync turning points", "resample", "de-chirp + FFT + peak",

@@ -11,6 +11,7 @@ from fmcw_cl.capture import Capture
 from fmcw_cl.physics import C
 from fmcw_cl.simulator import SimulationConfig, Trajectory, jump, paper_dfb, rail, simulate_capture, static
 from fmcw_cl.simulator.laser import DfbLaser
+from fmcw_cl.simulator.many import simulate_captures
 
 
 def test_dfb_tuning_matches_paper_fig3():
@@ -96,6 +97,29 @@ def test_capture_is_deterministic_and_valid(tmp_path):
         assert truth.time_s[0] == 0 and truth.distance_m.size == truth.time_s.size
         # the excerpt starts at scenario time 0.07: fast take-off
         assert truth.velocity_mps[0] > 5
+
+
+def test_captures_written_at_once_equal_each_written_alone(tmp_path):
+    """`simulate_captures`: processes of their own write what `simulate_capture` writes,
+    a capture already there is kept, and progress reaches the total."""
+    def jobs(folder):
+        return [{"path": folder / f"c{k}.h5", "trajectory": jump(0.3), "duration_s": 0.0005 * (k + 1),
+                 "seed": k, "start_s": 0.07} for k in range(3)]
+    (tmp_path / "many").mkdir()
+    alone = jobs(tmp_path)
+    for job in alone:
+        simulate_capture(**job)
+    many = jobs(tmp_path / "many")
+    many[1]["path"].write_bytes(b"kept")
+    seen = []
+    paths = simulate_captures(many, progress=lambda done, total: seen.append((done, total)))
+    assert paths == [job["path"] for job in many] and many[1]["path"].read_bytes() == b"kept"
+    assert seen[-1] == (200_000, 200_000) and len(seen) == 2
+    for k in (0, 2):
+        with Capture(alone[k]["path"]) as ca, Capture(many[k]["path"]) as cb:
+            assert ca.info.samples == cb.info.samples == 50_000 * (k + 1)
+            for x, y in zip(ca.read(0, ca.info.samples), cb.read(0, cb.info.samples), strict=True):
+                np.testing.assert_array_equal(x, y)
 
 
 def test_speckle_field_is_rayleigh_with_its_correlation_time():
