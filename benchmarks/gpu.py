@@ -51,7 +51,7 @@ def captures(seconds: float, count: int, folder: Path) -> list[dict]:
              "duration_s": seconds, "seed": 100 + k, "start_s": 0.1} for k in range(count + 2)]
 
 
-def batch(device: str | None, seconds: float, paths: list[Path], counts: list[int]) -> list[dict]:
+def batch(device: str | None, seconds: float, paths: list[Path], counts: list[int] = (1, 2)) -> list[dict]:
     """Aggregate throughput of the captures of `paths` (`captures`) converted by
     batch.process_each (`fmcw-cl process`), each of `counts` at once (the device's own
     choice is the backend's `batch_workers`), in order and back: a row each, the best of

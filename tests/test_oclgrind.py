@@ -169,12 +169,13 @@ def test_gpu_benchmark_batch_runs_anywhere(tmp_path):
     spec = importlib.util.spec_from_file_location("gpu", Path(__file__).parents[1] / "benchmarks" / "gpu.py")
     gpu = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(gpu)
-    paths = gpu.captures(0.01, 2, tmp_path)
+    paths = gpu.simulate_captures(gpu.captures(0.01, 2, tmp_path))
     written = [p.stat().st_mtime_ns for p in paths]
-    assert gpu.captures(0.01, 2, tmp_path) == paths                   # kept, found again
+    assert gpu.simulate_captures(gpu.captures(0.01, 2, tmp_path)) == paths      # kept, found again
     assert [p.stat().st_mtime_ns for p in paths] == written
     one, two = gpu.batch(None, 0.01, paths)
     assert (one["workers"], two["workers"]) == (1, 2) and one["default"] != two["default"]
+    assert [r["workers"] for r in gpu.batch(None, 0.01, paths, [3, 1, 2])] == [2, 1]   # at most 2 captures
     for got in (one, two):
         assert got["captures"] == 2 and got["capture_seconds"] == 0.02
         assert got["real_time_multiple"] == pytest.approx(0.02 / got["wall_s"])
