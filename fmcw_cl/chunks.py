@@ -106,10 +106,11 @@ def held_end_to_end(cap: Capture, options: Options, ranges: list[tuple[int, int]
     sizes = [hi - lo for _, lo, hi, *_ in spans]
     offsets = np.cumsum([0, *sizes]).tolist()
     beat, sync = cap.slot(HELD_SLOT, offsets[-1])
-    chunks = []
-    for (_, lo, hi, core_start, core_stop), at in zip(spans, offsets, strict=False):
-        b, s = cap.read_into(lo, hi, beat[at: at + hi - lo], sync[at: at + hi - lo])
-        chunks.append(Chunk(lo, b, s, core_start, core_stop))
+    cuts = [slice(at, at + hi - lo) for (_, lo, hi, *_), at in zip(spans, offsets, strict=False)]
+    read = cap.read_spans([(lo, hi) for _, lo, hi, *_ in spans], [beat[c] for c in cuts],
+                          [sync[c] for c in cuts])
+    chunks = [Chunk(lo, b, s, core_start, core_stop)
+              for (_, lo, _, core_start, core_stop), (b, s) in zip(spans, read, strict=True)]
     return beat, chunks, offsets[:-1], [k for k, *_ in spans]
 
 

@@ -85,17 +85,15 @@ class Extents:
         long read in READERS pieces at once (`preadv` lets the GIL go).
 
         Raises OSError when the file ends early (a truncated copy)."""
+        read_all([(self, fd, start, stop, out)])
+
+    def pieces(self, fd: int, start: int, stop: int, out: np.ndarray) -> list[tuple]:
+        """The reads of samples [start, stop) into `out`, as arguments of `_read`: one,
+        or up to READERS of a long read (PIECE_BYTES or more each)."""
         view = memoryview(out).cast("B")
-        pieces = min(READERS, (stop - start) * ITEM // PIECE_BYTES)
-        if pieces < 2:
-            self._read(fd, start, stop, view, start)
-            return
-        bounds = np.linspace(start, stop, pieces + 1).astype(np.int64)
-        pieces = [_pool().submit(self._read, fd, int(a), int(b), view, start)
-                  for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
-        wait(pieces)                    # all done before any error leaves: none writes after
-        for piece in pieces:
-            piece.result()
+        count = min(READERS, (stop - start) * ITEM // PIECE_BYTES)
+        bounds = np.linspace(start, stop, max(count, 1) + 1).astype(np.int64)
+        return [(fd, int(a), int(b), view, start) for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
 
     def _read(self, fd: int, start: int, stop: int, view: memoryview, origin: int) -> None:
         """Samples [start, stop) into `view`, the bytes of the samples from `origin` on."""
@@ -111,3 +109,17 @@ class Extents:
             if got != want:
                 raise OSError(f"the file ends {want - got} bytes into samples {pos}-{end}")
             pos = end
+
+
+def read_all(reads: list[tuple[Extents, int, int, int, np.ndarray]]) -> None:
+    """`Extents.read` of each (extents, fd, start, stop, out) of `reads`, all at once on
+    the reader threads (a plan's stretches: a dozen reads of a few MB), a single piece
+    in this thread. Returns when every piece is done; raises the first piece's OSError."""
+    jobs = [(ext, args) for ext, fd, start, stop, out in reads for args in ext.pieces(fd, start, stop, out)]
+    if len(jobs) == 1:
+        jobs[0][0]._read(*jobs[0][1])
+        return
+    pieces = [_pool().submit(ext._read, *args) for ext, args in jobs]
+    wait(pieces)                    # all done before any error leaves: none writes after
+    for piece in pieces:
+        piece.result()

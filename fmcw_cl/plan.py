@@ -84,8 +84,7 @@ def estimate_capture_delay(cap: Capture, processor: ChunkProcessor | None = None
     # the stretches as rows (in a chunk slot, free until the chunks are read), low-passed
     # by one launch a channel
     beat, sy = (x.reshape(starts.size, length) for x in cap.slot(1, starts.size * length))
-    for a, b, s in zip(starts, beat, sy, strict=True):
-        cap.read_into(a, a + length, b, s)
+    cap.read_spans([(a, a + length) for a in starts], list(beat), list(sy))
     return sync.combine_delays(*processor.period_delays(beat, sy, info.sample_rate_hz, hp))
 
 

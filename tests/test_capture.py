@@ -295,7 +295,8 @@ def _relayout(path, tmp_path, layout):
 def test_every_layout_reads_the_same_samples(tmp_path, layout, piece, monkeypatch):
     """Raw int16 channels are read straight from the file (fmcw_cl.extents), any other
     layout through h5py; either way every range holds what h5py reads there, a read of
-    several pieces (`piece` bytes, three threads) too."""
+    several pieces (`piece` bytes, three threads) too, and so do all the ranges read at
+    once (`read_spans`, a plan's stretches)."""
     from fmcw_cl import extents
 
     if piece:
@@ -313,6 +314,14 @@ def test_every_layout_reads_the_same_samples(tmp_path, layout, piece, monkeypatc
             beat, sync = cap.read(a, b)
             np.testing.assert_array_equal(beat, f["adc/beat"][a:b].astype(np.int64).clip(-32768, 32767))
             np.testing.assert_array_equal(sync, f["adc/sync"][a:b].astype(np.int64).clip(-32768, 32767))
+        spans = [*ranges, (23_000, 24_000)]                     # the last one past the end
+        beats, syncs = ([np.full(b - a, -7, np.int16) for a, b in spans] for _ in range(2))
+        got = cap.read_spans(spans, beats, syncs)
+        for (a, b), (beat, sync), whole in zip(spans, got, beats, strict=True):
+            assert beat.base is whole                        # views of the arrays given
+            np.testing.assert_array_equal(beat, f["adc/beat"][a:b].astype(np.int64).clip(-32768, 32767))
+            np.testing.assert_array_equal(sync, f["adc/sync"][a:b].astype(np.int64).clip(-32768, 32767))
+        assert (beats[-1][457:] == -7).all()                 # nothing written past the file
 
 
 @pytest.mark.parametrize("piece", [None, 1000])
@@ -334,6 +343,9 @@ def test_a_file_cut_after_opening_fails_its_read(tmp_path, piece, monkeypatch):
             f.truncate(size // 2)
         with pytest.raises(CaptureError, match=r"c\.h5: cannot read samples 0-23457 \(the file ends"):
             cap.read(0, 23_457)
+        spans = [(0, 5000), (9000, 23_457)]
+        with pytest.raises(CaptureError, match=r"c\.h5: cannot read samples 0-23457 \(the file ends"):
+            cap.read_spans(spans, *([np.empty(b - a, np.int16) for a, b in spans] for _ in range(2)))
 
 
 def test_extents_by_a_query_a_chunk_equal_the_index_walk(tmp_path):
