@@ -5,7 +5,7 @@ conversions (markdown rows on stdout).
 
 On PoCL a wait for the device sleeps, so this is the host's own work, the figure that
 bounds a GPU's end to end. Without captures: a 1 s rail, the 0.3 s jump and a 0.5 s
-static target of the simulator's defaults (seeds 1-3), made in a temporary folder. To
+static target of the simulator's defaults (seeds 1-3), written at once in a temporary folder. To
 compare two versions, install one apart (pip install --target DIR) and run this script
 with PYTHONPATH=DIR, alternately with the other, in one session.
 """
@@ -21,7 +21,7 @@ from scratch import folder
 from fmcw_cl.backend import make_processor
 from fmcw_cl.engine import process
 from fmcw_cl.options import Options
-from fmcw_cl.simulator import jump, rail, simulate_capture, static
+from fmcw_cl.simulator import jump, rail, simulate_captures, static
 
 
 def main() -> None:
@@ -33,10 +33,10 @@ def main() -> None:
     captures = args.captures
     if not captures:
         tmp = folder(None, "fmcw-host-")
-        for seed, (name, scene, seconds) in enumerate((("rail", rail, 1.0), ("jump", jump, 0.3),
-                                                        ("static", static, 0.5)), 1):
-            captures.append(tmp / f"{name}.h5")
-            simulate_capture(captures[-1], scene(seconds), seconds, seed=seed)
+        scenes = (("rail", rail, 1.0), ("jump", jump, 0.3), ("static", static, 0.5))
+        captures = simulate_captures([{"path": tmp / f"{name}.h5", "trajectory": scene(seconds),
+                                       "duration_s": seconds, "seed": seed}
+                                      for seed, (name, scene, seconds) in enumerate(scenes, 1)])
     be = make_processor(args.backend)
     print("| capture | device | host CPU ms per s of capture |\n|---|---|---|")
     for path in captures:
