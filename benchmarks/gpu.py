@@ -20,7 +20,7 @@ benchmarks/README.md: on one device,
    at once, where the threads of 3 share one interpreter. Best of two runs after one
    that warms the workers up.
 
-The captures (the bench's and the batch's) are written first, at once, a process each
+The captures (the bench's and the batch's) are written first, at once, a thread each
 (a 1 s capture takes a core 20-40 s), into `--captures` where given, which keeps them for
 the next run. Runs on any OpenCL device (PoCL too); the figures are ratios within one run.
 """

@@ -152,7 +152,7 @@ def run(seconds: float = 0.2, points: int = 1000, backends=("numpy", "opencl"),
     Half-sweeps/s counts the half-sweeps of the whole capture for every stage, so
     the rows compare directly (the end-to-end rows include every pass and check).
     The captures (`captures`) are kept and found in `folder` (those missing written at
-    once, a process each), else written to a temporary folder and removed.
+    once, a thread each), else written to a temporary folder and removed.
     """
     rows = []
     with contextlib.ExitStack() as stack:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import subprocess
+import sys
 from dataclasses import replace
 
 import numpy as np
@@ -100,8 +102,9 @@ def test_capture_is_deterministic_and_valid(tmp_path):
 
 
 def test_captures_written_at_once_equal_each_written_alone(tmp_path):
-    """`simulate_captures`: processes of their own write what `simulate_capture` writes,
-    a capture already there is kept, and progress reaches the total."""
+    """`simulate_captures`: threads of their own write what `simulate_capture` writes,
+    a capture already there is kept, and progress reaches the total; a script without a
+    `__main__` guard may call it (no processes spawned that import the script again)."""
     def jobs(folder):
         return [{"path": folder / f"c{k}.h5", "trajectory": jump(0.3), "duration_s": 0.0005 * (k + 1),
                  "seed": k, "start_s": 0.07} for k in range(3)]
@@ -115,6 +118,14 @@ def test_captures_written_at_once_equal_each_written_alone(tmp_path):
     paths = simulate_captures(many, progress=lambda done, total: seen.append((done, total)))
     assert paths == [job["path"] for job in many] and many[1]["path"].read_bytes() == b"kept"
     assert seen[-1] == (200_000, 200_000) and len(seen) == 2
+    script = tmp_path / "unguarded.py"
+    script.write_text("from pathlib import Path\nfrom fmcw_cl.simulator import jump, simulate_captures\n"
+                      f"folder = Path({str(tmp_path)!r})\n"
+                      "simulate_captures([{'path': folder / f'u{k}.h5', 'trajectory': jump(0.3), "
+                      "'duration_s': 0.0002, 'seed': k} for k in range(2)])\nprint('written')\n")
+    run = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=120)
+    assert run.returncode == 0 and run.stdout == "written\n", run.stderr
+    assert (tmp_path / "u0.h5").exists() and (tmp_path / "u1.h5").exists()
     for k in (0, 2):
         with Capture(alone[k]["path"]) as ca, Capture(many[k]["path"]) as cb:
             assert ca.info.samples == cb.info.samples == 50_000 * (k + 1)
