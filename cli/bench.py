@@ -35,8 +35,6 @@ def command(seconds, points, backend, device, as_json, folder):
     """
     backends = ("numpy", "opencl") if backend == "all" else (backend,)
     bar = Progress("simulating", enabled=None if not as_json else False, sample_rate_hz=100e6)
-    if folder:
-        folder.mkdir(parents=True, exist_ok=True)
     rows = run(seconds, points, backends, device, progress=bar, folder=folder)
     bar.close()
     if as_json:
