@@ -32,6 +32,7 @@ import json
 import os
 import tempfile
 import time
+from collections.abc import Sequence
 from pathlib import Path
 
 from fmcw_cl.backend import make_processor
@@ -51,7 +52,8 @@ def captures(seconds: float, count: int, folder: Path) -> list[dict]:
              "duration_s": seconds, "seed": 100 + k, "start_s": 0.1} for k in range(count + 2)]
 
 
-def batch(device: str | None, seconds: float, paths: list[Path], counts: list[int] = (1, 2)) -> list[dict]:
+def batch(device: str | None, seconds: float, paths: list[Path], counts: Sequence[int] = (1, 2)
+          ) -> list[dict]:
     """Aggregate throughput of the captures of `paths` (`captures`) converted by
     batch.process_each (`fmcw-cl process`), each of `counts` at once (the device's own
     choice is the backend's `batch_workers`), in order and back: a row each, the best of
@@ -139,7 +141,6 @@ def main() -> None:
     args = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         folder = args.captures or Path(tmp)
-        folder.mkdir(parents=True, exist_ok=True)
         jobs = captures(args.seconds, args.batch, folder)
         bench_jobs = [] if args.batch_only else bench_captures(args.seconds, folder)
         paths = simulate_captures([*bench_jobs, *jobs])[len(bench_jobs):]      # all at once

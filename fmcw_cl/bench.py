@@ -157,7 +157,6 @@ def run(seconds: float = 0.2, points: int = 1000, backends=("numpy", "opencl"),
     rows = []
     with contextlib.ExitStack() as stack:
         folder = Path(folder or stack.enter_context(tempfile.TemporaryDirectory()))
-        folder.mkdir(parents=True, exist_ok=True)
         path, static_path, jump_path = simulate_captures(captures(seconds, folder), progress=progress)
         scenes = {"static target": (static_path, seconds),
                   f"jump ({min(seconds, JUMP_S):g} s)": (jump_path, min(seconds, JUMP_S))}

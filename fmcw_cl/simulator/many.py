@@ -10,6 +10,7 @@ from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor, as_completed
 from pathlib import Path
 
+from ..atomic import output_folder
 from .writer import SimulationConfig, simulate_capture
 
 
@@ -30,7 +31,8 @@ def simulate_captures(jobs: list[dict], workers: int | None = None,
     ----------
     jobs : list of dict
         Keyword arguments of `simulate_capture` (`path`, `trajectory`, `duration_s`, ...),
-        one capture each. A capture whose `path` exists is kept as it is.
+        one capture each. A capture whose `path` exists is kept as it is; the folders of
+        the others are made where missing.
     workers : int, optional
         Captures written at once (default: one per capture, at most the CPUs).
     progress : callable(done_samples, total_samples), optional
@@ -41,6 +43,8 @@ def simulate_captures(jobs: list[dict], workers: int | None = None,
     The paths of `jobs`, in order.
     """
     todo = [job for job in jobs if not Path(job["path"]).exists()]
+    for folder in {Path(job["path"]).parent for job in todo}:
+        output_folder(folder)
     total, done = sum(_samples(job) for job in todo), 0
     workers = max(1, min(workers or os.cpu_count() or 1, len(todo)))
     with ThreadPoolExecutor(workers, thread_name_prefix="fmcw-simulate") as pool:
