@@ -210,10 +210,14 @@ def mean_peaks(sums: np.ndarray, counts: np.ndarray, lo: int) -> tuple[np.ndarra
     if b == 0 or k1 <= k0:
         return np.zeros(0, np.int64), np.zeros(0), np.zeros(0)
     mean = sums / np.maximum(counts, 1)[:, None]
-    c = np.concatenate([np.zeros((b, 1)), np.cumsum(mean, axis=1)], axis=1)
-    k = np.arange(k0, k1)
-    left = (c[:, k - cfar.GUARD] - c[:, k - reach]) / cfar.TRAIN
-    right = (c[:, k + reach + 1] - c[:, k + cfar.GUARD + 1]) / cfar.TRAIN
+    c = np.zeros((b, half + 1))
+    np.cumsum(mean, axis=1, out=c[:, 1:])
+
+    def at(d: int) -> np.ndarray:                    # c[:, k + d] for every tested bin k
+        return c[:, k0 + d: k1 + d]
+
+    left = (at(-cfar.GUARD) - at(-reach)) / cfar.TRAIN
+    right = (at(reach + 1) - at(cfar.GUARD + 1)) / cfar.TRAIN
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = mean[:, k0:k1] / np.maximum(left, right)
     limit = MEAN_LIMITS[np.clip(counts, 1, MEAN_ROWS) - 1]

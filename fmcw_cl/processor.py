@@ -101,7 +101,7 @@ class Pending:
 
     beat: np.ndarray
     times: tuple[np.ndarray, np.ndarray]
-    own: np.ndarray
+    own: slice | np.ndarray
     result: pairing.PairResult
     clip: np.ndarray
     clipped_codes: int
@@ -352,7 +352,7 @@ class ChunkProcessor(pairing.SpectrumOps):
         plan = self.plan
         hs, r, f, times = found
         first = chunk.start + hs.start[r] + lag      # sync time of the pair's first turn
-        own = (first >= chunk.core_start) & (first < chunk.core_stop)
+        own = owned(first, chunk.core_start, chunk.core_stop)
         sel = res.take(own)
         r, f = r[own], f[own]
         # the falling half-sweep starts where the rising one ends: one span per pair
@@ -365,7 +365,7 @@ class ChunkProcessor(pairing.SpectrumOps):
         clipped = int(counts[core].sum(dtype=np.int64))
         return Pending(chunk.beat, (times.rise, times.fall), own, sel, clip, clipped,
                        self._range_check(hs, r, f, sel) if plan.check is not None and r.size else None,
-                       self._survey(rows, res, np.flatnonzero(own)) if plan.survey else None)
+                       self._survey(rows, res, np.arange(first.size)[own]) if plan.survey else None)
 
     def _finished(self, chunk: Pending, got: tuple) -> ChunkMeasurements:
         """The measurements of a `chunk` whose range check and survey gave `got`."""
@@ -433,10 +433,22 @@ class ChunkProcessor(pairing.SpectrumOps):
                                res.distance])
         near = np.any(seen > CHECK_NEAR * plan.lut.unambiguous_range_m)
         stride = CHECK_STRIDE if near else CHECK_STRIDE_FAR
-        checked = np.unique(np.r_[np.arange(0, r.size, stride), r.size - 1])
+        checked = np.arange(0, r.size, stride)
+        if checked[-1] != r.size - 1:
+            checked = np.append(checked, r.size - 1)
         sides = ((r[checked], lut2.u_rise), (f[checked], lut2.u_fall))
         return RangeCheck(checked, [(hs.start[idx], hs.length[idx], u) for idx, u in sides], win2, model2,
                           Search(plan.search.lo, model2.nfft // 2))
+
+
+def owned(first: np.ndarray, start: int, stop: int) -> slice | np.ndarray:
+    """The pairs a chunk owns, those whose first turn (`first`, sync samples) lies in
+    its core [start, stop): a slice where they are one run, as they are where `first`
+    increases, so that taking them makes views, not copies; else their indices."""
+    idx = np.flatnonzero((first >= start) & (first < stop))
+    if idx.size and idx[-1] - idx[0] + 1 == idx.size:
+        return slice(int(idx[0]), int(idx[-1]) + 1)
+    return idx
 
 
 @dataclass(frozen=True)

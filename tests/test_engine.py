@@ -193,3 +193,17 @@ def test_a_choice_beside_walls_keeps_the_first_assemblys_echo_table(tmp_path, mo
     for key in ("time_s", "distance_m", "velocity_mps", "valid", "reason"):
         np.testing.assert_array_equal(getattr(track, key), getattr(again, key))
     assert track.echoes.attrs() == again.echoes.attrs()
+
+
+def test_owned_pairs_are_a_slice_where_they_are_one_run():
+    """A chunk's owned pairs (first turn in its core) are taken as views where they are
+    one run, as with increasing turns; otherwise by index, the same pairs."""
+    from fmcw_cl.processor import owned
+
+    first = np.arange(10) * 5000.0 + 100.0
+    got = owned(first, 10_000, 30_000)
+    assert got == slice(2, 6) and np.array_equal(first[got], first[(first >= 10_000) & (first < 30_000)])
+    shuffled = first[[0, 3, 1, 2, 9, 4]]
+    got = owned(shuffled, 10_000, 30_000)
+    assert np.array_equal(got, [1, 3, 5])
+    assert first[owned(first, 0, 50)].size == 0                 # none owned

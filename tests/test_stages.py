@@ -44,6 +44,23 @@ def test_turning_points_sub_sample_and_split_on_dropped_samples():
     assert tp.segment.max() == 1
 
 
+def test_uniform_grid_is_the_least_squares_line():
+    """The closed-form grid of a segment's turning points equals np.polyfit's line to a
+    few ulps, at a chunk's offsets (samples up to 4e7) and lengths (3 to 16 384)."""
+    rng = np.random.default_rng(4)
+    for n, t0 in ((3, 12.5), (4, 4e7), (101, 2.1e6), (16_384, 3.3e7)):
+        k = np.arange(n, dtype=np.float64)
+        t = t0 + 2500.137 * k + rng.normal(0, 0.3, n)
+        want = np.polyval(np.polyfit(k, t, 1), k)
+        np.testing.assert_allclose(sync.uniform_grid(t), want, rtol=0, atol=8 * np.spacing(t.max()))
+    # two segments split by dropped samples: each its own line
+    x = triangle(200_000, HP, t0=811.2, noise=4.0)
+    tp = sync.sync_turning_points(np.rint(np.delete(x, np.arange(90_000, 90_002))), HP)
+    for s in range(2):
+        seg = tp.time[tp.segment == s]
+        assert np.ptp(np.diff(seg)) < 1e-6 and abs(np.diff(seg).mean() - HP) < 0.01
+
+
 @pytest.mark.parametrize("lag,sign", [(17.3, 1.0), (-31.7, -1.0), (0.4, 1.0)])
 def test_delay_from_the_intensity_triangle(lag, sign):
     n = 400_000

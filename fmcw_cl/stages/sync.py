@@ -352,14 +352,23 @@ def turning_points(cr: Crossings, half_period: float) -> TurningPoints:
     ok[1:] &= good[:-1]
     ok[:-1] &= good[1:]
     idx = np.flatnonzero(ok)
-    seg = np.cumsum(np.concatenate([[True], np.diff(idx) != 1])) - 1
-    fitted = tp[idx].copy()
-    for s in range(int(seg[-1]) + 1 if seg.size else 0):
-        m = seg == s
-        if m.sum() >= 3:
-            k = np.arange(m.sum(), dtype=np.float64)
-            fitted[m] = np.polyval(np.polyfit(k, tp[idx][m], 1), k)
+    first = np.concatenate([[True], np.diff(idx) != 1])
+    seg = np.cumsum(first) - 1
+    fitted = tp[idx]
+    edges = [*np.flatnonzero(first), idx.size]
+    for a, b in zip(edges[:-1], edges[1:], strict=True):     # each segment: a run of consecutive idx
+        if b - a >= 3:
+            fitted[a:b] = uniform_grid(fitted[a:b])
     return TurningPoints(fitted, is_max[idx], seg.astype(np.int64))
+
+
+def uniform_grid(t: np.ndarray) -> np.ndarray:
+    """The least-squares straight line through t[0], t[1], ... at 0, 1, ...: in closed
+    form about the centres of both (np.polyfit's lstsq costs some 20 times as much on a
+    chunk's 16 384 turning points)."""
+    k = np.arange(t.size, dtype=np.float64) - 0.5 * (t.size - 1)
+    mean = t.mean()
+    return mean + k * (np.sum(k * (t - mean)) / np.sum(k * k))
 
 
 def sync_turning_points(sync: np.ndarray, half_period: float, fit=fitted) -> TurningPoints:
