@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .numeric import group_median, ragged
+from .numeric import group_median, neighbour_sums, ragged
 from .stages import cfar
 from .stages.cfar import Detections
 from .stages.spectrum import interpolate
@@ -386,7 +386,7 @@ def _histograms(key: np.ndarray, dist: np.ndarray, groups: int):
 
     def windowed(weights=None) -> np.ndarray:
         h = np.bincount(flat, weights, minlength=groups * nb).reshape(groups, nb)
-        return h + np.pad(h[:, :-1], ((0, 0), (1, 0))) + np.pad(h[:, 1:], ((0, 0), (0, 1)))
+        return neighbour_sums(h)
 
     return idx, windowed
 
@@ -394,10 +394,10 @@ def _histograms(key: np.ndarray, dist: np.ndarray, groups: int):
 def _peaks(window: np.ndarray, sweeps: np.ndarray, present: float) -> tuple[np.ndarray, np.ndarray]:
     """(group, bin) of the local maxima of each group's three-bin counts seen in at least
     `present` of its `sweeps` half-sweeps."""
-    left = np.pad(window[:, :-1], ((0, 0), (1, 0)), constant_values=-1)
-    right = np.pad(window[:, 1:], ((0, 0), (0, 1)), constant_values=-1)
-    return np.nonzero((window >= present * np.asarray(sweeps)[:, None]) & (window > left)
-                      & (window >= right) & (window > 0))
+    peak = (window >= present * np.asarray(sweeps)[:, None]) & (window > 0)     # counts: >= 0
+    peak[:, 1:] &= window[:, 1:] > window[:, :-1]
+    peak[:, :-1] &= window[:, :-1] >= window[:, 1:]
+    return np.nonzero(peak)
 
 
 def keyed_clusters(key: np.ndarray, dist: np.ndarray, snr: np.ndarray, sweeps: np.ndarray,

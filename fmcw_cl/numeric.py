@@ -66,6 +66,25 @@ def row_nanmedian(a: np.ndarray) -> np.ndarray:
     return 0.5 * (s[rows, (n - 1) // 2] + s[rows, n // 2])
 
 
+def padded(x: np.ndarray, n: int, fill=None) -> np.ndarray:
+    """1-D `x` with `n` values more at each end: `fill`, or (None) the end values.
+    np.pad(x, n, ...) for the host's many small arrays, without its 20-40 us a call."""
+    out = np.empty(x.size + 2 * n, x.dtype)
+    out[n: n + x.size] = x
+    out[:n] = x[0] if fill is None else fill
+    out[n + x.size:] = x[-1] if fill is None else fill
+    return out
+
+
+def neighbour_sums(h: np.ndarray) -> np.ndarray:
+    """Each value of the rows of `h` plus its left and right neighbours' (none beyond
+    a row's ends)."""
+    out = h.copy()
+    out[:, 1:] += h[:, :-1]
+    out[:, :-1] += h[:, 1:]
+    return out
+
+
 def running_median(x: np.ndarray, size: int, ends: tuple | None = None) -> np.ndarray:
     """Median of each value's `size` (odd) neighbourhood, the ends extended with the end
     values: scipy.ndimage.median_filter(x, size, mode="nearest") for finite x. `ends`:
@@ -76,7 +95,7 @@ def running_median(x: np.ndarray, size: int, ends: tuple | None = None) -> np.nd
     if x.size == 0:
         return np.zeros(0)
     if ends is None:
-        windows = np.lib.stride_tricks.sliding_window_view(np.pad(x, half, mode="edge"), size)
+        windows = np.lib.stride_tricks.sliding_window_view(padded(x, half), size)
     else:
         windows = x[window_index(x.size, half, ends)[0]]
     return np.partition(windows, half, axis=1)[:, half]

@@ -21,7 +21,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .. import numeric
-from ..numeric import median, row_nanmedian
+from ..numeric import median, padded, row_nanmedian
 from ..physics import C
 from . import cfar, integrate
 from .lut import Lut
@@ -266,7 +266,7 @@ def _residuals(t: np.ndarray, dist: np.ndarray, vel: np.ndarray, trusted: np.nda
     # each row's window of 2 NEIGHBOURS + 1 pairs (itself in the middle): strided views
     # of the padded arrays, taken RESIDUAL_BLOCK rows at a time (the (rows, window)
     # temporaries stay in cache), or copied for a subset of rows
-    windows = [np.lib.stride_tricks.sliding_window_view(np.pad(a, NEIGHBOURS, constant_values=fill),
+    windows = [np.lib.stride_tricks.sliding_window_view(padded(np.asarray(a), NEIGHBOURS, fill),
                                                         2 * NEIGHBOURS + 1)
                for a, fill in ((trusted, False), (t, 0.0), (dist, 0.0), (vel, 0.0))]
     blocks = [rows] if rows is not None else [slice(a, a + RESIDUAL_BLOCK)
