@@ -166,12 +166,27 @@ __kernel void spectrum_peak(__global const float *x,          // (rows, points)
                             __global const int *group_first,  // plain: each group's first row
                             const int groups,
                             const int plain,                  // plain: the transforms
+                            __global const float *x_b,      // the second job (work-group row 1):
+                            __global const float *beta_b,   // its rows, basis and outputs
+                            __global float *bin_b, __global float *snr_b, __global float *power_b,
+                            __global float *echo_bin_b, __global float *echo_snr_b,
+                            __global int *echo_count_b,
                             __local float *re,                // nfft
                             __local float *im,                // nfft
                             __local float *pw,                // nfft/2
                             __local float *scratch,           // 3 per work-item
                             __local uchar *flag)              // nfft/2 when echoes
 {
+    if (get_group_id(1)) {             // the second job: a pair's falling half-sweeps
+        x = x_b;
+        beta = beta_b;
+        bin = bin_b;
+        snr = snr_b;
+        power = power_b;
+        echo_bin = echo_bin_b;
+        echo_snr = echo_snr_b;
+        echo_count = echo_count_b;
+    }
     const int n = counted ? min(sweeps, listed[0]) : sweeps;
     // a transform a group; a counted launch has fewer groups than transforms, each
     // taking every get_num_groups-th (uniform in the group: barriers are safe)

@@ -151,32 +151,48 @@ def measure_each(rt: Runtime, bufs: Buffers, jobs: list, velocity: np.ndarray | 
         d_groups = bufs.constant("index0", zeros(1), np.int32)
     elif d_groups is None:
         d_groups = bufs.upload("groups", np.asarray(groups, np.int32))
+    # each job's own buffers: rows, Doppler basis, peak, SNR, power, echoes (bin, SNR, count)
+    own = []
     for i, (rows, (_, beta, store)) in enumerate(zip(rows_of, jobs, strict=True)):
         d_bin, d_snr, d_ebin, d_esnr, d_ecount, d_own = out.buffers[first + 6 * i: first + 6 * i + 6]
-        d_power = store.buffer if store is not None else d_own
-        args = (rows.buffer, np.int32(sweeps), np.int32(points), d_index,
-                np.int32(indexed), bufs.constant("beta", beta if dechirp else zeros(points)), d_v,
+        own.append((rows.buffer, bufs.constant("beta", beta if dechirp else zeros(points)), d_bin, d_snr,
+                    store.buffer if store is not None else d_own, d_ebin, d_esnr, d_ecount))
+    # two consecutive jobs that differ only in those buffers (a pair's rising and falling
+    # half-sweeps) go in one launch, a job a row of work-groups: half the launches of the
+    # tracker's passes
+    stored = [store is not None for _, _, store in jobs]
+    launches, i = [], 0
+    while i < len(jobs):
+        two = i + 1 < len(jobs) and stored[i] == stored[i + 1]
+        launches.append([i, i + 1] if two else [i])
+        i += 2 if two else 1
+    lanes = uses_lanes(rt, nfft)
+    if lanes:
+        items = -(-transforms // LANES)
+        items = items if listed is None else min(items, counted_groups(rt))
+        local = [cl.LocalMemory(4 * LANES * nfft)] * 3
+    else:
+        lsz = local_size(rt, nfft)
+        items = transforms if listed is None else min(transforms, counted_groups(rt))
+        local = [cl.LocalMemory(4 * nfft), cl.LocalMemory(4 * nfft), cl.LocalMemory(4 * half),
+                 cl.LocalMemory(12 * lsz), cl.LocalMemory(half if echoes else 1)]
+    for group in launches:
+        (x, beta, d_bin, d_snr, d_power, d_ebin, d_esnr, d_ecount), second = own[group[0]], own[group[-1]]
+        kept = stored[group[0]]
+        args = (x, np.int32(sweeps), np.int32(points), d_index, np.int32(indexed), beta, d_v,
                 np.int32(dechirp), bufs.constant("tw_re", twr), bufs.constant("tw_im", twi),
                 bufs.constant("perm", perm, np.int32), np.int32(nfft), np.int32(lo), np.int32(hi),
-                np.int32(GUARD_BINS), d_bin, d_snr, d_power, np.int32(keep_power or store is not None),
-                np.int32(store is not None and indexed and scatter),
+                np.int32(GUARD_BINS), d_bin, d_snr, d_power, np.int32(keep_power or kept),
+                np.int32(kept and indexed and scatter),
                 np.int32(echoes), np.int32(cfar.GUARD), np.int32(cfar.TRAIN),
                 bufs.constant("cfar_scale", cfar_scales()), np.int32(m),
                 d_ebin, d_esnr, d_ecount, counted[0], np.int32(counted[1]), d_groups,
-                np.int32(0 if groups is None else np.size(groups)), np.int32(transforms))
-        if uses_lanes(rt, nfft):
-            items = -(-transforms // LANES)
-            if listed is not None:
-                items = min(items, counted_groups(rt))
-            rt.kernel("spectrum", "spectrum_lanes")(rt.queue, (items,), (1,), *args,
-                                                    *(cl.LocalMemory(4 * LANES * nfft),) * 3)
+                np.int32(0 if groups is None else np.size(groups)), np.int32(transforms), *second)
+        if lanes:
+            rt.kernel("spectrum", "spectrum_lanes")(rt.queue, (items, len(group)), (1, 1), *args, *local)
         else:
-            lsz = local_size(rt, nfft)
-            items = transforms if listed is None else min(transforms, counted_groups(rt))
-            rt.kernel("spectrum", "spectrum_peak")(
-                rt.queue, (items * lsz,), (lsz,), *args,
-                cl.LocalMemory(4 * nfft), cl.LocalMemory(4 * nfft), cl.LocalMemory(4 * half),
-                cl.LocalMemory(12 * lsz), cl.LocalMemory(half if echoes else 1))
+            rt.kernel("spectrum", "spectrum_peak")(rt.queue, (items * lsz, len(group)), (lsz, 1), *args,
+                                                   *local)
     if deferred:
         return None
     if all(store is not None for _, _, store in jobs):      # the spectra stay for the next kernel
