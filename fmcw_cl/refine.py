@@ -249,23 +249,40 @@ WIDTH_LIMIT = 1.1         # peaks this much wider than the window's own say: tun
 STILL_MPS = 0.05          # a stretch this slow is measured from plain peaks
 
 
+WIDTH_REACH = 32          # bins either side of a peak searched first for its half-power points
+
+
 def _widths(power: np.ndarray, lo: int, hi: int | None = None) -> np.ndarray:
     """Width (bins) of each row's highest peak in bins [lo, hi) at half its power, the
     crossings interpolated linearly between bins (NaN where a side never falls below)."""
     band = power[:, lo:hi]
-    rows, cols = np.arange(band.shape[0]), np.arange(band.shape[1])
+    rows, n = np.arange(band.shape[0]), band.shape[1]
     k = np.argmax(band, axis=1)
     half = 0.5 * band[rows, k]
-    below = band < half[:, None]
-    a = np.where(below & (cols < k[:, None]), cols, -1).max(axis=1, initial=-1)    # last below, left
-    b = np.where(below & (cols > k[:, None]), cols, cols.size).min(axis=1, initial=cols.size)
-    ok = (a >= 0) & (b < cols.size)
+    # the last bin below half left of the peak and the first right of it: among the
+    # WIDTH_REACH bins either side (a peak is a few bins wide), else in the whole band
+    near = np.clip(k[:, None] + np.arange(-WIDTH_REACH, WIDTH_REACH + 1), 0, n - 1)
+    a, b = _sides(band[rows[:, None], near] < half[:, None], near, k)
+    far = (a < 0) & (k > WIDTH_REACH) | (b >= n) & (k < n - 1 - WIDTH_REACH)
+    if far.any():
+        cols = np.arange(n)
+        a[far], b[far] = _sides(band[far] < half[far, None], np.broadcast_to(cols, (far.sum(), n)), k[far])
+    ok = (a >= 0) & (b < n)
     out = np.full(band.shape[0], np.nan)
     a, b, r, h = a[ok], b[ok], rows[ok], half[ok]
     xa = a + (h - band[r, a]) / (band[r, a + 1] - band[r, a])
     xb = b - (h - band[r, b]) / (band[r, b - 1] - band[r, b])
     out[ok] = xb - xa
     return out
+
+
+def _sides(below: np.ndarray, cols: np.ndarray, k: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each row's last column of `cols` left of k whose `below` is set (-1: none) and its
+    first right of k (past the band's end: none)."""
+    n = np.iinfo(np.int64).max
+    a = np.where(below & (cols < k[:, None]), cols, -1).max(axis=1, initial=-1)
+    b = np.where(below & (cols > k[:, None]), cols, n).min(axis=1, initial=n)
+    return a, b
 
 
 def stillest(time_s: np.ndarray, velocity_mps: np.ndarray, pairs: int = WIDTH_PERIODS) -> float:

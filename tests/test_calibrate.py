@@ -257,3 +257,21 @@ def test_rest_and_scale_estimates():
     assert abs(k - 0.9) < 3 * sigma and sigma < 1e-3
     still = np.full(t.size, 0.2) + rng.normal(0, 20e-6, t.size)
     assert np.isnan(kinematic_scale(t, still, np.zeros(t.size), np.ones(t.size, bool))[0])
+
+
+@pytest.mark.parametrize("sigma", [0.8, 3.0, 20.0, 60.0])
+def test_peak_widths_near_and_far(sigma):
+    """The half-power width of Gaussian peaks (2.3548 sigma) whether its half-power
+    points lie within refine.WIDTH_REACH bins of the peak or beyond (the whole band
+    searched); none where a side never falls to half in the band."""
+    from fmcw_cl.refine import WIDTH_REACH, _widths
+
+    x = np.arange(1024.0)
+    centres = np.array([100.3, 500.0, 900.7])
+    p = np.exp(-0.5 * ((x - centres[:, None]) / sigma) ** 2) + 1e-9
+    got = _widths(p, 10)
+    expect = 2 * np.sqrt(2 * np.log(2)) * sigma
+    assert (np.sqrt(2 * np.log(2)) * sigma > WIDTH_REACH) == (sigma > 20)   # half power beyond the reach
+    np.testing.assert_allclose(got, expect, rtol=0.02 if sigma > 1 else 0.15)
+    edge = _widths(p[:1], 95)                    # the band from 95: 100.3's left side is outside it
+    assert np.isnan(edge[0]) == (sigma > 4)
