@@ -131,6 +131,24 @@ int plain_transform(const int g, __global const int *first, const int groups, co
     return a + 2 * t;
 }
 
+// A launch measures one job or two (a pair's rising and falling half-sweeps): the second
+// job's rows, Doppler basis and outputs, taken by work-group row 1 (both spectrum kernels).
+#define SECOND_JOB                                                                      \
+    __global const float *x_b, __global const float *beta_b, __global float *bin_b,    \
+    __global float *snr_b, __global float *power_b, __global float *echo_bin_b,        \
+    __global float *echo_snr_b, __global int *echo_count_b
+#define TO_SECOND_JOB                                                                   \
+    if (get_group_id(1)) {                                                              \
+        x = x_b;                                                                        \
+        beta = beta_b;                                                                  \
+        bin = bin_b;                                                                    \
+        snr = snr_b;                                                                    \
+        power = power_b;                                                                \
+        echo_bin = echo_bin_b;                                                          \
+        echo_snr = echo_snr_b;                                                          \
+        echo_count = echo_count_b;                                                      \
+    }
+
 // De-chirped rows are complex: one per transform, of the rows listed in `index` when
 // `indexed` (the tracker's later passes re-measure only the pairs whose velocity moved).
 __kernel void spectrum_peak(__global const float *x,          // (rows, points)
@@ -166,27 +184,14 @@ __kernel void spectrum_peak(__global const float *x,          // (rows, points)
                             __global const int *group_first,  // plain: each group's first row
                             const int groups,
                             const int plain,                  // plain: the transforms
-                            __global const float *x_b,      // the second job (work-group row 1):
-                            __global const float *beta_b,   // its rows, basis and outputs
-                            __global float *bin_b, __global float *snr_b, __global float *power_b,
-                            __global float *echo_bin_b, __global float *echo_snr_b,
-                            __global int *echo_count_b,
+                            SECOND_JOB,
                             __local float *re,                // nfft
                             __local float *im,                // nfft
                             __local float *pw,                // nfft/2
                             __local float *scratch,           // 3 per work-item
                             __local uchar *flag)              // nfft/2 when echoes
 {
-    if (get_group_id(1)) {             // the second job: a pair's falling half-sweeps
-        x = x_b;
-        beta = beta_b;
-        bin = bin_b;
-        snr = snr_b;
-        power = power_b;
-        echo_bin = echo_bin_b;
-        echo_snr = echo_snr_b;
-        echo_count = echo_count_b;
-    }
+    TO_SECOND_JOB
     const int n = counted ? min(sweeps, listed[0]) : sweeps;
     // a transform a group; a counted launch has fewer groups than transforms, each
     // taking every get_num_groups-th (uniform in the group: barriers are safe)

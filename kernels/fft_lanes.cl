@@ -203,25 +203,12 @@ __kernel void spectrum_lanes(__global const float *x, const int sweeps, const in
                              __global float *echo_bin, __global float *echo_snr, __global int *echo_count,
                              __global const int *listed, const int counted,
                              __global const int *group_first, const int groups, const int plain,
-                             __global const float *x_b,      // the second job (work-group row 1):
-                             __global const float *beta_b,   // its rows, basis and outputs
-                             __global float *bin_b, __global float *snr_b, __global float *power_b,
-                             __global float *echo_bin_b, __global float *echo_snr_b,
-                             __global int *echo_count_b,
+                             SECOND_JOB,
                              __local float8 *re,       // nfft
                              __local float8 *im,       // nfft
                              __local float8 *pw)       // nfft: the power of a transform's two rows
 {
-    if (get_group_id(1)) {             // the second job: a pair's falling half-sweeps
-        x = x_b;
-        beta = beta_b;
-        bin = bin_b;
-        snr = snr_b;
-        power = power_b;
-        echo_bin = echo_bin_b;
-        echo_snr = echo_snr_b;
-        echo_count = echo_count_b;
-    }
+    TO_SECOND_JOB
     const int n = counted ? min(sweeps, listed[0]) : sweeps;
     const int transforms = dechirp ? n : plain;
     // eight transforms a group; a counted launch has fewer groups than blocks, each
