@@ -212,12 +212,8 @@ def mean_peaks(sums: np.ndarray, counts: np.ndarray, lo: int) -> tuple[np.ndarra
     mean = sums / np.maximum(counts, 1)[:, None]
     c = np.zeros((b, half + 1))
     np.cumsum(mean, axis=1, out=c[:, 1:])
-
-    def at(d: int) -> np.ndarray:                    # c[:, k + d] for every tested bin k
-        return c[:, k0 + d: k1 + d]
-
-    left = (at(-cfar.GUARD) - at(-reach)) / cfar.TRAIN
-    right = (at(reach + 1) - at(cfar.GUARD + 1)) / cfar.TRAIN
+    left = cfar.window_sums(c, k0, k1, -reach, -cfar.GUARD) / cfar.TRAIN
+    right = cfar.window_sums(c, k0, k1, cfar.GUARD + 1, reach + 1) / cfar.TRAIN
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = mean[:, k0:k1] / np.maximum(left, right)
     limit = MEAN_LIMITS[np.clip(counts, 1, MEAN_ROWS) - 1]

@@ -123,7 +123,7 @@ def savgol_derivative(x: np.ndarray, window: int, order: int, delta: float) -> n
     # least-squares solution that holds the linear coefficient (powers of t - half)
     weights = np.linalg.pinv(np.vander(t - half, order + 1, increasing=True))[1] / delta
     out = np.empty_like(x)
-    # a correlation, not a matrix product: BLAS threads (line_slope); 6x faster than a
+    # a correlation, not a matrix product: BLAS threads (centred_slope); 6x faster than a
     # sum over a sliding window's (n, window) products
     out[half: x.size - half] = np.correlate(x, weights, "valid")
     for edge, at in ((slice(0, window), slice(0, half)),
@@ -146,13 +146,19 @@ def travelled(t: np.ndarray, v: np.ndarray) -> np.ndarray:
     return np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * np.diff(t))])
 
 
-def line_slope(t: np.ndarray, r: np.ndarray) -> tuple[float, float]:
-    """Least-squares slope of r over t and its standard error for white residuals."""
+def centred_slope(t: np.ndarray, r: np.ndarray) -> tuple[float, float, np.ndarray, np.ndarray]:
+    """Least-squares slope of r over t; the sum of squares of t about its mean; t and r
+    less their means."""
     # sums of products, not np.dot: OpenBLAS spreads a dot product of more than some 10 000
     # values over threads that then spin (a 16-core GPU host: 9 cores busy in a batch)
     tc, rc = t - t.mean(), r - r.mean()
     tt = float(np.sum(tc * tc))
-    slope = float(np.sum(tc * rc)) / tt
+    return float(np.sum(tc * rc)) / tt, tt, tc, rc
+
+
+def line_slope(t: np.ndarray, r: np.ndarray) -> tuple[float, float]:
+    """Least-squares slope of r over t and its standard error for white residuals."""
+    slope, tt, tc, rc = centred_slope(t, r)
     resid = rc - slope * tc
     return slope, float(np.sqrt(np.sum(resid * resid) / max(1, t.size - 2) / tt))
 

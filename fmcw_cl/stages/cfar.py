@@ -93,7 +93,7 @@ def detect_mask(power: np.ndarray, lo: int, hi: int) -> tuple[np.ndarray, np.nda
     c[:, reach + half + 1:] = c[:, reach + half: reach + half + 1]
 
     def window(a: int, b: int):          # sums over bins [k + a, k + b) for all k of the band
-        return c[:, reach + lo + b: reach + hi + b] - c[:, reach + lo + a: reach + hi + a]
+        return window_sums(c, reach + lo, reach + hi, a, b)
 
     def count(a: int, b: int):
         return np.clip(k + b, lo, half) - np.clip(k + a, lo, half)
@@ -108,6 +108,13 @@ def detect_mask(power: np.ndarray, lo: int, hi: int) -> tuple[np.ndarray, np.nda
     peak = is_peak(power, rows, cols + lo)
     mask[rows[~peak], cols[~peak]] = False
     return mask, ratio
+
+
+def window_sums(c: np.ndarray, start: int, stop: int, a: int, b: int) -> np.ndarray:
+    """Each row's sums over bins [k + a, k + b) for the columns k of [start, stop) of its
+    cumulative sum `c` (c[:, j + 1] - c[:, j] the bin at column j): slices, no copies
+    of `c`."""
+    return c[:, start + b: stop + b] - c[:, start + a: stop + a]
 
 
 def is_peak(power: np.ndarray, rows: np.ndarray, k: np.ndarray) -> np.ndarray:
