@@ -6,7 +6,8 @@
 // the window is cut at the ends of row i's group too (rows converted together but apart:
 // `bounds` holds each row's group's first row, then each one's last).
 // The spectra stay on the device from spectrum_peak (fft.cl, keep_power); only the
-// peaks come back. Twin: fmcw_cl.stages.integrate.peaks.
+// peaks come back. A launch integrates one or two jobs (a pair's two directions), a job
+// a row of work-groups. Twin: fmcw_cl.stages.integrate.peaks.
 
 // The parameters both variants (integrate_lanes.cl: CPU devices) begin with, in launch
 // order; each declares its local buffers with their own types (a buffer read as float8
@@ -24,12 +25,27 @@
     const int guard,                                                                             \
     __global float *bin,           /* (rows,) */                                                 \
     __global float *snr,           /* (rows,) */                                                 \
-    __global int *count            /* (rows,) */
+    __global int *count,           /* (rows,) */                                                 \
+    __global const int *state,     /* state[1] set: the tracker's passes stopped, nothing to do */ \
+    /* the second job (get_group_id(1) = 1: the pair's other direction), the same rows */        \
+    __global const float *power_b, __global float *bin_b, __global float *snr_b,                \
+    __global int *count_b
+
+// The second job's buffers for the work-groups of row 1 of the launch.
+#define TO_SECOND_JOB      \
+    if (get_group_id(1)) { \
+        power = power_b;   \
+        bin = bin_b;       \
+        snr = snr_b;       \
+        count = count_b;   \
+    }
 
 __kernel void integrate_peak(INTEGRATE_PARAMS,
                              __local float *pw,             // half_n
                              __local float *scratch)        // 3 per work-item
 {
+    if (state[1]) return;                  // the same in the whole group
+    TO_SECOND_JOB
     const int i = get_group_id(0);
     const int lid = get_local_id(0);
     const int lsz = get_local_size(0);

@@ -9,6 +9,8 @@ __kernel void integrate_lanes(INTEGRATE_PARAMS,        // half_n % 8 == 0
                               __local float8 *acc,      // half_n / 8
                               __local float *scratch)   // 3
 {
+    if (state[1]) return;
+    TO_SECOND_JOB
     const int i = get_group_id(0);
     const int blocks = half_n / 8;
     const int j0 = i - before < bounds[i] ? bounds[i] : i - before;

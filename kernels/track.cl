@@ -7,8 +7,11 @@
 // state[0], which the measurement reads). After the last pass, the verdict: which pairs
 // are valid and their continuity residuals (the host takes the tolerance). Pairs in groups
 // tracked apart (the delay's trial stretches) are nobody's neighbours across their group's
-// ends. Twins: fmcw_cl.stages.pairing.passes and .verdict, in double precision as numpy's
-// (a device without it runs the passes on the host).
+// ends. With integration (stages.integrate), every pair is measured again each pass on
+// its K-window integrated spectra, read at the target's displacement (`displace`),
+// and a peak is heard over the floor of its count of spectra. Twins:
+// fmcw_cl.stages.pairing.passes and .verdict, in double precision as numpy's (a device
+// without it runs the passes on the host).
 #pragma OPENCL FP_CONTRACT OFF
 #if defined(cl_khr_fp64)
 #pragma OPENCL EXTENSION cl_khr_fp64 : enable
@@ -56,11 +59,62 @@ double interpolated(__global const double *t, __global const double *med, const 
     return r;
 }
 
+// Whether both peaks of pair i are heard: at least snr_min, or, integrated (`counted`),
+// at least the floor of its count of spectra (floors[count]: integrate.threshold_db),
+// compared in double as numpy compares float32 SNRs with float64 floors.
+int heard(const int i, __global const float *s_r, __global const float *s_f, const float snr_min,
+          __global const int *count, __global const double *floors, const int counted)
+{
+    if (!counted) return s_r[i] >= snr_min && s_f[i] >= snr_min;
+    const double f = floors[count[i]];
+    return (double)s_r[i] >= f && (double)s_f[i] >= f;
+}
+
+// The sum over this work-item's pairs a..b of the target's steps (m: the trapezoid rule
+// over the pairs' centres t at the de-chirp velocities vd) since the last start of a
+// group among them, and whether one started there: what `displace` carries over.
+void runs_since_restart(__global const double *t, __global const int *bounds, __global const double *vd,
+                        const int a, const int b, __local double *sums, __local int *restarted)
+{
+    const int lid = get_local_id(0);
+    double run = 0.0;
+    int cut = 0;
+    for (int i = a; i < b; ++i) {
+        if (i == bounds[i]) {
+            run = 0.0;
+            cut = 1;
+        } else {
+            run += (t[i] - t[i - 1]) * 0.5 * (vd[i] + vd[i - 1]);
+        }
+    }
+    sums[lid] = run;
+    restarted[lid] = cut;
+}
+
+// The target's displacement (bins, from its group's first pair) at the pairs a..b, in
+// the order numpy's cumsum adds, carried over from the runs before this work-item's in
+// its group (`runs_since_restart` of every work-item, after a barrier). Twin:
+// stages.integrate.displacement, each group apart.
+void displace(__global const double *t, __global const int *bounds, const double metres_per_bin,
+              __global const double *vd, __global float *disp, const int a, const int b,
+              __local const double *sums, __local const int *restarted)
+{
+    double d = 0.0;                            // at the end of the runs before this one
+    for (int k = 0; k < (int)get_local_id(0); ++k) d = restarted[k] ? sums[k] : d + sums[k];
+    for (int i = a; i < b; ++i) {
+        d = i == bounds[i] ? 0.0 : d + (t[i] - t[i - 1]) * 0.5 * (vd[i] + vd[i - 1]);
+        disp[i] = (float)(d / metres_per_bin);
+    }
+}
+
 // One pass (`first`: the plain pass's, vd = 0; `last`: only the measurements into the
-// state and the velocities' running median, for the verdict). Each work-item takes a run
-// of consecutive pairs. Nothing is done once the passes have stopped (state[1], from the
+// state and the velocities' running median, for the verdict). A pair's measurement is
+// row `slot[i]` of the last one (the pairs listed), or row i on the first pass and with
+// `every` (integration: every pair measured each pass, read at the displacement `disp`
+// this pass writes from the new velocities). Each work-item takes a run of consecutive
+// pairs. Nothing is done once the passes have stopped (state[1], from the
 // first pass on: a pass moved no pair).
-__kernel void track_pass(const int pairs, const int first, const int last,
+__kernel void track_pass(const int pairs, const int first, const int last, const int every,
                          __global const float *bin_r, __global const float *snr_r,
                          __global const float *bin_f, __global const float *snr_f,
                          __global int *slot,                  // each pair's place in the list, -1: none
@@ -74,14 +128,18 @@ __kernel void track_pass(const int pairs, const int first, const int last,
                          __global float *s_r, __global float *s_f,       // dB
                          __global double *vd,                 // m/s: each pair's de-chirp velocity
                          const int reach,                     // the median's half-width (pairs)
-                         const float snr_min, const double consistent,
+                         const float snr_min,
+                         __global const int *count, __global const double *floors, const int counted,
+                         const double consistent,
                          const double share,                  // of |median| added to `consistent`
                          const double stop,                   // m/s: a pair moved
                          __global double *vel, __global double *med, __global double *next,
                          __global int *trusted, __global int *prev,
                          __global int *rows, __global float *v32,   // the list: pairs, their velocity
                          __global int *state,
-                         __local int *ends)                   // 3 per work-item
+                         __global float *disp,                // with `every`: bins (`displace`)
+                         __local int *ends,                   // 4 per work-item
+                         __local double *sums)                // 1 per work-item
 {
     const int lid = get_local_id(0);
     const int lsz = get_local_size(0);
@@ -90,7 +148,7 @@ __kernel void track_pass(const int pairs, const int first, const int last,
     if (first || !state[1]) {                         // uniform in the group: barriers are safe
         // the new measurements (pairing.solve_pair)
         for (int i = a; i < b; ++i) {
-            const int g = first ? i : slot[i];
+            const int g = first || every ? i : slot[i];
             if (first) vd[i] = 0.0;
             if (g >= 0) {
                 d_r[i] = (double)bin_r[g] * metres_per_bin;
@@ -119,7 +177,7 @@ __kernel void track_pass(const int pairs, const int first, const int last,
             const double m = w[reach];
             med[i] = m;
             const double tol = consistent + (share > 0.0 ? share * fabs(m) : 0.0);
-            const int ok = s_r[i] >= snr_min && s_f[i] >= snr_min && fabs(vel[i] - m) < tol;
+            const int ok = heard(i, s_r, s_f, snr_min, count, floors, counted) && fabs(vel[i] - m) < tol;
             trusted[i] = ok;
             if (ok) {
                 l = i;
@@ -175,6 +233,12 @@ __kernel void track_pass(const int pairs, const int first, const int last,
             state[0] = total;
             state[1] = total == 0;
         }
+        // integrated: the displacement of the new velocities (`displace`; the barrier
+        // outside the tests: inside, PoCL 3.1's work-group variant crashed)
+        __local int *restarted = ends + 3 * lsz;
+        if (every) runs_since_restart(t, bounds, vd, a, b, sums, restarted);
+        barrier(CLK_LOCAL_MEM_FENCE);
+        if (every) displace(t, bounds, metres_per_bin, vd, disp, a, b, sums, restarted);
     }
 }
 
@@ -188,6 +252,7 @@ __kernel void track_valid(const int pairs,
                           __global const double *vd, __global const double *half_gap,
                           __global const double *vel, __global const double *med,
                           const double k_rise, const double k_fall, const float snr_min,
+                          __global const int *count, __global const double *floors, const int counted,
                           const double converged, const double consistent,
                           __global double *dist, __global int *valid)
 {
@@ -196,7 +261,7 @@ __kernel void track_valid(const int pairs,
     const double hg = half_gap[i];
     const double dv = (d_f[i] - d_r[i] - 2.0 * vd[i] * hg) / (2.0 * hg + k_fall - k_rise);
     dist[i] = 0.5 * (d_r[i] + d_f[i]) - 0.5 * dv * (k_rise + k_fall);
-    valid[i] = s_r[i] >= snr_min && s_f[i] >= snr_min && fabs(dv) < converged
+    valid[i] = heard(i, s_r, s_f, snr_min, count, floors, counted) && fabs(dv) < converged
                && fabs(vel[i] - med[i]) < consistent;
 }
 
@@ -224,5 +289,16 @@ __kernel void track_residual(const int pairs, const int reach, const int support
     const double m = n > 0 ? 0.5 * (w[(n - 1) / 2] + w[n / 2]) : NAN;
     resid[i] = vouch >= support ? fabs(dist[i] - m) : INFINITY;
     vouched[i] = vouch;
+}
+
+// Before the integrated passes (`every`): the de-chirp velocities and the displacement
+// zero, the passes not stopped. One work-item a pair.
+__kernel void track_start(const int pairs, __global double *vd, __global float *disp, __global int *state)
+{
+    const int i = get_global_id(0);
+    if (i == 0) state[0] = state[1] = 0;
+    if (i >= pairs) return;
+    vd[i] = 0.0;
+    disp[i] = 0.0f;
 }
 #endif

@@ -904,6 +904,36 @@ def test_survey_kernel_matches_numpy(backend, kernel_variant, rows, nfft, lo):
         np.testing.assert_array_equal(a, b)
 
 
+def _tracker_scene(backend, scene: str, pairs: int, iterations: int, groups, amplitude: float = 1.0):
+    """The tracker's rows on the device: an accelerating target whose beat folds
+    ("fold"), a still one ("still"), noise alone ("noise") or silence ("silent"), with a
+    fade; its times (in `groups` tracked apart), Doppler model and search band."""
+    from fmcw_cl.physics import C
+    from fmcw_cl.stages import pairing
+    from fmcw_cl.stages.lut import build_lut
+
+    rng = np.random.default_rng(pairs + iterations)
+    cur = np.linspace(0.16, 0.48, 50)
+    lut = build_lut(cur, 190e12 + 160e9 * ((cur - 0.16) / 0.32) ** 1.3, 0.16, 0.48, 500, 1.0)
+    win = resample.window(500)
+    half_s = 25e-6
+    model = pairing.doppler_model(lut, half_s, 1024, win)
+    t_mid = 0.01 + np.arange(pairs) * 50e-6
+    v = np.linspace(1.0, 7.0, pairs) if scene == "fold" else np.zeros(pairs)
+    r = 0.12 + np.cumsum(v) * 50e-6
+    amp = np.full(pairs, amplitude) if scene in ("fold", "still") else np.zeros(pairs)
+    amp[pairs // 3: pairs // 3 + 12] = 0.0                       # a fade
+    rows = []
+    for beta, dt in ((model.beta_rise, -half_s / 2), (model.beta_fall, half_s / 2)):
+        phase = np.outer(2 * (r + v * dt) / C, lut.nu_hz) + v[:, None] * beta + rng.uniform(0, 1, (pairs, 1))
+        noise = rng.normal(0, 0.3 if scene != "silent" else 0.0, (pairs, lut.points))
+        x = amp[:, None] * np.cos(2 * np.pi * phase) + noise
+        rows.append(k_spectrum.as_device(backend.bufs, (x - x.mean(axis=1, keepdims=True)) * win))
+    times = pairing.Times(t_mid - half_s / 2, t_mid + half_s / 2, groups and np.array(groups))
+    search = Search(int(0.03 / model.metres_per_bin), model.nfft // 2, echoes=True)
+    return tuple(rows), times, model, search
+
+
 @pytest.mark.parametrize("scene,pairs,iterations,groups", [
     ("fold", 301, 6, None), ("fold", 301, 2, None), ("still", 40, 6, None), ("noise", 77, 6, None),
     ("fold", 5, 6, None), ("silent", 30, 6, None), ("fold", 301, 6, (0, 3, 4, 96, 107, 250)),
@@ -920,30 +950,9 @@ def test_tracker_passes_on_the_device_equal_the_host_passes(backend, kernel_vari
     pair, one of 11 inside the fade with no trusted pair, groups that split the
     kernel's runs of pairs)."""
     from fmcw_cl.opencl import track as k_track
-    from fmcw_cl.physics import C
     from fmcw_cl.stages import pairing
-    from fmcw_cl.stages.lut import build_lut
 
-    rng = np.random.default_rng(pairs + iterations)
-    cur = np.linspace(0.16, 0.48, 50)
-    lut = build_lut(cur, 190e12 + 160e9 * ((cur - 0.16) / 0.32) ** 1.3, 0.16, 0.48, 500, 1.0)
-    win = resample.window(500)
-    half_s = 25e-6
-    model = pairing.doppler_model(lut, half_s, 1024, win)
-    t_mid = 0.01 + np.arange(pairs) * 50e-6
-    v = np.linspace(1.0, 7.0, pairs) if scene == "fold" else np.zeros(pairs)
-    r = 0.12 + np.cumsum(v) * 50e-6
-    amp = np.ones(pairs) if scene in ("fold", "still") else np.zeros(pairs)
-    amp[pairs // 3: pairs // 3 + 12] = 0.0                       # a fade
-    rows = []
-    for beta, dt in ((model.beta_rise, -half_s / 2), (model.beta_fall, half_s / 2)):
-        phase = np.outer(2 * (r + v * dt) / C, lut.nu_hz) + v[:, None] * beta + rng.uniform(0, 1, (pairs, 1))
-        noise = rng.normal(0, 0.3 if scene != "silent" else 0.0, (pairs, lut.points))
-        x = amp[:, None] * np.cos(2 * np.pi * phase) + noise
-        rows.append(k_spectrum.as_device(backend.bufs, (x - x.mean(axis=1, keepdims=True)) * win))
-    times = pairing.Times(t_mid - half_s / 2, t_mid + half_s / 2, groups and np.array(groups))
-    search = Search(int(0.03 / model.metres_per_bin), model.nfft // 2, echoes=True)
-    rows = tuple(rows)
+    rows, times, model, search = _tracker_scene(backend, scene, pairs, iterations, groups)
     assert k_track.supported(backend.rt)
     launched = monkeypatch_count(monkeypatch, k_track, "track")
     first, state = backend.track(rows, times, model, search, iterations, True)
@@ -953,13 +962,8 @@ def test_tracker_passes_on_the_device_equal_the_host_passes(backend, kernel_vari
         np.testing.assert_array_equal(a[0], b[0])
         np.testing.assert_array_equal(a[1], b[1])
         np.testing.assert_array_equal(a[2].bin, b[2].bin)
-    for key in ("d_r", "s_r", "d_f", "s_f", "vd", "count"):
-        np.testing.assert_array_equal(getattr(state, key), getattr(want, key), err_msg=key)
-    # the verdict after the passes (kernels track_valid, track_residual)
-    valid, resid = pairing.verdict(want, times, model)
-    assert want.verdict is None
-    np.testing.assert_array_equal(state.verdict[0], valid)
-    np.testing.assert_array_equal(state.verdict[1], resid)
+    _assert_same_passes(state, want, times, model)
+    valid, resid = state.verdict
     if scene == "fold" and pairs > 100:
         assert np.ptp(state.vd) > 3.0            # the passes moved the de-chirp velocities
         assert 0 < valid.sum() < pairs and np.isinf(resid).any() and np.ptp(resid[np.isfinite(resid)]) > 0
@@ -967,6 +971,51 @@ def test_tracker_passes_on_the_device_equal_the_host_passes(backend, kernel_vari
         _, one = pairing.SpectrumOps.track(backend, rows, replace(times, groups=None), model, search,
                                            iterations, True)
         assert not np.array_equal(one.vd, state.vd)
+
+
+def _assert_same_passes(state, want, times, model) -> None:
+    """The device's tracker `state` (with its verdict) equals the host's `want` and
+    pairing.verdict of it."""
+    from fmcw_cl.stages import pairing
+
+    for key in ("d_r", "s_r", "d_f", "s_f", "vd", "count"):
+        np.testing.assert_array_equal(getattr(state, key), getattr(want, key), err_msg=key)
+    valid, resid = pairing.verdict(want, times, model)
+    assert want.verdict is None
+    np.testing.assert_array_equal(state.verdict[0], valid)
+    np.testing.assert_array_equal(state.verdict[1], resid)
+
+
+@pytest.mark.parametrize("scene,pairs,iterations,groups,k,amplitude", [
+    ("fold", 301, 6, None, 4, 0.1), ("fold", 301, 3, (0, 3, 4, 96, 107, 250), 16, 0.07),
+    ("fold", 130, 6, (0, 65), 5, 0.14), ("still", 40, 6, None, 16, 0.05), ("noise", 77, 6, (0, 40), 8, 1.0),
+    ("fold", 5, 6, None, 32, 0.1), ("silent", 30, 6, None, 4, 1.0)])
+def test_integrated_passes_on_the_device_equal_the_host_passes(backend, kernel_variant, monkeypatch, scene,
+                                                               pairs, iterations, groups, k, amplitude):
+    """The tracker's passes on K-window integrated spectra on the device (kernels/track.cl
+    with `every`: the displacement along the track from each pass's velocities, the
+    floors by count of spectra; integrate.cl, both directions a launch; one copy down)
+    against pairing.passes driven by the same device's spectra and integrated peaks: a
+    weak folding target (few single pairs heard) with a fade, in groups whose windows
+    are cut at their ends (counts under K: lower floors) and that split the kernel's runs
+    of pairs (the displacement carried across work-items); a still weak target, noise
+    alone, silence; fewer pairs than the window."""
+    from fmcw_cl.opencl import track as k_track
+    from fmcw_cl.stages import pairing
+
+    rows, times, model, search = _tracker_scene(backend, scene, pairs, iterations, groups, amplitude)
+    search = replace(search, echoes=False)
+    launched = monkeypatch_count(monkeypatch, k_track, "integrated")
+    state = backend.integrated(rows, times, model, search, iterations, k)
+    assert launched == [1]
+    want = pairing.SpectrumOps.integrated(backend, rows, times, model, search, iterations, k)
+    _assert_same_passes(state, want, times, model)
+    assert state.k == k and state.count.max() == min(k, pairs)
+    if scene == "fold" and pairs > 100:
+        assert np.ptp(state.vd) > 2.0            # the passes moved the de-chirp velocities
+        single = pairing.SpectrumOps.track(backend, rows, times, model, search, iterations, True)[1]
+        assert state.heard.mean() > single.heard.mean() + 0.3       # integration heard what one did not
+        assert 0 < state.verdict[0].sum() < pairs
 
 
 @pytest.mark.parametrize("pairs", [0, 1, 2, 49, 5001])

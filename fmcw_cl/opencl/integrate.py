@@ -10,6 +10,7 @@ from ..stages.pairing import group_bounds
 from ..stages.spectrum import GUARD_BINS, Search
 from .buffers import Buffers, DeviceRows, Packed
 from .context import Runtime, cl
+from .spectrum import zeros
 
 
 def peaks(rt: Runtime, bufs: Buffers, store: DeviceRows, disp: np.ndarray, k: int, search: Search,
@@ -21,21 +22,33 @@ def peaks(rt: Runtime, bufs: Buffers, store: DeviceRows, disp: np.ndarray, k: in
     rows, half = store.shape
     if rows == 0:
         return np.zeros(0), np.zeros(0, np.float32), np.zeros(0, np.int32)
-    before, after = window(k)
     bounds = group_bounds(None, rows) if bounds is None else bounds
     # relative to the first row: float32 keeps 1e-4 bin over a chunk's displacement
     d_disp, d_bounds = Packed(bufs, "disp", [(np.float32, rows), (np.int32, 2 * rows)]).upload(
         np.asarray(disp - disp[0], np.float32), bounds)
     out = Packed(bufs, "integrated", [(np.float32, rows), (np.float32, rows), (np.int32, rows)])
-    d_bin, d_snr, d_count = out.buffers
-    args = (store.buffer, np.int32(rows), np.int32(half), d_disp, d_bounds, np.int32(before), np.int32(after),
-            np.int32(search.lo), np.int32(search.hi), np.int32(GUARD_BINS), d_bin, d_snr, d_count,
-            cl.LocalMemory(4 * half))
-    if rt.lanes and half % 8 == 0:      # CPUs: a row an item, eight bins a float8
-        rt.kernel("integrate", "integrate_lanes")(rt.queue, (rows,), (1,), *args, cl.LocalMemory(12))
-    else:
-        lsz = rt.group_size(16, 256)
-        rt.kernel("integrate", "integrate_peak")(rt.queue, (rows * lsz,), (lsz,), *args,
-                                                  cl.LocalMemory(12 * lsz))
+    launch(rt, bufs, [(store, *out.buffers)], d_disp, d_bounds, k, search,
+           bufs.constant("state0", zeros(2), np.int32))
     b, snr, count = out.download()                  # one copy of the three
     return b.astype(np.float64), snr.copy(), count.copy()
+
+
+def launch(rt: Runtime, bufs: Buffers, jobs: list, d_disp, d_bounds, k: int, search: Search, d_state) -> None:
+    """Enqueue the integration of one or two jobs (store, bin, SNR, count) of the same
+    rows (a pair's two directions, one launch): each `store` (DeviceRows of power
+    spectra) read at `d_disp` (float32, bins) within `d_bounds` (int32, group_bounds),
+    its peaks into the device buffers after it; nothing is done where `d_state[1]` is
+    set (the tracker's passes stopped, kernels/track.cl; outside them a zero constant)."""
+    rows, half = jobs[0][0].shape
+    before, after = window(k)
+    (store, *out), second = jobs[0], jobs[-1]
+    args = (store.buffer, np.int32(rows), np.int32(half), d_disp, d_bounds, np.int32(before), np.int32(after),
+            np.int32(search.lo), np.int32(search.hi), np.int32(GUARD_BINS), *out, d_state, second[0].buffer,
+            *second[1:], cl.LocalMemory(4 * half))
+    if rt.lanes and half % 8 == 0:      # CPUs: a row an item, eight bins a float8
+        rt.kernel("integrate", "integrate_lanes")(rt.queue, (rows, len(jobs)), (1, 1), *args,
+                                                  cl.LocalMemory(12))
+    else:
+        lsz = rt.group_size(16, 256)
+        rt.kernel("integrate", "integrate_peak")(rt.queue, (rows * lsz, len(jobs)), (lsz, 1), *args,
+                                                  cl.LocalMemory(12 * lsz))

@@ -220,6 +220,14 @@ class OpenCLProcessor(ChunkProcessor):
                                      self._landing())
         return tuple(_measured(first, model, search)), state
 
+    def integrated(self, rows, times, model, search, iterations, k):
+        """Twin: pairing.SpectrumOps.integrated; the passes on the device (`_passes_here`),
+        their state read by one copy."""
+        if not (iterations > 0 and self._passes_here(model.nfft)):
+            return super().integrated(rows, times, model, search, iterations, k)
+        return k_track.integrated(self.rt, self.bufs, rows, times, model, search, iterations, k,
+                                  self._landing())
+
     def plain_pass(self, rows, model, search, times=None):
         """Twin: pairing.SpectrumOps.plain_pass; its download carries the riders of `ride`."""
         return self.measure_each(rows, (model.beta_rise, model.beta_fall), None, model, search,

@@ -13,6 +13,7 @@ Oclgrind's diagnostics go to its own log (OCLGRIND_LOG), which the test reads.
 from __future__ import annotations
 
 import sys
+from dataclasses import replace
 
 import numpy as np
 
@@ -133,6 +134,12 @@ def spectra(be, rng, group: str) -> None:
     beta = rng.uniform(-3, 3, points)
     v = rng.uniform(-2, 2, sweeps)
     pick = np.array([4, 1, 2])
+    model = pairing.DopplerModel(beta, beta, 0.0, 0.0, 1.0, nfft)
+    # the falling rows' tone 0.2 + 0.01 s cycles a point higher: pair s moves
+    y = x + 400 * np.cos(2 * np.pi * (0.2 + 0.01 * np.arange(sweeps))[:, None] * np.arange(points))
+    d_y = DeviceRows(be.bufs, sweeps, points)
+    cl.enqueue_copy(be.rt.queue, d_y.buffer, y.astype(np.float32))
+    times = pairing.Times(np.arange(sweeps) * 50e-6, np.arange(sweeps) * 50e-6 + 25e-6)
     if group == "integrate":
         store = be.spectra(d_x, None, None, nfft)
         store = be.spectra(d_x, beta, v[pick], nfft, pick, store)
@@ -143,6 +150,17 @@ def spectra(be, rng, group: str) -> None:
         got = be.integrated_peaks(store, disp, 3, Search(3, nfft // 2))
         want = integrate.peaks(want, disp, 3, Search(3, nfft // 2))
         close("integration (integrate_peak, or integrate_lanes)", got[0], want[0], 1e-4)
+        if k_track.supported(be.rt):
+            # the passes on integrated spectra, in two groups (the displacement carried
+            # over between work-items, restarted at a group's start)
+            grouped = replace(times, groups=np.array([0, 2]))
+            got = be.integrated((d_x, d_y), grouped, model, Search(3, nfft // 2), 3, 3)
+            want = pairing.SpectrumOps.integrated(be, (d_x, d_y), grouped, model, Search(3, nfft // 2), 3, 3)
+            close("integrated passes (track_start, track_pass: displace)", got.vd, want.vd, 1e-9)
+            close("integrated passes, distances", got.d_r, want.d_r, 1e-9)
+            close("integrated passes, counts", got.count, want.count, 0)
+            close("integrated verdict (track_valid: floors)", got.verdict[0],
+                  pairing.verdict(want, grouped, model)[0], 0)
         return
     if group == "survey":
         others = np.full((pick.size, 2), np.nan)
@@ -155,7 +173,6 @@ def spectra(be, rng, group: str) -> None:
         # the ratio divides by the target's energy, a difference of float32 sums: 1e-2
         close("survey (hidden): ratio", got[0], want[0], 1e-2)
         return
-    model = pairing.DopplerModel(beta, beta, 0.0, 0.0, 1.0, nfft)
     search = Search(3, nfft // 2 - 5, echoes=True)
     got = be.measure(d_x, beta, None, model, search)
     want = pairing.measure(x, beta, None, model, search)
@@ -166,11 +183,6 @@ def spectra(be, rng, group: str) -> None:
     close("de-chirp + FFT + peak, picked rows", got[0], want[0], 1e-4)
     if k_track.supported(be.rt):
         # the passes' decisions on the device against the host's, on the same peaks
-        # (the falling rows' tone 0.2 + 0.01 s cycles a point higher: pair s moves)
-        y = x + 400 * np.cos(2 * np.pi * (0.2 + 0.01 * np.arange(sweeps))[:, None] * np.arange(points))
-        d_y = DeviceRows(be.bufs, sweeps, points)
-        cl.enqueue_copy(be.rt.queue, d_y.buffer, y.astype(np.float32))
-        times = pairing.Times(np.arange(sweeps) * 50e-6, np.arange(sweeps) * 50e-6 + 25e-6)
         got = be.track((d_x, d_y), times, model, search, 3, True)[1]
         want = pairing.SpectrumOps.track(be, (d_x, d_y), times, model, search, 3, True)[1]
         close("tracker passes (track_pass)", got.vd, want.vd, 1e-9)

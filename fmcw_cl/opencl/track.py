@@ -5,12 +5,14 @@ pairing.verdict)."""
 
 from __future__ import annotations
 
+import functools
 from dataclasses import replace
 
 import numpy as np
 
-from ..stages import pairing
+from ..stages import integrate, pairing
 from ..stages.spectrum import Search
+from . import integrate as k_integrate
 from . import spectrum as k_spectrum
 from .buffers import Buffers, DeviceRows, Packed
 from .context import Runtime, cl
@@ -60,57 +62,155 @@ def track(rt: Runtime, bufs: Buffers, rows: tuple[DeviceRows, DeviceRows], times
     state : the tracker's state after the passes, with its verdict (pairing.verdict).
     """
     pairs = rows[0].shape[0]
-    f64, f32, i32 = np.float64, np.float32, np.int32
     plain = [(x, None, None) for x in rows]
     head = k_spectrum.parts(plain, pairs, model.nfft, search.echoes)
-    state = [(f64, pairs), (f32, pairs), (f64, pairs), (f32, pairs), (f64, pairs)]   # d_r s_r d_f s_f vd
-    judged = [(i32, pairs), (f64, pairs)]                                             # valid, residuals
-    out = Packed(bufs, "tracked", [*head, *state, *judged], riders)
-    d_r, s_r, d_f, s_f, vd, valid, resid = out.buffers[len(head):]
+    out = Packed(bufs, "tracked", [*head, *_state_parts(pairs)], riders)
+    times = _times_here(bufs, times)
+    band = (model.nfft, search.lo, search.hi)
+    k_spectrum.measure_each(rt, bufs, plain, None, *band, echoes=search.echoes, out=out, groups=times.groups,
+                            d_groups=times.device[3])
+    dechirp = [(rows[0], model.beta_rise, None), (rows[1], model.beta_fall, None)]
+    again = Packed(bufs, "track_pass", k_spectrum.parts(dechirp, pairs, model.nfft))
+    run = _Passes(rt, bufs, pairs, times, model, out.buffers[len(head):])
+    for it in range(iterations):
+        got = (out if it == 0 else again).buffers      # each direction's peaks: parts 0, 1 and 6, 7
+        run.launch(it, iterations, [got[i] for i in (0, 1, 6, 7)])
+        k_spectrum.measure_each(rt, bufs, dechirp, None, *band, picked=run.listed, listed=run.state,
+                                out=again)
+    run.launch(iterations, iterations, [again.buffers[i] for i in (0, 1, 6, 7)])
+    run.verdict()
+    views = out.download()
+    first = k_spectrum.results(views[: len(head)], plain, pairs, model.nfft, search.echoes)
+    return first, _passes(views[len(head):], np.ones(pairs, np.int32), 1)
+
+
+def integrated(rt: Runtime, bufs: Buffers, rows: tuple[DeviceRows, DeviceRows], times: pairing.Times,
+               model: pairing.DopplerModel, search: Search, iterations: int, k: int, riders: tuple = ()
+               ) -> pairing.Passes:
+    """The tracker's passes on K-window integrated spectra (twin: pairing.passes with
+    k > 1): the power spectra of both directions kept on the device, each pass the
+    moved pairs' spectra made again at their de-chirp velocity, the displacement along
+    the track, every pair's integrated peak, the regularisation; the verdict after the
+    last. One copy comes down: the state, the counts of spectra and the verdict (with
+    `riders`); the pairs' times go up where `times.device` lacks them."""
+    pairs = rows[0].shape[0]
+    half = model.nfft // 2
+    out = Packed(bufs, "integrated_state", [*_state_parts(pairs), (np.int32, pairs)], riders)
+    times = _times_here(bufs, times)
+    d_bounds = times.device[2]
+    stores = [DeviceRows(bufs, pairs, half) for _ in rows]
+    band = (model.nfft, search.lo, search.hi)
+    k_spectrum.measure_each(rt, bufs, [(x, None, store) for x, store in zip(rows, stores, strict=True)],
+                            None, *band)
+    dechirp = [(x, beta, store) for x, beta, store in zip(rows, (model.beta_rise, model.beta_fall), stores,
+                                                          strict=True)]
+    # each direction's (bin, SNR, count): the falling one's counts (the same) come down
+    got = Packed(bufs, "integrated_peaks", [(np.float32, pairs), (np.float32, pairs), (np.int32, pairs)] * 2
+                 ).buffers[:5] + out.buffers[-1:]
+    jobs = [(stores[0], *got[:3]), (stores[1], *got[3:])]
+    measured = [got[0], got[1], got[3], got[4]]
+    disp = bufs.get("track_disp", 4 * pairs)
+    run = _Passes(rt, bufs, pairs, times, model, out.buffers[:-1],
+                  (got[5], bufs.constant("floors", floors(k), np.float64), disp))
+    rt.kernel("track", "track_start")(rt.queue, *rt.items(pairs), np.int32(pairs), run.vd, disp, run.state)
+    k_integrate.launch(rt, bufs, jobs, disp, d_bounds, k, search, run.state)
+    for it in range(iterations):
+        run.launch(it, iterations, measured)       # the displacement of the moved velocities too
+        k_spectrum.measure_each(rt, bufs, dechirp, None, *band, picked=run.listed, listed=run.state)
+        k_integrate.launch(rt, bufs, jobs, disp, d_bounds, k, search, run.state)
+    run.launch(iterations, iterations, measured)
+    run.verdict()
+    views = out.download()
+    return _passes(views[:-1], views[-1].copy(), k)
+
+
+def _state_parts(pairs: int) -> list[tuple]:
+    """The parts of the tracker's state and verdict in its download: d_r s_r d_f s_f vd,
+    then valid and the residuals."""
+    f64, f32, i32 = np.float64, np.float32, np.int32
+    return [(f64, pairs), (f32, pairs), (f64, pairs), (f32, pairs), (f64, pairs), (i32, pairs), (f64, pairs)]
+
+
+def _passes(views: list, count: np.ndarray, k: int) -> pairing.Passes:
+    """pairing.Passes from the downloaded parts of `_STATE`."""
+    *state, valid, resid = (v.copy() for v in views)
+    return pairing.Passes(*state, count, k, verdict=(valid.astype(bool), resid))
+
+
+@functools.lru_cache(maxsize=4)
+def floors(k: int) -> np.ndarray:
+    """The SNR floor (dB) of a peak integrated over c spectra, at index c <= k
+    (integrate.threshold_db; kernels/track.cl's `heard`); one object per k."""
+    out = np.full(k + 1, np.inf)
+    out[1:] = integrate.threshold_db(np.arange(1, k + 1), pairing.SNR_MIN_DB)
+    out.flags.writeable = False
+    return out
+
+
+def _times_here(bufs: Buffers, times: pairing.Times) -> pairing.Times:
+    """`times` with its device copies (times_up), uploaded where it lacks them."""
     if times.device is None or times.device[0] is None:
         up = times_up(times)
         _, times = times_down(Packed(bufs, "track_times", [(a.dtype, a.size) for a in up]).upload(*up), times)
-    d_mid, d_half, d_bounds, d_groups = times.device
-    d_state = bufs.get("track_state", 8)          # [pairs listed, passes stopped]: the first pass sets
-    vel, med, nxt = (bufs.get(f"track_{n}", 8 * pairs) for n in ("vel", "med", "next"))
-    trusted, prev, slot, listed, v32 = (bufs.get(f"track_{n}", 4 * pairs)
-                                        for n in ("trusted", "prev", "slot", "rows", "v32"))
-    band = (model.nfft, search.lo, search.hi)
-    k_spectrum.measure_each(rt, bufs, plain, None, *band, echoes=search.echoes, out=out, groups=times.groups,
-                            d_groups=d_groups)
-    dechirp = [(rows[0], model.beta_rise, None), (rows[1], model.beta_fall, None)]
-    again = Packed(bufs, "track_pass", k_spectrum.parts(dechirp, pairs, model.nfft))
-    kernel = rt.kernel("track", "track_pass")
-    # PoCL: one item loops without barriers' cost; elsewhere at most what the kernel's
-    # registers allow (its median window is 33 doubles an item)
-    lsz = 1 if rt.lanes else min(rt.group_size(16, 256), kernel.kernel.get_work_group_info(
-        cl.kernel_work_group_info.WORK_GROUP_SIZE, rt.device))
+    return times
 
-    def launch(it: int) -> None:
-        got = (out if it == 0 else again).buffers      # each direction's peaks: parts 0, 1 and 6, 7
-        kernel(rt.queue, (lsz,), (lsz,), i32(pairs), i32(it == 0), i32(it == iterations),
-               *(got[i] for i in (0, 1, 6, 7)), slot, f64(model.metres_per_bin), d_mid, d_half, d_bounds,
-               f64(model.k_rise), f64(model.k_fall), d_r, d_f, s_r, s_f, vd, i32(pairing.NEIGHBOURS),
-               f32(pairing.SNR_MIN_DB), f64(pairing.CONSISTENT_MPS),
-               f64(pairing.PLAIN_SHARE if it == 0 else 0.0), f64(pairing.STOP_MPS), vel, med, nxt, trusted,
-               prev, listed, v32, d_state, cl.LocalMemory(12 * lsz))
 
-    for it in range(iterations):
-        launch(it)
-        k_spectrum.measure_each(rt, bufs, dechirp, None, *band, picked=(listed, v32), listed=d_state,
-                                out=again)
-    launch(iterations)
-    # the verdict (pairing.verdict): one work-item a pair
-    dist = bufs.get("track_dist", 8 * pairs)
-    rt.kernel("track", "track_valid")(
-        rt.queue, *rt.items(pairs), i32(pairs), d_r, d_f, s_r, s_f, vd, d_half, vel, med, f64(model.k_rise),
-        f64(model.k_fall), f32(pairing.SNR_MIN_DB), f64(pairing.CONVERGED_MPS), f64(pairing.CONSISTENT_MPS),
-        dist, valid)
-    residuals(rt, pairs, d_mid, d_bounds, dist, vel, valid, resid, bufs.get("track_vouched", 4 * pairs))
-    views = out.download()
-    first = k_spectrum.results(views[: len(head)], plain, pairs, model.nfft, search.echoes)
-    *state, valid, resid = (v.copy() for v in views[len(head):])
-    return first, pairing.Passes(*state, np.ones(pairs, np.int32), verdict=(valid.astype(bool), resid))
+class _Passes:
+    """kernels/track.cl's passes over `pairs` and their verdict, into the device buffers
+    `state` (`_state_parts`); `counted`, with integration: the measurements' counts of
+    spectra, the floors by count and the displacement (device buffers; None: every peak
+    heard over SNR_MIN_DB, the measurements the pairs listed)."""
+
+    def __init__(self, rt: Runtime, bufs: Buffers, pairs: int, times: pairing.Times,
+                 model: pairing.DopplerModel, state: list, counted: tuple | None = None) -> None:
+        self.rt, self.pairs, self.times, self.model = rt, pairs, times, model
+        self.d_r, self.s_r, self.d_f, self.s_f, self.vd, self.valid, self.resid = state
+        self.state = bufs.get("track_state", 8)   # [pairs listed, passes stopped]: the first pass sets
+        self.vel, self.med, self.nxt = (bufs.get(f"track_{n}", 8 * pairs) for n in ("vel", "med", "next"))
+        self.trusted, self.prev, self.slot, rows, v32 = (bufs.get(f"track_{n}", 4 * pairs)
+                                                         for n in ("trusted", "prev", "slot", "rows", "v32"))
+        self.listed = (rows, v32)
+        self.vouched = bufs.get("track_vouched", 4 * pairs)
+        self.dist = bufs.get("track_dist", 8 * pairs)
+        self.every = counted is not None        # integrated: every pair measured each pass
+        if counted is None:
+            none = bufs.constant("index0", k_spectrum.zeros(1), np.int32)
+            counted = (none, bufs.constant("floors1", k_spectrum.zeros(1), np.float64), none)
+        # the counts of spectra, the floors by count, whether counted; the displacement
+        self.counted, self.disp = (*counted[:2], np.int32(self.every)), counted[2]
+        self.kernel = rt.kernel("track", "track_pass")
+        # PoCL: one item loops without barriers' cost; elsewhere at most what the kernel's
+        # registers allow (its median window is 33 doubles an item)
+        self.lsz = 1 if rt.lanes else min(rt.group_size(16, 256), self.kernel.kernel.get_work_group_info(
+            cl.kernel_work_group_info.WORK_GROUP_SIZE, rt.device))
+
+    def launch(self, it: int, iterations: int, measured: list) -> None:
+        """Pass `it` of `iterations` (the last: the state and median for the verdict),
+        reading the peaks `measured` (bin and SNR of each direction: device buffers);
+        integrated, it writes the displacement of the new velocities too."""
+        i32, f32, f64 = np.int32, np.float32, np.float64
+        m, lsz = self.model, self.lsz
+        d_mid, d_half, d_bounds, _ = self.times.device
+        self.kernel(self.rt.queue, (lsz,), (lsz,), i32(self.pairs), i32(it == 0), i32(it == iterations),
+                    i32(self.every), *measured, self.slot, f64(m.metres_per_bin), d_mid, d_half, d_bounds,
+                    f64(m.k_rise), f64(m.k_fall), self.d_r, self.d_f, self.s_r, self.s_f, self.vd,
+                    i32(pairing.NEIGHBOURS), f32(pairing.SNR_MIN_DB), *self.counted,
+                    f64(pairing.CONSISTENT_MPS), f64(pairing.PLAIN_SHARE if it == 0 else 0.0),
+                    f64(pairing.STOP_MPS), self.vel, self.med,
+                    self.nxt, self.trusted, self.prev, *self.listed, self.state, self.disp,
+                    cl.LocalMemory(16 * lsz), cl.LocalMemory(8 * lsz))
+
+    def verdict(self) -> None:
+        """pairing.verdict after the last pass: one work-item a pair."""
+        i32, f32, f64 = np.int32, np.float32, np.float64
+        m, pairs = self.model, self.pairs
+        d_mid, d_half, d_bounds, _ = self.times.device
+        dist = self.dist
+        self.rt.kernel("track", "track_valid")(
+            self.rt.queue, *self.rt.items(pairs), i32(pairs), self.d_r, self.d_f, self.s_r, self.s_f, self.vd,
+            d_half, self.vel, self.med, f64(m.k_rise), f64(m.k_fall), f32(pairing.SNR_MIN_DB), *self.counted,
+            f64(pairing.CONVERGED_MPS), f64(pairing.CONSISTENT_MPS), dist, self.valid)
+        residuals(self.rt, pairs, d_mid, d_bounds, dist, self.vel, self.valid, self.resid, self.vouched)
 
 
 def residuals(rt: Runtime, pairs: int, t, bounds, dist, vel, valid, resid, vouched) -> None:

@@ -67,22 +67,23 @@ def threshold_db(count: np.ndarray | int, snr_min_db: float) -> np.ndarray:
     return 10 * np.log10(gammainccinv(n, false_alarm(snr_min_db)) / n)
 
 
-def detection(k: int, snr: float, snr_min_db: float) -> float:
+def detection(k, snr: float, snr_min_db: float) -> np.ndarray:
     """Probability that a peak of per-sweep SNR `snr` (linear: peak power over the mean
-    noise power of a bin) integrated over k spectra stands above `threshold_db`."""
+    noise power of a bin) integrated over k spectra (an int or an array of them) stands
+    above `threshold_db`."""
     from scipy.stats import ncx2
 
-    t = 10 ** (float(threshold_db(k, snr_min_db)) / 10)
-    return float(ncx2.sf(2 * k * t, 2 * k, 2 * k * snr))
+    k = np.asarray(k, np.float64)
+    t = 10 ** (threshold_db(k, snr_min_db) / 10)
+    return ncx2.sf(2 * k * t, 2 * k, 2 * k * snr)
 
 
 def choose(snr: float, snr_min_db: float) -> int:
     """The smallest K <= MAX_K that detects a per-sweep SNR `snr` (linear) with
     probability PD (MAX_K when none does)."""
-    for k in range(1, MAX_K + 1):
-        if detection(k, snr, snr_min_db) >= PD:
-            return k
-    return MAX_K
+    k = np.arange(1, MAX_K + 1)
+    found = np.flatnonzero(detection(k, snr, snr_min_db) >= PD)     # one call: scipy's costs 0.3 ms
+    return int(k[found[0]]) if found.size else MAX_K
 
 
 def displacement(t: np.ndarray, v: np.ndarray) -> np.ndarray:

@@ -185,6 +185,13 @@ class SpectrumOps:
             return first, None
         return first, passes(rows, times, model, replace(search, echoes=False), iterations, self, first, 1)
 
+    def integrated(self, rows: tuple, times: Times, model: DopplerModel, search: Search, iterations: int,
+                   k: int) -> Passes:
+        """The tracker's de-chirp passes on K-window integrated spectra of both
+        directions of `rows` (`passes` with k > 1; a backend: on the device, its state
+        read once)."""
+        return passes(rows, times, model, search, iterations, self, None, k)
+
     def plain_pass(self, rows: tuple, model: DopplerModel, search: Search,
                    times: Times | None = None) -> list[tuple]:
         """`measure_each` of both directions of `rows` at 0 m/s: the tracker's first pass
@@ -653,7 +660,7 @@ def track_pairs(xr: np.ndarray, xf: np.ndarray, times: Times, model: DopplerMode
 
     def tracked(k: int, state: Passes | None = None) -> PairResult:
         if state is None:
-            state = passes((xr, xf), times, model, replace(search, echoes=False), iterations, ops, first, k)
+            state = ops.integrated((xr, xf), times, model, replace(search, echoes=False), iterations, k)
         return result(first, state, times, model, dechirp)
 
     if integrate_k is not None and integrate_k > 1:
@@ -663,6 +670,8 @@ def track_pairs(xr: np.ndarray, xf: np.ndarray, times: Times, model: DopplerMode
         return one
     probe = tracked(integrate.PROBE)
     k = integrate.choose(measured_snr(probe), SNR_MIN_DB)
+    if k == 1:                  # the probe heard more than the single pairs: `one` it is
+        return one
     return probe if k == integrate.PROBE else tracked(k)
 
 
@@ -737,17 +746,19 @@ def snr_floor(count: np.ndarray, k: int) -> np.ndarray | float:
 def passes(rows: tuple, times: Times, model: DopplerModel, search: Search, iterations: int,
            ops: SpectrumOps, first: tuple, k: int) -> Passes:
     """The tracker's de-chirp passes (integrating k half-sweeps a measurement) from the
-    plain pass `first`: de-chirp every pair at its regularised velocity (`regularise`),
-    measure, solve, until no pair's velocity moves by STOP_MPS or `iterations` are done."""
+    plain pass `first` (k = 1; with k > 1, from the integrated plain spectra, `first`
+    unused): de-chirp every pair at its regularised velocity (`regularise`), measure,
+    solve, until no pair's velocity moves by STOP_MPS or `iterations` are done."""
     xr, xf = rows
     half_gap, t_mid = times.half_gap, times.mid
     vd = np.zeros(t_mid.size)          # the velocity each pair was last de-chirped with
-    (d_r, s_r, *_), (d_f, s_f, *_) = first
-    d_r, d_f, s_r, s_f = (a.copy() for a in (d_r, d_f, s_r, s_f))   # updated in place
-    count = np.ones(t_mid.size, np.int32)
     windows = _Windows(ops, rows, model, search, k, times) if k > 1 else None
     if windows is not None:
         d_r, s_r, d_f, s_f, count = windows.measure(vd)
+    else:
+        (d_r, s_r, *_), (d_f, s_f, *_) = first
+        d_r, d_f, s_r, s_f = (a.copy() for a in (d_r, d_f, s_r, s_f))   # updated in place
+        count = np.ones(t_mid.size, np.int32)
     snr_min = snr_floor(count, k)
     for it in range(iterations):
         _, vel, _ = solve_pair(d_r, d_f, vd, half_gap, model)
