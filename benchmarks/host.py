@@ -5,7 +5,10 @@ conversions (markdown rows on stdout).
 
 On PoCL a wait for the device sleeps, so this is the host's own work, the figure that
 bounds a GPU's end to end. Without captures: a 1 s rail, the 0.3 s jump and a 0.5 s
-static target of the simulator's defaults (seeds 1-3), written at once in a temporary folder. To
+static target of the simulator's defaults (seeds 1-3), and two with a lab's instrument
+(`simulator.LAB`: a weak intensity triangle under noise, a 20 MHz table): 0.1 s of the jump's
+take-off past a wall of 300 codes with speckle, and a 0.2 s static target at -15 dB per
+sample, which the tracker integrates; written in a temporary folder. To
 compare two versions, install one apart (pip install --target DIR) and run this script
 with PYTHONPATH=DIR, alternately with the other, in one session.
 """
@@ -18,6 +21,7 @@ from pathlib import Path
 
 from scratch import folder
 
+import fmcw_cl
 from fmcw_cl.backend import make_processor
 from fmcw_cl.engine import process
 from fmcw_cl.options import Options
@@ -37,6 +41,10 @@ def main() -> None:
         captures = simulate_captures([{"path": tmp / f"{name}.h5", "trajectory": scene(seconds),
                                        "duration_s": seconds, "seed": seed}
                                       for seed, (name, scene, seconds) in enumerate(scenes, 1)])
+        captures += [tmp / "lab_jump.h5", tmp / "lab_weak_static.h5"]
+        fmcw_cl.simulate(captures[-2], "jump", duration=0.1, start=0.05, seed=7, lab=True,
+                         reflectors=((0.25, 300.0),), speckle_ms=2.0)
+        fmcw_cl.simulate(captures[-1], "static", duration=0.2, seed=5, snr_db=-15, lab=True)
     be = make_processor(args.backend)
     print("| capture | device | host CPU ms per s of capture |\n|---|---|---|")
     for path in captures:

@@ -10,6 +10,8 @@ imports scipy.stats), which every fresh process converting a capture paid.
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 
@@ -110,26 +112,46 @@ def window_index(n: int, half: int, ends: tuple, at=slice(None)) -> tuple[np.nda
     return np.clip(idx, first, last), (idx >= first) & (idx <= last)
 
 
-def savgol_derivative(x: np.ndarray, window: int, order: int, delta: float) -> np.ndarray:
+def savgol_derivative(x: np.ndarray, window: int, order: int, delta: float,
+                      spans: np.ndarray | None = None, out: np.ndarray | None = None) -> np.ndarray:
     """First derivative of x (spacing `delta`) by Savitzky-Golay smoothing: the slope of
     the least-squares polynomial of `order` over each centred `window` (odd, at most
     x.size); the first and last window // 2 values from the polynomial fitted to the
     first and last `window` values. scipy.signal.savgol_filter(x, window, order,
-    deriv=1, delta=delta, mode="interp")."""
+    deriv=1, delta=delta, mode="interp").
+
+    `spans` ((R, 2) start, stop; each at least `window` long): each span of x
+    differentiated on its own, all at once, into `out` (NaN elsewhere when None)."""
     x = np.asarray(x, np.float64)
+    spans = np.array([[0, x.size]]) if spans is None else np.asarray(spans)
+    out = np.full(x.size, np.nan) if out is None else out
+    if spans.size == 0:
+        return out
     half = window // 2
-    t = np.arange(window, dtype=np.float64)
-    # the slope at the centre is a fixed weighting of the window: the row of the
-    # least-squares solution that holds the linear coefficient (powers of t - half)
-    weights = np.linalg.pinv(np.vander(t - half, order + 1, increasing=True))[1] / delta
-    out = np.empty_like(x)
-    # a correlation, not a matrix product: BLAS threads (centred_slope); 6x faster than a
-    # sum over a sliding window's (n, window) products
-    out[half: x.size - half] = np.correlate(x, weights, "valid")
-    for edge, at in ((slice(0, window), slice(0, half)),
-                     (slice(x.size - window, x.size), slice(x.size - half, x.size))):
-        slope = np.polyder(np.polyfit(t, x[edge], order))
-        out[at] = np.polyval(slope, t[at.start - edge.start: at.stop - edge.start]) / delta
+    rows = savgol_rows(window, order) / delta
+    a, b = spans[:, 0], spans[:, 1]
+    # the centred slopes: a correlation over the whole of x, not a matrix product (BLAS
+    # threads: centred_slope), of which each span takes its points a whole window from
+    # its ends (a window across a span's end reads values not its own: never taken)
+    _, at = ragged(a + half, b - half)
+    out[at] = np.correlate(x, rows[half], "valid")[at - half]
+    taps = np.arange(window)
+    out[a[:, None] + taps[:half]] = x[a[:, None] + taps] @ rows[:half].T
+    out[(b - half)[:, None] + taps[:half]] = x[(b - window)[:, None] + taps] @ rows[half + 1:].T
+    return out
+
+
+@functools.lru_cache(maxsize=32)
+def savgol_rows(window: int, order: int) -> np.ndarray:
+    """(window, window): row j, the weights of a window's values that give the slope at
+    its point j (spacing 1) of their least-squares polynomial of `order`."""
+    t = np.arange(window, dtype=np.float64) - window // 2
+    fit = np.linalg.pinv(np.vander(t, order + 1, increasing=True))      # coefficients of powers of t
+    powers = np.arange(order + 1)
+    slope = powers * t[:, None] ** np.maximum(powers - 1, 0)            # d/dt of each power at each t
+    out = slope @ fit
+    out[window // 2] = fit[1]               # the centre's exactly the linear coefficient's
+    out.flags.writeable = False
     return out
 
 
@@ -169,20 +191,48 @@ def drift(t: np.ndarray, d: np.ndarray, v: np.ndarray, blocks: int = 0) -> tuple
     is zero for consistent kinematics, whatever the motion. The error is the white
     residuals'; with `blocks` > 1, the larger of it and a jackknife's that leaves each of
     that many blocks of the run out in turn (for distances correlated over pairs)."""
-    r = d - travelled(t, v)
-    slope, se = line_slope(t, r)
+    slope, error = drifts(t, d, v, np.array([t.size]), blocks)
+    return float(slope[0]), float(error[0])
+
+
+def drifts(t: np.ndarray, d: np.ndarray, v: np.ndarray, sizes: np.ndarray, blocks: int = 0
+           ) -> tuple[np.ndarray, np.ndarray]:
+    """`drift` of each of several runs laid end to end in t, d, v (`sizes` values each,
+    at least 2), all in one pass: their slopes (m/s) and errors."""
+    sizes = np.asarray(sizes, np.int64)
+    count = sizes.size
+    label = np.repeat(np.arange(count), sizes)
+    start = np.cumsum(sizes) - sizes
+    # the distance travelled from each run's start (the trapezoidal integral, `travelled`)
+    step = np.zeros(t.size)
+    step[1:] = 0.5 * (v[1:] + v[:-1]) * np.diff(t)
+    step[start] = 0.0
+    total = np.cumsum(step)
+    r = d - (total - total[start][label])
+
+    def sums(w: np.ndarray) -> np.ndarray:
+        return np.bincount(label, w, count)
+
+    tc, rc = t - (sums(t) / sizes)[label], r - (sums(r) / sizes)[label]
+    tt = sums(tc * tc)
+    slope = sums(tc * rc) / tt
+    resid = rc - slope[label] * tc
+    error = np.sqrt(sums(resid * resid) / np.maximum(1, sizes - 2) / tt)
     if blocks < 2:
-        return slope, se
-    # each left-out fit from the sums of the blocks kept (np.array_split's blocks), about
-    # the whole run's means: one pass, not one fit a block
-    n = t.size
-    label = np.repeat(np.arange(blocks), [n // blocks + (b < n % blocks) for b in range(blocks)])
-    tc, rc = t - t.mean(), r - r.mean()
-    kept = [np.sum(w) - np.bincount(label, w, blocks) for w in (np.ones(n), tc, rc, tc * tc, tc * rc)]
+        return slope, error
+    # each left-out fit from the sums of the blocks kept (np.array_split's blocks of each
+    # run), about the whole run's means
+    pos = np.arange(t.size) - start[label]
+    q, rem = (sizes // blocks)[label], (sizes % blocks)[label]
+    big = rem * (q + 1)                         # the values in the blocks one longer
+    block = np.where(pos < big, pos // (q + 1), rem + (pos - big) // np.maximum(q, 1))
+    key = label * blocks + block
+    kept = [sums(w)[:, None] - np.bincount(key, w, count * blocks).reshape(count, blocks)
+            for w in (np.ones(t.size), tc, rc, tc * tc, tc * rc)]
     m, st, sr, stt, str_ = kept
     loo = (str_ - st * sr / m) / (stt - st * st / m)
-    jack = float(np.sqrt((blocks - 1) / blocks * np.sum(np.square(loo - np.mean(loo)))))
-    return slope, max(se, jack)
+    jack = np.sqrt((blocks - 1) / blocks * np.sum(np.square(loo - np.mean(loo, axis=1)[:, None]), axis=1))
+    return slope, np.where(jack > error, jack, error)      # NaN: the white residuals'
 
 
 def nearest(sorted_a: np.ndarray, x: np.ndarray) -> np.ndarray:

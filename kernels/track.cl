@@ -84,7 +84,7 @@ void runs_since_restart(__global const double *t, __global const int *bounds, __
             run = 0.0;
             cut = 1;
         } else {
-            run += (t[i] - t[i - 1]) * 0.5 * (vd[i] + vd[i - 1]);
+            run += 0.5 * (vd[i] + vd[i - 1]) * (t[i] - t[i - 1]);
         }
     }
     sums[lid] = run;
@@ -94,7 +94,7 @@ void runs_since_restart(__global const double *t, __global const int *bounds, __
 // The target's displacement (bins, from its group's first pair) at the pairs a..b, in
 // the order numpy's cumsum adds, carried over from the runs before this work-item's in
 // its group (`runs_since_restart` of every work-item, after a barrier). Twin:
-// stages.integrate.displacement, each group apart.
+// numeric.travelled, each group apart.
 void displace(__global const double *t, __global const int *bounds, const double metres_per_bin,
               __global const double *vd, __global float *disp, const int a, const int b,
               __local const double *sums, __local const int *restarted)
@@ -102,7 +102,7 @@ void displace(__global const double *t, __global const int *bounds, const double
     double d = 0.0;                            // at the end of the runs before this one
     for (int k = 0; k < (int)get_local_id(0); ++k) d = restarted[k] ? sums[k] : d + sums[k];
     for (int i = a; i < b; ++i) {
-        d = i == bounds[i] ? 0.0 : d + (t[i] - t[i - 1]) * 0.5 * (vd[i] + vd[i - 1]);
+        d = i == bounds[i] ? 0.0 : d + 0.5 * (vd[i] + vd[i - 1]) * (t[i] - t[i - 1]);
         disp[i] = (float)(d / metres_per_bin);
     }
 }

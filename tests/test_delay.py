@@ -121,8 +121,9 @@ def test_the_drifts_error_holds_for_distances_correlated_over_pairs(phi):
 @pytest.mark.parametrize("pairs", [17, 61, 240])
 def test_the_drifts_jackknife_is_each_block_left_out_and_fitted_again(pairs):
     """numeric.drift's jackknife from block sums equals fitting the run again without
-    each block (np.array_split's blocks: uneven where the blocks do not divide it)."""
-    from fmcw_cl.numeric import drift, line_slope, travelled
+    each block (np.array_split's blocks: uneven where the blocks do not divide it); runs
+    laid end to end (numeric.drifts) each as alone."""
+    from fmcw_cl.numeric import drift, drifts, line_slope, travelled
 
     rng = np.random.default_rng(pairs)
     t = 2.0 + np.sort(rng.choice(pairs + 20, pairs, replace=False)) * 5e-5
@@ -132,9 +133,19 @@ def test_the_drifts_jackknife_is_each_block_left_out_and_fitted_again(pairs):
     loo = [line_slope(np.delete(t, b), np.delete(r, b))[0] for b in np.array_split(np.arange(pairs), 6)]
     jack = np.sqrt(5 / 6 * np.sum(np.square(np.subtract(loo, np.mean(loo)))))
     slope, se = drift(t, d, v, 6)
-    assert slope == line_slope(t, r)[0]
+    assert slope == pytest.approx(line_slope(t, r)[0], rel=1e-12)
     assert se == pytest.approx(max(jack, line_slope(t, r)[1]), rel=1e-9)
     assert jack > line_slope(t, r)[1]                     # the jackknife's error is the one stated
+    # this run between two others, one shorter than the blocks, at other times and speeds
+    cut = [2, pairs, 9]
+    ts, ds, vs = (np.concatenate(x) for x in zip((t[:2] - 1.0, d[:2], v[:2] + 3.0), (t, d, v),
+                                                 (t[:9] + 1.0, d[:9] - 0.1, -v[:9]), strict=True))
+    slopes, errors = drifts(ts, ds, vs, np.array(cut), 6)
+    np.testing.assert_allclose(slopes[1:2], slope, rtol=1e-12)
+    np.testing.assert_allclose(errors[1:2], se, rtol=1e-9)
+    for k, (a, b) in enumerate(((0, 2), (2 + pairs, 11 + pairs))):
+        one = drift(ts[a:b], ds[a:b], vs[a:b], 6)
+        np.testing.assert_allclose([slopes[k * 2], errors[k * 2]], one, rtol=1e-9)
 
 
 def test_a_line_through_unsettled_trials_gives_the_root_and_its_error():

@@ -86,13 +86,6 @@ def choose(snr: float, snr_min_db: float) -> int:
     return int(k[found[0]]) if found.size else MAX_K
 
 
-def displacement(t: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Distance (m) the target has moved at times t (s) since t[0], integrating the
-    velocities v (m/s) by the trapezoid rule."""
-    step = np.diff(t) * 0.5 * (v[1:] + v[:-1])
-    return np.concatenate([[0.0], np.cumsum(step)])
-
-
 def integrate(power: np.ndarray, disp: np.ndarray, k: int, bounds: np.ndarray | None = None
               ) -> tuple[np.ndarray, np.ndarray]:
     """Mean of the K-window of power spectra around each row, aligned.

@@ -23,11 +23,11 @@ def acceleration(velocity: np.ndarray, valid: np.ndarray, period_s: float,
     on its own, so no value is invented across a gap. Invalid pairs get NaN.
     """
     acc = np.full(velocity.shape, np.nan)
-    for a, b in runs(valid):
-        n = b - a
-        if n >= window:
-            acc[a:b] = savgol_derivative(velocity[a:b], window, POLYORDER, period_s)
-        elif n >= 3:
-            w = n if n % 2 else n - 1
-            acc[a:b] = savgol_derivative(velocity[a:b], w, min(POLYORDER, w - 1), period_s)
+    spans = runs(valid)
+    n = spans[:, 1] - spans[:, 0]
+    # a run's window: `window`, or its own length (odd) where shorter; the runs of each
+    # window at once
+    own = np.where(n >= window, window, n - 1 + n % 2)
+    for w in map(int, np.unique(own[n >= 3])):
+        savgol_derivative(velocity, w, min(POLYORDER, w - 1), period_s, spans[(own == w) & (n >= 3)], acc)
     return acc
