@@ -198,3 +198,25 @@ def test_the_threshold_table_is_scipys():
     np.testing.assert_array_equal(integrate.THRESHOLDS_DB, want)
     np.testing.assert_array_equal(integrate.threshold_db(np.array([1, 4, 32]), 10.0), want[[0, 3, 31]])
     assert integrate.threshold_db(4, 8.0) < want[3]                     # off the table: computed
+
+
+def test_the_detection_probability_is_scipys_ncx2():
+    """integrate.chi2_sf (numpy: a conversion imports no scipy) against
+    scipy.stats.ncx2.sf over every K and per-sweep SNRs from none to 25 dB, and the K
+    chosen from it against scipy's, where the probability crosses PD between
+    neighbouring SNRs too."""
+    from scipy.stats import ncx2
+
+    k = np.arange(1, integrate.MAX_K + 1)
+    t = 10 ** (integrate.threshold_db(k, 10.0) / 10)
+    chosen = []
+    for snr in np.r_[0.0, np.geomspace(1e-3, 300, 400)]:
+        want = ncx2.sf(2 * k * t, 2 * k, 2 * k * snr)
+        got = integrate.detection(k, snr, 10.0)
+        np.testing.assert_allclose(got, want, rtol=0, atol=1e-13 if want.max() < 0.9999 else 1e-9)
+        first = np.flatnonzero(want >= integrate.PD)
+        assert integrate.choose(snr, 10.0) == (k[first[0]] if first.size else integrate.MAX_K)
+        chosen.append(integrate.choose(snr, 10.0))
+    assert set(chosen) >= {1, 2, 3, 8, 32}                       # every regime visited
+    central = integrate.chi2_sf([0.0, 5.0], [3, 1], [0.0, 0.0])         # 6 and 2 degrees of freedom
+    np.testing.assert_allclose(central, [1.0, np.exp(-2.5)], rtol=1e-14)
