@@ -230,8 +230,9 @@ def drifts(t: np.ndarray, d: np.ndarray, v: np.ndarray, sizes: np.ndarray, block
     kept = [sums(w)[:, None] - np.bincount(key, w, count * blocks).reshape(count, blocks)
             for w in (np.ones(t.size), tc, rc, tc * tc, tc * rc)]
     m, st, sr, stt, str_ = kept
-    loo = (str_ - st * sr / m) / (stt - st * st / m)
-    jack = np.sqrt((blocks - 1) / blocks * np.sum(np.square(loo - np.mean(loo, axis=1)[:, None]), axis=1))
+    with np.errstate(divide="ignore", invalid="ignore"):     # a run of fewer than 2 a block: NaN
+        loo = (str_ - st * sr / m) / (stt - st * st / m)
+        jack = np.sqrt((blocks - 1) / blocks * np.sum(np.square(loo - np.mean(loo, axis=1)[:, None]), axis=1))
     return slope, np.where(jack > error, jack, error)      # NaN: the white residuals'
 
 

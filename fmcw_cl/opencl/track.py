@@ -132,7 +132,7 @@ def _state_parts(pairs: int) -> list[tuple]:
 
 
 def _passes(views: list, count: np.ndarray, k: int) -> pairing.Passes:
-    """pairing.Passes from the downloaded parts of `_STATE`."""
+    """pairing.Passes from the downloaded parts of `_state_parts`."""
     *state, valid, resid = (v.copy() for v in views)
     return pairing.Passes(*state, count, k, verdict=(valid.astype(bool), resid))
 

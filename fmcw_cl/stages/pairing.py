@@ -431,14 +431,14 @@ def _drifting(t, dist, vel, ok) -> bool:
     """Drop, in place, the runs (`_runs`) whose distance less the integral of their
     velocity has a least-squares slope beyond DRIFT_MPS: those of at least DRIFT_S, and
     those of at least DRIFT_PAIRS where the slope is also DRIFT_SIGMAS standard errors
-    (numeric.drifts' jackknife), all runs at once; whether any was. Within 2 ms a velocity 1 m/s off
-    moves the prediction by 2 mm, against a tolerance of 1.25: a wrong echo held at one
-    distance for 25 ms with a velocity of 0.94 m/s passes `_kinematic`; over its run it
-    drifts by 23 mm. Its last 4.95 ms, where the target came within 2-3.5 mm of it and
-    the run was cut from the rest, drifted at -0.74 m/s, 20 standard errors. Under noise
-    at full scale, a take-off past the band's edge left 28 pairs (1.35 ms) at 1.6 m/s
-    and 49 mm short of the target, de-chirped 3-4 dB over the floor: 0.44 m/s, 6.7
-    standard errors."""
+    (numeric.drifts' jackknife), all runs at once; whether any was. Within 2 ms a
+    velocity 1 m/s off moves the prediction by 2 mm, against a tolerance of 1.25: a
+    wrong echo held at one distance for 25 ms with a velocity of 0.94 m/s passes
+    `_kinematic`; over its run it drifts by 23 mm. Its last 4.95 ms, where the target
+    came within 2-3.5 mm of it and the run was cut from the rest, drifted at -0.74 m/s,
+    20 standard errors. Under noise at full scale, a take-off past the band's edge left
+    28 pairs (1.35 ms) at 1.6 m/s and 49 mm short of the target, de-chirped 3-4 dB over
+    the floor: 0.44 m/s, 6.7 standard errors."""
     runs = _runs(t, dist, vel, ok)
     if not runs:
         return False
