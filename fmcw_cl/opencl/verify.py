@@ -11,10 +11,11 @@ from . import track as k_track
 from .buffers import Buffers, Packed
 from .context import Runtime
 
-# fewer pairs are tested on the host: a trip each way costs more than their tests there
-# (a second look's stretches of 240 pairs; a 0.3 s track of 6000 pairs: 3.8 ms of host
-# CPU in numpy, 1.0 ms with the tests on the 2-core PoCL)
-PAIRS_MIN = 4096
+# fewer pairs are tested on the host, where a trip each way would cost more than their
+# tests: numpy's test of motion loops over 48 neighbours whatever the count (2-core PoCL,
+# 250 pairs: 0.59 ms of host CPU, on the device 0.03 ms and 0.10 of wall; 2000 pairs:
+# 1.0 ms, on the device 0.03 and 0.39; the residuals at 250 pairs 0.11 ms, 0.05 and 0.11)
+PAIRS_MIN = 128
 
 
 def _up(bufs: Buffers, t: np.ndarray, dist: np.ndarray, vel: np.ndarray, ok: np.ndarray,
