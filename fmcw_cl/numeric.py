@@ -203,7 +203,8 @@ def drifts(t: np.ndarray, d: np.ndarray, v: np.ndarray, sizes: np.ndarray, block
     count = sizes.size
     label = np.repeat(np.arange(count), sizes)
     start = np.cumsum(sizes) - sizes
-    # the distance travelled from each run's start (the trapezoidal integral, `travelled`)
+    # the distance travelled from each run's start (`travelled`'s steps, those across
+    # runs left out: a run's sums carry no other run's travel, so it is fitted as alone)
     step = np.zeros(t.size)
     step[1:] = 0.5 * (v[1:] + v[:-1]) * np.diff(t)
     step[start] = 0.0

@@ -70,9 +70,16 @@ int heard(const int i, __global const float *s_r, __global const float *s_f, con
     return (double)s_r[i] >= f && (double)s_f[i] >= f;
 }
 
-// The sum over this work-item's pairs a..b of the target's steps (m: the trapezoid rule
-// over the pairs' centres t at the de-chirp velocities vd) since the last start of a
-// group among them, and whether one started there: what `displace` carries over.
+// The target's move (m) from pair i - 1 to pair i: the trapezoid rule over the pairs'
+// centres t at the de-chirp velocities vd, numeric.travelled's step.
+double step_m(__global const double *t, __global const double *vd, const int i)
+{
+    return 0.5 * (vd[i] + vd[i - 1]) * (t[i] - t[i - 1]);
+}
+
+// The sum over this work-item's pairs a..b of the target's steps (`step_m`) since the
+// last start of a group among them, and whether one started there: what `displace`
+// carries over.
 void runs_since_restart(__global const double *t, __global const int *bounds, __global const double *vd,
                         const int a, const int b, __local double *sums, __local int *restarted)
 {
@@ -84,7 +91,7 @@ void runs_since_restart(__global const double *t, __global const int *bounds, __
             run = 0.0;
             cut = 1;
         } else {
-            run += 0.5 * (vd[i] + vd[i - 1]) * (t[i] - t[i - 1]);
+            run += step_m(t, vd, i);
         }
     }
     sums[lid] = run;
@@ -102,7 +109,7 @@ void displace(__global const double *t, __global const int *bounds, const double
     double d = 0.0;                            // at the end of the runs before this one
     for (int k = 0; k < (int)get_local_id(0); ++k) d = restarted[k] ? sums[k] : d + sums[k];
     for (int i = a; i < b; ++i) {
-        d = i == bounds[i] ? 0.0 : d + 0.5 * (vd[i] + vd[i - 1]) * (t[i] - t[i - 1]);
+        d = i == bounds[i] ? 0.0 : d + step_m(t, vd, i);
         disp[i] = (float)(d / metres_per_bin);
     }
 }

@@ -106,7 +106,7 @@ def choose(snr: float, snr_min_db: float) -> int:
     probability PD (MAX_K when none does)."""
     if detection(1, snr, snr_min_db)[0] >= PD:        # strong: no K of the costly mixtures
         return 1
-    k = np.arange(1, MAX_K + 1)
+    k = np.arange(2, MAX_K + 1)
     found = np.flatnonzero(detection(k, snr, snr_min_db) >= PD)
     return int(k[found[0]]) if found.size else MAX_K
 
