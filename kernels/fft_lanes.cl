@@ -1,80 +1,104 @@
 // Stage 5a on CPU devices: what fft.cl's spectrum_peak computes (the de-chirp, the
 // zero-padded FFT, the power, the peak and, on request, every CFAR echo and the power
-// itself), eight transforms per work-item, one in each lane of a float8. PoCL turns a
+// itself), LANES transforms per work-item, one in each lane of a floatL. PoCL turns a
 // work-group's work-items into a loop that it vectorises only when the kernel body has
 // no loop of its own, which an FFT has: spectrum_peak runs as scalar code there. Here
-// the lanes are explicit, every load and store of the transform is a whole float8 and
+// the lanes are explicit, every load and store of the transform is a whole floatL and
 // every twiddle is one value for all lanes (PoCL, 2-core EPYC: a 2048-point transform
 // 2.5 us a row against 11-14 us). One work-item a group, its transforms in local memory.
+// LANES (a build option, Runtime.width): 16 where the device's preferred float vector
+// is 16 wide (AVX-512: one zmm register a value; PoCL, 2-core Skylake-SP: 15-20 % faster
+// than 8), else 8. Each lane's arithmetic is the same at either width.
 // Twins: fmcw_cl.stages.pairing.measure, stages.spectrum.power_spectra and find_peaks,
 // stages.cfar.detect.
+
+#ifndef LANES
+#define LANES 8
+#endif
+#if LANES == 16
+typedef float16 floatL;
+typedef int16 intL;
+#define VSTOREL vstore16
+#define VLOADL vload16
+#else
+typedef float8 floatL;
+typedef int8 intL;
+#define VSTOREL vstore8
+#define VLOADL vload8
+#endif
 
 // Integer bounds without PoCL's min/max builtins, which are calls (shared notes: its
 // clamp and select were slow; vector conditionals are used for select here too).
 #define IMAX(a, b) ((a) > (b) ? (a) : (b))
 #define IMIN(a, b) ((a) < (b) ? (a) : (b))
 
-SINCOS_CYCLES(sincos_cycles8, float8)
-RADIX4(radix4_8, float8)
+SINCOS_CYCLES(sincos_lanes, floatL)
+RADIX4(radix4_lanes, floatL)
 
-// Sample j of the eight rows r, as one vector built from eight loads (scalar stores read
-// back as a vector would stall on store forwarding).
-#define ROWS8(r, j) ((float8)(r[0][j], r[1][j], r[2][j], r[3][j], r[4][j], r[5][j], r[6][j], r[7][j]))
+// Sample j of the LANES rows r, as one vector built from scalar loads (scalar stores
+// read back as a vector would stall on store forwarding).
+#define ROWS8(r, j, o) r[o][j], r[o + 1][j], r[o + 2][j], r[o + 3][j], r[o + 4][j], r[o + 5][j], r[o + 6][j], \
+    r[o + 7][j]
+#if LANES == 16
+#define ROWS(r, j) ((floatL)(ROWS8(r, j, 0), ROWS8(r, j, 8)))
+#else
+#define ROWS(r, j) ((floatL)(ROWS8(r, j, 0)))
+#endif
 
 // Sample j < points of each lane's transform input (load in fft.cl).
-void load8(__global const float *const *ra, __global const float *const *rb,
-           __global const float *beta, const float8 v, const int dechirp, const int j, float8 *re, float8 *im)
+void load_lanes(__global const float *const *ra, __global const float *const *rb,
+                     __global const float *beta, const floatL v, const int dechirp, const int j, floatL *re, floatL *im)
 {
-    const float8 xa = ROWS8(ra, j);
+    const floatL xa = ROWS(ra, j);
     if (dechirp) {
-        float8 c, s;
-        sincos_cycles8(v * beta[j], &s, &c);
+        floatL c, s;
+        sincos_lanes(v * beta[j], &s, &c);
         *re = xa * c;
         *im = -xa * s;
     } else {
-        *im = ROWS8(rb, j);
+        *im = ROWS(rb, j);
         *re = xa;
     }
 }
 
-// Lane l's value of bin k of a float8 array in local memory.
-float lane(__local const float8 *a, const int k, const int l)
+// Lane l's value of bin k of a floatL array in local memory.
+float lane(__local const floatL *a, const int k, const int l)
 {
-    return ((__local const float *)a)[8 * k + l];
+    return ((__local const float *)a)[LANES * k + l];
 }
 
 // peak_position (peak.cl) of lane l
-float peak_position_lane(__local const float8 *pw, const int half_n, const int kk, const int l)
+float peak_position_lane(__local const floatL *pw, const int half_n, const int kk, const int l)
 {
-    return peak_position_strided((__local const float *)pw + l, 8, half_n, kk);
+    return peak_position_strided((__local const float *)pw + l, LANES, half_n, kk);
 }
 
 // local_peak (peak.cl) of every lane: the band's arg-max (ties: the lowest bin), then
 // the floor as the mean of the band outside +-guard of it, summed apart (no
 // difference of two large sums).
-void lanes_peak(__local const float8 *pw, const int half_n, const int lo, const int hi, const int guard,
+void lanes_peak(__local const floatL *pw, const int half_n, const int lo, const int hi, const int guard,
                 const int *sweep, __global float *bin, __global float *snr)
 {
-    float8 best = -1.0f, total = 0.0f;
-    int8 arg = (int8)lo;
+    floatL best = -1.0f, total = 0.0f;
+    intL arg = (intL)lo;
     for (int k = lo; k < hi; ++k) {
-        const float8 p = pw[k];
-        const int8 gt = p > best;
+        const floatL p = pw[k];
+        const intL gt = p > best;
         best = gt ? p : best;
-        arg = gt ? (int8)k : arg;
+        arg = gt ? (intL)k : arg;
         total += p;
     }
-    int8 kk = arg < 1 ? (int8)1 : arg;
-    kk = kk > half_n - 2 ? (int8)(half_n - 2) : kk;
-    const int8 g0 = kk - guard, g1 = kk + guard;
-    float8 outside = 0.0f;
-    for (int k = lo; k < hi; ++k) outside += (((int8)k < g0) | ((int8)k > g1)) ? pw[k] : (float8)0.0f;
-    float o[8], t[8];
-    int c[8];
-    vstore8(outside, 0, o);
-    vstore8(total, 0, t);
-    vstore8(kk, 0, c);
-    for (int l = 0; l < 8; ++l) {
+    intL kk = arg < 1 ? (intL)1 : arg;
+    kk = kk > half_n - 2 ? (intL)(half_n - 2) : kk;
+    const intL g0 = kk - guard, g1 = kk + guard;
+    floatL outside = 0.0f;
+    for (int k = lo; k < hi; ++k) outside += (((intL)k < g0) | ((intL)k > g1)) ? pw[k] : (floatL)0.0f;
+    float o[LANES], t[LANES];
+    int c[LANES];
+    VSTOREL(outside, 0, o);
+    VSTOREL(total, 0, t);
+    VSTOREL(kk, 0, c);
+    for (int l = 0; l < LANES; ++l) {
         if (sweep[l] < 0) continue;
         const int a = IMAX(c[l] - guard, lo), b = IMIN(c[l] + guard, hi - 1);
         const int n_out = (hi - lo) - (b - a + 1);
@@ -86,16 +110,16 @@ void lanes_peak(__local const float8 *pw, const int half_n, const int lo, const 
 
 // The echoes among bin k of every lane (`echo`; power p over the training mean `mean`)
 // appended to their lanes' lists, at most max_echoes each.
-void lanes_record(__local const float8 *pw, const int half_n, const int k, const float8 p, const float8 mean,
-                  const int8 echo, const int max_echoes, const int *sweep, int *count,
+void lanes_record(__local const floatL *pw, const int half_n, const int k, const floatL p, const floatL mean,
+                  const intL echo, const int max_echoes, const int *sweep, int *count,
                   __global float *echo_bin, __global float *echo_snr)
 {
-    int hit[8];
-    float pv[8], mv[8];
-    vstore8(echo, 0, hit);
-    vstore8(p, 0, pv);
-    vstore8(mean, 0, mv);
-    for (int l = 0; l < 8; ++l) {
+    int hit[LANES];
+    float pv[LANES], mv[LANES];
+    VSTOREL(echo, 0, hit);
+    VSTOREL(p, 0, pv);
+    VSTOREL(mean, 0, mv);
+    for (int l = 0; l < LANES; ++l) {
         if (sweep[l] < 0 || !hit[l] || count[l] >= max_echoes) continue;
         const size_t e = (size_t)sweep[l] * max_echoes + count[l];
         echo_bin[e] = peak_position_lane(pw, half_n, k, l);
@@ -110,8 +134,8 @@ void lanes_record(__local const float8 *pw, const int half_n, const int k, const
 // directly near the band's ends or for other widths. The bins whose windows are all
 // whole run a loop of their own, without a branch on where they lie (PoCL, 2-core EPYC:
 // the echo test 1.6x faster).
-void lanes_cfar(__local const float8 *pw, const int half_n, const int lo, const int guard, const int train,
-                __global const float *scale, const int max_echoes, __local float8 *mx, __local float8 *sm,
+void lanes_cfar(__local const floatL *pw, const int half_n, const int lo, const int guard, const int train,
+                __global const float *scale, const int max_echoes, __local floatL *mx, __local floatL *sm,
                 const int *sweep, __global float *echo_bin, __global float *echo_snr, __global int *echo_count)
 {
     const int tables = guard == 8 && train == 16;
@@ -128,7 +152,7 @@ void lanes_cfar(__local const float8 *pw, const int half_n, const int lo, const 
         sm[i] += sm[i + 4];
     }
     for (int i = 0; i + 15 < half_n; ++i) sm[i] += sm[i + 8];
-    int count[8] = {0, 0, 0, 0, 0, 0, 0, 0};
+    int count[LANES] = {0};
     // [k0, k1): every window whole and inside [lo, half_n)
     const int reach = guard + train;
     const int k0 = tables ? IMIN(lo + reach, half_n) : half_n;
@@ -138,18 +162,18 @@ void lanes_cfar(__local const float8 *pw, const int half_n, const int lo, const 
             const int n = 2 * train;
             const float limit = scale[n];
             for (; k < k1; ++k) {
-                const float8 p = pw[k];
-                float8 sum = sm[k - reach];
+                const floatL p = pw[k];
+                floatL sum = sm[k - reach];
                 sum += sm[k + guard + 1];
-                const int8 echo = (p > mx[k - guard]) & (p >= mx[k + 1]) & (p * (float)n > limit * sum);
+                const intL echo = (p > mx[k - guard]) & (p >= mx[k + 1]) & (p * (float)n > limit * sum);
                 if (any(echo))
                     lanes_record(pw, half_n, k, p, sum / (float)n, echo, max_echoes, sweep, count, echo_bin,
                                  echo_snr);
             }
             if (k == half_n) break;
         }
-        const float8 p = pw[k];
-        float8 left = -1.0f, right = -1.0f;        // powers are >= 0: an empty side passes
+        const floatL p = pw[k];
+        floatL left = -1.0f, right = -1.0f;        // powers are >= 0: an empty side passes
         if (tables && k - guard >= 0) {
             left = mx[k - guard];
         } else {
@@ -162,7 +186,7 @@ void lanes_cfar(__local const float8 *pw, const int half_n, const int lo, const 
         }
         const int a0 = IMAX(k - guard - train, lo), a1 = IMAX(k - guard, lo);
         const int b0 = IMIN(k + guard + 1, half_n), b1 = IMIN(k + guard + train + 1, half_n);
-        float8 sum = 0.0f;
+        floatL sum = 0.0f;
         if (tables && a1 - a0 == train) {
             sum = sm[a0];
         } else {
@@ -175,11 +199,11 @@ void lanes_cfar(__local const float8 *pw, const int half_n, const int lo, const 
         }
         const int n = (a1 - a0) + (b1 - b0);
         // p > scale[n] * sum / n, without a division per bin (n = 0: scale is infinite)
-        const int8 echo = (p > left) & (p >= right) & (p * (float)n > scale[n] * sum);
+        const intL echo = (p > left) & (p >= right) & (p * (float)n > scale[n] * sum);
         if (any(echo))
             lanes_record(pw, half_n, k, p, sum / (float)n, echo, max_echoes, sweep, count, echo_bin, echo_snr);
     }
-    for (int l = 0; l < 8; ++l) {
+    for (int l = 0; l < LANES; ++l) {
         if (sweep[l] < 0) continue;
         echo_count[sweep[l]] = count[l];
         for (int i = count[l]; i < max_echoes; ++i) {
@@ -190,7 +214,7 @@ void lanes_cfar(__local const float8 *pw, const int half_n, const int lo, const 
 }
 
 // The arguments of spectrum_peak but its local buffers: one work-group of one
-// work-item per eight transforms (plain rows two to a transform, as there).
+// work-item per LANES transforms (plain rows two to a transform, as there).
 __kernel void spectrum_lanes(__global const float *x, const int sweeps, const int points,
                              __global const int *index, const int indexed,
                              __global const float *beta, __global const float *velocity, const int dechirp,
@@ -204,23 +228,23 @@ __kernel void spectrum_lanes(__global const float *x, const int sweeps, const in
                              __global const int *listed, const int counted,
                              __global const int *group_first, const int groups, const int plain,
                              SECOND_JOB,
-                             __local float8 *re,       // nfft
-                             __local float8 *im,       // nfft
-                             __local float8 *pw)       // nfft: the power of a transform's two rows
+                             __local floatL *re,       // nfft
+                             __local floatL *im,       // nfft
+                             __local floatL *pw)       // nfft: the power of a transform's two rows
 {
     TO_SECOND_JOB
     const int n = counted ? min(sweeps, listed[0]) : sweeps;
     const int transforms = dechirp ? n : plain;
-    // eight transforms a group; a counted launch has fewer groups than blocks, each
+    // LANES transforms a group; a counted launch has fewer groups than blocks, each
     // taking every get_num_groups-th block (a listed few spread over all cores)
-    for (int w = get_group_id(0); 8 * w < transforms; w += get_num_groups(0)) {
-        __global const float *ra[8];
-        __global const float *rb[8];
-        int first[8];                                      // first sweep of each lane, -1: idle lane
-        int two[8];                                        // whether its plain transform has two rows
-        float vl[8];
-        for (int l = 0; l < 8; ++l) {
-            const int g = 8 * w + l;
+    for (int w = get_group_id(0); LANES * w < transforms; w += get_num_groups(0)) {
+        __global const float *ra[LANES];
+        __global const float *rb[LANES];
+        int first[LANES];                                  // first sweep of each lane, -1: idle lane
+        int two[LANES];                                    // whether its plain transform has two rows
+        float vl[LANES];
+        for (int l = 0; l < LANES; ++l) {
+            const int g = LANES * w + l;
             const int active = g < transforms;
             int end = n;
             const int s = dechirp || !active ? g : plain_transform(g, group_first, groups, n, &end);
@@ -233,7 +257,7 @@ __kernel void spectrum_lanes(__global const float *x, const int sweeps, const in
             rb[l] = two[l] ? ra[l] + points : ra[l];
             vl[l] = dechirp && active ? velocity[s] : 0.0f;
         }
-        const float8 v = vload8(0, vl);
+        const floatL v = VLOADL(0, vl);
         const int q = nfft >> 2;
         // the first stage straight from the input (see fft.cl), whose second half is zero:
         // inputs j and j + q up to n1, j alone up to n0 (points), none after; three loops,
@@ -241,17 +265,17 @@ __kernel void spectrum_lanes(__global const float *x, const int sweeps, const in
         const int n0 = IMIN(q, points), n1 = IMIN(q, IMAX(points - q, 0));
         int j = 0;
         for (; j < n1; ++j) {
-            float8 a0r, a0i, a1r, a1i;
-            load8(ra, rb, beta, v, dechirp, j, &a0r, &a0i);
-            load8(ra, rb, beta, v, dechirp, j + q, &a1r, &a1i);
-            radix4_8(re, im, j, q, j, a0r, a0i, a1r, a1i, 0.0f, 0.0f, 0.0f, 0.0f, tw_re, tw_im);
+            floatL a0r, a0i, a1r, a1i;
+            load_lanes(ra, rb, beta, v, dechirp, j, &a0r, &a0i);
+            load_lanes(ra, rb, beta, v, dechirp, j + q, &a1r, &a1i);
+            radix4_lanes(re, im, j, q, j, a0r, a0i, a1r, a1i, 0.0f, 0.0f, 0.0f, 0.0f, tw_re, tw_im);
         }
         for (; j < n0; ++j) {
-            float8 a0r, a0i;
-            load8(ra, rb, beta, v, dechirp, j, &a0r, &a0i);
-            radix4_8(re, im, j, q, j, a0r, a0i, 0.0f, 0.0f, 0.0f, 0.0f, 0.0f, 0.0f, tw_re, tw_im);
+            floatL a0r, a0i;
+            load_lanes(ra, rb, beta, v, dechirp, j, &a0r, &a0i);
+            radix4_lanes(re, im, j, q, j, a0r, a0i, 0.0f, 0.0f, 0.0f, 0.0f, 0.0f, 0.0f, tw_re, tw_im);
         }
-        for (; j < q; ++j) radix4_8(re, im, j, q, j, 0.0f, 0.0f, 0.0f, 0.0f, 0.0f, 0.0f, 0.0f, 0.0f, tw_re, tw_im);
+        for (; j < q; ++j) radix4_lanes(re, im, j, q, j, 0.0f, 0.0f, 0.0f, 0.0f, 0.0f, 0.0f, 0.0f, 0.0f, tw_re, tw_im);
         int lb = q;
         for (; lb >= 4; lb >>= 2) {
             const int qq = lb >> 2;
@@ -259,13 +283,13 @@ __kernel void spectrum_lanes(__global const float *x, const int sweeps, const in
             for (int t = 0; t < (nfft >> 2); ++t) {
                 const int j = t & (qq - 1);
                 const int b = ((t - j) << 2) + j;
-                radix4_8(re, im, b, qq, j * step, re[b], im[b], re[b + qq], im[b + qq],
+                radix4_lanes(re, im, b, qq, j * step, re[b], im[b], re[b + qq], im[b + qq],
                          re[b + 2 * qq], im[b + 2 * qq], re[b + 3 * qq], im[b + 3 * qq], tw_re, tw_im);
             }
         }
         if (lb == 2) {
             for (int b = 0; b < nfft; b += 2) {
-                const float8 a0r = re[b], a0i = im[b], a1r = re[b + 1], a1i = im[b + 1];
+                const floatL a0r = re[b], a0i = im[b], a1r = re[b + 1], a1i = im[b + 1];
                 re[b] = a0r + a1r;
                 im[b] = a0i + a1i;
                 re[b + 1] = a0r - a1r;
@@ -282,19 +306,19 @@ __kernel void spectrum_lanes(__global const float *x, const int sweeps, const in
         } else {                          // both rows of a plain transform from one pass
             for (int k = 0; k < half_n; ++k) {
                 const int p = perm[k], m = perm[(nfft - k) & (nfft - 1)];
-                const float8 rp = re[p], rm = re[m], ip = im[p], imm = im[m];
-                const float8 ar = rp + rm, ai = ip - imm, br = ip + imm, bi = rp - rm;
+                const floatL rp = re[p], rm = re[m], ip = im[p], imm = im[m];
+                const floatL ar = rp + rm, ai = ip - imm, br = ip + imm, bi = rp - rm;
                 pw[k] = 0.25f * (ar * ar + ai * ai);
                 pw[half_n + k] = 0.25f * (br * br + bi * bi);
             }
         }
         // the transform is no longer needed: re and im hold the CFAR's tables
         for (int r = 0; r < rows; ++r) {
-            __local const float8 *p_r = pw + r * half_n;
-            int sweep[8];
-            for (int l = 0; l < 8; ++l) sweep[l] = first[l] >= 0 && (r == 0 || two[l]) ? first[l] + r : -1;
+            __local const floatL *p_r = pw + r * half_n;
+            int sweep[LANES];
+            for (int l = 0; l < LANES; ++l) sweep[l] = first[l] >= 0 && (r == 0 || two[l]) ? first[l] + r : -1;
             if (keep_power) {
-                for (int l = 0; l < 8; ++l) {
+                for (int l = 0; l < LANES; ++l) {
                     if (sweep[l] < 0) continue;
                     __global float *out = power + (size_t)(scatter ? index[sweep[l]] : sweep[l]) * half_n;
                     for (int k = 0; k < half_n; ++k) out[k] = lane(p_r, k, l);

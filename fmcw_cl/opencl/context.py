@@ -112,6 +112,13 @@ def is_simulator(device) -> bool:
     return any(name in f"{device.platform.name} {device.name}".lower() for name in SIMULATORS)
 
 
+def lanes_width(device) -> int:
+    """Lanes of `spectrum_lanes` on `device`: 16 (one AVX-512 register a float16) where
+    its preferred float vector is that wide, else 8 (wider vectors there change the
+    builtins' ABI: a build warning)."""
+    return 16 if device.preferred_vector_width_float >= 16 else 8
+
+
 def rank(device) -> int:
     """The automatic choice's order: GPUs, then CPUs, then anything else; a simulator
     (Oclgrind, which runs kernels 1000x slower to check them) never."""
@@ -180,6 +187,7 @@ class Runtime:
     traffic: Traffic = field(default_factory=Traffic)
 
     lanes: bool = False   # kernels with explicit float8 lanes where there are two variants
+    width: int = 8        # lanes of spectrum_lanes (kernels/fft_lanes.cl's LANES)
     held: list | None = None   # every buffer made, on a simulator: `hold`
     # the events of uploads that do not wait: pyopencl's event of such a copy waits for
     # it when dropped, so they are held until a download or `finish` has waited for them
@@ -193,6 +201,7 @@ class Runtime:
         # a CPU runs a work-group's work-items as a loop, which PoCL vectorises only where
         # the kernel has no loop of its own (kernels/fft_lanes.cl); GPUs want work-groups
         self.lanes = rank(self.device) == CPU
+        self.width = lanes_width(self.device)
         self.held = [] if is_simulator(self.device) else None
 
     def hold(self, buffer) -> None:
@@ -251,7 +260,7 @@ class Runtime:
 
     def kernel(self, program: str, name: str):
         """Kernel `name` of kernels/<program>.cl (built and retrieved once)."""
-        key = (program, name)
+        key = (program, name, self.width)
         if key not in self.kernels:
             self.kernels[key] = _Counted(cl.Kernel(self.program(program), name), self.traffic)
         return self.kernels[key]
@@ -280,21 +289,22 @@ class Runtime:
         self.in_flight.clear()
 
     def program(self, name: str):
-        """kernels/<name>.cl built for this context (cached)."""
-        if name not in self.programs:
+        """kernels/<name>.cl built for this context and `width` (cached)."""
+        key = (name, self.width)
+        if key not in self.programs:
             from fmcw_cl.kernels import files_of, source
 
             prog = cl.Program(self.context, source(name))
             try:
-                prog.build(options=["-cl-std=CL1.2"])
+                prog.build(options=["-cl-std=CL1.2", f"-DLANES={self.width}"])
             except cl.Error as exc:
                 log = Path(tempfile.gettempdir()) / f"fmcw-cl-{name}-build.log"
                 log.write_text(str(exc))
                 cl_files = " + ".join(f"{f}.cl" for f in files_of(name))
                 raise FmcwError(f"kernel {cl_files} failed to build on {self.name}; "
                                 f"build log: {log}") from None
-            self.programs[name] = prog
-        return self.programs[name]
+            self.programs[key] = prog
+        return self.programs[key]
 
 
 _RUNTIMES: dict[int, Runtime] = {}

@@ -63,19 +63,16 @@ def local_bytes(rt: Runtime, nfft: int) -> int:
     return 4 * (2 * nfft + nfft // 2) + 12 * local_size(rt, nfft) + nfft // 2
 
 
-LANES = 8   # transforms per work-item of spectrum_lanes (a float8)
-
-
-def lanes_bytes(nfft: int) -> int:
+def lanes_bytes(rt: Runtime, nfft: int) -> int:
     """Local memory of one work-group of `spectrum_lanes`: the transform and the power
-    of its two rows, eight lanes each."""
-    return 3 * nfft * 4 * LANES
+    of its two rows, `Runtime.width` lanes each."""
+    return 3 * nfft * 4 * rt.width
 
 
 def uses_lanes(rt: Runtime, nfft: int) -> bool:
     """Whether `spectrum_lanes` (fft_lanes.cl) runs an nfft-point transform: on a CPU
     device (`Runtime.lanes`), when its local memory holds it; else `spectrum_peak`."""
-    return rt.lanes and lanes_bytes(nfft) <= rt.device.local_mem_size
+    return rt.lanes and lanes_bytes(rt, nfft) <= rt.device.local_mem_size
 
 
 def fits(rt: Runtime, nfft: int) -> bool:
@@ -168,9 +165,9 @@ def measure_each(rt: Runtime, bufs: Buffers, jobs: list, velocity: np.ndarray | 
         i += 2 if two else 1
     lanes = uses_lanes(rt, nfft)
     if lanes:
-        items = -(-transforms // LANES)
+        items = -(-transforms // rt.width)
         items = items if listed is None else min(items, counted_groups(rt))
-        local = [cl.LocalMemory(4 * LANES * nfft)] * 3
+        local = [cl.LocalMemory(4 * rt.width * nfft)] * 3
     else:
         lsz = local_size(rt, nfft)
         items = transforms if listed is None else min(transforms, counted_groups(rt))
