@@ -30,9 +30,10 @@ class ReadAhead:
     `close` (or leaving the `with`) waits for a read in flight, so that its slot is not
     handed on mid-read."""
 
-    def __init__(self, chunks: Iterator) -> None:
+    def __init__(self, chunks: Iterator, geometry: tuple = ()) -> None:
         self._chunks, self._pool = chunks, ThreadPoolExecutor(1)
         self._ahead = self._pool.submit(next, chunks, None)
+        self.geometry = geometry        # what the chunks are (`chunk_geometry`)
 
     def __iter__(self) -> Iterator:
         while (item := self._ahead.result()) is not None:
@@ -78,12 +79,17 @@ READ_SLOTS = 3    # a chunk's codes are read by its range check while the next o
                   # processed and the one after is read
 
 
+def chunk_geometry(info: CaptureInfo, options: Options, start: int = 0, stop: int | None = None) -> tuple:
+    """What `read_chunks` of these arguments reads: periods a core, margin, range."""
+    return options.chunk_periods, margin_samples(info, options), start, stop
+
+
 def read_chunks(cap: Capture, options: Options, start: int = 0, stop: int | None = None) -> ReadAhead:
     """The chunks of `options` whose cores lie in samples [start, stop), read ahead into
     the capture's slots 0 .. READ_SLOTS - 1: a chunk's results keep none of its samples,
     and its kernels are done when the chunk after the next one starts."""
-    margin = margin_samples(cap.info, options)
-    return ReadAhead(cap.chunks(options.chunk_periods, margin, start, stop, slots=READ_SLOTS))
+    periods, margin, *_ = geometry = chunk_geometry(cap.info, options, start, stop)
+    return ReadAhead(cap.chunks(periods, margin, start, stop, slots=READ_SLOTS), geometry)
 
 
 HELD_SLOT = READ_SLOTS     # the capture's slot that held chunks take, end to end
@@ -115,16 +121,21 @@ def held_end_to_end(cap: Capture, options: Options, ranges: list[tuple[int, int]
 
 
 def capture_parts(cap: Capture, plan: Plan, processor: ChunkProcessor, start: int = 0,
-                  stop: int | None = None, progress: Callable[[int, int, float], None] | None = None
-                  ) -> list[ChunkMeasurements]:
+                  stop: int | None = None, progress: Callable[[int, int, float], None] | None = None,
+                  ahead: ReadAhead | None = None) -> list[ChunkMeasurements]:
     """The measurements of every chunk whose core lies in samples [start, stop)
-    (`start` a multiple of `core_samples`), read ahead (`read_chunks`), by `processor`
+    (`start` a multiple of `core_samples`), read ahead (`read_chunks`; `ahead`: those
+    chunks already being read, used where their geometry is the plan's), by `processor`
     opened with `plan`; each chunk is processed knowing the one after it (a chunk's
     range check and survey run in the trips of the next one, which a device prepares in
     them: `ChunkProcessor.process`)."""
     parts = []
     processor.open(plan)
-    with read_chunks(cap, plan.options, start, stop) as ahead:
+    if ahead is None or ahead.geometry != chunk_geometry(cap.info, plan.options, start, stop):
+        if ahead is not None:
+            ahead.close()                  # its read in flight would share the first slot
+        ahead = read_chunks(cap, plan.options, start, stop)
+    with ahead:
         for chunk in ahead:
             parts += processor.process(chunk, following=ahead.peek)
             if progress:

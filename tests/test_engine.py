@@ -145,6 +145,45 @@ def test_read_ahead_starts_at_once_and_close_waits():
     assert finished.is_set()
 
 
+def test_the_first_chunk_is_read_while_the_plan_is_made(static_capture, monkeypatch):
+    """`process` starts the first conversion's reader before the plan, and capture_parts
+    takes it; a reader of chunks of another geometry is closed and its own read instead,
+    with the same measurements."""
+    from dataclasses import replace
+
+    from fmcw_cl import chunks, engine
+    from fmcw_cl.plan import make_plan
+    from fmcw_cl.processor import NumpyProcessor
+
+    calls = []
+
+    def spy(module, name):
+        real = getattr(module, name)
+
+        def call(*args, **kwargs):
+            calls.append(name)
+            return real(*args, **kwargs)
+        monkeypatch.setattr(module, name, call)
+
+    spy(chunks, "read_chunks")
+    spy(engine, "make_plan")
+    spy(engine, "capture_parts")
+    monkeypatch.setattr(engine, "read_chunks", chunks.read_chunks)
+    engine.process(static_capture, processor=NumpyProcessor())
+    assert calls[:3] == ["read_chunks", "make_plan", "capture_parts"]
+    assert calls[3:4] != ["read_chunks"]
+    monkeypatch.undo()
+    with Capture(static_capture) as cap:
+        plan = make_plan(cap, Options(), processor=NumpyProcessor())
+        alone = chunks.capture_parts(cap, plan, NumpyProcessor())
+        other = chunks.read_chunks(cap, replace(plan.options, chunk_periods=plan.options.chunk_periods + 3))
+        given = chunks.capture_parts(cap, plan, NumpyProcessor(), ahead=other)
+    assert len(given) == len(alone) > 0
+    for a, b in zip(given, alone, strict=True):
+        np.testing.assert_array_equal(a.t_rise, b.t_rise)
+        np.testing.assert_array_equal(a.result.distance, b.result.distance)
+
+
 def test_read_ahead_peeks_at_the_next_item_and_reads_no_further():
     """`peek` gives the item after the one being processed (its slot is the other one);
     the read after that starts only when the iteration moves on (it takes the slot of
