@@ -6,26 +6,9 @@
 // the lanes are explicit, every load and store of the transform is a whole floatL and
 // every twiddle is one value for all lanes (PoCL, 2-core EPYC: a 2048-point transform
 // 2.5 us a row against 11-14 us). One work-item a group, its transforms in local memory.
-// LANES (a build option, Runtime.width): 16 where the device's preferred float vector
-// is 16 wide (AVX-512: one zmm register a value; PoCL, 2-core Skylake-SP: 15-20 % faster
-// than 8), else 8. Each lane's arithmetic is the same at either width.
+// LANES: lanes.cl (PoCL, 2-core Skylake-SP: 16 lanes 15-20 % faster than 8).
 // Twins: fmcw_cl.stages.pairing.measure, stages.spectrum.power_spectra and find_peaks,
 // stages.cfar.detect.
-
-#ifndef LANES
-#define LANES 8
-#endif
-#if LANES == 16
-typedef float16 floatL;
-typedef int16 intL;
-#define VSTOREL vstore16
-#define VLOADL vload16
-#else
-typedef float8 floatL;
-typedef int8 intL;
-#define VSTOREL vstore8
-#define VLOADL vload8
-#endif
 
 // Integer bounds without PoCL's min/max builtins, which are calls (shared notes: its
 // clamp and select were slow; vector conditionals are used for select here too).
