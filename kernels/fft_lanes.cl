@@ -122,19 +122,34 @@ void lanes_cfar(__local const floatL *pw, const int half_n, const int lo, const 
                 const int *sweep, __global float *echo_bin, __global float *echo_snr, __global int *echo_count)
 {
     const int tables = guard == 8 && train == 16;
-    for (int i = 0; i + 1 < half_n; ++i) {
-        mx[i] = fmax(pw[i], pw[i + 1]);
-        sm[i] = pw[i] + pw[i + 1];
+    // One pass: bin j's sum and maximum of 4 (pairs of pairs), folded into those of 8 at
+    // j - 4 (s8, mx's second half: done with once j passed them), whose pairs give the 16
+    // at j - 12; the same tree of pairwise sums as a pass a level, three passes over the
+    // tables fewer (PoCL, 2-core Skylake-SP: the echo test of 6000 plain rows 3.7 to 3.0
+    // ms). An entry is valid where its window lies inside [0, half_n).
+    __local floatL *s8 = mx + half_n;
+    int j = 0;
+    for (; j < 4 && j + 3 < half_n; ++j) {
+        s8[j] = (pw[j] + pw[j + 1]) + (pw[j + 2] + pw[j + 3]);
+        mx[j] = fmax(fmax(pw[j], pw[j + 1]), fmax(pw[j + 2], pw[j + 3]));
     }
-    for (int i = 0; i + 3 < half_n; ++i) {
-        mx[i] = fmax(mx[i], mx[i + 2]);
-        sm[i] += sm[i + 2];
+    for (; j < 12 && j + 3 < half_n; ++j) {
+        const floatL s4 = (pw[j] + pw[j + 1]) + (pw[j + 2] + pw[j + 3]);
+        const floatL m4 = fmax(fmax(pw[j], pw[j + 1]), fmax(pw[j + 2], pw[j + 3]));
+        s8[j] = s4;
+        mx[j] = m4;
+        s8[j - 4] += s4;
+        mx[j - 4] = fmax(mx[j - 4], m4);
     }
-    for (int i = 0; i + 7 < half_n; ++i) {
-        mx[i] = fmax(mx[i], mx[i + 4]);
-        sm[i] += sm[i + 4];
+    for (; j + 3 < half_n; ++j) {
+        const floatL s4 = (pw[j] + pw[j + 1]) + (pw[j + 2] + pw[j + 3]);
+        const floatL m4 = fmax(fmax(pw[j], pw[j + 1]), fmax(pw[j + 2], pw[j + 3]));
+        s8[j] = s4;
+        mx[j] = m4;
+        s8[j - 4] += s4;
+        mx[j - 4] = fmax(mx[j - 4], m4);
+        sm[j - 12] = s8[j - 12] + s8[j - 4];
     }
-    for (int i = 0; i + 15 < half_n; ++i) sm[i] += sm[i + 8];
     int count[LANES] = {0};
     // [k0, k1): every window whole and inside [lo, half_n)
     const int reach = guard + train;
