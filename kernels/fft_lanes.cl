@@ -111,6 +111,20 @@ void lanes_record(__local const floatL *pw, const int half_n, const int k, const
     }
 }
 
+// The sum and maximum of the 4 bins from j into s8[j] and mx[j], and, where `fold`,
+// into those of the 8 from j - 4 (lanes_cfar's tables).
+void cfar_fours(__local const floatL *pw, __local floatL *s8, __local floatL *mx, const int j, const int fold)
+{
+    const floatL s4 = (pw[j] + pw[j + 1]) + (pw[j + 2] + pw[j + 3]);
+    const floatL m4 = fmax(fmax(pw[j], pw[j + 1]), fmax(pw[j + 2], pw[j + 3]));
+    s8[j] = s4;
+    mx[j] = m4;
+    if (fold) {
+        s8[j - 4] += s4;
+        mx[j - 4] = fmax(mx[j - 4], m4);
+    }
+}
+
 // local_cfar (cfar.cl) of every lane, bins [lo, half_n). Each bin's guard maxima and
 // training sums come from tables of running maxima of 8 bins (mx) and sums of 16
 // (sm) where the windows are whole (guard 8 and train 16, stages.cfar's), taken
@@ -129,25 +143,10 @@ void lanes_cfar(__local const floatL *pw, const int half_n, const int lo, const 
     // ms). An entry is valid where its window lies inside [0, half_n).
     __local floatL *s8 = mx + half_n;
     int j = 0;
-    for (; j < 4 && j + 3 < half_n; ++j) {
-        s8[j] = (pw[j] + pw[j + 1]) + (pw[j + 2] + pw[j + 3]);
-        mx[j] = fmax(fmax(pw[j], pw[j + 1]), fmax(pw[j + 2], pw[j + 3]));
-    }
-    for (; j < 12 && j + 3 < half_n; ++j) {
-        const floatL s4 = (pw[j] + pw[j + 1]) + (pw[j + 2] + pw[j + 3]);
-        const floatL m4 = fmax(fmax(pw[j], pw[j + 1]), fmax(pw[j + 2], pw[j + 3]));
-        s8[j] = s4;
-        mx[j] = m4;
-        s8[j - 4] += s4;
-        mx[j - 4] = fmax(mx[j - 4], m4);
-    }
+    for (; j < 4 && j + 3 < half_n; ++j) cfar_fours(pw, s8, mx, j, 0);
+    for (; j < 12 && j + 3 < half_n; ++j) cfar_fours(pw, s8, mx, j, 1);
     for (; j + 3 < half_n; ++j) {
-        const floatL s4 = (pw[j] + pw[j + 1]) + (pw[j + 2] + pw[j + 3]);
-        const floatL m4 = fmax(fmax(pw[j], pw[j + 1]), fmax(pw[j + 2], pw[j + 3]));
-        s8[j] = s4;
-        mx[j] = m4;
-        s8[j - 4] += s4;
-        mx[j - 4] = fmax(mx[j - 4], m4);
+        cfar_fours(pw, s8, mx, j, 1);
         sm[j - 12] = s8[j - 12] + s8[j - 4];
     }
     int count[LANES] = {0};
