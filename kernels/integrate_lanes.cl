@@ -5,9 +5,53 @@
 // vector loads. PoCL runs integrate_peak's per-bin loop over the window as scalar code
 // (the kernel has loops of its own). Twin: fmcw_cl.stages.integrate.peaks.
 
+// local_peak (peak.cl) of one spectrum held as float8 blocks, by one work-item: the
+// band's arg-max (ties: the lowest bin) and sum eight bins a step, the band's unaligned
+// ends a bin at a time, the lanes' sums added pairwise (`sum8`). local_peak's one
+// work-item adds the bins one after another: a chain of dependent additions that cost a
+// window of two spectra twice its integration (PoCL, 2-core Skylake-SP); the order
+// differs, within float rounding.
+void row_peak(__local const float8 *pw8, const int half_n, const int lo, const int hi, const int guard,
+              __global float *bin, __global float *snr)
+{
+    __local const float *pw = (__local const float *)pw8;
+    int a = (lo + 7) & ~7, b = hi & ~7;          // the whole blocks [a, b)
+    if (a >= b) a = b = hi;
+    float best = -1.0f, sum = 0.0f;
+    int arg = lo;
+    for (int k = lo; k < a; ++k) {
+        const float p = pw[k];
+        sum += p;
+        if (p > best) { best = p; arg = k; }
+    }
+    float8 vbest = -1.0f, vsum = 0.0f;
+    int8 varg = (int8)a;
+    const int8 lane = (int8)(0, 1, 2, 3, 4, 5, 6, 7);
+    for (int q = a / 8; q < b / 8; ++q) {
+        const float8 p = pw8[q];
+        const int8 gt = p > vbest;
+        vbest = gt ? p : vbest;
+        varg = gt ? (int8)(8 * q) + lane : varg;
+        vsum += p;
+    }
+    float lb[8];
+    int la[8];
+    vstore8(vbest, 0, lb);
+    vstore8(varg, 0, la);
+    for (int l = 0; l < 8; ++l) {                // the bins before a block's come first
+        if (lb[l] > best || (lb[l] == best && la[l] < arg)) { best = lb[l]; arg = la[l]; }
+    }
+    sum += sum8(vsum);
+    for (int k = b; k < hi; ++k) {
+        const float p = pw[k];
+        sum += p;
+        if (p > best) { best = p; arg = k; }
+    }
+    band_peak(pw, half_n, lo, hi, guard, arg, sum, bin, snr);
+}
+
 __kernel void integrate_lanes(INTEGRATE_PARAMS,        // half_n % 8 == 0
-                              __local float8 *acc,      // half_n / 8
-                              __local float *scratch)   // 3
+                              __local float8 *acc)      // half_n / 8
 {
     if (state[1]) return;
     TO_SECOND_JOB
@@ -43,7 +87,6 @@ __kernel void integrate_lanes(INTEGRATE_PARAMS,        // half_n % 8 == 0
     }
     const float inv = 1.0f / (float)(j1 - j0 + 1);
     for (int q = 0; q < blocks; ++q) acc[q] *= inv;
-    local_peak((__local const float *)acc, half_n, lo, hi, guard, scratch, (__local int *)(scratch + 1),
-               scratch + 2, bin + i, snr + i);
+    row_peak(acc, half_n, lo, hi, guard, bin + i, snr + i);
     count[i] = j1 - j0 + 1;
 }

@@ -1,5 +1,5 @@
 // Device functions and types of the kernels that work in vector lanes (lpf.cl,
-// resample.cl, fft_lanes.cl; built in front of them).
+// resample.cl, fft_lanes.cl, integrate_lanes.cl; built in front of them).
 
 // LANES (a build option, Runtime.width): the lanes of fft_lanes.cl's transforms, which
 // are independent: 16 where the device's preferred float vector is 16 wide (AVX-512: one

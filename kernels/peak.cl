@@ -25,6 +25,24 @@ float peak_position(__local const float *pw, const int half_n, const int kk)
     return peak_position_strided(pw, 1, half_n, kk);
 }
 
+// The peak at bin `arg` of a band [lo, hi) whose power sums to `sum`: its fractional
+// position and its SNR over the mean of the band outside +-guard bins of it.
+void band_peak(__local const float *pw, const int half_n, const int lo, const int hi, const int guard,
+               const int arg, const float sum, __global float *bin, __global float *snr)
+{
+    const int kk = arg < 1 ? 1 : (arg > half_n - 2 ? half_n - 2 : arg);
+    const float tiny = 1.0e-30f;
+    const int g0 = kk - guard < lo ? lo : kk - guard;
+    const int g1 = kk + guard > hi - 1 ? hi - 1 : kk + guard;
+    float inside = 0.0f;
+    for (int k = g0; k <= g1; ++k) inside += pw[k];
+    const int outside = (hi - lo) - (g1 - g0 + 1);
+    // a band narrower than the guard has no outside: use the whole band's mean
+    const float floor_level = outside > 0 ? (sum - inside) / (float)outside : sum / (float)(hi - lo);
+    *bin = peak_position(pw, half_n, kk);
+    *snr = 10.0f * log10(pw[kk] / (floor_level > tiny ? floor_level : tiny));
+}
+
 void local_peak(__local const float *pw,   // power of bins 0 .. half_n - 1
                 const int half_n,
                 const int lo,
@@ -62,19 +80,5 @@ void local_peak(__local const float *pw,   // power of bins 0 .. half_n - 1
         }
         barrier(CLK_LOCAL_MEM_FENCE);
     }
-    if (lid == 0) {
-        int kk = lidx[0];
-        kk = kk < 1 ? 1 : (kk > half_n - 2 ? half_n - 2 : kk);
-        const float tiny = 1.0e-30f;
-        const int g0 = kk - guard < lo ? lo : kk - guard;
-        const int g1 = kk + guard > hi - 1 ? hi - 1 : kk + guard;
-        float inside = 0.0f;
-        for (int k = g0; k <= g1; ++k) inside += pw[k];
-        const int outside = (hi - lo) - (g1 - g0 + 1);
-        // a band narrower than the guard has no outside: use the whole band's mean
-        const float floor_level = outside > 0 ? (lsum[0] - inside) / (float)outside
-                                              : lsum[0] / (float)(hi - lo);
-        *bin = peak_position(pw, half_n, kk);
-        *snr = 10.0f * log10(pw[kk] / (floor_level > tiny ? floor_level : tiny));
-    }
+    if (lid == 0) band_peak(pw, half_n, lo, hi, guard, lidx[0], lsum[0], bin, snr);
 }

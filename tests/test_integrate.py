@@ -108,6 +108,33 @@ def test_integrate_kernel_matches_numpy(backend, kernel_variant, rows, nfft, k):
         assert not np.array_equal(want[2], integrate.peaks(power, grouped, k, search)[2])
 
 
+@pytest.mark.parametrize("lo,hi", [(3, 1022), (8, 40), (9, 14), (16, 24), (0, 1024), (1017, 1024), (5, 6)])
+def test_integrate_kernel_peaks_at_band_edges_and_ties(backend, kernel_variant, lo, hi):
+    """The peak search of the integrated spectra (integrate_lanes: eight bins a step
+    between the band's unaligned ends): bands whose ends lie inside a block of eight
+    bins or on its edges, a band inside one block; the peak on the band's first and
+    last bins, just outside it, and tied maxima (the lowest bin wins) in its first bins
+    and its middle, or everywhere."""
+    from fmcw_cl.opencl import integrate as k_integrate
+    from fmcw_cl.opencl.buffers import DeviceRows
+    from fmcw_cl.opencl.context import cl
+
+    half = 1024
+    power = np.random.default_rng(lo + hi).exponential(1.0, (6, half)).astype(np.float32) * 100
+    power[0, lo] = power[1, hi - 1] = power[4, min(hi, half - 1)] = 1e5
+    mid = (lo + hi) // 2
+    power[2, min(lo + 1, hi - 1)] = power[2, mid] = 1e5
+    power[3] = 7.0
+    store = DeviceRows(backend.bufs, 6, half)
+    cl.enqueue_copy(backend.rt.queue, store.buffer, power)
+    search = Search(lo, hi)
+    got = k_integrate.peaks(backend.rt, backend.bufs, store, np.zeros(6), 1, search)
+    want = integrate.peaks(power.astype(np.float64), np.zeros(6), 1, search)
+    np.testing.assert_allclose(got[0], want[0], atol=2e-3)
+    np.testing.assert_allclose(got[1], want[1], atol=2e-3)
+    assert abs(got[0][2] - max(min(lo + 1, hi - 1), 1)) <= 0.5         # the first of the tied bins
+
+
 def test_kept_spectra_match_numpy(backend, kernel_variant):
     """The store of spectra kept between passes: plain rows, then picked rows
     re-made de-chirped in place (the kernel's scattered write)."""

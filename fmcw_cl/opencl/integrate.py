@@ -46,8 +46,7 @@ def launch(rt: Runtime, bufs: Buffers, jobs: list, d_disp, d_bounds, k: int, sea
             np.int32(search.lo), np.int32(search.hi), np.int32(GUARD_BINS), *out, d_state, second[0].buffer,
             *second[1:], cl.LocalMemory(4 * half))
     if rt.lanes and half % 8 == 0:      # CPUs: a row an item, eight bins a float8
-        rt.kernel("integrate", "integrate_lanes")(rt.queue, (rows, len(jobs)), (1, 1), *args,
-                                                  cl.LocalMemory(12))
+        rt.kernel("integrate", "integrate_lanes")(rt.queue, (rows, len(jobs)), (1, 1), *args)
     else:
         lsz = rt.group_size(16, 256)
         rt.kernel("integrate", "integrate_peak")(rt.queue, (rows * lsz, len(jobs)), (lsz, 1), *args,
