@@ -136,11 +136,12 @@ void lanes_cfar(__local const floatL *pw, const int half_n, const int lo, const 
                 const int *sweep, __global float *echo_bin, __global float *echo_snr, __global int *echo_count)
 {
     const int tables = guard == 8 && train == 16;
-    // One pass: bin j's sum and maximum of 4 (pairs of pairs), folded into those of 8 at
-    // j - 4 (s8, mx's second half: done with once j passed them), whose pairs give the 16
-    // at j - 12; the same tree of pairwise sums as a pass a level, three passes over the
-    // tables fewer (PoCL, 2-core Skylake-SP: the echo test of 6000 plain rows 3.7 to 3.0
-    // ms). An entry is valid where its window lies inside [0, half_n).
+    // One pass: the sum and maximum of the 4 bins from j (pairs of pairs), folded in place
+    // into those of the 8 from j - 4 (s8: the second half of mx's buffer), whose sums
+    // from j - 12 and j - 4 give the 16 from j - 12; the same tree of pairwise sums as a
+    // pass a level, three passes over the tables fewer (PoCL, 2-core Skylake-SP: the echo
+    // test of 6000 plain rows 3.7 to 3.0 ms). An entry is valid where its window lies
+    // inside [0, half_n).
     __local floatL *s8 = mx + half_n;
     int j = 0;
     for (; j < 4 && j + 3 < half_n; ++j) cfar_fours(pw, s8, mx, j, 0);
