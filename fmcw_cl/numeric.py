@@ -162,10 +162,16 @@ def runs(mask: np.ndarray) -> np.ndarray:
     return edges.reshape(-1, 2)
 
 
+def steps(t: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """The distance moved (m) from each time of t (s) to the next at velocities v (m/s):
+    the trapezoid rule, t.size - 1 steps."""
+    return 0.5 * (v[1:] + v[:-1]) * np.diff(t)
+
+
 def travelled(t: np.ndarray, v: np.ndarray) -> np.ndarray:
     """The distance travelled (m) from t[0] at velocities v (m/s) at times t (s): the
     trapezoidal integral."""
-    return np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * np.diff(t))])
+    return np.concatenate([[0.0], np.cumsum(steps(t, v))])
 
 
 def centred_slope(t: np.ndarray, r: np.ndarray) -> tuple[float, float, np.ndarray, np.ndarray]:
@@ -176,13 +182,6 @@ def centred_slope(t: np.ndarray, r: np.ndarray) -> tuple[float, float, np.ndarra
     tc, rc = t - t.mean(), r - r.mean()
     tt = float(np.sum(tc * tc))
     return float(np.sum(tc * rc)) / tt, tt, tc, rc
-
-
-def line_slope(t: np.ndarray, r: np.ndarray) -> tuple[float, float]:
-    """Least-squares slope of r over t and its standard error for white residuals."""
-    slope, tt, tc, rc = centred_slope(t, r)
-    resid = rc - slope * tc
-    return slope, float(np.sqrt(np.sum(resid * resid) / max(1, t.size - 2) / tt))
 
 
 def drift(t: np.ndarray, d: np.ndarray, v: np.ndarray, blocks: int = 0) -> tuple[float, float]:
@@ -203,10 +202,10 @@ def drifts(t: np.ndarray, d: np.ndarray, v: np.ndarray, sizes: np.ndarray, block
     count = sizes.size
     label = np.repeat(np.arange(count), sizes)
     start = np.cumsum(sizes) - sizes
-    # the distance travelled from each run's start (`travelled`'s steps, those across
-    # runs left out: a run's sums carry no other run's travel, so it is fitted as alone)
+    # the distance travelled from each run's start (`steps`, those across runs left
+    # out: a run's sums carry no other run's travel, so it is fitted as alone)
     step = np.zeros(t.size)
-    step[1:] = 0.5 * (v[1:] + v[:-1]) * np.diff(t)
+    step[1:] = steps(t, v)
     step[start] = 0.0
     total = np.cumsum(step)
     r = d - (total - total[start][label])

@@ -71,7 +71,7 @@ int heard(const int i, __global const float *s_r, __global const float *s_f, con
 }
 
 // The target's move (m) from pair i - 1 to pair i: the trapezoid rule over the pairs'
-// centres t at the de-chirp velocities vd, numeric.travelled's step.
+// centres t at the de-chirp velocities vd (numeric.steps).
 double step_m(__global const double *t, __global const double *vd, const int i)
 {
     return 0.5 * (vd[i] + vd[i - 1]) * (t[i] - t[i - 1]);

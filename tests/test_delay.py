@@ -88,13 +88,22 @@ def test_a_run_of_the_delays_refinement_bridges_isolated_invalid_pairs():
     assert bridged_runs(t[:4], d[:4], v[:4], np.zeros(4, bool)) == []
 
 
+def _line_slope(t: np.ndarray, r: np.ndarray) -> tuple[float, float]:
+    """Least-squares slope of r over t and its standard error for white residuals, of
+    one run alone: what numeric.drifts' group sums must give for it."""
+    from fmcw_cl.numeric import centred_slope
+
+    slope, tt, tc, rc = centred_slope(t, r)
+    resid = rc - slope * tc
+    return slope, float(np.sqrt(np.sum(resid * resid) / max(1, t.size - 2) / tt))
+
+
 @pytest.mark.parametrize("phi", [0.0, 0.85])
 def test_the_drifts_error_holds_for_distances_correlated_over_pairs(phi):
     """refine.drift over runs of 220 valid pairs (bridged gaps) whose distance noise is
     white or correlated over several pairs (AR(1), as the tracker's under noise at full
     scale): the slopes are unbiased and the stated error matches their spread over 300
     runs; with the correlation the white residuals' error alone is far too small."""
-    from fmcw_cl.numeric import line_slope
     from fmcw_cl.refine import drift
 
     rng = np.random.default_rng(3)
@@ -110,7 +119,7 @@ def test_the_drifts_error_holds_for_distances_correlated_over_pairs(phi):
         slope, se = drift(t, d, v)
         slopes.append(slope)
         errors.append(se)
-        white.append(line_slope(t, d)[1])
+        white.append(_line_slope(t, d)[1])
     spread = np.std(slopes)
     assert abs(np.mean(slopes)) < 3 * spread / np.sqrt(len(slopes))
     assert 0.8 < np.sqrt(np.mean(np.square(errors))) / spread < 1.3
@@ -123,19 +132,19 @@ def test_the_drifts_jackknife_is_each_block_left_out_and_fitted_again(pairs):
     """numeric.drift's jackknife from block sums equals fitting the run again without
     each block (np.array_split's blocks: uneven where the blocks do not divide it); runs
     laid end to end (numeric.drifts) each as alone."""
-    from fmcw_cl.numeric import drift, drifts, line_slope, travelled
+    from fmcw_cl.numeric import drift, drifts, travelled
 
     rng = np.random.default_rng(pairs)
     t = 2.0 + np.sort(rng.choice(pairs + 20, pairs, replace=False)) * 5e-5
     d = 0.3 + 1.5 * (t - 2.0) + np.cumsum(rng.normal(0, 40e-6, pairs))
     v = 1.5 + rng.normal(0, 1e-3, pairs)
     r = d - travelled(t, v)
-    loo = [line_slope(np.delete(t, b), np.delete(r, b))[0] for b in np.array_split(np.arange(pairs), 6)]
+    loo = [_line_slope(np.delete(t, b), np.delete(r, b))[0] for b in np.array_split(np.arange(pairs), 6)]
     jack = np.sqrt(5 / 6 * np.sum(np.square(np.subtract(loo, np.mean(loo)))))
     slope, se = drift(t, d, v, 6)
-    assert slope == pytest.approx(line_slope(t, r)[0], rel=1e-12)
-    assert se == pytest.approx(max(jack, line_slope(t, r)[1]), rel=1e-9)
-    assert jack > line_slope(t, r)[1]                     # the jackknife's error is the one stated
+    assert slope == pytest.approx(_line_slope(t, r)[0], rel=1e-12)
+    assert se == pytest.approx(max(jack, _line_slope(t, r)[1]), rel=1e-9)
+    assert jack > _line_slope(t, r)[1]                     # the jackknife's error is the one stated
     # this run between two others, one shorter than the blocks, at other times and speeds
     cut = [2, pairs, 9]
     ts, ds, vs = (np.concatenate(x) for x in zip((t[:2] - 1.0, d[:2], v[:2] + 3.0), (t, d, v),
