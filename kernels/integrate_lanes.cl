@@ -19,11 +19,7 @@ void row_peak(__local const float8 *pw8, const int half_n, const int lo, const i
     if (a >= b) a = b = hi;
     float best = -1.0f, sum = 0.0f;
     int arg = lo;
-    for (int k = lo; k < a; ++k) {
-        const float p = pw[k];
-        sum += p;
-        if (p > best) { best = p; arg = k; }
-    }
+    scan_bins(pw, lo, a, 1, &best, &arg, &sum);
     float8 vbest = -1.0f, vsum = 0.0f;
     int8 varg = (int8)a;
     const int8 lane = (int8)(0, 1, 2, 3, 4, 5, 6, 7);
@@ -42,11 +38,7 @@ void row_peak(__local const float8 *pw8, const int half_n, const int lo, const i
         if (lb[l] > best || (lb[l] == best && la[l] < arg)) { best = lb[l]; arg = la[l]; }
     }
     sum += sum8(vsum);
-    for (int k = b; k < hi; ++k) {
-        const float p = pw[k];
-        sum += p;
-        if (p > best) { best = p; arg = k; }
-    }
+    scan_bins(pw, b, hi, 1, &best, &arg, &sum);
     band_peak(pw, half_n, lo, hi, guard, arg, sum, bin, snr);
 }
 

@@ -25,6 +25,18 @@ float peak_position(__local const float *pw, const int half_n, const int kk)
     return peak_position_strided(pw, 1, half_n, kk);
 }
 
+// Bins k0, k0 + step, ... below k1 of a power spectrum into the running arg-max (`best`
+// at `arg`, ties: the bin seen first) and sum.
+void scan_bins(__local const float *pw, const int k0, const int k1, const int step, float *best, int *arg,
+               float *sum)
+{
+    for (int k = k0; k < k1; k += step) {
+        const float p = pw[k];
+        *sum += p;
+        if (p > *best) { *best = p; *arg = k; }
+    }
+}
+
 // The peak at bin `arg` of a band [lo, hi) whose power sums to `sum`: its fractional
 // position and its SNR over the mean of the band outside +-guard bins of it.
 void band_peak(__local const float *pw, const int half_n, const int lo, const int hi, const int guard,
@@ -59,11 +71,7 @@ void local_peak(__local const float *pw,   // power of bins 0 .. half_n - 1
     float best = -1.0f;
     int arg = lo;
     float sum = 0.0f;
-    for (int k = lo + lid; k < hi; k += lsz) {
-        const float p = pw[k];
-        sum += p;
-        if (p > best) { best = p; arg = k; }
-    }
+    scan_bins(pw, lo + lid, hi, lsz, &best, &arg, &sum);
     lval[lid] = best;
     lidx[lid] = arg;
     lsum[lid] = sum;
