@@ -7,10 +7,11 @@
 // runs (`runs` > 1: the chunks of one pass of the delay's trials) each have their run's
 // L0 (`run`: each sweep's; the LUT split once a run, one table after another), so that a
 // run's rows are those it would have alone.
-// Two variants: `resample` (GPUs) a work-group per half-sweep, its work-items striding
+// Three variants: `resample` (GPUs) a work-group per half-sweep, its work-items striding
 // over the points; `resample_lanes` (CPUs) a work-item per half-sweep, eight points at a
 // time in float8 lanes (PoCL vectorises across work-items only where a kernel has no
-// loop, which this one has; 2-core EPYC: 2.3x faster than `resample` there).
+// loop, which this one has; 2-core EPYC: 2.3x faster than `resample` there), which runs
+// the delay's trial passes; `resample_rows` (CPUs, below) a row a lane.
 // Twin: fmcw_cl.stages.resample.resample.
 
 // The cubic-convolution value at fraction f past c1 of codes c0..c3.
@@ -122,4 +123,173 @@ __kernel void resample_lanes(__global const short *codes,
     const float mean = total / (float)points;
     for (int j = 0; j < whole; j += 8) vstore8((vload8(0, row + j) - mean) * vload8(0, win + j), 0, row + j);
     for (int j = whole; j < points; ++j) row[j] = (row[j] - mean) * win[j];
+}
+
+
+// resample_lanes with its lanes across rows, for devices with local memory to spare
+// (CPUs): LANES half-sweeps of one run a work-item, one a lane, bit for bit the rows of
+// resample_lanes. Its four scalar loads a point and row cost resample_lanes half its
+// time. Here the rows' points share the LUT's whole samples m_j, and a lane's fraction
+// moves its taps by -1 .. 2 samples (a point where some lane's moves farther is taken a
+// lane at a time, from the codes), so each tap is one of seven vectors t[m_j - 2 ..
+// m_j + 4], picked by two selects on the bits of the move. The rows' codes are first
+// transposed into local memory (lane l of t[m - mlo] is code m past row l's base,
+// LANES x LANES at a time), and the rows go back transposed again. Local memory: t
+// (m_count floatL) and the rows before their mean is removed (points floatL). Oclgrind's
+// uninitialised-value check flags any vector built from components (a false report:
+// two-line kernels show it), so this kernel is checked on PoCL against resample_lanes.
+#if LANES == 16
+#define VLOADSL vload16
+#define CONVERT_FLOATL convert_float16
+#define CONVERT_INTL convert_int16
+#define LO_HALF(a, b) (floatL)(a.s0, b.s0, a.s1, b.s1, a.s2, b.s2, a.s3, b.s3, a.s4, b.s4, a.s5, b.s5, a.s6, b.s6, a.s7, b.s7)
+#define HI_HALF(a, b) (floatL)(a.s8, b.s8, a.s9, b.s9, a.sa, b.sa, a.sb, b.sb, a.sc, b.sc, a.sd, b.sd, a.se, b.se, a.sf, b.sf)
+#define LOG2_LANES 4
+#else
+#define VLOADSL vload8
+#define CONVERT_FLOATL convert_float8
+#define CONVERT_INTL convert_int8
+#define LO_HALF(a, b) (floatL)(a.s0, b.s0, a.s1, b.s1, a.s2, b.s2, a.s3, b.s3)
+#define HI_HALF(a, b) (floatL)(a.s4, b.s4, a.s5, b.s5, a.s6, b.s6, a.s7, b.s7)
+#define LOG2_LANES 3
+#endif
+KEYS(keysL, floatL)
+
+// Whether any lane is set, by halving swizzles (PoCL's any() tests lane after lane).
+inline int any_lanes(const intL v)
+{
+#if LANES == 16
+    const int8 a = v.lo | v.hi;
+#else
+    const int8 a = v;
+#endif
+    const int4 b = a.lo | a.hi;
+    const int2 c = b.lo | b.hi;
+    return (c.x | c.y) < 0;
+}
+
+// Transpose LANES x LANES values in place: lane c of v[r] <-> lane r of v[c]. A round
+// interleaves v[i] with v[i + LANES / 2] (which rotates the bits of (vector, lane) by
+// one); LOG2_LANES rounds transpose. Unrolled, the interleaves are register shuffles
+// (PoCL otherwise moves the lanes through memory one at a time).
+inline void transpose_lanes(floatL *v)
+{
+    floatL w[LANES];
+#pragma unroll
+    for (int round = 0; round < LOG2_LANES; ++round) {
+#pragma unroll
+        for (int i = 0; i < LANES / 2; ++i) {
+            const floatL a = v[i], b = v[i + LANES / 2];
+            w[2 * i] = LO_HALF(a, b);
+            w[2 * i + 1] = HI_HALF(a, b);
+        }
+#pragma unroll
+        for (int i = 0; i < LANES; ++i) v[i] = w[i];
+    }
+}
+
+// Point j of the LANES rows: resample_lanes' `point` in each lane.
+inline floatL rows_point(__global const short *codes, __local const floatL *t, const int mlo, const int *bl,
+                         const floatL off, const floatL dl, __global const int *lut_int,
+                         __global const float *lut_frac, __global const float *u, const int j)
+{
+    const int m = lut_int[j];
+    const floatL p = off + lut_frac[j] + u[j] * dl;
+    const intL i = CONVERT_INTL(p + 16.0f) - 16;      // floor, as in `point`
+    const floatL f = p - CONVERT_FLOATL(i);
+    if (!any_lanes((i < -1) | (i > 2))) {
+        // a lane's tap d (-1 .. 2) is t[m + i + d - mlo] = a[(i + 1) + (d + 1)]
+        __local const floatL *a = t + (m - 2 - mlo);
+        const intL e = i + 1;
+        const intL odd = (e & 1) != 0, high = (e & 2) != 0;
+        floatL w[6];
+#pragma unroll
+        for (int q = 0; q < 6; ++q) w[q] = odd ? a[q + 1] : a[q];
+        return keysL(f, high ? w[2] : w[0], high ? w[3] : w[1], high ? w[4] : w[2], high ? w[5] : w[3]);
+    }
+    float yl[LANES], fl[LANES];
+    VSTOREL(f, 0, fl);
+    VSTOREL(CONVERT_FLOATL(i), 0, yl);
+    for (int l = 0; l < LANES; ++l) {
+        const int k = bl[l] + m + (int)yl[l];
+        yl[l] = keys(fl[l], codes[k - 1], codes[k], codes[k + 1], codes[k + 2]);
+    }
+    return VLOADL(0, yl);
+}
+
+__kernel void resample_rows(__global const short *codes,
+                            const int n_codes,
+                            __global const int *base,
+                            __global const float *offset,
+                            __global const float *dlen,
+                            __global const int *lut_int,
+                            __global const float *lut_frac,
+                            __global const float *u,
+                            __global const float *win,
+                            const int points,
+                            const int sweeps,
+                            __global float *out,
+                            const int mlo,               // min(lut_int) - 2
+                            const int m_count,           // >= max(lut_int) + 4 - mlo + 1, LANES-fold
+                            __local floatL *t,           // m_count
+                            __local floatL *y)           // points
+{
+    const int first = (int)get_global_id(0) * LANES;
+    int bl[LANES], sl[LANES];
+    float ol[LANES], dll[LANES];
+    for (int l = 0; l < LANES; ++l) {
+        const int s = first + l < sweeps ? first + l : sweeps - 1;    // idle lanes: the last row again
+        sl[l] = s;
+        bl[l] = base[s];
+        ol[l] = offset[s];
+        dll[l] = dlen[s];
+    }
+    const floatL off = VLOADL(0, ol), dl = VLOADL(0, dll);
+    for (int m0 = 0; m0 < m_count; m0 += LANES) {
+        floatL v[LANES];
+        for (int l = 0; l < LANES; ++l) {
+            const int k = bl[l] + mlo + m0;
+            if (k >= 0 && k + LANES <= n_codes) {
+                v[l] = CONVERT_FLOATL(VLOADSL(0, codes + k));
+            } else {                                     // the codes' ends: codes no point reads
+                float e[LANES];
+                for (int q = 0; q < LANES; ++q) e[q] = k + q >= 0 && k + q < n_codes ? (float)codes[k + q] : 0.0f;
+                v[l] = VLOADL(0, e);
+            }
+        }
+        transpose_lanes(v);
+        for (int q = 0; q < LANES; ++q) t[m0 + q] = v[q];
+    }
+    // resample_lanes' sum: the points' eight lanes (j mod 8) pairwise, then the points past them
+    const int whole = points & ~7;
+    floatL acc[8];
+    for (int r = 0; r < 8; ++r) acc[r] = 0.0f;
+    for (int j = 0; j < whole; j += 8) {
+        for (int r = 0; r < 8; ++r) {
+            const floatL v = rows_point(codes, t, mlo, bl, off, dl, lut_int, lut_frac, u, j + r);
+            y[j + r] = v;
+            acc[r] += v;
+        }
+    }
+    floatL total = ((acc[0] + acc[1]) + (acc[2] + acc[3])) + ((acc[4] + acc[5]) + (acc[6] + acc[7]));
+    for (int j = whole; j < points; ++j) {
+        const floatL v = rows_point(codes, t, mlo, bl, off, dl, lut_int, lut_frac, u, j);
+        y[j] = v;
+        total += v;
+    }
+    const floatL mean = total / (float)points;
+    const int tiles = points - points % LANES;
+    for (int j0 = 0; j0 < tiles; j0 += LANES) {
+        floatL v[LANES];
+        for (int q = 0; q < LANES; ++q) v[q] = y[j0 + q] - mean;
+        transpose_lanes(v);
+        const floatL w = VLOADL(0, win + j0);
+        for (int l = 0; l < LANES; ++l)
+            if (first + l < sweeps) VSTOREL(v[l] * w, 0, out + (size_t)sl[l] * points + j0);
+    }
+    float ml[LANES];
+    VSTOREL(mean, 0, ml);
+    for (int l = 0; l < LANES && first + l < sweeps; ++l)
+        for (int j = tiles; j < points; ++j)
+            out[(size_t)sl[l] * points + j] = (((__local const float *)(y + j))[l] - ml[l]) * win[j];
 }

@@ -12,6 +12,7 @@ from fmcw_cl.backend import make_processor
 from fmcw_cl.chunks import margin_samples
 from fmcw_cl.engine import process
 from fmcw_cl.opencl import faults as k_faults
+from fmcw_cl.opencl import resample as k_resample
 from fmcw_cl.opencl import spectrum as k_spectrum
 from fmcw_cl.opencl.context import cl, lanes_width
 from fmcw_cl.opencl.processor import OpenCLProcessor
@@ -38,6 +39,41 @@ def test_resample_kernel_matches_numpy(backend, kernel_variant, sweeps, points):
         got = backend.resample(codes, starts, lengths, uu, resample.window(points)).get(backend.rt.queue)
         assert got.shape == ref.shape
         assert np.abs(got - ref).max() < 0.02     # codes; float32 positions keep 1e-6 sample
+
+
+@pytest.mark.parametrize("points", [1000, 999, 7])
+def test_resample_rows_are_resample_lanes_bit_for_bit(backend, monkeypatch, points):
+    """resample_rows (a row a lane) against resample_lanes (a row a work-item), at 8 lanes
+    and the device's width: idle lanes, points past the last whole tile, both sweep
+    directions, rows far from the nominal length (points whose taps move beyond the
+    seven codes, taken a lane at a time) and rows at both ends of the codes."""
+    rt = backend.rt
+    rng = np.random.default_rng(points)
+    codes = rng.integers(-8192, 8192, 60_001).astype(np.int16)
+    sweeps = 37
+    starts = np.sort(rng.uniform(2, codes.size - 2600, sweeps))
+    starts[0], starts[-1] = 2.3, codes.size - 2504.5        # tiles past the codes' ends
+    lengths = 2499.999 + rng.uniform(-1e-3, 1e-3, sweeps)
+    lengths[5::9] += (-3.2, 2.7, 3.9, -2.5)[: lengths[5::9].size]
+    u = np.sort(rng.uniform(0, 1, points))
+    win = resample.window(points)
+    chosen = rt.lanes, rt.width
+    try:
+        for uu in (u, u[::-1]):
+            rt.lanes = True
+            with monkeypatch.context() as m:
+                m.setattr(k_resample, "rows_across", lambda *_: None)
+                (want,) = k_resample.resample_each(rt, backend.bufs, codes, [(starts, lengths, uu)], win)
+                want = want.get()
+            assert np.abs(want - resample.resample(codes, starts, lengths, uu, win)).max() < 0.02
+            for width in {8, rt.width}:
+                rt.width = width
+                assert k_resample.rows_across(rt, np.floor(2500 * uu), points) is not None
+                (got,) = k_resample.resample_each(rt, backend.bufs, codes, [(starts, lengths, uu)], win)
+                np.testing.assert_array_equal(got.get(), want)
+            rt.width = chosen[1]
+    finally:
+        rt.lanes, rt.width = chosen
 
 
 def _measure(backend, rows, beta, v, nfft, lo, hi=None):
@@ -554,8 +590,8 @@ def test_every_kernel_launches_with_one_local_size(static_capture, monkeypatch):
     be = make_processor("opencl")
     for periods in (97, 160):         # cores and the last partial chunk of other lengths
         process(static_capture, Options(chunk_periods=periods), be)
-    variant = ({"resample_lanes", "spectrum_lanes", "block_sum_span", "line_fit_lanes"} if be.rt.lanes
-               else {"resample", "spectrum_peak", "block_sum", "line_fit"})      # a CPU's, a GPU's
+    cpu = {"resample_rows", "resample_lanes", "spectrum_lanes", "block_sum_span", "line_fit_lanes"}
+    variant = cpu if be.rt.lanes else {"resample", "spectrum_peak", "block_sum", "line_fit"}    # a GPU's
     assert variant | {"sync_levels", "span_ends", "span_carries", "span_crossings", "clip_blocks",
                       "cic_decimate", "fir_same", "track_pass", "block_sums", "delay_centre",
                       "delay_correlate", "delay_coarse", "delay_fit", "copy_words"} <= set(seen)

@@ -113,7 +113,7 @@ def is_simulator(device) -> bool:
 
 
 def lanes_width(device) -> int:
-    """Lanes of `spectrum_lanes` on `device`: 16 (one AVX-512 register a float16) where
+    """Lanes of `spectrum_lanes` and `resample_rows` on `device`: 16 (one AVX-512 register a float16) where
     its preferred float vector is that wide, else 8 (wider vectors there change the
     builtins' ABI: a build warning)."""
     return 16 if device.preferred_vector_width_float >= 16 else 8
@@ -187,7 +187,7 @@ class Runtime:
     traffic: Traffic = field(default_factory=Traffic)
 
     lanes: bool = False   # kernels with explicit float8 lanes where there are two variants
-    width: int = 8        # lanes of spectrum_lanes (kernels/fft_lanes.cl's LANES)
+    width: int = 8        # lanes of spectrum_lanes and resample_rows (kernels/lanes.cl LANES)
     held: list | None = None   # every buffer made, on a simulator: `hold`
     # the events of uploads that do not wait: pyopencl's event of such a copy waits for
     # it when dropped, so they are held until a download or `finish` has waited for them

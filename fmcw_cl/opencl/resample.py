@@ -49,6 +49,16 @@ def _split(job: tuple) -> list[np.ndarray]:
             (whole - lut_int).ravel(), run]
 
 
+def rows_across(rt: Runtime, lut_int: np.ndarray, points: int) -> tuple[int, int] | None:
+    """`resample_rows`' (kernels/resample.cl) first code past each row's base and count of
+    codes (a multiple of the lanes) for the LUT's whole samples `lut_int` (one run), or
+    None where its local memory (those codes and the rows, as float lanes) exceeds the
+    device's: `resample_lanes` then."""
+    lo, hi = int(lut_int.min()) - 2, int(lut_int.max()) + 4
+    count = -(-(hi - lo + 1) // rt.width) * rt.width
+    return (lo, count) if 4 * rt.width * (count + points) <= rt.device.local_mem_size else None
+
+
 KINDS = (np.int32, np.float32, np.float32, np.int32, np.float32, np.int32)   # `_split`'s arrays on the device
 
 
@@ -76,9 +86,19 @@ def resample_groups(rt: Runtime, bufs: Buffers, groups: list, also: tuple = ()) 
             if sweeps:
                 d_base, d_off, d_dlen, d_int, d_frac, d_run = buffers[6 * i: 6 * i + 6]
                 runs = split[i][3].size // points                 # LUT tables, one a run
-                args = (d_codes, d_base, d_off, d_dlen, d_int, d_frac, d_run, np.int32(runs),
-                        bufs.constant("u", u), d_win, np.int32(points))
-                if rt.lanes:
+                d_u = bufs.constant("u", u)
+                args = (d_codes, d_base, d_off, d_dlen, d_int, d_frac, d_run, np.int32(runs), d_u, d_win,
+                        np.int32(points))
+                # CPUs: a row a lane where the rows share one LUT and local memory holds them
+                across = rows_across(rt, split[i][3], points) if rt.lanes and runs == 1 else None
+                if across is not None:
+                    lo, count = across
+                    rt.kernel("resample", "resample_rows")(
+                        rt.queue, (-(-sweeps // rt.width),), (1,), d_codes, np.int32(codes.size), d_base,
+                        d_off, d_dlen, d_int, d_frac, d_u, d_win, np.int32(points), np.int32(sweeps),
+                        rows.buffer, np.int32(lo), np.int32(count), cl.LocalMemory(4 * rt.width * count),
+                        cl.LocalMemory(4 * rt.width * points))
+                elif rt.lanes:
                     rt.kernel("resample", "resample_lanes")(rt.queue, (sweeps,), (1,), *args, rows.buffer)
                 else:
                     rt.kernel("resample", "resample")(rt.queue, (sweeps * GPU_LOCAL,), (GPU_LOCAL,), *args,
