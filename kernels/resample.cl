@@ -136,8 +136,9 @@ __kernel void resample_lanes(__global const short *codes,
 // transposed into local memory (lane l of t[m - mlo] is code m past row l's base,
 // LANES x LANES at a time), and the rows go back transposed again. Local memory: t
 // (m_count floatL) and the rows before their mean is removed (points floatL). Oclgrind's
-// uninitialised-value check flags any vector built from components (a false report:
-// two-line kernels show it), so this kernel is checked on PoCL against resample_lanes.
+// uninitialised-value check reports any vector built from components, its values right
+// (a five-line kernel shows it), and then crashes, so this kernel is checked on PoCL
+// against resample_lanes, bit for bit.
 #if LANES == 16
 #define VLOADSL vload16
 #define CONVERT_FLOATL convert_float16
