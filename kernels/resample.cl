@@ -134,60 +134,12 @@ __kernel void resample_lanes(__global const short *codes,
 // lane at a time, from the codes), so each tap is one of seven vectors t[m_j - 2 ..
 // m_j + 4], picked by two selects on the bits of the move. The rows' codes are first
 // transposed into local memory (lane l of t[m - mlo] is code m past row l's base,
-// LANES x LANES at a time), and the rows go back transposed again. Local memory: t
+// LANES x LANES at a time: lanes.cl's transpose_lanes), and the rows go back transposed. Local memory: t
 // (m_count floatL) and the rows before their mean is removed (points floatL). Oclgrind's
 // uninitialised-value check reports any vector built from components, its values right
 // (a five-line kernel shows it), and then crashes, so this kernel is checked on PoCL
 // against resample_lanes, bit for bit.
-#if LANES == 16
-#define VLOADSL vload16
-#define CONVERT_FLOATL convert_float16
-#define CONVERT_INTL convert_int16
-#define LO_HALF(a, b) (floatL)(a.s0, b.s0, a.s1, b.s1, a.s2, b.s2, a.s3, b.s3, a.s4, b.s4, a.s5, b.s5, a.s6, b.s6, a.s7, b.s7)
-#define HI_HALF(a, b) (floatL)(a.s8, b.s8, a.s9, b.s9, a.sa, b.sa, a.sb, b.sb, a.sc, b.sc, a.sd, b.sd, a.se, b.se, a.sf, b.sf)
-#define LOG2_LANES 4
-#else
-#define VLOADSL vload8
-#define CONVERT_FLOATL convert_float8
-#define CONVERT_INTL convert_int8
-#define LO_HALF(a, b) (floatL)(a.s0, b.s0, a.s1, b.s1, a.s2, b.s2, a.s3, b.s3)
-#define HI_HALF(a, b) (floatL)(a.s4, b.s4, a.s5, b.s5, a.s6, b.s6, a.s7, b.s7)
-#define LOG2_LANES 3
-#endif
 KEYS(keysL, floatL)
-
-// Whether any lane is set, by halving swizzles (PoCL's any() tests lane after lane).
-inline int any_lanes(const intL v)
-{
-#if LANES == 16
-    const int8 a = v.lo | v.hi;
-#else
-    const int8 a = v;
-#endif
-    const int4 b = a.lo | a.hi;
-    const int2 c = b.lo | b.hi;
-    return (c.x | c.y) < 0;
-}
-
-// Transpose LANES x LANES values in place: lane c of v[r] <-> lane r of v[c]. A round
-// interleaves v[i] with v[i + LANES / 2] (which rotates the bits of (vector, lane) by
-// one); LOG2_LANES rounds transpose. Unrolled, the interleaves are register shuffles
-// (PoCL otherwise moves the lanes through memory one at a time).
-inline void transpose_lanes(floatL *v)
-{
-    floatL w[LANES];
-#pragma unroll
-    for (int round = 0; round < LOG2_LANES; ++round) {
-#pragma unroll
-        for (int i = 0; i < LANES / 2; ++i) {
-            const floatL a = v[i], b = v[i + LANES / 2];
-            w[2 * i] = LO_HALF(a, b);
-            w[2 * i + 1] = HI_HALF(a, b);
-        }
-#pragma unroll
-        for (int i = 0; i < LANES; ++i) v[i] = w[i];
-    }
-}
 
 // Point j of the LANES rows: resample_lanes' `point` in each lane.
 inline floatL rows_point(__global const short *codes, __local const floatL *t, const int mlo, const int *bl,
