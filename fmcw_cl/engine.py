@@ -86,20 +86,24 @@ def with_choice(plan: Plan, parts: list[ChunkMeasurements], processor: ChunkProc
 def chosen(cap: Capture, plan: Plan, processor: ChunkProcessor, track: Track) -> target.Choice:
     """The target of a first conversion `track` (choose_target), with a second look
     (fmcw_cl.second_look, by `processor`) beside a lone fixed echo."""
-    choice = choose_target(plan, track)
+    fixed = target.fixed_of(track.echoes, plan.lut.unambiguous_range_m, track.time_s, track.distance_m,
+                            track.valid)
+    choice = choose_target(plan, track, fixed)
     if choice.lone:
-        choice = choose_target(plan, track, moving_beside(cap, plan, processor, float(choice.fixed_m[0])))
+        beside = moving_beside(cap, plan, processor, float(choice.fixed_m[0]))
+        choice = choose_target(plan, track, fixed, beside)
     return choice
 
 
-def choose_target(plan: Plan, track: Track, beside: list | None = None) -> target.Choice:
-    """The target of a first conversion (fmcw_cl.target.choose), with the moving echoes
-    a second look found beside a lone fixed echo (`beside`, fmcw_cl.second_look)."""
+def choose_target(plan: Plan, track: Track, fixed: target.Fixed, beside: list | None = None) -> target.Choice:
+    """The target of a first conversion (fmcw_cl.target.choose) from its `fixed` echoes
+    (target.fixed_of), with the moving echoes a second look found beside a lone fixed
+    echo (`beside`, fmcw_cl.second_look)."""
     clipped = track.reason is not None and bool(np.any(track.reason == faults.CLIPPED))
     try:
         return target.choose(plan.options.target, plan.options.target_near, track.time_s, track.distance_m,
                              track.velocity_mps, track.valid, track.echoes, plan.lut.unambiguous_range_m,
-                             plan.options.band_m, beside, clipped)
+                             plan.options.band_m, beside, clipped, fixed)
     except ValueError as exc:
         raise CaptureError(plan.info.path, str(exc)) from None
 

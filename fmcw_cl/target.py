@@ -344,29 +344,50 @@ def _margin(gap: float) -> float:
     return min(WALL_MARGIN_M, max(MIN_GAP_M / 2, gap / 2))
 
 
+@dataclass(frozen=True)
+class Fixed:
+    """The fixed echoes of a first conversion, whatever a second look finds beside them:
+    every one listed (`_found`), those standing for the others (`fixed_echoes`: distances
+    m, levels dB), and whether each of these is an object (`_objects`)."""
+
+    listed: list[tuple[float, float]]
+    distance_m: np.ndarray
+    level_db: np.ndarray
+    objects: np.ndarray
+
+
+def fixed_of(e: echoes.Echoes, unambiguous_m: float, time_s, distance_m, valid) -> Fixed:
+    """The `Fixed` echoes of a first conversion's echo table `e` and pairs (times s,
+    distances m, valid), for `choose`; `unambiguous_m` is the capture's unambiguous range."""
+    listed = _found(e)
+    d, level = fixed_echoes(e, unambiguous_m, listed)
+    return Fixed(listed, d, level, _objects(d, time_s, distance_m, valid, e))
+
+
 def choose(rule: str, near_m: float | None, time_s, distance_m, velocity_mps, valid,
            e: echoes.Echoes, unambiguous_m: float, band: tuple[float, float | None],
-           beside: list[tuple[float, float]] | None = None, clipped: bool = False) -> Choice:
+           beside: list[tuple[float, float]] | None = None, clipped: bool = False,
+           fixed: Fixed | None = None) -> Choice:
     """The target of a first conversion's pairs (valid, distances, velocities) and echo
     table `e` (see the module); `unambiguous_m` is the capture's unambiguous range,
     `band` the user's (lo, hi) in m. A lone fixed echo (`auto`, `moving`) comes back
     with `lone` set until `beside`, the moving echoes found beside it by a second look
     (fmcw_cl.second_look), is given. `clipped`: some pairs are clipped (their distortion
-    puts peaks into the mean spectra)."""
-    listed = _found(e)
-    found = fixed_echoes(e, unambiguous_m, listed)
+    puts peaks into the mean spectra). `fixed`: `fixed_of` these arguments, where known
+    (the second look's call makes the first's again)."""
+    fixed = fixed or fixed_of(e, unambiguous_m, time_s, distance_m, valid)
+    listed, d, level = fixed.listed, fixed.distance_m, fixed.level_db
     # each fixed echo stands for those within APART_M of it (walls 12.6 mm apart are one)
     members = np.asarray([x for x, _ in listed])
-    groups = [members[np.abs(members - f) < APART_M] for f in found[0]]
-    extent = np.array([(min(f, g.min()), max(f, g.max())) for f, g in zip(found[0], groups, strict=True)])
+    groups = [members[np.abs(members - f) < APART_M] for f in d]
+    extent = np.array([(min(f, g.min()), max(f, g.max())) for f, g in zip(d, groups, strict=True)])
     choice = _choose(rule, near_m, time_s, distance_m, velocity_mps, valid, e, unambiguous_m, band, beside,
-                     clipped, found[0], extent.reshape(-1, 2))
+                     clipped, d, extent.reshape(-1, 2), fixed.objects)
     if choice.ambiguous_m.size:   # with the echoes each one stands for
         near = np.min(np.abs(members[:, None] - choice.ambiguous_m[None, :]), axis=1) < APART_M
         choice.ambiguous_m = np.union1d(choice.ambiguous_m, members[near])
     # the fixed echoes that are not the target: out of its band, or ambiguous with it
     hi = np.inf if choice.band_m[1] is None else choice.band_m[1]
-    d, level = found
     other = (d < choice.band_m[0]) | (d >= hi)
     if choice.ambiguous_m.size:
         other |= np.min(np.abs(d[:, None] - choice.ambiguous_m[None, :]), axis=1) <= GATE_M
@@ -377,17 +398,17 @@ def choose(rule: str, near_m: float | None, time_s, distance_m, velocity_mps, va
 def _choose(rule: str, near_m: float | None, time_s, distance_m, velocity_mps, valid,
             e: echoes.Echoes, unambiguous_m: float, band: tuple[float, float | None],
             beside: list[tuple[float, float]] | None, clipped: bool, fixed: np.ndarray,
-            extent: np.ndarray) -> Choice:
-    """`choose` with the capture's fixed echoes `fixed` (m) and the (lo, hi) of the echoes
-    each stands for, `extent` (m)."""
+            extent: np.ndarray, objects: np.ndarray) -> Choice:
+    """`choose` with the capture's fixed echoes `fixed` (m), the (lo, hi) of the echoes
+    each stands for, `extent` (m), and whether each is an object (`_objects`)."""
     inband = (fixed >= band[0]) & (fixed < (band[1] or np.inf))
-    fixed, extent = fixed[inband], extent[inband]
+    fixed, extent, objects = fixed[inband], extent[inband], objects[inband]
     diffuse = smeared(e, band)
     spans = sorted(moving_spans(time_s, distance_m, velocity_mps, valid, diffuse) + (beside or []))
     if fixed.size == 0 and not spans:   # none at a slice's or a block's level: those the capture's show
         fixed = _whole(e, band)
         extent = np.c_[fixed, fixed]
-    objects = _objects(fixed, time_s, distance_m, valid, e)
+        objects = _objects(fixed, time_s, distance_m, valid, e)
     name = rule if near_m is None else f"near {near_m:g} m"
     if rule == "strongest" and near_m is None:
         return Choice(name, fixed, objects, None, False, band, note="the strongest echo of the band")
