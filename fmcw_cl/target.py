@@ -374,8 +374,9 @@ def choose(rule: str, near_m: float | None, time_s, distance_m, velocity_mps, va
     with `lone` set until `beside`, the moving echoes found beside it by a second look
     (fmcw_cl.second_look), is given. `clipped`: some pairs are clipped (their distortion
     puts peaks into the mean spectra). `fixed`: `fixed_of` these arguments, where known
-    (the second look's call makes the first's again)."""
-    fixed = fixed or fixed_of(e, unambiguous_m, time_s, distance_m, valid)
+    (the call after a second look takes the first call's)."""
+    if fixed is None:
+        fixed = fixed_of(e, unambiguous_m, time_s, distance_m, valid)
     listed, d, level = fixed.listed, fixed.distance_m, fixed.level_db
     # each fixed echo stands for those within APART_M of it (walls 12.6 mm apart are one)
     members = np.asarray([x for x, _ in listed])
