@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import replace
 
 import numpy as np
@@ -761,39 +762,42 @@ def test_kernels_build_without_warnings(backend):
 
     for name in backend.programs:
         for width in {8, backend.rt.width}:
-            cl.Program(backend.rt.context, source(name)).build(options=["-cl-std=CL1.2", "-Werror",
-                                                                        f"-DLANES={width}"])
+            for shuffles in (0, 1):
+                cl.Program(backend.rt.context, source(name)).build(
+                    options=["-cl-std=CL1.2", "-Werror", f"-DLANES={width}", f"-DSHUFFLES={shuffles}"])
 
 
-def test_spectrum_lanes_of_either_width_are_the_same(backend):
+@pytest.mark.parametrize("points", [1000, 999])
+def test_spectrum_lanes_of_either_width_and_load_are_the_same(backend, points):
     """spectrum_lanes at 8 and 16 lanes a work-item (fft_lanes.cl's LANES; 16 where the
-    device prefers float16): the same peaks, echoes and power bit for bit, plain (two rows
-    a transform, a lone last row) and de-chirped at picked rows, with idle lanes."""
+    device prefers float16), its rows loaded a value a row or by vectors transposed in
+    registers (SHUFFLES; a simulator gathers): the same peaks, echoes and power bit for
+    bit, plain (two rows a transform, a lone last row) and de-chirped at picked rows,
+    with idle lanes and samples past the last whole vector."""
     rt = backend.rt
-    if lanes_width(rt.device) < 16:
-        pytest.skip(f"{rt.name} runs spectrum_lanes at 8 lanes only")
     rng = np.random.default_rng(5)
-    sweeps, points = 41, 1000
+    sweeps = 41
     x = (rng.normal(0, 10, (sweeps, points)) + 80 * np.cos(np.outer(rng.uniform(0.2, 2.5, sweeps),
                                                                     np.arange(points)))).astype(np.float32)
     beta = rng.uniform(-30, 30, points)
     rows = np.sort(rng.choice(sweeps, 19, replace=False))
     v = rng.uniform(-8, 8, rows.size)
-    chosen = rt.lanes, rt.width
+    chosen = rt.lanes, rt.width, rt.shuffles
     got = []
     try:
-        for width in (8, 16):
-            rt.lanes, rt.width = True, width
+        for width, shuffles in itertools.product({8, lanes_width(rt.device)}, (False, True)):
+            rt.lanes, rt.width, rt.shuffles = True, width, shuffles
             plain = k_spectrum.measure(rt, backend.bufs, x, None, None, 2048, 3, keep_power=True, echoes=True)
             dechirped = k_spectrum.measure(rt, backend.bufs, x, beta, v, 2048, 3, index=rows)
             (peaks, power, echoes), (picked, _, _) = plain, dechirped
             got.append([peaks.bin, peaks.snr_db, power, echoes.bin, echoes.snr_db, echoes.count, picked.bin,
                         picked.snr_db])
     finally:
-        rt.lanes, rt.width = chosen
+        rt.lanes, rt.width, rt.shuffles = chosen
     assert np.all(got[0][5] > 0)
-    for a, b in zip(*got, strict=True):
-        np.testing.assert_array_equal(a, b)
+    for other in got[1:]:
+        for a, b in zip(got[0], other, strict=True):
+            np.testing.assert_array_equal(a, b)
 
 
 def test_transform_too_large_for_local_memory_runs_on_the_host(backend, static_capture, monkeypatch):

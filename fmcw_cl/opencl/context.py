@@ -188,6 +188,10 @@ class Runtime:
 
     lanes: bool = False   # kernels with explicit float8 lanes where there are two variants
     width: int = 8        # lanes of spectrum_lanes and resample_rows (kernels/lanes.cl LANES)
+    # whether lane kernels build vectors from other vectors' lanes (lanes.cl SHUFFLES):
+    # not on a simulator, whose uninitialised-value check reports every such vector and
+    # crashes; there spectrum_lanes gathers its rows a value at a time, the same values
+    shuffles: bool = True
     held: list | None = None   # every buffer made, on a simulator: `hold`
     # the events of uploads that do not wait: pyopencl's event of such a copy waits for
     # it when dropped, so they are held until a download or `finish` has waited for them
@@ -203,6 +207,7 @@ class Runtime:
         self.lanes = rank(self.device) == CPU
         self.width = lanes_width(self.device)
         self.held = [] if is_simulator(self.device) else None
+        self.shuffles = not is_simulator(self.device)
 
     def hold(self, buffer) -> None:
         """On a simulator, keep `buffer` as long as this runtime. Oclgrind gives a freed
@@ -260,7 +265,7 @@ class Runtime:
 
     def kernel(self, program: str, name: str):
         """Kernel `name` of kernels/<program>.cl (built and retrieved once)."""
-        key = (program, name, self.width)
+        key = (program, name, self.width, self.shuffles)
         if key not in self.kernels:
             self.kernels[key] = _Counted(cl.Kernel(self.program(program), name), self.traffic)
         return self.kernels[key]
@@ -289,14 +294,15 @@ class Runtime:
         self.in_flight.clear()
 
     def program(self, name: str):
-        """kernels/<name>.cl built for this context and `width` (cached)."""
-        key = (name, self.width)
+        """kernels/<name>.cl built for this context, `width` and `shuffles` (cached)."""
+        key = (name, self.width, self.shuffles)
         if key not in self.programs:
             from fmcw_cl.kernels import files_of, source
 
             prog = cl.Program(self.context, source(name))
             try:
-                prog.build(options=["-cl-std=CL1.2", f"-DLANES={self.width}"])
+                prog.build(options=["-cl-std=CL1.2", f"-DLANES={self.width}",
+                                    f"-DSHUFFLES={int(self.shuffles)}"])
             except cl.Error as exc:
                 log = Path(tempfile.gettempdir()) / f"fmcw-cl-{name}-build.log"
                 log.write_text(str(exc))
