@@ -198,16 +198,29 @@ __kernel void resample_rows(__global const short *codes,
         dll[l] = dlen[s];
     }
     const floatL off = VLOADL(0, ol), dl = VLOADL(0, dll);
+    int b_lo = bl[0], b_hi = bl[0];
+    for (int l = 1; l < LANES; ++l) {
+        b_lo = bl[l] < b_lo ? bl[l] : b_lo;
+        b_hi = bl[l] > b_hi ? bl[l] : b_hi;
+    }
     for (int m0 = 0; m0 < m_count; m0 += LANES) {
         floatL v[LANES];
-        for (int l = 0; l < LANES; ++l) {
-            const int k = bl[l] + mlo + m0;
-            if (k >= 0 && k + LANES <= n_codes) {
-                v[l] = CONVERT_FLOATL(VLOADSL(0, codes + k));
-            } else {                                     // the codes' ends: codes no point reads
-                float e[LANES];
-                for (int q = 0; q < LANES; ++q) e[q] = k + q >= 0 && k + q < n_codes ? (float)codes[k + q] : 0.0f;
-                v[l] = VLOADL(0, e);
+        if (b_lo + mlo + m0 >= 0 && b_hi + mlo + m0 + LANES <= n_codes) {
+            // every row's codes inside: one test for all rows, the loads unrolled (PoCL,
+            // 2-core Sapphire Rapids: 2 x 8321 rows of 1000 points 16.4 to 14.4 ms)
+#pragma unroll
+            for (int l = 0; l < LANES; ++l) v[l] = CONVERT_FLOATL(VLOADSL(0, codes + bl[l] + mlo + m0));
+        } else {
+            for (int l = 0; l < LANES; ++l) {
+                const int k = bl[l] + mlo + m0;
+                if (k >= 0 && k + LANES <= n_codes) {
+                    v[l] = CONVERT_FLOATL(VLOADSL(0, codes + k));
+                } else {                                 // the codes' ends: codes no point reads
+                    float e[LANES];
+                    for (int q = 0; q < LANES; ++q)
+                        e[q] = k + q >= 0 && k + q < n_codes ? (float)codes[k + q] : 0.0f;
+                    v[l] = VLOADL(0, e);
+                }
             }
         }
         transpose_lanes(v);
@@ -232,13 +245,21 @@ __kernel void resample_rows(__global const short *codes,
     }
     const floatL mean = total / (float)points;
     const int tiles = points - points % LANES;
+    // every lane a row: the stores unrolled, without a test a row (those rows 14.4 to 13.4 ms)
+    const int whole_rows = first + LANES <= sweeps;
     for (int j0 = 0; j0 < tiles; j0 += LANES) {
         floatL v[LANES];
+#pragma unroll
         for (int q = 0; q < LANES; ++q) v[q] = y[j0 + q] - mean;
         transpose_lanes(v);
         const floatL w = VLOADL(0, win + j0);
-        for (int l = 0; l < LANES; ++l)
-            if (first + l < sweeps) VSTOREL(v[l] * w, 0, out + (size_t)sl[l] * points + j0);
+        if (whole_rows) {
+#pragma unroll
+            for (int l = 0; l < LANES; ++l) VSTOREL(v[l] * w, 0, out + (size_t)sl[l] * points + j0);
+        } else {
+            for (int l = 0; l < LANES; ++l)
+                if (first + l < sweeps) VSTOREL(v[l] * w, 0, out + (size_t)sl[l] * points + j0);
+        }
     }
     float ml[LANES];
     VSTOREL(mean, 0, ml);
