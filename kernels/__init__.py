@@ -3,11 +3,10 @@
 from importlib.resources import files
 
 # programs built from more than one file (device functions first)
-# (survey.cl: alone)
 PROGRAMS = {"spectrum": ("lanes", "peak", "cfar", "fft", "fft_lanes"),
             "integrate": ("lanes", "peak", "integrate", "integrate_lanes"),
             "lpf": ("lanes", "lpf"), "resample": ("lanes", "resample"), "sync": ("real", "sync"),
-            "delay": ("real", "delay")}
+            "delay": ("real", "delay"), "survey": ("lanes", "survey")}
 
 
 def files_of(program: str) -> tuple[str, ...]:

@@ -1,5 +1,5 @@
 // Device functions and types of the kernels that work in vector lanes (lpf.cl,
-// resample.cl, fft_lanes.cl, integrate_lanes.cl; built in front of them).
+// resample.cl, fft_lanes.cl, integrate_lanes.cl, survey.cl; built in front of them).
 
 // LANES (a build option, Runtime.width): the lanes of fft_lanes.cl's transforms and of
 // resample.cl's resample_rows, which are independent: 16 where the device's preferred
@@ -24,6 +24,8 @@ typedef int16 intL;
 #define VLOADSL vload16
 #define CONVERT_FLOATL convert_float16
 #define CONVERT_INTL convert_int16
+#define AS_INTL as_int16
+#define AS_FLOATL as_float16
 #define LO_HALF(a, b) (floatL)(a.s0, b.s0, a.s1, b.s1, a.s2, b.s2, a.s3, b.s3, \
                                a.s4, b.s4, a.s5, b.s5, a.s6, b.s6, a.s7, b.s7)
 #define HI_HALF(a, b) (floatL)(a.s8, b.s8, a.s9, b.s9, a.sa, b.sa, a.sb, b.sb, \
@@ -37,6 +39,8 @@ typedef int8 intL;
 #define VLOADSL vload8
 #define CONVERT_FLOATL convert_float8
 #define CONVERT_INTL convert_int8
+#define AS_INTL as_int8
+#define AS_FLOATL as_float8
 #define LO_HALF(a, b) (floatL)(a.s0, b.s0, a.s1, b.s1, a.s2, b.s2, a.s3, b.s3)
 #define HI_HALF(a, b) (floatL)(a.s4, b.s4, a.s5, b.s5, a.s6, b.s6, a.s7, b.s7)
 #define LOG2_LANES 3

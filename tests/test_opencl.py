@@ -975,6 +975,15 @@ def test_survey_kernel_matches_numpy(backend, kernel_variant, rows, nfft, lo):
     alone = backend.survey(flipped, -beta, *args[1:])
     for a, b in zip((*got, *alone), (*both[0], *both[1]), strict=True):
         np.testing.assert_array_equal(a, b)
+    # hidden_lanes at 8 lanes and at the device's width (lanes.cl LANES): bit for bit
+    rt, chosen = backend.rt, backend.rt.width
+    try:
+        for width in {8, lanes_width(rt.device)}:
+            rt.width = width
+            for a, b in zip(got, backend.survey(x.astype(np.float32), *args), strict=True):
+                np.testing.assert_array_equal(a, b)
+    finally:
+        rt.width = chosen
 
 
 def _tracker_scene(backend, scene: str, pairs: int, iterations: int, groups, amplitude: float = 1.0):

@@ -63,13 +63,14 @@ def hidden_each(rt: Runtime, bufs: Buffers, jobs: list, lo: int, inputs: list | 
         at = first + 4 * i
         written, sums = out.buffers[at: at + 3], out.buffers[at + 3]
         band = half - lo
-        # the lanes' bands take eight times the local memory: a GPU made to run them
+        # the lanes' bands take `width` times the local memory: a GPU made to run them
         # (the tests' variants) may not hold them, and runs the work-groups' kernel
-        if rt.lanes and 32 * (2 * band + max(m, 1)) <= rt.device.local_mem_size:
+        lane = 4 * rt.width
+        if rt.lanes and lane * (2 * band + max(m, 1)) <= rt.device.local_mem_size:
             rt.kernel("survey", "hidden_lanes")(
-                rt.queue, (-(-rows // 8),), (1,), plain.buffer, dechirped.buffer, np.int32(half),
+                rt.queue, (-(-rows // rt.width),), (1,), plain.buffer, dechirped.buffer, np.int32(half),
                 np.int32(lo), np.int32(rows), d_tracked, d_plain_bin, d_others, np.int32(m), *rules, *written,
-                cl.LocalMemory(32 * band), cl.LocalMemory(32 * band), cl.LocalMemory(32 * max(m, 1)))
+                cl.LocalMemory(lane * band), cl.LocalMemory(lane * band), cl.LocalMemory(lane * max(m, 1)))
         else:
             rt.kernel("survey", "hidden")(
                 rt.queue, (rows * lsz,), (lsz,), plain.buffer, dechirped.buffer, np.int32(half), np.int32(lo),
