@@ -1,9 +1,10 @@
 // Device functions and types of the kernels that work in vector lanes (lpf.cl,
 // resample.cl, fft_lanes.cl, integrate_lanes.cl, survey.cl; built in front of them).
 
-// LANES (a build option, Runtime.width): the lanes of fft_lanes.cl's transforms and of
-// resample.cl's resample_rows, which are independent: 16 where the device's preferred
-// float vector is 16 wide (AVX-512: one zmm register a value), else 8. Each lane's
+// LANES (a build option, Runtime.width): the lanes of fft_lanes.cl's transforms, of
+// resample.cl's resample_rows and of survey.cl's hidden_lanes, which are independent:
+// 16 where the device's preferred float vector is 16 wide (AVX-512: one zmm register a
+// value), else 8. Each lane's
 // arithmetic is the same at either width. (integrate_lanes.cl at 16 lanes: no faster,
 // its loads bound it; it stays at float8.) LO_HALF and HI_HALF interleave the lower and
 // the upper halves of two vectors.

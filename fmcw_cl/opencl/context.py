@@ -113,9 +113,9 @@ def is_simulator(device) -> bool:
 
 
 def lanes_width(device) -> int:
-    """Lanes of `spectrum_lanes` and `resample_rows` on `device`: 16 (one AVX-512 register a float16) where
-    its preferred float vector is that wide, else 8 (wider vectors there change the
-    builtins' ABI: a build warning)."""
+    """Lanes of `spectrum_lanes`, `resample_rows` and `hidden_lanes` on `device`: 16 (one
+    AVX-512 register a float16) where its preferred float vector is that wide, else 8
+    (wider vectors there change the builtins' ABI: a build warning)."""
     return 16 if device.preferred_vector_width_float >= 16 else 8
 
 
@@ -187,7 +187,7 @@ class Runtime:
     traffic: Traffic = field(default_factory=Traffic)
 
     lanes: bool = False   # kernels with explicit float8 lanes where there are two variants
-    width: int = 8        # lanes of spectrum_lanes and resample_rows (kernels/lanes.cl LANES)
+    width: int = 8        # lanes of spectrum_lanes, resample_rows, hidden_lanes (kernels/lanes.cl LANES)
     # whether lane kernels build vectors from other vectors' lanes (lanes.cl SHUFFLES):
     # not on a simulator, whose uninitialised-value check reports every such vector and
     # crashes; there spectrum_lanes gathers its rows a value at a time, the same values
