@@ -332,7 +332,8 @@ def test_line_fits_see_a_spike_at_every_place_of_the_window(backend, kernel_vari
     hand over to the scalar tail is found and replaced as numpy's despike does (the
     lanes variant looks for spikes by each code's step to the left only: the next
     code's step is its step to the right; a search that misses any of these places
-    fails here)."""
+    fails here); spikes two or three codes past the first window, and on or just before
+    the first code of a second window that lies outside the first."""
     from fmcw_cl.opencl import sync as k_sync
 
     half = 2500.0
@@ -342,7 +343,7 @@ def test_line_fits_see_a_spike_at_every_place_of_the_window(backend, kernel_vari
     centre = np.rint(sync.crossings(x, half).time).astype(np.int64)
     centre = centre[(centre > hw + 20) & (centre < x.size - hw - 20)]
     tail = (2 * hw + 1) // 8 * 8 - hw          # the first code the lanes leave to the tail
-    offsets = [-hw - 1, -hw, -hw + 1, tail - 1, tail, hw - 1, hw, hw + 1, 0]
+    offsets = [-hw - 1, -hw, -hw + 1, tail - 1, tail, hw - 1, hw, hw + 1, 0, -hw - 2, hw + 2, -hw - 3, hw + 3]
     assert centre.size >= len(offsets)
     spiky = x.copy()
     for c, off in zip(centre, offsets, strict=False):      # the first len(offsets) crossings
@@ -353,6 +354,19 @@ def test_line_fits_see_a_spike_at_every_place_of_the_window(backend, kernel_vari
     for a, b in zip(got, ref, strict=True):
         np.testing.assert_array_equal(a, b)
     assert not np.array_equal(ref[1], clean[1])        # some spikes were inside their windows
+    # centres 3 codes past their crossings: the second window (at c2, 3 codes back) is the
+    # first's moved; a spike on its first code or just before it lies outside the first
+    moved = centre + 3
+    c2 = sync.line_fits(x, moved, hw, 300.0, level)[0]
+    assert np.all(c2 == moved - 3)
+    spiky = x.copy()
+    for k, c in enumerate(c2):
+        spiky[c - hw - k % 2] += 6000
+    got = k_sync.line_fits(backend.rt, backend.bufs, spiky, moved, hw, 300.0, level)
+    ref = sync.line_fits(spiky, moved, hw, 300.0, level)
+    for a, b in zip(got, ref, strict=True):
+        np.testing.assert_array_equal(a, b)
+    assert not np.array_equal(ref[1], sync.line_fits(x, moved, hw, 300.0, level)[1])
 
 
 @pytest.mark.parametrize("n", [1, 2, 19, 21, 4097, 8191])
