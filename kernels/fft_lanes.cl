@@ -10,11 +10,6 @@
 // Twins: fmcw_cl.stages.pairing.measure, stages.spectrum.power_spectra and find_peaks,
 // stages.cfar.detect.
 
-// Integer bounds without PoCL's min/max builtins, which are calls (shared notes: its
-// clamp and select were slow; vector conditionals are used for select here too).
-#define IMAX(a, b) ((a) > (b) ? (a) : (b))
-#define IMIN(a, b) ((a) < (b) ? (a) : (b))
-
 SINCOS_CYCLES(sincos_lanes, floatL)
 RADIX4(radix4_lanes, floatL)
 
@@ -28,16 +23,22 @@ RADIX4(radix4_lanes, floatL)
 #define ROWS(r, j) ((floatL)(ROWS8(r, j, 0)))
 #endif
 
+// Sample x of each lane turned by -v b cycles (the de-chirp of load in fft.cl).
+void dechirp_lanes(const floatL x, const floatL v, const float b, floatL *re, floatL *im)
+{
+    floatL c, s;
+    sincos_lanes(v * b, &s, &c);
+    *re = x * c;
+    *im = -x * s;
+}
+
 // Sample j < points of each lane's transform input (load in fft.cl).
 void load_lanes(__global const float *const *ra, __global const float *const *rb,
                      __global const float *beta, const floatL v, const int dechirp, const int j, floatL *re, floatL *im)
 {
     const floatL xa = ROWS(ra, j);
     if (dechirp) {
-        floatL c, s;
-        sincos_lanes(v * beta[j], &s, &c);
-        *re = xa * c;
-        *im = -xa * s;
+        dechirp_lanes(xa, v, beta[j], re, im);
     } else {
         *im = ROWS(rb, j);
         *re = xa;
@@ -55,12 +56,7 @@ void load_block(__global const float *const *ra, __global const float *const *rb
     for (int l = 0; l < LANES; ++l) re[l] = VLOADL(0, ra[l] + j);
     transpose_lanes(re);
     if (dechirp) {
-        for (int i = 0; i < LANES; ++i) {
-            floatL c, s;
-            sincos_lanes(v * beta[j + i], &s, &c);
-            im[i] = -re[i] * s;
-            re[i] = re[i] * c;
-        }
+        for (int i = 0; i < LANES; ++i) dechirp_lanes(re[i], v, beta[j + i], &re[i], &im[i]);
     } else {
 #pragma unroll
         for (int l = 0; l < LANES; ++l) im[l] = VLOADL(0, rb[l] + j);

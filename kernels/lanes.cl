@@ -4,13 +4,16 @@
 // LANES (a build option, Runtime.width): the lanes of fft_lanes.cl's transforms, of
 // resample.cl's resample_rows and of survey.cl's hidden_lanes, which are independent:
 // 16 where the device's preferred float vector is 16 wide (AVX-512: one zmm register a
-// value), else 8. Each lane's
-// arithmetic is the same at either width. (integrate_lanes.cl at 16 lanes: no faster,
-// its loads bound it; it stays at float8.) LO_HALF and HI_HALF interleave the lower and
-// the upper halves of two vectors.
+// value), else 8. Each lane's arithmetic is the same at either width. (integrate_lanes.cl
+// at 16 lanes: no faster, its loads bound it; it stays at float8.) LO_HALF and HI_HALF
+// interleave the lower and the upper halves of two vectors.
 #ifndef LANES
 #define LANES 8
 #endif
+// Integer bounds without PoCL's min/max builtins, which are calls (shared notes: its
+// clamp and select were slow; vector conditionals are used for select here too).
+#define IMAX(a, b) ((a) > (b) ? (a) : (b))
+#define IMIN(a, b) ((a) < (b) ? (a) : (b))
 // SHUFFLES (Runtime.shuffles): whether vectors may be built from other vectors' lanes
 // (any_lanes, transpose_lanes); not on a simulator, whose uninitialised-value check
 // reports every such vector and crashes (Oclgrind 21.10)

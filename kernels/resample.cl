@@ -200,8 +200,8 @@ __kernel void resample_rows(__global const short *codes,
     const floatL off = VLOADL(0, ol), dl = VLOADL(0, dll);
     int b_lo = bl[0], b_hi = bl[0];
     for (int l = 1; l < LANES; ++l) {
-        b_lo = bl[l] < b_lo ? bl[l] : b_lo;
-        b_hi = bl[l] > b_hi ? bl[l] : b_hi;
+        b_lo = IMIN(b_lo, bl[l]);
+        b_hi = IMAX(b_hi, bl[l]);
     }
     for (int m0 = 0; m0 < m_count; m0 += LANES) {
         floatL v[LANES];
