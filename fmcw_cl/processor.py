@@ -110,15 +110,28 @@ class Pending:
 
 
 @dataclass
+class Ahead:
+    """The chunk processed next, as the one before left it: what `prepare` found in it,
+    its pairs (`_pairs`, None: none) and their resampling, launched (None: not yet)."""
+
+    chunk: Chunk
+    prepared: Prepared
+    found: tuple | None
+    resampled: tuple | None
+
+
+@dataclass
 class Later:
     """A step's results: known now (`value`), or once a later download of a device
     brings them (`rider`, a buffers.Rider that download carries; `land(raw)` makes the
-    results from its bytes, `fetch()` by a copy of their own where no download took it)."""
+    results from its bytes, `fetch()` by a copy of their own where no download took it,
+    `begin()` queues that copy and returns the function that finishes it: `start`)."""
 
     value: object = None
     rider: object = None
     land: Callable | None = None
     fetch: Callable | None = None
+    begin: Callable | None = None
 
     def get(self):
         """The results (waits for the device where they are still there)."""
@@ -126,6 +139,13 @@ class Later:
             raw, self.rider = self.rider.value, None
             self.value = self.fetch() if raw is None else self.land(raw)
         return self.value
+
+    def start(self) -> Later:
+        """Queue the copy of its own now (where a device has one to begin), for `get`
+        to wait for; itself. Not to ride on another download after."""
+        if self.rider is not None and self.begin is not None:
+            self.fetch, self.begin = self.begin(), None
+        return self
 
 
 class ChunkProcessor(pairing.SpectrumOps):
@@ -149,17 +169,18 @@ class ChunkProcessor(pairing.SpectrumOps):
     def __init__(self) -> None:
         self.plan: Plan | None = None
         self.chunks = 0
-        self._ahead: tuple[Chunk, Prepared] | None = None   # the next chunk, prepared by the last one
+        self._ahead: Ahead | None = None         # the next chunk, prepared by the last one
         self._pending: Pending | None = None     # the last chunk, but for its range check and survey
+        self._meanwhile: Callable[[], None] | None = None    # `meanwhile`'s work
 
     # -- life cycle --
     def open(self, plan: Plan) -> None:
         """Bind the capture's plan (its LUT, window and search) for `process`."""
-        self.plan, self._ahead, self._pending = plan, None, None
+        self.plan, self._ahead, self._pending, self._meanwhile = plan, None, None, None
 
     def close(self) -> None:
         """Let the plan go (a device processor also returns its pooled buffers)."""
-        self.plan, self._ahead, self._pending = None, None, None
+        self.plan, self._ahead, self._pending, self._meanwhile = None, None, None, None
 
     def fork(self) -> ChunkProcessor:
         """A processor of the same kind for another thread."""
@@ -232,10 +253,12 @@ class ChunkProcessor(pairing.SpectrumOps):
         order: none, this one's, or the one before's and this one's, under the open plan
         (a chunk without a pair has none). `prepared`: what `prepare` found in `chunk`,
         where already known (the delay's trial conversions repeat a chunk at other delays);
-        `following`: gives the chunk processed next (None: none). With one, this chunk's
-        range check and survey wait for the next call: they go up with the next chunk's
-        resampling and come down with its tracker's state, which also brings what
-        `prepare` finds in the following chunk (one trip each way a chunk)."""
+        `following`: gives the chunk processed next (None: none). With one, what `prepare`
+        finds in the next chunk comes down before this chunk's tracker runs, and the next
+        chunk's resampling is launched while the tracker's passes run (`meanwhile`): a
+        device has the next chunk's work queued when this one's is done. This chunk's
+        range check and survey wait for the next call and come down with its tracker's
+        state."""
         plan = self.plan
         if plan is None:
             raise FmcwError("a chunk processor must be opened with a plan before it processes")
@@ -243,27 +266,52 @@ class ChunkProcessor(pairing.SpectrumOps):
         info = plan.info
         ahead, self._ahead = self._ahead, None
         before, self._pending = self._pending, None
-        if prepared is None:
-            prepared = ahead[1] if ahead is not None and ahead[0] is chunk else self.prepare(chunk, info)
-        found = self._pairs(chunk, prepared, plan.lag)
+        if prepared is None and ahead is not None and ahead.chunk is chunk:
+            prepared, found, resampled = ahead.prepared, ahead.found, ahead.resampled
+        else:
+            prepared = self.prepare(chunk, info) if prepared is None else prepared
+            found, resampled = self._pairs(chunk, prepared, plan.lag), None
         if found is None:
             return [] if before is None else [self._finished(before, self.check_and_survey(before))]
-        hs, r, f, times = found
-        jobs = [(hs.start[r], hs.length[r], plan.lut.u_rise), (hs.start[f], hs.length[f], plan.lut.u_fall)]
-        (xr, xf), times, landed = self.resample_pairs(chunk.beat, jobs, plan.window, times, before)
+        (xr, xf), times = resampled if resampled is not None else self._resampled(chunk, found)
+        landed = None if before is None else self.check_and_survey_later(before)
         nxt = following() if following is not None else None
-        coming = None if nxt is None else self.prepare_later(nxt, info)
-        self.ride(*(x for x in (landed, coming) if x is not None))
+        if nxt is not None:
+            coming = self.prepare_later(nxt, info).start()     # down before the tracker's passes
+
+            def launch_next() -> None:
+                ready = coming.get()
+                got = self._pairs(nxt, ready, plan.lag)
+                self._ahead = Ahead(nxt, ready, got, None if got is None else self._resampled(nxt, got))
+
+            self._meanwhile = launch_next
+        self.ride(*(() if landed is None else (landed,)))
         res = pairing.track_pairs(xr, xf, times, plan.model, plan.search, plan.options.iterations,
                                   plan.options.dechirp, self, plan.options.integrate)
+        self.meanwhile()
         done = [] if before is None else [self._finished(before, landed.get())]
-        if coming is not None:
-            self._ahead = (nxt, coming.get())
         mine = self._owned(chunk, prepared, found, res, (xr, xf), plan.lag)
         if nxt is None or (mine.check is None and mine.survey is None):
             return [*done, self._finished(mine, self.check_and_survey(mine))]
         self._pending = mine
         return done
+
+    def meanwhile(self) -> None:
+        """Run the host work that `process` left for the time the device spends on the
+        tracker's passes (the next chunk's pairs and the launch of their resampling), once:
+        a device processor calls it before it waits for the passes' results."""
+        work, self._meanwhile = self._meanwhile, None
+        if work is not None:
+            work()
+
+    def _resampled(self, chunk: Chunk, found: tuple) -> tuple[tuple, pairing.Times]:
+        """The pairs `found` (`_pairs`) of `chunk` resampled (`resample_pairs`): (rising
+        rows, falling rows) and their Times."""
+        plan = self.plan
+        hs, r, f, times = found
+        jobs = [(hs.start[r], hs.length[r], plan.lut.u_rise), (hs.start[f], hs.length[f], plan.lut.u_fall)]
+        rows, times = self.resample_pairs(chunk.beat, jobs, plan.window, times)
+        return tuple(rows), times
 
     def process_apart(self, held: Held) -> list[list[ChunkMeasurements]]:
         """`[process(chunk, prepared) for each of held]` in one pass, each chunk at its
@@ -303,7 +351,7 @@ class ChunkProcessor(pairing.SpectrumOps):
                  [a.size for a, _ in side])
                 for side, u in zip(sides, (plan.lut.u_rise, plan.lut.u_fall), strict=True)]
         times = pairing.Times(np.concatenate(rise), np.concatenate(fall), np.array(groups))
-        (xr, xf), times, _ = self.resample_pairs(held.beat, jobs, plan.window, times)
+        (xr, xf), times = self.resample_pairs(held.beat, jobs, plan.window, times)
         res = pairing.track_pairs(xr, xf, times, plan.model, plan.search, plan.options.iterations,
                                   plan.options.dechirp, self, k or 1)
         out, slices = [], iter(pairing.group_slices(times.groups, times.rise.size))
@@ -381,14 +429,15 @@ class ChunkProcessor(pairing.SpectrumOps):
         return ChunkMeasurements(t_r[chunk.own], t_f[chunk.own], sel, reason, table, chunk.clipped_codes,
                                  *spectrum)
 
-    def resample_pairs(self, codes, jobs, win, times: pairing.Times, before: Pending | None = None
-                       ) -> tuple[list, pairing.Times, Later | None]:
+    def resample_pairs(self, codes, jobs, win, times: pairing.Times) -> tuple[list, pairing.Times]:
         """`resample_each` of a chunk's pairs (rising, falling) and their `times` for the
-        tracker (a device: taken up with the positions), and the range check and survey
-        of the chunk `before` (`check_and_survey`; a device: their inputs up in the same
-        copy, their results riding on the tracker's download)."""
-        landed = None if before is None else Later(self.check_and_survey(before))
-        return self.resample_each(codes, jobs, win), times, landed
+        tracker (a device: taken up with the positions)."""
+        return self.resample_each(codes, jobs, win), times
+
+    def check_and_survey_later(self, chunk: Pending) -> Later:
+        """`check_and_survey` of `chunk` (a device: launched, its inputs up by one copy,
+        its results riding on the tracker's next download)."""
+        return Later(self.check_and_survey(chunk))
 
     def check_and_survey(self, chunk: Pending) -> tuple[list | None, list | None]:
         """The range check's peaks of a measured `chunk`, (distance, SNR) of each side

@@ -891,15 +891,17 @@ def test_range_check_and_survey_in_one_trip_equal_each_alone(backend, kernel_var
             np.testing.assert_allclose(sums, sums0, rtol=2e-4, atol=1e-3 * sums0.max())
 
 
-def test_a_chunk_makes_one_trip_each_way(backend, wall_capture, monkeypatch):
-    """One copy up and one down a chunk (and the chunk's codes, where the device does
-    not read them from the host's memory): the positions of a chunk's resampling go up with
-    the range check and survey inputs of the chunk before, and its tracker's state comes
-    down with their results and the following chunk's sync fits and clipping counts
-    (n + 1 uploads and n + 2 downloads for n chunks: the first chunk's own sync fits, the
-    last chunk's own range check). What each chunk was found to hold (the first by a trip
-    of its own) equals its own `prepare` made apart, and the measurements equal those of
-    chunks processed one by one."""
+def test_a_chunk_makes_two_trips_each_way(backend, wall_capture, monkeypatch):
+    """Two copies up and two down a chunk (and the chunk's codes, where the device does
+    not read them from the host's memory). Up: the positions of a chunk's resampling with
+    its pairs' times, and the range check and survey inputs of the chunk before. Down:
+    the following chunk's sync fits and clipping counts, before the tracker's passes
+    (whose time the next chunk's resampling is launched in), and the tracker's state
+    with the range check and survey results of the chunk before (2n uploads and 2n + 1
+    downloads for n chunks: the first chunk's own sync fits, no following chunk after
+    the last, the last chunk's own range check). What each chunk was found to hold (the
+    first by a trip of its own) equals its own `prepare` made apart, and the
+    measurements equal those of chunks processed one by one."""
     from fmcw_cl.capture import Capture
     from fmcw_cl.chunks import capture_parts
     from fmcw_cl.plan import make_plan
@@ -930,8 +932,8 @@ def test_a_chunk_makes_one_trip_each_way(backend, wall_capture, monkeypatch):
     n = len(parts)
     assert n >= 3
     codes = 0 if backend.rt.zero_copy else 2 * n     # a GPU's copy of each chunk's beat and sync codes
-    assert after["uploads"] - before["uploads"] == n + 1 + codes
-    assert after["downloads"] - before["downloads"] == n + 2
+    assert after["uploads"] - before["uploads"] == 2 * n + codes
+    assert after["downloads"] - before["downloads"] == 2 * n + 1
     assert len(ahead) == n and all(got.rider is None for got, _ in ahead)   # every chunk's, each landed
     for got, own in ahead:
         for a, b in zip(vars(got.value.turns).values(), vars(own.turns).values(), strict=True):
@@ -943,6 +945,36 @@ def test_a_chunk_makes_one_trip_each_way(backend, wall_capture, monkeypatch):
         np.testing.assert_array_equal(a.result.distance, b.result.distance)
         for key in a.survey:
             np.testing.assert_array_equal(a.survey[key], b.survey[key])
+
+
+def test_weak_chunks_resampled_while_the_one_before_integrates(backend, tmp_path):
+    """A chunk's integrated passes run after its tracker's first download, by which time
+    the next chunk's resampling (its positions and pairs' times) has gone up
+    (`ChunkProcessor.meanwhile`): on a static target at -20 dB per sample, whose every
+    chunk the tracker integrates, the chunks converted in a row equal the same chunks
+    converted one by one (nothing launched ahead). With the two chunks' times in one
+    buffer, the integrated passes read the next chunk's bounds past their rows."""
+    from fmcw_cl.capture import Capture
+    from fmcw_cl.chunks import capture_parts
+    from fmcw_cl.plan import make_plan
+    from fmcw_cl.simulator import SimulationConfig, simulate_capture, static
+
+    path = tmp_path / "weak.h5"
+    simulate_capture(path, static(0.02, 0.25), 0.02, seed=5, config=SimulationConfig(snr_db=-20.0))
+    options = Options(chunk_periods=128)
+    with Capture(path) as cap:
+        plan = make_plan(cap, options, processor=backend)
+        parts = capture_parts(cap, plan, backend)
+        backend.open(plan)
+        one_by_one = []
+        for chunk in cap.chunks(options.chunk_periods, margin_samples(cap.info, options), 0, None, held=3):
+            one_by_one += backend.process(chunk)
+    assert len(parts) == len(one_by_one) >= 3
+    assert all(p.result.integrated.max() > 1 for p in parts)
+    for a, b in zip(parts, one_by_one, strict=True):
+        np.testing.assert_array_equal(a.reason, b.reason)
+        np.testing.assert_array_equal(a.result.distance, b.result.distance)
+        np.testing.assert_array_equal(a.result.integrated, b.result.integrated)
 
 
 @pytest.mark.parametrize("rows,nfft,lo", [(1, 2048, 64), (37, 2048, 20), (9, 4096, 100), (5, 128, 3),

@@ -223,11 +223,26 @@ class Packed:
         for rider, buffer in zip(riders, buffers[len(parts):], strict=True):
             rider.launch(buffer)
 
-    def download(self) -> list[np.ndarray]:
+    def download(self, meanwhile: Callable[[], None] | None = None) -> list[np.ndarray]:
         """Every part, by one copy (waits for the kernels that wrote them); the riders'
-        values too."""
-        self._rt.copy(self._host, self._parent)
-        return self._landed()
+        values too. `meanwhile`: host work run once the copy is queued, before it is
+        waited for (what it launches runs after the copy, which does not wait for it)."""
+        if meanwhile is None:
+            self._rt.copy(self._host, self._parent)
+            return self._landed()
+        landed = self.download_later()
+        meanwhile()
+        return landed()
+
+    def download_later(self) -> Callable[[], list[np.ndarray]]:
+        """`download`, the copy queued now and waited for by the function returned."""
+        event = self._rt.copy(self._host, self._parent, wait=False)
+
+        def landed() -> list[np.ndarray]:
+            self._rt.landed(event)
+            return self._landed()
+
+        return landed
 
     def _landed(self) -> list[np.ndarray]:
         for rider, view in self._riders:

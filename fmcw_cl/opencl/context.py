@@ -270,16 +270,19 @@ class Runtime:
             self.kernels[key] = _Counted(cl.Kernel(self.program(program), name), self.traffic)
         return self.kernels[key]
 
-    def copy(self, dest, src, wait: bool = True) -> None:
+    def copy(self, dest, src, wait: bool = True):
         """One copy between a host array and a device buffer (direction by type),
-        counted in `traffic`; a download waits for it, an upload of a host array too
-        unless not `wait` (then the array must not change until the queue has read it:
-        its event holds it until then; an upload that waits, waits for every launch
-        before it on the in-order queue)."""
+        counted in `traffic`; it waits unless not `wait`. An upload that does not wait
+        must not change its array until the queue has read it (its event holds it until
+        then; an upload that waits, waits for every launch before it on the in-order
+        queue); a download that does not wait returns its event, to wait for before the
+        array is read."""
         if isinstance(dest, np.ndarray):
             self.traffic.downloads += 1
             self.traffic.download_bytes += dest.nbytes
-            cl.enqueue_copy(self.queue, dest, src)
+            event = cl.enqueue_copy(self.queue, dest, src, is_blocking=wait)
+            if not wait:             # the caller waits for `event` before it reads `dest`
+                return event
             self.in_flight.clear()       # the in-order queue has done every copy before it
         else:
             self.traffic.uploads += 1
@@ -292,6 +295,13 @@ class Runtime:
         """Wait for everything enqueued."""
         self.queue.finish()
         self.in_flight.clear()
+
+    def landed(self, event) -> None:
+        """Wait for the download of `event` (`copy` without `wait`): every copy before it
+        on the in-order queue is done too (uploads queued after it may not be)."""
+        event.wait()
+        done = cl.command_execution_status.COMPLETE
+        self.in_flight = [e for e in self.in_flight if e.command_execution_status != done]
 
     def program(self, name: str):
         """kernels/<name>.cl built for this context, `width` and `shuffles` (cached)."""

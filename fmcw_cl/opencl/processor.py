@@ -1,10 +1,12 @@
 """The OpenCL chunk processor: the low-pass, the sync delay's per-period fits, the sync's
 block sums, level, hysteresis and line fits, the clipping counts, resampling, the
 de-chirp/FFT/peak/echo stage and the tracker's passes with their regularisation on a
-device. The resampled half-sweeps stay on the device; the sync's line fits (the clipping
-counts riding with them) and the tracker's state come back, one download each; the
-range check's peaks with the survey's results ride on the following chunk's line fits
-(a copy of their own after the last chunk). The turning-point grid, pairing,
+device. The resampled half-sweeps stay on the device; the following chunk's sync line
+fits (the clipping counts riding with them) and the tracker's state come back, one
+download each, the first before the tracker's passes and the next chunk's resampling
+launched while they run; the range check's peaks with the survey's results ride on the
+following chunk's tracker state (a copy of their own after the last chunk). The
+turning-point grid, pairing,
 ownership and the tracker's verdicts stay on the host (docs/pipeline.md). CPU devices get
 the lanes variants of the kernels that have two.
 """
@@ -62,6 +64,7 @@ class OpenCLProcessor(ChunkProcessor):
             pool.use(page_locked(self.rt.context))
         self._fitted = functools.partial(k_sync.fitted, self.rt, self.bufs)
         self._riders: tuple = ()        # what the tracker's next download carries (`ride`)
+        self._turn = 0                  # the pairs' positions' buffer (`resample_pairs`)
 
     def _fits(self, nfft: int) -> bool:
         """Whether an nfft-point transform runs on this device (its local memory)."""
@@ -87,12 +90,12 @@ class OpenCLProcessor(ChunkProcessor):
 
     def chunk_limit(self, samples_per_period: float, points: int) -> int:
         """Modulation periods of one chunk that fit in a quarter of the device's memory
-        (and each buffer in its largest allocation): the int16 beat of two chunks (the
-        range check of one runs with the next) and one sync, the resampled rows of both
-        directions of two chunks (the survey of one runs with the next) and the range
-        check's (2N points, a quarter of the pairs)."""
+        (and each buffer in its largest allocation): the int16 beat of three chunks (the
+        range check of one runs while the one after the next is resampled) and one sync,
+        the resampled rows of both directions of three chunks (so the survey) and the
+        range check's (2N points, a quarter of the pairs)."""
         dev = self.rt.device
-        per_period = 6 * samples_per_period + 4 * points * (4 + 1)
+        per_period = 8 * samples_per_period + 4 * points * (6 + 1)
         budget = min(dev.global_mem_size // 4, dev.max_mem_alloc_size)
         return max(1, int(budget // per_period))
 
@@ -162,30 +165,24 @@ class OpenCLProcessor(ChunkProcessor):
         riders, self._riders = self._riders, ()
         return riders
 
-    def resample_pairs(self, codes, jobs, win, times, before=None):
+    def resample_pairs(self, codes, jobs, win, times):
         """ChunkProcessor.resample_pairs: where the tracker's passes run here, the pairs'
-        times go up in the positions' copy; where the spectra of `before`'s range check
-        and survey run here, their positions and inputs go up in it too, their kernels
-        are launched, and their results ride on the tracker's download."""
+        times go up in the positions' copy, into one of two buffers by turns: the next
+        chunk's go up while this one's tracker may still read its own (`meanwhile`)."""
         passes = self._passes_here(fft_length(win.size))
-        fused = before is not None and self._fused(before)
-        # not fused: by trips of their own, before this chunk's positions go up (they would
-        # take the positions' buffer from under this chunk's times)
-        landed = Later(self.check_and_survey(before)) if before is not None and not fused else None
-        groups, also = [(codes, jobs, win)], ()
-        if fused:
-            if before.check is not None:
-                groups.insert(0, (before.beat, before.check.jobs, before.check.window))
-            if before.survey is not None:
-                also = _survey_inputs(before.survey)
-        also = (*also, *k_track.times_up(times, passes))
-        rows, extra = k_resample.resample_groups(self.rt, self.bufs, groups, also)
-        pairs = self._kept(rows[-1], win)
-        extra, times = k_track.times_down(extra, times, passes)
-        if not fused:
-            return pairs, times, landed
-        out, read = self._check_and_survey(before, rows[0] if before.check is not None else None, extra)
-        return pairs, times, _riding(out, read)
+        self._turn ^= 1
+        rows, extra = k_resample.resample_groups(self.rt, self.bufs, [(codes, jobs, win)],
+                                                 k_track.times_up(times, passes), f"positions{self._turn}")
+        _, times = k_track.times_down(extra, times, passes)
+        return self._kept(rows[0], win), times
+
+    def check_and_survey_later(self, chunk):
+        """ChunkProcessor.check_and_survey_later: where the spectra of `chunk`'s range
+        check and survey run here, their positions and inputs go up by one copy, their
+        kernels are launched, and their results ride on the tracker's next download."""
+        if not self._fused(chunk) or (chunk.check is None and chunk.survey is None):
+            return super().check_and_survey_later(chunk)
+        return _riding(*self._check_and_survey_launched(chunk))
 
     def _fused(self, chunk) -> bool:
         """Whether the spectra of `chunk`'s range check and survey run here."""
@@ -198,7 +195,8 @@ class OpenCLProcessor(ChunkProcessor):
     def measure(self, x, beta, v, model, search, rows=None):
         return self.measure_each([x], [beta], v, model, search, rows)[0]
 
-    def measure_each(self, xs, betas, v, model, search, rows=None, riders: tuple = (), times=None):
+    def measure_each(self, xs, betas, v, model, search, rows=None, riders: tuple = (), times=None,
+                     meanwhile=None):
         """Twin: pairing.SpectrumOps.measure_each; one upload of the rows and velocities,
         one download of every result (and of `riders`); plain rows paired within the groups
         of `times` (pairing.Times, their copy on the device where it went up)."""
@@ -208,7 +206,7 @@ class OpenCLProcessor(ChunkProcessor):
         groups, device = (None, None) if times is None else (times.groups, times.device)
         got = k_spectrum.measure_each(self.rt, self.bufs, jobs, v, model.nfft, search.lo, search.hi,
                                       index=rows, echoes=search.echoes, riders=riders, groups=groups,
-                                      d_groups=None if device is None else device[3])
+                                      d_groups=None if device is None else device[3], meanwhile=meanwhile)
         return _measured(got, model, search)
 
     def track(self, rows, times, model, search, iterations, single):
@@ -217,7 +215,7 @@ class OpenCLProcessor(ChunkProcessor):
         if not (single and iterations > 0 and self._passes_here(model.nfft)):
             return super().track(rows, times, model, search, iterations, single)
         first, state = k_track.track(self.rt, self.bufs, rows, times, model, search, iterations,
-                                     self._landing())
+                                     self._landing(), self.meanwhile)
         return tuple(_measured(first, model, search)), state
 
     def integrated(self, rows, times, model, search, iterations, k):
@@ -229,9 +227,10 @@ class OpenCLProcessor(ChunkProcessor):
                                   self._landing())
 
     def plain_pass(self, rows, model, search, times=None):
-        """Twin: pairing.SpectrumOps.plain_pass; its download carries the riders of `ride`."""
+        """Twin: pairing.SpectrumOps.plain_pass; its download carries the riders of `ride`,
+        and `meanwhile`'s work runs before it."""
         return self.measure_each(rows, (model.beta_rise, model.beta_fall), None, model, search,
-                                 riders=self._landing(), times=times)
+                                 riders=self._landing(), times=times, meanwhile=self.meanwhile)
 
     def _verifies(self, pairs: int) -> bool:
         """Whether the verification's tests of `pairs` run on this device: it has double
@@ -316,11 +315,16 @@ class OpenCLProcessor(ChunkProcessor):
         with the check's resampling positions; both results come down by one copy."""
         if not self._fused(chunk) or (chunk.check is None and chunk.survey is None):
             return super().check_and_survey(chunk)
+        out, read = self._check_and_survey_launched(chunk)
+        return read(out.download())
+
+    def _check_and_survey_launched(self, chunk) -> tuple[Packed, Callable]:
+        """`_check_and_survey` of `chunk`, its range check's resampling launched and the
+        survey's inputs up with its positions."""
         groups = [] if chunk.check is None else [(chunk.beat, chunk.check.jobs, chunk.check.window)]
         also = () if chunk.survey is None else _survey_inputs(chunk.survey)
-        rows, inputs = k_resample.resample_groups(self.rt, self.bufs, groups, also)
-        out, read = self._check_and_survey(chunk, rows[0] if groups else None, inputs)
-        return read(out.download())
+        rows, inputs = k_resample.resample_groups(self.rt, self.bufs, groups, also, "check_positions")
+        return self._check_and_survey(chunk, rows[0] if groups else None, inputs)
 
     def _check_and_survey(self, chunk, checked, inputs) -> tuple[Packed, Callable]:
         """The spectra and peaks of `chunk`'s range check (its resampled rows `checked`)
@@ -360,9 +364,14 @@ class OpenCLProcessor(ChunkProcessor):
 
 def _riding(packed: Packed, make: Callable[[list], object]) -> Later:
     """The results `make(views)` of the parts of `packed`, riding on the tracker's next
-    download (`ride`), or by a copy of their own where none took them."""
+    download (`ride`), or by a copy of their own where none took them (begun early:
+    Later.start)."""
+    def begin() -> Callable[[], object]:
+        landed = packed.download_later()
+        return lambda: make(landed())
+
     return Later(rider=packed.rider(), land=lambda raw: make(packed.read(raw)),
-                 fetch=lambda: make(packed.download()))
+                 fetch=lambda: make(packed.download()), begin=begin)
 
 
 def _bins(survey) -> list[tuple]:

@@ -13,9 +13,9 @@ GPU_LOCAL = 128     # work-items of `resample`'s groups (a half-sweep each)
 
 def codes_of(bufs: Buffers, codes: np.ndarray):
     """A chunk's beat codes on the device, uploaded once for all its launches; the last
-    two chunks' stay (a chunk's range check runs with the next one's resampling, whose
-    clipping counts are launched with the one before)."""
-    return bufs.upload_once("codes", codes if codes.dtype == np.int16 else codes.astype(np.int16), keep=2)
+    three chunks' stay (a chunk's range check runs after the next one's tracker, whose
+    time the one after that is resampled in: ChunkProcessor.process)."""
+    return bufs.upload_once("codes", codes if codes.dtype == np.int16 else codes.astype(np.int16), keep=3)
 
 
 def resample_each(rt: Runtime, bufs: Buffers, codes: np.ndarray, jobs: list, win: np.ndarray,
@@ -62,18 +62,20 @@ def rows_across(rt: Runtime, lut_int: np.ndarray, points: int) -> tuple[int, int
 KINDS = (np.int32, np.float32, np.float32, np.int32, np.float32, np.int32)   # `_split`'s arrays on the device
 
 
-def resample_groups(rt: Runtime, bufs: Buffers, groups: list, also: tuple = ()) -> tuple[list, list]:
-    """`resample_each` of each (codes, jobs, window) of `groups` (a chunk's pairs, the
-    range check of the chunk before), the positions of every job and the arrays `also` (a
-    later step's inputs) up by one copy. The codes are uploaded once for all launches on
-    one array (`codes_of`).
+def resample_groups(rt: Runtime, bufs: Buffers, groups: list, also: tuple = (),
+                    name: str = "positions") -> tuple[list, list]:
+    """`resample_each` of each (codes, jobs, window) of `groups` (a chunk's pairs, a
+    chunk's range check), the positions of every job and the arrays `also` (a later
+    step's inputs) up by one copy, into the device buffer `name` (a chunk's pairs take
+    two by turns, its range check and survey another: OpenCLProcessor.resample_pairs).
+    The codes are uploaded once for all launches on one array (`codes_of`).
 
     Returns the rows of each group's jobs, and the device buffers of `also`."""
     split = [_split(job) for _, jobs, _ in groups for job in jobs]
     values = [x for arrays in split for x in arrays]
     parts = [(kind, x.size) for x, kind in zip(values, KINDS * len(split), strict=True)]
     parts += [(a.dtype, a.size) for a in also]
-    buffers = Packed(bufs, "positions", parts).upload(*values, *also)
+    buffers = Packed(bufs, name, parts).upload(*values, *also)
     out, i = [], 0
     for codes, jobs, win in groups:
         d_codes = codes_of(bufs, codes)

@@ -101,7 +101,7 @@ def measure_each(rt: Runtime, bufs: Buffers, jobs: list, velocity: np.ndarray | 
                  hi: int | None = None, keep_power: bool = False, index: np.ndarray | None = None,
                  echoes: bool = False, scatter: bool = True, picked: tuple | None = None,
                  out: Packed | None = None, first: int = 0, listed=None, riders: tuple = (),
-                 groups: np.ndarray | None = None, d_groups=None) -> list[tuple] | None:
+                 groups: np.ndarray | None = None, d_groups=None, meanwhile=None) -> list[tuple] | None:
     """`measure` of each (rows, beta, store) of `jobs` (rows of one shape: a pair's
     rising and falling half-sweeps) with the same picked rows, velocities and band: the
     picked rows and velocities go up once (`picked`: their device buffers, already up,
@@ -112,7 +112,8 @@ def measure_each(rt: Runtime, bufs: Buffers, jobs: list, velocity: np.ndarray | 
     pairs to measure again, kernels/track.cl), `velocity` then unused. `riders`
     (buffers.Rider) come down with the results. `groups`: the first row of each group
     of rows whose plain spectra are taken as if alone (None: one group; `d_groups`: its
-    int32 copy on the device, where already up)."""
+    int32 copy on the device, where already up). `meanwhile`: host work run once the
+    launches and the download are queued, before it is waited for."""
     up = {id(rows): as_device(bufs, rows) for rows, _, _ in jobs}      # a host array goes up once
     rows_of = [up[id(rows)] for rows, _, _ in jobs]
     sweeps, points = rows_of[0].shape
@@ -194,7 +195,7 @@ def measure_each(rt: Runtime, bufs: Buffers, jobs: list, velocity: np.ndarray | 
         return None
     if all(store is not None for _, _, store in jobs):      # the spectra stay for the next kernel
         return [(None, None, None)] * len(jobs)
-    return results(out.download(), jobs, sweeps, nfft, echoes, keep_power)
+    return results(out.download(meanwhile), jobs, sweeps, nfft, echoes, keep_power)
 
 
 def plain_transforms(groups: np.ndarray | None, sweeps: int) -> int:

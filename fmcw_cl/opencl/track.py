@@ -6,6 +6,7 @@ pairing.verdict)."""
 from __future__ import annotations
 
 import functools
+from collections.abc import Callable
 from dataclasses import replace
 
 import numpy as np
@@ -46,14 +47,15 @@ def times_down(buffers: list, times: pairing.Times, passes: bool = True) -> tupl
 
 
 def track(rt: Runtime, bufs: Buffers, rows: tuple[DeviceRows, DeviceRows], times: pairing.Times,
-          model: pairing.DopplerModel, search: Search, iterations: int, riders: tuple = ()
-          ) -> tuple[list, pairing.Passes]:
+          model: pairing.DopplerModel, search: Search, iterations: int, riders: tuple = (),
+          meanwhile: Callable[[], None] | None = None) -> tuple[list, pairing.Passes]:
     """The plain pass of both directions (every echo with `search.echoes`) and up to
     `iterations` de-chirp passes, each regularising the velocities and re-measuring the
     pairs whose de-chirp velocity moved (the passes stop on the device when none did).
     One copy goes up, the pairs' times and groups (none where `times.device` holds them),
     and one comes down (the plain pass's results, the tracker's state and its verdict, and
-    `riders`: buffers.Rider, other steps' results).
+    `riders`: buffers.Rider, other steps' results). `meanwhile`: host work run once the
+    passes and that download are queued, before it is waited for.
 
     Returns
     -------
@@ -79,7 +81,7 @@ def track(rt: Runtime, bufs: Buffers, rows: tuple[DeviceRows, DeviceRows], times
                                 out=again)
     run.launch(iterations, iterations, [again.buffers[i] for i in (0, 1, 6, 7)])
     run.verdict()
-    views = out.download()
+    views = out.download(meanwhile)
     first = k_spectrum.results(views[: len(head)], plain, pairs, model.nfft, search.echoes)
     return first, _passes(views[len(head):], np.ones(pairs, np.int32), 1)
 
