@@ -10,8 +10,9 @@
 // Three variants: `resample` (GPUs) a work-group per half-sweep, its work-items striding
 // over the points; `resample_lanes` (CPUs) a work-item per half-sweep, eight points at a
 // time in float8 lanes (PoCL vectorises across work-items only where a kernel has no
-// loop, which this one has; 2-core EPYC: 2.3x faster than `resample` there), which runs
-// the delay's trial passes; `resample_rows` (CPUs, below) a row a lane.
+// loop, which this one has; 2-core EPYC: 2.3x faster than `resample` there), where
+// `resample_rows` (CPUs, below: a row a lane, a launch a run) finds no room in local
+// memory.
 // Twin: fmcw_cl.stages.resample.resample.
 
 // The cubic-convolution value at fraction f past c1 of codes c0..c3.
@@ -128,7 +129,7 @@ __kernel void resample_lanes(__global const short *codes,
 
 // resample_lanes with its lanes across rows, for devices with local memory to spare
 // (CPUs): LANES half-sweeps of one run a work-item, one a lane, bit for bit the rows of
-// resample_lanes. Its four scalar loads a point and row cost resample_lanes half its
+// resample_lanes; a launch a run (`lut_int`, `lut_frac`: its tables; rows [row0, sweeps)). Its four scalar loads a point and row cost resample_lanes half its
 // time. Here the rows' points share the LUT's whole samples m_j, and a lane's fraction
 // moves its taps by -1 .. 2 samples (a point where some lane's moves farther is taken a
 // lane at a time, from the codes), so each tap is one of seven vectors t[m_j - 2 ..
@@ -175,11 +176,13 @@ __kernel void resample_rows(__global const short *codes,
                             __global const int *base,
                             __global const float *offset,
                             __global const float *dlen,
-                            __global const int *lut_int,
+                            __global const int *lut_int,   // the runs' tables, one after another
                             __global const float *lut_frac,
+                            const int lut_at,              // this run's: lut_int + lut_at
                             __global const float *u,
                             __global const float *win,
                             const int points,
+                            const int row0,              // the run's rows: [row0, sweeps)
                             const int sweeps,
                             __global float *out,
                             const int mlo,               // min(lut_int) - 2
@@ -187,7 +190,9 @@ __kernel void resample_rows(__global const short *codes,
                             __local floatL *t,           // m_count
                             __local floatL *y)           // points
 {
-    const int first = (int)get_global_id(0) * LANES;
+    const int first = row0 + (int)get_global_id(0) * LANES;
+    lut_int += lut_at;
+    lut_frac += lut_at;
     int bl[LANES], sl[LANES];
     float ol[LANES], dll[LANES];
     for (int l = 0; l < LANES; ++l) {

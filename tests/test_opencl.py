@@ -47,7 +47,9 @@ def test_resample_rows_are_resample_lanes_bit_for_bit(backend, monkeypatch, poin
     """resample_rows (a row a lane) against resample_lanes (a row a work-item), at 8 lanes
     and the device's width: idle lanes, points past the last whole tile, both sweep
     directions, rows far from the nominal length (points whose taps move beyond the
-    seven codes, taken a lane at a time) and rows at both ends of the codes."""
+    seven codes, taken a lane at a time), rows at both ends of the codes, and runs of
+    rows each as if alone (the delay's trials: a launch a run, each its own nominal
+    length and LUT table; an empty run among them)."""
     rt = backend.rt
     rng = np.random.default_rng(points)
     codes = rng.integers(-8192, 8192, 60_001).astype(np.int16)
@@ -58,21 +60,24 @@ def test_resample_rows_are_resample_lanes_bit_for_bit(backend, monkeypatch, poin
     lengths[5::9] += (-3.2, 2.7, 3.9, -2.5)[: lengths[5::9].size]
     u = np.sort(rng.uniform(0, 1, points))
     win = resample.window(points)
+    runs = [10, 0, 20, 7]
+    in_runs = lengths + np.repeat([0.0, 25.0, -40.0], [10, 20, 7])
     chosen = rt.lanes, rt.width
     try:
         for uu in (u, u[::-1]):
-            rt.lanes = True
-            with monkeypatch.context() as m:
-                m.setattr(k_resample, "rows_across", lambda *_: None)
-                (want,) = k_resample.resample_each(rt, backend.bufs, codes, [(starts, lengths, uu)], win)
-                want = want.get()
-            assert np.abs(want - resample.resample(codes, starts, lengths, uu, win)).max() < 0.02
-            for width in {8, rt.width}:
-                rt.width = width
-                assert k_resample.rows_across(rt, np.floor(2500 * uu), points) is not None
-                (got,) = k_resample.resample_each(rt, backend.bufs, codes, [(starts, lengths, uu)], win)
-                np.testing.assert_array_equal(got.get(), want)
-            rt.width = chosen[1]
+            for job in ((starts, lengths, uu), (starts, in_runs, uu, runs)):
+                rt.lanes = True
+                with monkeypatch.context() as m:
+                    m.setattr(k_resample, "rows_across", lambda *_: None)
+                    (want,) = k_resample.resample_each(rt, backend.bufs, codes, [job], win)
+                    want = want.get()
+                assert np.abs(want - resample.resample(codes, *job[:3], win)).max() < 0.02
+                for width in {8, rt.width}:
+                    rt.width = width
+                    assert k_resample.rows_across(rt, np.floor(2500 * uu), points) is not None
+                    (got,) = k_resample.resample_each(rt, backend.bufs, codes, [job], win)
+                    np.testing.assert_array_equal(got.get(), want)
+                rt.width = chosen[1]
     finally:
         rt.lanes, rt.width = chosen
 

@@ -91,15 +91,19 @@ def resample_groups(rt: Runtime, bufs: Buffers, groups: list, also: tuple = (),
                 d_u = bufs.constant("u", u)
                 args = (d_codes, d_base, d_off, d_dlen, d_int, d_frac, d_run, np.int32(runs), d_u, d_win,
                         np.int32(points))
-                # CPUs: a row a lane where the rows share one LUT and local memory holds them
-                across = rows_across(rt, split[i][3], points) if rt.lanes and runs == 1 else None
-                if across is not None:
-                    lo, count = across
-                    rt.kernel("resample", "resample_rows")(
-                        rt.queue, (-(-sweeps // rt.width),), (1,), d_codes, np.int32(codes.size), d_base,
-                        d_off, d_dlen, d_int, d_frac, d_u, d_win, np.int32(points), np.int32(sweeps),
-                        rows.buffer, np.int32(lo), np.int32(count), cl.LocalMemory(4 * rt.width * count),
-                        cl.LocalMemory(4 * rt.width * points))
+                # CPUs: a row a lane, a launch a run (its rows share its LUT table), where local
+                # memory holds a run's codes and rows
+                tables = split[i][3].reshape(runs, points)
+                across = [rows_across(rt, t, points) for t in tables] if rt.lanes else [None]
+                if all(a is not None for a in across):
+                    counts = np.bincount(split[i][5], minlength=runs) if runs > 1 else np.array([sweeps])
+                    ends = np.cumsum(counts)
+                    for r, ((lo, count), end, n) in enumerate(zip(across, ends, counts, strict=True)):
+                        rt.kernel("resample", "resample_rows")(
+                            rt.queue, (-(-int(n) // rt.width),), (1,), d_codes, np.int32(codes.size), d_base,
+                            d_off, d_dlen, d_int, d_frac, np.int32(r * points), d_u, d_win, np.int32(points),
+                            np.int32(end - n), np.int32(end), rows.buffer, np.int32(lo), np.int32(count),
+                            cl.LocalMemory(4 * rt.width * count), cl.LocalMemory(4 * rt.width * points))
                 elif rt.lanes:
                     rt.kernel("resample", "resample_lanes")(rt.queue, (sweeps,), (1,), *args, rows.buffer)
                 else:
