@@ -610,7 +610,7 @@ def test_every_kernel_launches_with_one_local_size(static_capture, monkeypatch):
     be = make_processor("opencl")
     for periods in (97, 160):         # cores and the last partial chunk of other lengths
         process(static_capture, Options(chunk_periods=periods), be)
-    cpu = {"resample_rows", "resample_lanes", "spectrum_lanes", "block_sum_span", "line_fit_lanes"}
+    cpu = {"resample_rows", "spectrum_lanes", "block_sum_span", "line_fit_lanes"}
     variant = cpu if be.rt.lanes else {"resample", "spectrum_peak", "block_sum", "line_fit"}    # a GPU's
     assert variant | {"sync_levels", "span_ends", "span_carries", "span_crossings", "clip_blocks",
                       "cic_decimate", "fir_same", "track_pass", "block_sums", "delay_centre",
