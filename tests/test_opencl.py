@@ -896,6 +896,17 @@ def test_range_check_and_survey_in_one_trip_equal_each_alone(backend, kernel_var
             np.testing.assert_allclose(sums, sums0, rtol=2e-4, atol=1e-3 * sums0.max())
 
 
+def _one_by_one(backend, cap, plan) -> list:
+    """The measurements of `cap`'s chunks under `plan`, each processed alone (no chunk
+    after it given: nothing launched ahead)."""
+    options = plan.options
+    backend.open(plan)
+    got = []
+    for chunk in cap.chunks(options.chunk_periods, margin_samples(cap.info, options), 0, None, held=3):
+        got += backend.process(chunk)
+    return got
+
+
 def test_a_chunk_makes_two_trips_each_way(backend, wall_capture, monkeypatch):
     """Two copies up and two down a chunk (and the chunk's codes, where the device does
     not read them from the host's memory). Up: the positions of a chunk's resampling with
@@ -930,10 +941,7 @@ def test_a_chunk_makes_two_trips_each_way(backend, wall_capture, monkeypatch):
         monkeypatch.setattr(OpenCLProcessor, "prepare_later", kept)
         capture_parts(cap, plan, backend)
         monkeypatch.undo()
-        one_by_one = []
-        backend.open(plan)
-        for chunk in cap.chunks(options.chunk_periods, margin_samples(cap.info, options), 0, None, held=3):
-            one_by_one += backend.process(chunk)
+        one_by_one = _one_by_one(backend, cap, plan)
     n = len(parts)
     assert n >= 3
     codes = 0 if backend.rt.zero_copy else 2 * n     # a GPU's copy of each chunk's beat and sync codes
@@ -970,10 +978,7 @@ def test_weak_chunks_resampled_while_the_one_before_integrates(backend, tmp_path
     with Capture(path) as cap:
         plan = make_plan(cap, options, processor=backend)
         parts = capture_parts(cap, plan, backend)
-        backend.open(plan)
-        one_by_one = []
-        for chunk in cap.chunks(options.chunk_periods, margin_samples(cap.info, options), 0, None, held=3):
-            one_by_one += backend.process(chunk)
+        one_by_one = _one_by_one(backend, cap, plan)
     assert len(parts) == len(one_by_one) >= 3
     assert all(p.result.integrated.max() > 1 for p in parts)
     for a, b in zip(parts, one_by_one, strict=True):

@@ -180,13 +180,14 @@ class OpenCLProcessor(ChunkProcessor):
         """ChunkProcessor.check_and_survey_later: where the spectra of `chunk`'s range
         check and survey run here, their positions and inputs go up by one copy, their
         kernels are launched, and their results ride on the tracker's next download."""
-        if not self._fused(chunk) or (chunk.check is None and chunk.survey is None):
+        if not self._checked_here(chunk):
             return super().check_and_survey_later(chunk)
-        return _riding(*self._check_and_survey_launched(chunk))
+        return _riding(*self._check_and_survey(chunk))
 
-    def _fused(self, chunk) -> bool:
-        """Whether the spectra of `chunk`'s range check and survey run here."""
-        return ((chunk.check is None or self._fits(chunk.check.model.nfft))
+    def _checked_here(self, chunk) -> bool:
+        """Whether `chunk` has a range check or survey, and the spectra of both run here."""
+        return ((chunk.check is not None or chunk.survey is not None)
+                and (chunk.check is None or self._fits(chunk.check.model.nfft))
                 and (chunk.survey is None or self._fits(chunk.survey.args[3])))
 
     def clip_counts(self, codes, block, full_scale):
@@ -313,23 +314,19 @@ class OpenCLProcessor(ChunkProcessor):
     def check_and_survey(self, chunk):
         """ChunkProcessor.check_and_survey in one trip each way: the survey's inputs go up
         with the check's resampling positions; both results come down by one copy."""
-        if not self._fused(chunk) or (chunk.check is None and chunk.survey is None):
+        if not self._checked_here(chunk):
             return super().check_and_survey(chunk)
-        out, read = self._check_and_survey_launched(chunk)
+        out, read = self._check_and_survey(chunk)
         return read(out.download())
 
-    def _check_and_survey_launched(self, chunk) -> tuple[Packed, Callable]:
-        """`_check_and_survey` of `chunk`, its range check's resampling launched and the
-        survey's inputs up with its positions."""
+    def _check_and_survey(self, chunk) -> tuple[Packed, Callable]:
+        """The range check of `chunk` resampled (its positions up with the survey's inputs,
+        `_survey_inputs`, by one copy), and the spectra and peaks of both launched into one
+        Packed; and `read(views)`: (checked, surveyed) from its parts once down."""
         groups = [] if chunk.check is None else [(chunk.beat, chunk.check.jobs, chunk.check.window)]
         also = () if chunk.survey is None else _survey_inputs(chunk.survey)
         rows, inputs = k_resample.resample_groups(self.rt, self.bufs, groups, also, "check_positions")
-        return self._check_and_survey(chunk, rows[0] if groups else None, inputs)
-
-    def _check_and_survey(self, chunk, checked, inputs) -> tuple[Packed, Callable]:
-        """The spectra and peaks of `chunk`'s range check (its resampled rows `checked`)
-        and its survey (`inputs`: their device buffers, `_survey_inputs`), launched into
-        one Packed; and `read(views)`: (checked, surveyed) from its parts once down."""
+        checked = rows[0] if groups else None
         first = []
         if checked is not None:
             check = chunk.check
