@@ -6,7 +6,9 @@ reading is always by sample range; nothing here loads a whole channel.
 
 from __future__ import annotations
 
+import contextlib
 import math
+import mmap
 import os
 import re
 import threading
@@ -20,7 +22,7 @@ import numpy as np
 from . import pool
 from .atomic import atomic_path
 from .errors import CaptureError
-from .extents import Extents, read_all
+from .extents import ITEM, Extents, read_all
 
 FORMAT = "capture"
 FORMAT_VERSION = 1
@@ -235,6 +237,15 @@ def _open_problem(message: str) -> str:
 class Capture:
     """An open capture file. Use as a context manager; read by sample range.
 
+    Parameters
+    ----------
+    path : the capture file.
+    in_place : bool
+        Give the chunk reader's chunks (`chunks` with slots) as read-only views of the
+        file's pages where both channels lie raw in one run of the file each (a
+        contiguous dataset, as `CaptureWriter` stores them uncompressed): no copy, for a
+        processor on the CPU (`ChunkProcessor.reads_in_place`). Other layouts are read.
+
     Examples
     --------
     >>> with Capture("run.h5") as cap:                      # doctest: +SKIP
@@ -242,7 +253,7 @@ class Capture:
     ...         ...
     """
 
-    def __init__(self, path: str | os.PathLike) -> None:
+    def __init__(self, path: str | os.PathLike, in_place: bool = False) -> None:
         self.path = Path(path)
         if not self.path.exists():
             raise CaptureError(self.path, "no such file")
@@ -263,6 +274,9 @@ class Capture:
         # channels stored raw are read straight from the file (fmcw_cl.extents)
         self._extents = [Extents.of(self._beat), Extents.of(self._sync)]
         self._fd = os.open(self.path, os.O_RDONLY) if any(self._extents) else None
+        self._mmap: mmap.mmap | None = None
+        self._map_offsets: list[int] = []
+        self._mapped = self._map() if in_place else None
         self._slots: list[tuple[np.ndarray, np.ndarray]] = []
         self._slots_lock = threading.Lock()     # the chunk reader's thread takes slots too
         self.held: tuple | None = None          # (key, value) of what the held slot holds now
@@ -274,12 +288,49 @@ class Capture:
     def __exit__(self, *exc) -> None:
         self.close()
 
+    def _map(self) -> tuple[np.ndarray, ...] | None:
+        """Both channels as read-only arrays over the file mapped in memory, where each
+        lies raw in one run of the file (`Extents.file_offset`), else None. Views of them
+        are the page cache itself: a chunk that a CPU's processor reads in place costs no
+        copy (a 2 s capture's two channels: 800 MB, 110-150 ms of CPU read here)."""
+        offsets = [None if e is None else e.file_offset() for e in self._extents]
+        if self._fd is None or None in offsets:
+            return None
+        try:
+            mapped = mmap.mmap(self._fd, 0, access=mmap.ACCESS_READ)
+        except (OSError, ValueError):
+            return None
+        if max(offsets) + ITEM * self.info.samples > len(mapped):
+            return None                  # a truncated file: the reads name it
+        self._map_offsets = offsets
+        self._mmap = mapped     # the arrays hold it too: it goes when the last view of it does
+        return tuple(np.frombuffer(mapped, np.int16, self.info.samples, o) for o in offsets)
+
+    def _in_place(self, lo: int, hi: int) -> tuple[np.ndarray, np.ndarray]:
+        """Samples [lo, hi) of both channels as views of the mapped file, their pages
+        brought in by this thread (the chunk reader's): one touch a page maps them 16 at a
+        time, 0.5 ms per 80 MB here, where the device's threads would stop for them, and
+        waits for the disk where the page cache does not hold them yet. A file cut since
+        it was opened is an error here, where a touch of its lost pages would end the
+        process."""
+        if os.fstat(self._fd).st_size < max(self._map_offsets) + ITEM * hi:
+            raise CaptureError(self.path, f"cannot read samples {lo}-{hi} (the file ends before them)")
+        views = tuple(a[lo:hi] for a in self._mapped)
+        for v, offset in zip(views, self._map_offsets, strict=True):
+            if v.size:
+                first = (offset + ITEM * lo) // mmap.PAGESIZE * mmap.PAGESIZE
+                with contextlib.suppress(AttributeError, OSError):      # no madvise: the touches' read-ahead
+                    self._mmap.madvise(mmap.MADV_WILLNEED, first, offset + ITEM * hi - first)
+                v[:: mmap.PAGESIZE // ITEM].max()
+        return views
+
     def close(self) -> None:
         for pair in self._slots:      # the slots go back to the pool for the next capture
             for a in pair:
                 pool.give(a)
         self._slots = []
         self.held = None
+        self._mapped = self._mmap = None
         self._file.close()
         if self._fd is not None:
             os.close(self._fd)
@@ -364,7 +415,9 @@ class Capture:
         slots : int
             0: every chunk in new arrays. k > 0: the chunks take turns in the capture's
             slots 0 .. k - 1 (`slot`), so chunk i's samples are overwritten by chunk
-            i + k's: for a consumer that is done with a chunk k - 1 chunks later.
+            i + k's: for a consumer that is done with a chunk k - 1 chunks later. A
+            capture opened `in_place` whose channels lie raw in the file gives views
+            of the file's pages instead (read-only).
         held : int, optional
             Chunk i in slot `held` + i, its own, of its own length instead (a consumer
             that keeps every chunk: the arrays are the pool's, touched before).
@@ -375,6 +428,8 @@ class Capture:
                 beat, sync = self.read_into(lo, hi, *self.slot(held + i, hi - lo))
             elif not slots:
                 beat, sync = self.read(lo, hi)
+            elif self._mapped is not None:
+                beat, sync = self._in_place(lo, hi)
             else:
                 beat, sync = self.read_into(lo, hi, *self.slot(i % slots, size))
             yield Chunk(lo, beat, sync, core_start, core_stop)
@@ -416,8 +471,9 @@ class CaptureWriter:
     refractive_index : float, optional
         Written to /optics when not None.
     compression : str, optional
-        HDF5 filter for the ADC channels ("gzip" for small sample files; None is
-        fastest to read).
+        HDF5 filter for the ADC channels ("gzip" for small sample files, in chunks of
+        1 Mi samples). None stores each channel in one run of the file, which a CPU's
+        processor reads in place (`Capture` `in_place`).
     """
 
     def __init__(self, path, samples: int, sample_rate_hz: float, bits: int, modulation: Modulation,
@@ -436,10 +492,10 @@ class CaptureWriter:
             adc = f.create_group("adc")
             adc.attrs["sample_rate_hz"] = float(sample_rate_hz)
             adc.attrs["bits"] = int(bits)
-            chunk = (min(samples, 1 << 20),)
-            opts = {"compression": compression, "shuffle": compression is not None}
-            self.beat = adc.create_dataset("beat", (samples,), np.int16, chunks=chunk, **opts)
-            self.sync = adc.create_dataset("sync", (samples,), np.int16, chunks=chunk, **opts)
+            opts = {"compression": compression, "shuffle": True, "chunks": (min(samples, 1 << 20),)} \
+                if compression else {}
+            self.beat = adc.create_dataset("beat", (samples,), np.int16, **opts)
+            self.sync = adc.create_dataset("sync", (samples,), np.int16, **opts)
             mod = f.create_group("modulation")
             mod.attrs["waveform"] = modulation.waveform
             mod.attrs["frequency_hz"] = float(modulation.frequency_hz)

@@ -101,7 +101,7 @@ def _plan(capture: str, options: Options, task_seconds: float, backend: str, dev
 def _range(capture: str, plan, start: int, stop: int, backend: str, device: str | None):
     """Task: the owned pairs of one range, and which backend made them."""
     stages = _backend(backend, device)
-    with Capture(capture) as cap:
+    with Capture(capture, stages.reads_in_place) as cap:
         return capture_parts(cap, plan, stages, start, stop), stages.name, stages.device
 
 

@@ -51,7 +51,7 @@ def process(path, options: Options | None = None, processor: ChunkProcessor | No
     heap.keep_freed()
     started = time.perf_counter()
     try:
-        with Capture(path) as cap:
+        with Capture(path, processor.reads_in_place) as cap:
             # the plan converts stretches itself (the delay's refinement; slots of its own)
             # while the first chunk is read (the 0.3 s jump: 19 ms of the device's idle time)
             with read_chunks(cap, fit_chunks(options, cap.info, processor)) as ahead:

@@ -80,6 +80,12 @@ class Extents:
             return None
         return cls(starts, np.array([c.byte_offset for c in order], np.int64), n)
 
+    def file_offset(self) -> int | None:
+        """The byte offset of sample 0 where every sample lies in one run of the file (a
+        contiguous dataset, or chunks stored one after another in order), else None."""
+        ends = self.offsets[:-1] + (self.starts[1:] - self.starts[:-1]) * ITEM
+        return int(self.offsets[0]) if np.array_equal(ends, self.offsets[1:]) else None
+
     def read(self, fd: int, start: int, stop: int, out: np.ndarray) -> None:
         """Samples [start, stop) into out[:stop - start] (a contiguous int16 array), a
         long read in READERS pieces at once (`preadv` lets the GIL go).

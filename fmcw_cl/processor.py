@@ -158,6 +158,9 @@ class ChunkProcessor(pairing.SpectrumOps):
     name, device : what runs it, as the track records it.
     chunk_default : modulation periods a chunk, unless the options say.
     batch_workers : captures a batch converts at once (batch.process_each).
+    reads_in_place : whether its chunks are best read as views of the file's pages
+        (`Capture` `in_place`): the host's memory is its own; a GPU's driver copies from
+        page-locked memory only by DMA.
     chunks : chunks processed so far.
     """
 
@@ -165,6 +168,7 @@ class ChunkProcessor(pairing.SpectrumOps):
     device = ""
     chunk_default = 1024
     batch_workers = 1
+    reads_in_place = True
 
     def __init__(self) -> None:
         self.plan: Plan | None = None

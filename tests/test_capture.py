@@ -324,6 +324,62 @@ def test_every_layout_reads_the_same_samples(tmp_path, layout, piece, monkeypatc
         assert (beats[-1][457:] == -7).all()                 # nothing written past the file
 
 
+@pytest.mark.parametrize("layout", ["contiguous", "odd chunks", "chunks written backwards", "gzip",
+                                    "big-endian", "chunks not all written", "external"])
+def test_chunks_read_in_place_hold_the_samples_of_every_layout(tmp_path, layout):
+    """A capture opened in place gives its chunk reader's chunks as read-only views of the
+    file's pages where each channel lies raw in one run of the file (always so for a
+    contiguous dataset, never for chunks written backwards), else reads them into its
+    slots; either way every chunk holds what h5py reads there, the last, partial one
+    too."""
+    path = tmp_path / "c.h5"
+    write(path, samples=23_457)
+    direct = _relayout(path, tmp_path, layout)
+    with Capture(path, in_place=True) as cap, h5py.File(path, "r") as f:
+        one_run = direct and all(e.file_offset() is not None for e in cap._extents)
+        assert one_run == (cap._mapped is not None)
+        assert one_run or layout != "contiguous"
+        assert not one_run or layout != "chunks written backwards"
+        ends = []
+        for chunk in cap.chunks(1, margin=1234, slots=2):      # a ring of two: each before the next
+            a, b = chunk.start, chunk.stop
+            ends.append(chunk.core_stop)
+            np.testing.assert_array_equal(chunk.beat, f["adc/beat"][a:b].astype(np.int64).clip(-32768, 32767))
+            np.testing.assert_array_equal(chunk.sync, f["adc/sync"][a:b].astype(np.int64).clip(-32768, 32767))
+            assert chunk.beat.flags.writeable != one_run and chunk.sync.flags.writeable != one_run
+        assert len(ends) == 5 and ends[-1] == 23_457
+
+
+def test_capture_writer_stores_raw_channels_in_one_run_each(tmp_path):
+    """Uncompressed, each channel is one run of the file, which a capture opened in place
+    maps; compressed, chunks, which it reads."""
+    path = tmp_path / "c.h5"
+    write(path)
+    with h5py.File(path, "r") as f:
+        assert f["adc/beat"].chunks is None and f["adc/sync"].chunks is None
+    packed = tmp_path / "z.h5"
+    with CaptureWriter(packed, 23_457, 1e8, 14, MOD, TABLE_I, TABLE_F, compression="gzip") as w:
+        w.write(0, *write(path))
+    with Capture(path, in_place=True) as raw, Capture(packed, in_place=True) as gz:
+        assert raw._mapped is not None and gz._mapped is None
+
+
+def test_a_file_cut_after_opening_in_place_fails_its_chunk(tmp_path):
+    """A capture opened in place whose file is cut before a chunk is reached: a one-line
+    error naming the file and the chunk's samples (a touch of the lost pages would end
+    the process), the chunks before it whole."""
+    path = tmp_path / "c.h5"
+    beat, _ = write(path, samples=23_457)
+    with Capture(path, in_place=True) as cap:
+        assert cap._mapped is not None
+        chunks = cap.chunks(1, slots=2)
+        np.testing.assert_array_equal(next(chunks).beat, beat[:5000])
+        with open(path, "r+b") as f:
+            f.truncate(max(cap._map_offsets) + 2 * 7000)       # the later channel's samples 7000 on
+        with pytest.raises(CaptureError, match=r"c\.h5: cannot read samples 5000-10000 \(the file ends"):
+            list(chunks)
+
+
 @pytest.mark.parametrize("piece", [None, 1000])
 def test_a_file_cut_after_opening_fails_its_read(tmp_path, piece, monkeypatch):
     """A raw channel whose bytes are gone (the file cut after it was opened) is a

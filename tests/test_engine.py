@@ -23,6 +23,36 @@ def test_chunk_size_does_not_change_the_track(static_capture):
     np.testing.assert_allclose(a.velocity_mps, b.velocity_mps, rtol=0, atol=1e-4)
 
 
+@pytest.mark.parametrize("kind", ["numpy", "opencl"])
+def test_a_conversion_in_place_equals_one_that_reads(static_capture, kind, monkeypatch):
+    """Chunks as views of the file's pages (a processor that reads in place: numpy's, a
+    CPU device's) and chunks read into slots make the same track, bit for bit; once the
+    conversion is done nothing holds the file's map (the processor let the codes go)."""
+    import gc
+    import weakref
+
+    from fmcw_cl.backend import make_processor
+
+    processor = make_processor(kind)
+    maps, mapped = [], Capture._map
+
+    def watched(self):
+        got = mapped(self)
+        maps.append(weakref.ref(self._mmap))
+        return got
+
+    monkeypatch.setattr(Capture, "_map", watched)
+    assert processor.reads_in_place
+    in_place = process(static_capture, Options(chunk_periods=150), processor)
+    gc.collect()
+    assert len(maps) == 1 and maps[0]() is None
+    monkeypatch.setattr(type(processor), "reads_in_place", False)
+    read = process(static_capture, Options(chunk_periods=150), processor)
+    assert len(maps) == 1 and in_place.pairs > 350
+    for name in ("time_s", "distance_m", "velocity_mps", "valid", "reason", "sweep_distance_m"):
+        np.testing.assert_array_equal(getattr(in_place, name), getattr(read, name))
+
+
 def test_chunks_fit_the_device_memory(static_capture):
     """A backend whose device holds 300 periods gets chunks of 300 - 2 x 64 context
     - 2; the track matches the default chunks'."""

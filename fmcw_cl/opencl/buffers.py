@@ -140,6 +140,15 @@ class Buffers:
     def release(self, leased) -> None:
         self._free.append(leased)
 
+    def forget_sources(self) -> None:
+        """Let go of the host arrays `upload_once` holds and of the buffers over them (a
+        capture's codes: a CPU device's buffers are the capture's mapped pages, which
+        stay mapped while held). Call with the device's work done."""
+        for name in self._sources:
+            if self._sizes.get(name) == 0:          # over host memory: made for that array only
+                del self._bufs[name], self._sizes[name]
+        self._sources.clear()
+
 
 @functools.lru_cache(maxsize=4)
 def page_locked(context) -> Callable[[int], np.ndarray]:

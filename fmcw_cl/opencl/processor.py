@@ -83,6 +83,12 @@ class OpenCLProcessor(ChunkProcessor):
         of them), and a second capture cost more CPU than it filled: one."""
         return 1 if self.rt.zero_copy else 2
 
+    @property
+    def reads_in_place(self) -> bool:
+        """A CPU device reads host memory, the file's pages too (CL_MEM_USE_HOST_PTR); a
+        GPU's codes go up from page-locked memory."""
+        return self.rt.zero_copy
+
     def fork(self) -> OpenCLProcessor:
         """The same device for another thread (batch.process_each): its own queue,
         kernels and buffers; the programs are built once."""
@@ -102,6 +108,12 @@ class OpenCLProcessor(ChunkProcessor):
     def finish(self) -> None:
         """Wait for the device (the launches are asynchronous)."""
         self.rt.finish()
+
+    def close(self) -> None:
+        """Let the plan and the capture's codes go, once the device is done with them."""
+        self.rt.finish()
+        self.bufs.forget_sources()
+        super().close()
 
     def traffic(self) -> dict[str, int]:
         return self.rt.traffic.counts()
