@@ -22,7 +22,7 @@ import numpy as np
 from . import pool
 from .atomic import atomic_path
 from .errors import CaptureError
-from .extents import ITEM, Extents, read_all
+from .extents import ITEM, Extents, read_all, unmap_later
 
 FORMAT = "capture"
 FORMAT_VERSION = 1
@@ -303,7 +303,7 @@ class Capture:
         if max(offsets) + ITEM * self.info.samples > len(mapped):
             return None                  # a truncated file: the reads name it
         self._map_offsets = offsets
-        self._mmap = mapped     # the arrays hold it too: it goes when the last view of it does
+        self._mmap = mapped     # closed with the capture where no chunk views it any more
         return tuple(np.frombuffer(mapped, np.int16, self.info.samples, o) for o in offsets)
 
     def _in_place(self, lo: int, hi: int) -> tuple[np.ndarray, np.ndarray]:
@@ -330,7 +330,10 @@ class Capture:
                 pool.give(a)
         self._slots = []
         self.held = None
-        self._mapped = self._mmap = None
+        if self._mmap is not None:
+            self._mapped = None         # the views of it here: a reader thread unmaps it
+            unmap_later(self._mmap)
+            self._mmap = None
         self._file.close()
         if self._fd is not None:
             os.close(self._fd)

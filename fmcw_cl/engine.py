@@ -11,6 +11,7 @@ is far off, converts once more with a chirp calibrated on the capture's own rest
 
 from __future__ import annotations
 
+import contextlib
 import time
 from collections.abc import Callable
 
@@ -51,7 +52,9 @@ def process(path, options: Options | None = None, processor: ChunkProcessor | No
     heap.keep_freed()
     started = time.perf_counter()
     try:
-        with Capture(path, processor.reads_in_place) as cap:
+        # the processor closes before the capture: it lets the codes go, and the file's map
+        # can then go too (on a reader thread; a second close does nothing)
+        with Capture(path, processor.reads_in_place) as cap, contextlib.closing(processor):
             # the plan converts stretches itself (the delay's refinement; slots of its own)
             # while the first chunk is read (the 0.3 s jump: 19 ms of the device's idle time)
             with read_chunks(cap, fit_chunks(options, cap.info, processor)) as ahead:

@@ -11,6 +11,8 @@ contract can be.
 
 from __future__ import annotations
 
+import contextlib
+import mmap
 import os
 import sys
 import threading
@@ -115,6 +117,17 @@ class Extents:
             if got != want:
                 raise OSError(f"the file ends {want - got} bytes into samples {pos}-{end}")
             pos = end
+
+
+def unmap_later(mapped: mmap.mmap) -> None:
+    """Close `mapped` on a reader thread (unmapping a second of capture's mapped pages
+    costs 3 ms of CPU here, which the converting thread need not spend), once no array
+    views it; where one still does, it goes with the last."""
+    def close() -> None:
+        with contextlib.suppress(BufferError):
+            mapped.close()
+
+    _pool().submit(close)
 
 
 def read_all(reads: list[tuple[Extents, int, int, int, np.ndarray]]) -> None:
