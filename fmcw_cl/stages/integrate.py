@@ -31,6 +31,8 @@ MAX_K = 32          # half-sweeps of a direction summed at most (1.6 ms at 20 kH
 PROBE = 16          # the integration that measures a weak chunk's SNR
 AUTO_SHARE = 0.95   # auto: a chunk is integrated when fewer of its single pairs are heard
 PD = 0.995          # auto: detection probability of each direction's integrated peak
+BLOCK_ROWS = 32     # rows `integrate` aligns at once: its temporaries stay in cache (2048 bins:
+                    # 512 KB each), 2.4-4x faster than all rows at once (1200 rows)
 
 
 def window(k: int) -> tuple[int, int]:
@@ -135,22 +137,25 @@ def integrate(power: np.ndarray, disp: np.ndarray, k: int, bounds: np.ndarray | 
     count = np.zeros(rows, np.int32)
     i = np.arange(rows)
     b = np.arange(bins)
+    flat = power.reshape(-1)
     first, last = (0, rows - 1) if bounds is None else (bounds[:rows], bounds[rows:])
     for m in range(-before, after + 1):
         ok = (i + m >= first) & (i + m <= last)
-        ii, jj = i[ok], i[ok] + m
-        y = b[None, :] + (disp[jj] - disp[ii])[:, None]
-        lo = np.floor(y)
-        frac = y - lo
-        lo = lo.astype(np.int64)
-        below, above = lo < 0, lo > bins - 2
-        lo = np.where(below, 0, np.where(above, bins - 2, lo))
-        frac = np.where(below, 0.0, np.where(above, 1.0, frac))
-        row = power[jj]
-        left = np.take_along_axis(row, lo, axis=1)
-        right = np.take_along_axis(row, lo + 1, axis=1)
-        acc[ii] += left + frac * (right - left)
-        count[ii] += 1
+        read = i[ok]
+        for a in range(0, read.size, BLOCK_ROWS):
+            ii = read[a: a + BLOCK_ROWS]
+            jj = ii + m
+            y = b[None, :] + (disp[jj] - disp[ii])[:, None]
+            lo = np.floor(y)
+            frac = y - lo
+            lo = lo.astype(np.int64)
+            below, above = lo < 0, lo > bins - 2
+            lo = np.where(below, 0, np.where(above, bins - 2, lo))
+            frac = np.where(below, 0.0, np.where(above, 1.0, frac))
+            lo += (jj * bins)[:, None]              # into the rows read, end to end
+            left, right = flat[lo], flat[lo + 1]
+            acc[ii] += left + frac * (right - left)
+        count[ok] += 1
     return acc / count[:, None], count
 
 
