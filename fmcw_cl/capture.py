@@ -309,7 +309,7 @@ class Capture:
     def _in_place(self, lo: int, hi: int) -> tuple[np.ndarray, np.ndarray]:
         """Samples [lo, hi) of both channels as views of the mapped file, their pages
         brought in by this thread (the chunk reader's): one touch a page maps them 16 at a
-        time, 0.5 ms per 80 MB here, where the device's threads would stop for them, and
+        time, about 10 ms per 400 MB here, where the device's threads would stop for them, and
         waits for the disk where the page cache does not hold them yet. A file cut since
         it was opened is an error here, where a touch of its lost pages would end the
         process."""
