@@ -129,10 +129,11 @@ __kernel void resample_lanes(__global const short *codes,
 
 // resample_lanes with its lanes across rows, for devices with local memory to spare
 // (CPUs): LANES half-sweeps of one run a work-item, one a lane, bit for bit the rows of
-// resample_lanes; a launch a run (`lut_int`, `lut_frac`: its tables; rows [row0, sweeps)). Its four scalar loads a point and row cost resample_lanes half its
-// time. Here the rows' points share the LUT's whole samples m_j, and a lane's fraction
-// moves its taps by -1 .. 2 samples (a point where some lane's moves farther is taken a
-// lane at a time, from the codes), so each tap is one of seven vectors t[m_j - 2 ..
+// resample_lanes; a launch a run (`lut_int`, `lut_frac`: its tables; rows [row0, sweeps)).
+// Its four scalar loads a point and row cost resample_lanes half its time. Here the
+// rows' points share the LUT's whole samples m_j, and a lane's fraction moves its taps
+// by -1 .. 2 samples (a point where some lane's moves farther is taken a lane at a time,
+// from the codes), so each tap is one of seven vectors t[m_j - 2 ..
 // m_j + 4], picked by two selects on the bits of the move. The rows' codes are first
 // transposed into local memory (lane l of t[m - mlo] is code m past row l's base,
 // LANES x LANES at a time: lanes.cl's transpose_lanes), and the rows go back transposed. Local memory: t
