@@ -7,10 +7,11 @@ import os
 import click
 
 from fmcw_cl.errors import FmcwError
-from fmcw_cl.opencl.context import (
+from fmcw_cl.opencl.choice import (
     CPU,
     GPU,
     SIMULATOR,
+    cached,
     cannot_compile,
     describe,
     devices,
@@ -18,8 +19,11 @@ from fmcw_cl.opencl.context import (
     select_device,
     unregistered_drivers,
 )
+from fmcw_cl.opencl.vendors import pip_runtimes
 
 KINDS = {GPU: "GPU", CPU: "CPU", SIMULATOR: "simulator, never chosen automatically"}
+AUTOMATIC = ("the automatic choice: GPUs first, then CPUs; of those, the fastest that passes the self-check; "
+             "never a simulator")
 
 
 @click.command("devices")
@@ -37,21 +41,21 @@ def command(device, check):
     """
     seen = devices()
     try:
-        chosen = select_device(device)
+        chosen = select_device(device, say=lambda line: click.echo(line, err=True))
     except FmcwError as exc:
         chosen = None
         click.echo(f"no device selected: {exc}", err=True)
     for p, d, _, dev in seen:
         mark = "*" if chosen is not None and dev.int_ptr == chosen.int_ptr else " "
         mem = dev.global_mem_size / 2**30
-        broken = None if rank(dev) == SIMULATOR else cannot_compile(dev)
         click.echo(f"{mark} {p}:{d}  {describe(dev)}  ({KINDS.get(rank(dev), 'other')}, "
-                   f"{dev.max_compute_units} units, {mem:.1f} GiB, {dev.version.strip()})"
-                   + (f"  cannot compile: {broken}" if broken else ""))
+                   f"{dev.max_compute_units} units, {mem:.1f} GiB, {dev.version.strip()}){_verdict(dev)}")
     if chosen is not None:
         why = (f"the selector {device!r}" if device else "PYOPENCL_CTX" if os.environ.get("PYOPENCL_CTX")
-               else "the automatic choice: GPUs first, then CPUs, the first that compiles, never a simulator")
+               else AUTOMATIC)
         click.echo(f"used: {describe(chosen)} ({why})")
+    for dist, lib in pip_runtimes().items():
+        click.echo(f"pip's {dist}: {lib} (registered by fmcw-cl)", err=True)
     for vendor, lib in unregistered_drivers():
         click.echo(f"note: the {vendor} OpenCL driver {lib} is installed but no ICD file names it, so it is "
                    f"not seen; to use it: echo {lib} > /etc/OpenCL/vendors/{vendor.lower()}.icd", err=True)
@@ -61,3 +65,14 @@ def command(device, check):
         from fmcw_cl.opencl.selftest import check as run_check
 
         run_check(device)
+
+
+def _verdict(dev) -> str:
+    """What is known of a device's self-check, for its line."""
+    if rank(dev) == SIMULATOR:
+        return ""
+    broken = cannot_compile(dev)
+    if broken:
+        return f"  cannot compile: {broken}"
+    v = cached(dev)
+    return "  not checked" if v is None else f"  self-check {v}"

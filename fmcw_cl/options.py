@@ -32,6 +32,11 @@ def use_flags() -> None:
     _SPELLING["flags"] = True
 
 
+def flags_said() -> bool:
+    """Whether options are named as command-line flags (the CLI) or keywords (Python)."""
+    return _SPELLING["flags"]
+
+
 def said(name: str, value=None) -> str:
     """Option `name` (a keyword, e.g. "max_range") as the user spells it, with `value`
     when given: "--max-range 5" or "max_range=5"."""
@@ -125,7 +130,7 @@ RUN = (
     Opt("backend", "auto", str, "Stage implementation; auto: OpenCL if a device is there, else numpy.",
         choices=("auto", "opencl", "numpy")),
     Opt("device", None, str, "OpenCL device: index P or P:D, or a name substring (default: PYOPENCL_CTX, "
-        "else the first GPU, else the first device); see `fmcw-cl devices`."),
+        "else a GPU, else the fastest CPU runtime that passes the self-check); see `fmcw-cl devices`."),
 )
 
 RANGE_GAP_M = 0.01   # --max-range above --min-range by at least this much

@@ -17,3 +17,14 @@ def files_of(program: str) -> tuple[str, ...]:
 def source(name: str) -> str:
     """The OpenCL C text of program `name` (its files concatenated)."""
     return "\n".join(files(__name__).joinpath(f"{f}.cl").read_text() for f in files_of(name))
+
+
+def sources_digest() -> str:
+    """A digest of every kernel source: a device's self-check holds for these sources."""
+    import hashlib
+
+    digest = hashlib.sha1()
+    for path in sorted(files(__name__).iterdir(), key=lambda p: p.name):
+        if path.name.endswith(".cl"):
+            digest.update(path.name.encode() + path.read_bytes())
+    return digest.hexdigest()[:16]

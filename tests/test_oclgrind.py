@@ -12,7 +12,7 @@ import sys
 import numpy as np
 import pytest
 
-from fmcw_cl.opencl.context import describe, devices, is_simulator, select_device
+from fmcw_cl.opencl.choice import describe, devices, is_simulator, select_device
 
 CHECKS = {"OCLGRIND_DATA_RACES": "1", "OCLGRIND_UNINITIALIZED": "1", "OCLGRIND_CHECK_API": "1"}
 
@@ -137,7 +137,7 @@ def test_devices_says_what_it_uses_and_why(fmcw):
 
 
 def test_a_driver_no_icd_file_names_is_reported(tmp_path, monkeypatch):
-    from fmcw_cl.opencl import context
+    from fmcw_cl.opencl import choice
 
     lib = tmp_path / "lib"
     lib.mkdir()
@@ -145,11 +145,11 @@ def test_a_driver_no_icd_file_names_is_reported(tmp_path, monkeypatch):
     vendors = tmp_path / "vendors"
     vendors.mkdir()
     (vendors / "pocl.icd").write_text("libpocl.so.2\n")
-    monkeypatch.setattr(context, "LIBRARY_DIRS", (str(lib),))
+    monkeypatch.setattr(choice, "LIBRARY_DIRS", (str(lib),))
     monkeypatch.setenv("OCL_ICD_VENDORS", str(vendors))
-    assert context.unregistered_drivers() == [("NVIDIA", lib / "libnvidia-opencl.so.1")]
+    assert choice.unregistered_drivers() == [("NVIDIA", lib / "libnvidia-opencl.so.1")]
     (vendors / "nvidia.icd").write_text(f"{lib / 'libnvidia-opencl.so.1'}\n")
-    assert context.unregistered_drivers() == []
+    assert choice.unregistered_drivers() == []
 
 
 def test_devices_check_runs_every_kernel_on_the_used_device(fmcw):

@@ -656,9 +656,9 @@ def test_kernel_build_failure_falls_back_or_fails(monkeypatch):
 
 def test_no_opencl_platform(monkeypatch):
     from fmcw_cl.errors import FmcwError
-    from fmcw_cl.opencl import context
+    from fmcw_cl.opencl import choice
 
-    monkeypatch.setattr(context, "devices", lambda: [])
+    monkeypatch.setattr(choice, "devices", lambda: [])
     with pytest.raises(FmcwError, match="no OpenCL device found: pip install pocl-binary-distribution"):
         make_processor("opencl")
     warnings = []
@@ -944,7 +944,7 @@ def test_a_chunk_makes_two_trips_each_way(backend, wall_capture, monkeypatch):
         one_by_one = _one_by_one(backend, cap, plan)
     n = len(parts)
     assert n >= 3
-    codes = 0 if backend.rt.zero_copy else 2 * n     # a GPU's copy of each chunk's beat and sync codes
+    codes = 0 if backend.rt.wraps_host else 2 * n     # a copy of each chunk's beat and sync codes
     assert after["uploads"] - before["uploads"] == 2 * n + codes
     assert after["downloads"] - before["downloads"] == 2 * n + 1
     assert len(ahead) == n and all(got.rider is None for got, _ in ahead)   # every chunk's, each landed

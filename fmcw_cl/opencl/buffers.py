@@ -81,9 +81,9 @@ class Buffers:
         """Like `upload`, but skipped when this very array is one of the last `keep`
         uploaded under `name` (a chunk's codes serve several launches; values that never
         change: `constant`); a new one takes the place of the least recently used.
-        On a CPU device the buffer wraps the host array (CL_MEM_USE_HOST_PTR: no copy at
-        all on PoCL; not on a simulator, which copies it and checks reads as if from
-        device memory). Elsewhere the copy does not wait: the arrays are codes (a
+        Where that is no copy (`Runtime.wraps_host`: PoCL) the buffer wraps the host
+        array (CL_MEM_USE_HOST_PTR; not on a simulator, which copies it and checks
+        reads as if from device memory). Elsewhere the copy does not wait: the arrays are codes (a
         chunk's, a stretch's), which nothing changes before the download that ends
         their step; in page-locked memory (`page_locked`) a GPU's driver copies them by
         DMA while the host goes on."""
@@ -96,7 +96,7 @@ class Buffers:
         if hit:
             return self._bufs[slot]
         array = np.ascontiguousarray(array)
-        if self.rt.zero_copy and array.nbytes:
+        if self.rt.wraps_host and array.nbytes:
             self._bufs[slot] = self._new(cl.mem_flags.READ_ONLY | cl.mem_flags.USE_HOST_PTR, hostbuf=array)
             self._sizes[slot] = 0            # never reused for another array
         else:

@@ -1,132 +1,43 @@
-"""Device choice and the program cache.
+"""A context and queue on one OpenCL device, its built programs and its traffic.
 
-A platform/device is chosen deliberately (never "whatever comes first"): by index
-"P" or "P:D", by a substring of the platform or device name, or by the standard
-PYOPENCL_CTX; by default the first GPU, else the first CPU, else the first other
-device that compiles a probe kernel, never a simulator such as Oclgrind (it claims to
-be every kind of device). A CPU runtime whose compiler does not know the CPU (PoCL 3.0
-from pip, LLVM 14, on an AMD Zen 5: "unknown target CPU 'generic'") is passed over for
-the next one, and `fmcw-cl devices` says why.
 Programs are built once per context and cached; a failed build saves its log to a file
-and says where.
+and says where. Which device: `choice`.
 """
 
 from __future__ import annotations
 
 import copy
-import os
 import tempfile
+import warnings
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import FmcwError
+from .choice import CPU, cl, describe, is_simulator, rank, select_device
 
-try:  # pyopencl is a dependency, but a broken OpenCL install must not break numpy use
-    import pyopencl as cl
-except Exception:  # noqa: BLE001 - any import failure means: no OpenCL here
-    cl = None
-
-
-def devices() -> list[tuple[int, int, object, object]]:
-    """All (platform index, device index, platform, device) seen."""
-    if cl is None:
-        raise FmcwError("pyopencl cannot be imported: pip install pyopencl pocl-binary-distribution")
-    try:
-        platforms = cl.get_platforms()
-    except cl.Error:
-        return []
-    out = []
-    for p, plat in enumerate(platforms):
-        try:
-            devs = plat.get_devices()
-        except cl.Error:
-            continue
-        out.extend((p, d, plat, dev) for d, dev in enumerate(devs))
-    return out
-
-
-def describe(device) -> str:
-    return f"{device.platform.name.strip()} / {device.name.strip()}"
-
-
-def select_device(selector: str | None = None):
-    """The OpenCL device named by `selector` (see module doc)."""
-    seen = devices()
-    if not seen:
-        raise FmcwError("no OpenCL device found: pip install pocl-binary-distribution "
-                        "(a CPU OpenCL), or install your GPU vendor's OpenCL driver")
-    selector = selector if selector is not None else os.environ.get("PYOPENCL_CTX")
-    if selector:
-        parts = selector.split(":")
-        if all(x.isdigit() for x in parts if x):
-            p = int(parts[0])
-            d = int(parts[1]) if len(parts) > 1 and parts[1] else 0
-            for pi, di, _, dev in seen:
-                if (pi, di) == (p, d):
-                    return dev
-            raise FmcwError(f"no OpenCL device {selector!r}; `fmcw-cl devices` lists them")
-        for _, _, plat, dev in seen:
-            if selector.lower() in f"{plat.name} {dev.name}".lower():
-                return dev
-        raise FmcwError(f"no OpenCL device matches {selector!r}; `fmcw-cl devices` lists them")
-    ranked = [dev for *_, dev in sorted(seen, key=lambda item: rank(item[3]))]
-    if rank(ranked[0]) == SIMULATOR:
-        raise FmcwError(f"only a simulator ({describe(ranked[0])}) is seen: it checks kernels, "
-                        "it does not run them at speed; select it by name (--device) or install an "
-                        "OpenCL runtime (pip install pocl-binary-distribution)")
-    runnable = [dev for dev in ranked if rank(dev) != SIMULATOR]
-    for dev in runnable:
-        if cannot_compile(dev) is None:
-            return dev
-    why = "; ".join(f"{describe(dev)}: {cannot_compile(dev)}" for dev in runnable)
-    raise FmcwError(f"no OpenCL device compiles kernels ({why}); a CPU newer than PoCL's compiler "
-                    "needs a newer PoCL (Debian/Ubuntu: apt-get install pocl-opencl-icd)")
-
-
-PROBE = "__kernel void probe(__global float *x) { x[get_global_id(0)] *= 2.0f; }"
-_PROBED: dict[int, str | None] = {}
-
-
-def cannot_compile(device) -> str | None:
-    """Why `device` cannot build a kernel (the build log's first error line), or None
-    when it can; probed once per device and process."""
-    key = device.int_ptr
-    if key not in _PROBED:
-        try:
-            cl.Program(cl.Context([device]), PROBE).build()
-            _PROBED[key] = None
-        except cl.Error as exc:
-            lines = [x.strip() for x in str(exc).splitlines() if "error" in x.lower() and ":" in x]
-            _PROBED[key] = lines[-1] if lines else str(exc).splitlines()[0]
-    return _PROBED[key]
-
-
-GPU, CPU, OTHER, SIMULATOR = range(4)
-SIMULATORS = ("oclgrind",)     # kernel checkers: they claim every device type
+POCL = "Portable Computing Language"   # PoCL's platform name
 ITEMS_LOCAL = (64, 128)        # local size of one-work-item-per-output launches (CPU, GPU): `Runtime.items`
-
-
-def is_simulator(device) -> bool:
-    return any(name in f"{device.platform.name} {device.name}".lower() for name in SIMULATORS)
+# LLVM's names of the x86 CPUs with AVX-512, for PoCL's target (its version's "HSTR: ...-CPU")
+AVX512_CPUS = ("skylake-avx512", "cascadelake", "cooperlake", "cannonlake", "icelake", "tigerlake",
+               "rocketlake", "sapphirerapids", "emeraldrapids", "graniterapids", "diamondrapids",
+               "knl", "knm", "znver4", "znver5", "x86-64-v4")
 
 
 def lanes_width(device) -> int:
     """Lanes of `spectrum_lanes`, `resample_rows` and `hidden_lanes` on `device`: 16 (one
-    AVX-512 register a float16) where its preferred float vector is that wide, else 8
-    (wider vectors there change the builtins' ABI: a build warning)."""
-    return 16 if device.preferred_vector_width_float >= 16 else 8
-
-
-def rank(device) -> int:
-    """The automatic choice's order: GPUs, then CPUs, then anything else; a simulator
-    (Oclgrind, which runs kernels 1000x slower to check them) never."""
-    if is_simulator(device):
-        return SIMULATOR
-    if device.type & cl.device_type.GPU:
-        return GPU
-    return CPU if device.type & cl.device_type.CPU else OTHER
+    AVX-512 register a float16) where its preferred float vector is that wide and its
+    compiler targets AVX-512, else 8 (wider vectors there change the builtins' ABI: a
+    build warning). pip's PoCL (LLVM 14) prefers 16 on a Zen 4, whose AVX-512 it sees,
+    but compiles for znver3 (AVX2), where float16 code aborts the process ("Do not know
+    how to scalarize"): its version names the CPU it compiles for."""
+    if device.preferred_vector_width_float < 16:
+        return 8
+    target = device.version.partition("HSTR:")[2].strip()
+    if target and not any(cpu in target for cpu in AVX512_CPUS):
+        return 8
+    return 16
 
 
 @dataclass
@@ -246,8 +157,18 @@ class Runtime:
 
     @property
     def zero_copy(self) -> bool:
-        """Whether a buffer over host memory is the host memory (a real CPU device)."""
+        """Whether the device works in host memory (a real CPU device): the codes are
+        read in place, without page-locked staging."""
         return rank(self.device) == CPU
+
+    @property
+    def wraps_host(self) -> bool:
+        """Whether a buffer made over host memory (CL_MEM_USE_HOST_PTR) is that memory:
+        PoCL's on a CPU (0.08 ms a map). Intel's CPU runtime copies host memory that is
+        not page-aligned when such a buffer is made (40 ms per 83 MB): a copy into a
+        buffer kept from chunk to chunk is faster there (file to track 1.2 -> 1.65x
+        real time, 2-core Zen 4)."""
+        return self.zero_copy and POCL in self.device.platform.name
 
     def group_size(self, cpu: int, gpu: int) -> int:
         """A work-group size by device type: PoCL vectorises across work-items and
@@ -311,8 +232,12 @@ class Runtime:
 
             prog = cl.Program(self.context, source(name))
             try:
-                prog.build(options=["-cl-std=CL1.2", f"-DLANES={self.width}",
-                                    f"-DSHUFFLES={int(self.shuffles)}"])
+                with warnings.catch_warnings():
+                    # a build log that is not empty: Intel's and NVIDIA's say what they did
+                    # (the kernels build without warnings: tests/test_opencl.py, -Werror)
+                    warnings.simplefilter("ignore", cl.CompilerWarning)
+                    prog.build(options=["-cl-std=CL1.2", f"-DLANES={self.width}",
+                                        f"-DSHUFFLES={int(self.shuffles)}"])
             except cl.Error as exc:
                 log = Path(tempfile.gettempdir()) / f"fmcw-cl-{name}-build.log"
                 log.write_text(str(exc))
@@ -335,22 +260,3 @@ def runtime(selector: str | None = None) -> Runtime:
     return _RUNTIMES[key]
 
 
-DRIVERS = {"NVIDIA": "libnvidia-opencl.so.1", "AMD": "libamdocl64.so", "Intel": "libigdrcl.so"}
-LIBRARY_DIRS = ("/usr/local/nvidia/lib64", "/usr/lib/x86_64-linux-gnu", "/usr/lib64", "/usr/lib",
-                "/opt/rocm/lib", "/usr/local/lib")
-
-
-def unregistered_drivers() -> list[tuple[str, Path]]:
-    """GPU OpenCL drivers installed but named by no ICD file, so that no loader sees
-    them (an NVIDIA container often has the driver and only PoCL's ICD file):
-    (vendor, library path) of each."""
-    vendors = [Path(os.environ.get("OCL_ICD_VENDORS", "/etc/OpenCL/vendors")), Path("/etc/OpenCL/vendors")]
-    named = " ".join(f.read_text(errors="replace") for d in vendors if d.is_dir() for f in d.glob("*.icd"))
-    found = []
-    for vendor, lib in DRIVERS.items():
-        for d in LIBRARY_DIRS:
-            path = Path(d) / lib
-            if path.exists() and lib not in named:
-                found.append((vendor, path))
-                break
-    return found
