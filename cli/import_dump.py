@@ -23,7 +23,9 @@ from fmcw_cl.progress import Progress
               help="Triangle repetition frequency of the injection current (Hz).")
 @click.option("--current-min", default=0.160, show_default=True, help="Lowest injection current (A).")
 @click.option("--current-max", default=0.480, show_default=True, help="Highest injection current (A).")
-@click.option("--bits", default=14, show_default=True, help="Effective ADC resolution.")
+@click.option("--bits", default=None, type=int,
+              help="Effective ADC resolution [from the file: a TDMS recording's raw codes are int16 "
+                   "(16), its volts 14; a dump's 14, or 16 where its codes go beyond 14 bits].")
 @click.option("--order", type=click.Choice(["beat,sync", "sync,beat"]), default="beat,sync",
               show_default=True, help="Channel order in the dump.")
 @click.option("--refractive-index", default=None, type=float, help="Of the medium [1.0].")

@@ -33,22 +33,22 @@ def delay_line(plan: Plan) -> str:
 @click.argument("capture", type=click.Path(path_type=Path))
 @click.option("--points", default=1000, show_default=True,
               help="Resampling intervals, for the unambiguous range.")
-def command(capture, points):
+@click.option("--delay/--no-delay", default=True, show_default=True,
+              help="Estimate the sync delay as `process` does (printed last: it converts stretches of "
+                   "the capture).")
+def command(capture, points, delay):
     """Describe CAPTURE: duration, periods, sweep bandwidth, ranges, sync delay, levels.
 
     \b
     Example:
       fmcw-cl info data_samples/static_0p3m.h5
+      fmcw-cl info run7.h5 --no-delay
     """
     with Capture(capture) as cap:
         i = cap.info
         m = i.modulation
         lut = build_lut(i.tuning_current_a, i.tuning_frequency_hz, m.current_min_a,
                         m.current_max_a, points, i.refractive_index)
-        try:                          # what `process` refuses is said, not estimated
-            delay = delay_line(make_plan(cap, Options(points=points)))
-        except FmcwError as exc:
-            delay = f"none: {getattr(exc, 'problem', exc)} (process refuses this capture)"
         beat, _ = cap.read(0, min(i.samples, int(20 * i.samples_per_period)))
         clipped = int(np.sum(faults.is_clipped(beat, i.full_scale + 1)))
         lines = [
@@ -70,11 +70,17 @@ def command(capture, points):
             (f"distance scale unknown: {i.tuning_current_a.size} G(I) points about a degree-{lut.fit_degree} "
              "fit leave under 3 degrees of freedom to judge its errors; calibrate (fmcw-cl calibrate)"),
             f"unambiguous    {lut.unambiguous_range_m:.4f} m at --points {points}",
-            f"sync delay     {delay}",
             f"beat level     rms {beat.std():.0f} codes, peak {np.abs(beat.astype(np.int32)).max()} of "
             f"{i.full_scale + 1}, {clipped} codes at full scale ({100 * clipped / max(beat.size, 1):.3f} %) "
             f"in the first 20 periods (a pair is flagged clipped from {100 * faults.CLIP_SHARE:g} % of "
             "its span)",
             f"truth          {'yes' if i.has_truth else 'no'}",
         ]
-        click.echo("\n".join(lines))
+        click.echo("\n".join(lines))          # at once: the delay converts stretches of the capture
+        if not delay:
+            return
+        try:                          # what `process` refuses is said, not estimated
+            said = delay_line(make_plan(cap, Options(points=points)))
+        except FmcwError as exc:
+            said = f"none: {getattr(exc, 'problem', exc)} (process refuses this capture)"
+        click.echo(f"sync delay     {said}")

@@ -99,6 +99,26 @@ def report(s: dict, attrs: dict, quiet: bool, as_json: bool) -> None:
             what += f" (not calibrated on its own rest: {attrs['rest_calibration']})"
         click.echo(f"warning: {cap}: its peaks are {attrs['tuning_peak_width_ratio']:.1f}x wider than the "
                    f"window's own: the laser's chirp does not match the {source}{what}", err=True)
+    ratio = float(attrs.get("sync_period_ratio", 1.0))
+    if abs(ratio - 1) > float(attrs.get("sync_period_warn", np.inf)):
+        said = float(attrs["modulation_period_s"]) * 1e6
+        click.echo(f"warning: {cap}: the sync repeats every {ratio * said:.3f} us of the sample clock, "
+                   f"{100 * (ratio - 1):+.2f} % off the {said:.3f} us its sample_rate_hz and frequency_hz "
+                   "attributes give: one of them is wrong (times and velocities scale with the sample rate); "
+                   "correct the file's attribute", err=True)
+    outside = attrs.get("echo_outside_band_m")
+    if outside is not None:
+        lo, top = attrs["min_range_m"], attrs["max_range_m"]
+        band = f"{lo:.3f}-{top:.3f} m" if np.isfinite(top) else f"from {lo:.3f} m"
+        click.echo(f"warning: {cap}: {100 * s['valid_share']:.1f} % valid in the band {band} "
+                   f"(--min-range, --max-range): the strongest echo lies outside it, at {outside:.3f} m "
+                   f"({attrs['echo_outside_band_db']:.0f} dB over the band's best); widen the band", err=True)
+    if not s["valid_share"] and outside is None and attrs.get("tuning_matches", True):
+        counts = {code: int(attrs.get(f"invalid_{name}", 0)) for code, name in faults.REASONS.items() if code}
+        most = max(counts, key=counts.get)
+        if counts[most]:
+            click.echo(f"warning: {cap}: no valid pair; {counts[most]} of {s['pairs']} are "
+                       f"{faults.REASONS[most]}: {faults.MEANINGS[most]}", err=True)
     target_lines(cap, attrs)
     rival = attrs.get("rival_echo_m")
     if rival is not None and np.isfinite(rival):
@@ -220,8 +240,10 @@ def command(ctx, captures, outdir, skip_existing, scheduler, as_json, quiet, **o
         click.echo(json.dumps(results, indent=2))
     skipped = len(captures) - len(todo)
     if not quiet and (len(captures) > 1 or skipped):      # one capture: its own line says it
+        empty = sum(1 for r in results if r.get("valid_share") == 0)
+        none = f" ({empty} with no valid pair)" if empty else ""
         click.echo(f"{len(captures)} capture{'s' if len(captures) > 1 else ''}: {len(todo) - failed} "
-                   f"converted, {failed} failed, {skipped} skipped", err=True)
+                   f"converted{none}, {failed} failed, {skipped} skipped", err=True)
     if failed:
         sys.exit(1)
 

@@ -32,6 +32,8 @@ def command(track, outdir, capture, at_ms, span_ms, quiet):
       fmcw-cl report tracks/jump.track.h5 -o report/
     """
     got = make_report(track, outdir, capture, None if at_ms is None else at_ms / 1e3, span_ms / 1e3)
+    for what, why in got["left_out"].items():
+        click.echo(f"note: {track}: {what} left out: {why}", err=True)
     if quiet:
         return
     for path in got["written"]:

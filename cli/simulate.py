@@ -56,9 +56,11 @@ def parse_reflector(text: str) -> tuple[float, float]:
 @click.option("--no-headroom", is_flag=True,
               help="No gain setting: noise peaks reach full scale (--noise 3000: 0.7 % of the codes).")
 @click.option("--compress", is_flag=True, help="gzip the ADC channels (small files, slow reads).")
+@click.option("--overwrite", is_flag=True, help="Replace OUTPUT where it exists (else that is refused).")
 @click.option("-q", "--quiet", is_flag=True, help="No progress.")
 def command(scenario, output, duration, seed, distance, start, noise, snr_db, reflectors, speckle_ms,
-            table_noise_mhz, rin_db_hz, sync_delay, thermal_lag_us, lab, no_headroom, compress, quiet):
+            table_noise_mhz, rin_db_hz, sync_delay, thermal_lag_us, lab, no_headroom, compress, overwrite,
+            quiet):
     """Simulate SCENARIO (static, rail or jump) into a capture file.
 
     \b
@@ -69,14 +71,14 @@ def command(scenario, output, duration, seed, distance, start, noise, snr_db, re
       fmcw-cl simulate static -o lab.h5 --lab --distance 0.4
     """
     reflectors = tuple(parse_reflector(r) for r in reflectors)
-    duration = duration or DURATIONS_S[scenario]
+    duration = DURATIONS_S[scenario] if duration is None else duration
     fs = SimulationConfig.sample_rate_hz
     bar = Progress(output.name, int(duration * fs), fs, enabled=False if quiet else None)
     hidden = fmcw_cl.simulate(output, scenario, duration=duration, seed=seed, distance=distance, start=start,
                               noise=noise, snr_db=snr_db, reflectors=reflectors, speckle_ms=speckle_ms,
                               table_noise_mhz=table_noise_mhz, rin_db_hz=rin_db_hz, sync_delay=sync_delay,
                               thermal_lag_us=thermal_lag_us, compress=compress, lab=lab,
-                              no_headroom=no_headroom, progress=bar)
+                              no_headroom=no_headroom, overwrite=overwrite, progress=bar)
     bar.close()
     if not quiet:
         click.echo(f"{output}: {scenario}, {duration:g} s, seed {seed}, "

@@ -20,6 +20,7 @@ from .capture import Capture
 from .track import Track, read_track, write_track
 
 PathLike = str | os.PathLike
+MIN_DURATION_S = 1e-4     # `simulate`: two modulation periods
 
 __all__ = ["process", "read_track", "write_track", "open_capture", "simulate", "calibrate", "Track"]
 
@@ -88,7 +89,7 @@ def simulate(path: PathLike, scenario: str = "jump", *, duration: float | None =
              snr_db: float | None = None, reflectors: tuple[tuple[float, float], ...] = (),
              speckle_ms: float = 0.0, table_noise_mhz: float | None = None, rin_db_hz: float | None = None,
              sync_delay: float | None = None, thermal_lag_us: float = 0.0, compress: bool = False,
-             lab: bool = False, no_headroom: bool = False,
+             lab: bool = False, no_headroom: bool = False, overwrite: bool = False,
              progress: Callable[[int, int], None] | None = None) -> dict:
     """Write a simulated capture with `/truth` (the options of `fmcw-cl simulate`).
 
@@ -114,6 +115,7 @@ def simulate(path: PathLike, scenario: str = "jump", *, duration: float | None =
         `table_noise_mhz` still apply over it.
     no_headroom : no gain setting: the noise's peaks reach full scale where its rms is
         near it (3000 codes rms on 14 bits: 0.7 % of the codes).
+    overwrite : replace `path` where it exists (else that is refused).
 
     Returns
     -------
@@ -126,7 +128,20 @@ def simulate(path: PathLike, scenario: str = "jump", *, duration: float | None =
 
     if scenario not in SCENARIOS:
         raise FmcwError(f"scenario {scenario!r} is not one of {', '.join(sorted(SCENARIOS))}")
-    duration = duration or DURATIONS_S[scenario]
+    duration = DURATIONS_S[scenario] if duration is None else duration
+    if not duration >= MIN_DURATION_S:
+        raise FmcwError(f"{opts.said('duration', duration)} s: a capture lasts at least {MIN_DURATION_S:g} s "
+                        "(two modulation periods)")
+    for name, value in (("seed", seed), ("start", start), ("noise", noise), ("speckle_ms", speckle_ms),
+                        ("table_noise_mhz", table_noise_mhz), ("thermal_lag_us", thermal_lag_us)):
+        if value is not None and not value >= 0:
+            raise FmcwError(f"{opts.said(name, value)} must be 0 or more")
+    if distance is not None and not distance > 0:
+        raise FmcwError(f"{opts.said('distance', distance)} m must be more than 0")
+    if Path(path).exists() and not overwrite:
+        how = opts.said("overwrite") if opts.flags_said() else "overwrite=True"
+        raise FmcwError(f"{path}: exists ({Path(path).stat().st_size / 1e6:.1f} MB); name a new file, or "
+                        f"replace it with {how}")
     kwargs = {}
     if distance is not None:
         if scenario == "rail":

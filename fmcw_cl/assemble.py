@@ -10,7 +10,7 @@ import numpy as np
 
 from . import __version__, echoes, target, wall_images
 from .errors import CaptureError
-from .plan import DELAY_BOUND_MPS, Plan, delay_reliable
+from .plan import DELAY_BOUND_MPS, PERIOD_WARN, Plan, delay_reliable
 from .processor import SURVEY_KEYS, ChunkMeasurements, ChunkProcessor
 from .stages import cfar, faults, kinematics, pairing
 from .stages.cfar import Detections
@@ -131,6 +131,8 @@ def assemble(plan: Plan, parts: list[ChunkMeasurements], processor: ChunkProcess
         "refractive_index": info.refractive_index,
         "clipped_codes": int(sum(p.clipped_codes for p in parts)),
         "clip_share_limit": faults.CLIP_SHARE,
+        "sync_period_ratio": float(plan.period_ratio),
+        "sync_period_warn": PERIOD_WARN,
         "sync_delay_samples": plan.lag,
         "sync_delay_periods_used": plan.lag_periods,
         "sync_delay_misfit": plan.lag_misfit,

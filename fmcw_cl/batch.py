@@ -9,7 +9,7 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 from .engine import process
-from .errors import FmcwError
+from .errors import CaptureError, FmcwError
 from .options import Options
 from .processor import ChunkProcessor, NumpyProcessor
 from .track import Track
@@ -70,8 +70,10 @@ def process_each(paths, options: Options | None = None, processor: ChunkProcesso
             if progress:
                 progress(i, 0, 0, 0.0)          # started (its rate counts from here)
             return process(paths[i], options, worker, tick)
-        except FmcwError as exc:
+        except CaptureError as exc:
             return exc
+        except FmcwError as exc:            # an option this capture cannot take: its line names it
+            return CaptureError(paths[i], str(exc))
         finally:
             free.put(worker)
 

@@ -37,7 +37,7 @@ from .errors import CaptureError
 from .options import Options
 from .physics import C
 from .plan import make_plan
-from .stages import sync
+from .stages import pairing, resample, sync
 from .stages.lut import fit_tuning
 
 GRID = 2048              # points of the s grid over [S_LO, S_HI]
@@ -150,10 +150,26 @@ def chirp_of(cap: Capture, plan, distance_m: float, start: int, stop: int) -> Ch
         "other_echo_isolated": bool(isolated),
         "bandwidth_rising_hz": dirs[0].bandwidth_hz, "bandwidth_falling_hz": dirs[1].bandwidth_hz,
         "bandwidth_hz": chirp.bandwidth_hz, "static_bandwidth_hz": plan.lut.bandwidth_hz,
+        "table_distance_m": table_distance(beat, hs, plan),
         "sync_delay_samples": float(plan.lag), "modulation_frequency_hz": info.modulation.frequency_hz,
         "sample_rate_hz": fs, "source": str(info.path), "software": f"fmcw-cl {__version__}",
     }
     return Chirp(chirp.rising, chirp.falling, attrs)
+
+
+def table_distance(beat: np.ndarray, hs, plan, sweeps: int = 200) -> float:
+    """The static target's distance (m) by the capture's own G(I) table: the median of
+    the plain peaks of up to `sweeps` half-sweeps of each direction (no Doppler at rest).
+    A chirp calibration corrects the table's scale by a few percent; a --distance far
+    from this one is more likely wrong than the table (`fmcw-cl calibrate` says so)."""
+    got = []
+    for rising in (True, False):
+        ok = (hs.rising == rising) & resample.inside(hs.start, hs.length, plan.lut, beat.size)
+        idx = np.flatnonzero(ok)[:sweeps]
+        if idx.size:
+            x = resample.resample(beat, hs.start[idx], hs.length[idx], plan.lut.u(rising), plan.window)
+            got.append(pairing.measure(x, None, None, plan.model, plan.search)[0])
+    return float(np.median(np.concatenate(got))) if got else float("nan")
 
 
 def isolate(mean: np.ndarray, cutoff_cycles: float) -> np.ndarray:

@@ -513,6 +513,10 @@ class CaptureWriter:
             self._abort(exc)
             raise
 
+    def set_bits(self, bits: int) -> None:
+        """The ADC's resolution, where it is known only once the codes are written."""
+        self._file["adc"].attrs["bits"] = int(bits)
+
     def write(self, start: int, beat: np.ndarray, sync: np.ndarray) -> None:
         """Store samples [start, start + len) of both channels."""
         self.beat[start:start + beat.size] = beat

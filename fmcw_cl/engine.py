@@ -19,6 +19,7 @@ import numpy as np
 
 from . import heap, rest_calibration, target
 from .assemble import assemble
+from .band import echo_outside
 from .capture import Capture
 from .chunks import capture_parts, read_chunks
 from .errors import CaptureError
@@ -34,6 +35,7 @@ from .track import Track
 # distance is vouched for (a jump under 5 us of thermal lag: 2.24, distances to 96 mm off;
 # under 2 us: 1.26 once the delay is refined, 0.72 mm at worst; a matching table: 1.02)
 UNCALIBRATED_RATIO = 1.5
+BAND_VALID = 0.5     # fewer valid pairs than this share, in a band the user set: is the target outside?
 
 
 def process(path, options: Options | None = None, processor: ChunkProcessor | None = None,
@@ -70,6 +72,7 @@ def process(path, options: Options | None = None, processor: ChunkProcessor | No
                 track = with_choice(plan, parts, processor, time.perf_counter() - started, track, choice)
             if check_tuning(cap, plan, track, processor) > UNCALIBRATED_RATIO and plan.options.dechirp:
                 track = calibrated_on_rest(cap, plan, track, processor, choice, started, progress)
+            check_band(cap, plan, options, track, processor)
     finally:
         processor.close()
     return track
@@ -122,6 +125,17 @@ def check_tuning(cap: Capture, plan: Plan, track: Track, processor: ChunkProcess
     track.attrs["tuning_matches"] = bool(not ratio > WIDTH_LIMIT)
     track.attrs["uncalibrated_ratio"] = UNCALIBRATED_RATIO
     return ratio
+
+
+def check_band(cap: Capture, plan: Plan, options: Options, track: Track, processor: ChunkProcessor) -> None:
+    """Where the user's --min-range/--max-range gave next to no valid pair, record the
+    strongest echo outside that band (`echo_outside_band_m`, `_db`; band.echo_outside):
+    the range gate, not the target, is then the cause."""
+    narrowed = options.max_range is not None or options.min_range != Options.min_range
+    if narrowed and not (track.valid.mean() if track.valid.size else 0.0) >= BAND_VALID:
+        found = echo_outside(cap, plan.with_band(options.band_m), processor)
+        if found is not None:
+            track.attrs["echo_outside_band_m"], track.attrs["echo_outside_band_db"] = found
 
 
 def calibrated_on_rest(cap: Capture, plan: Plan, track: Track, processor: ChunkProcessor,

@@ -13,11 +13,13 @@ matched whole against the file's names (LabVIEW's group names hold '/'); by defa
 first two channels of the first group are the beat and the sync. Its sample rate is the
 waveform property `wf_increment` (1 / rate). Integer channels hold ADC codes; DAQmx raw
 data (which npTDMS reports through its scale, as float64) is read raw, through its one
-raw scaler, so the codes are the ADC's bit for bit; float channels hold scaled volts,
-turned back into codes with the ADC's input range (`full_scale_volts`: +-V is
-+-2^(bits-1)). Text, timestamps and other channels that are not numbers are refused by
-what they are. It is read in ranges (npTDMS's streaming mode, either data layout), so a
-recording larger than memory imports in bounded memory.
+raw scaler, so the codes are the ADC's bit for bit (int16: 16 bits, a DAQmx scale of
+10 V / 32768 a code); float channels hold scaled volts, turned back into codes with the
+ADC's input range (`full_scale_volts`: +-V is +-2^(bits-1), 14 bits unless told). A
+dump's resolution, unless told, is 14 bits, or 16 where its codes go beyond 14. Text,
+timestamps and other channels that are not numbers are refused by what they are. It is
+read in ranges (npTDMS's streaming mode, either data layout), so a recording larger than
+memory imports in bounded memory.
 
 The settings (rate, bits, modulation) and the channels are checked before a sample is
 read; samples beyond the ADC's full scale are clipped and counted in a warning.
@@ -37,6 +39,8 @@ from .errors import CaptureError
 from .physics import C
 
 CHUNK = 1 << 22        # samples per channel copied at a time
+FILE_BITS = 16         # a TDMS recording's raw codes: int16's width (DAQmx raw data)
+DUMP_BITS = (14, 16)   # a dump's codes, without --bits: the narrowest of these that holds them
 N_AIR = 1.000273       # refractive index of standard air at 1550 nm (Ciddor)
 
 
@@ -73,7 +77,7 @@ class TdmsChannels:
     `shape`, `data[a:b]` (int32, read from the file on demand), `sample_rate_hz`."""
 
     def __init__(self, path: str | os.PathLike, beat: str | None = None, sync: str | None = None,
-                 full_scale_volts: float | None = None, bits: int = 14) -> None:
+                 full_scale_volts: float | None = None, bits: int | None = None) -> None:
         from .tables import optional
 
         nptdms = optional("nptdms", "TDMS import")
@@ -92,7 +96,10 @@ class TdmsChannels:
                                               f"({sorted(lengths)})")
             self.shape = (lengths.pop(), 2)
             self.raw = [self._is_raw(c, nptdms) for c in self.channels]
-            self.scale = [None if raw else self._codes_per_unit(c, full_scale_volts, bits)
+            # codes of a raw channel span its integers' width (DAQmx: int16 over its scale's
+            # range, 10 V / 32768 a code); volts say nothing of the ADC's (the contract's 14)
+            self.bits = bits or (FILE_BITS if all(self.raw) else DUMP_BITS[0])
+            self.scale = [None if raw else self._codes_per_unit(c, full_scale_volts, self.bits)
                           for c, raw in zip(self.channels, self.raw, strict=True)]
             rates = {1.0 / float(c.properties["wf_increment"]) for c in self.channels
                      if float(c.properties.get("wf_increment", 0) or 0) > 0}
@@ -197,7 +204,7 @@ def read_osa_table(path: str | os.PathLike, air: bool = False) -> tuple[np.ndarr
 
 
 def import_capture(dump: str | os.PathLike, table: str | os.PathLike, output: str | os.PathLike,
-                   sample_rate_hz: float | None, modulation: Modulation, bits: int = 14,
+                   sample_rate_hz: float | None, modulation: Modulation, bits: int | None = None,
                    order: str = "beat,sync", refractive_index: float | None = None,
                    air: bool = False, progress=None, beat_channel: str | None = None,
                    sync_channel: str | None = None, full_scale_volts: float | None = None,
@@ -212,7 +219,8 @@ def import_capture(dump: str | os.PathLike, table: str | os.PathLike, output: st
     output : the capture to write (atomically).
     sample_rate_hz : ADC rate (Hz); None: a TDMS recording's wf_increment.
     modulation : triangle frequency (Hz) and current range (A).
-    bits : effective ADC resolution.
+    bits : effective ADC resolution; None: from the file (a TDMS recording's raw codes:
+        16, int16's width; its volts: 14; a dump: 14, or 16 where its codes go beyond).
     order : which channel comes first, "beat,sync" or "sync,beat".
     refractive_index : of the medium, written to /optics when given.
     air : the OSA reports air wavelengths.
@@ -232,6 +240,7 @@ def import_capture(dump: str | os.PathLike, table: str | os.PathLike, output: st
         raise ValueError(f"order must be 'beat,sync' or 'sync,beat', not {order!r}")
     tdms = Path(dump).suffix.lower() == ".tdms"
     data = TdmsChannels(dump, beat_channel, sync_channel, full_scale_volts, bits) if tdms else read_dump(dump)
+    bits = data.bits if tdms else bits
     try:
         return _write_capture(data, dump, table, output, sample_rate_hz, modulation, bits,
                               "beat,sync" if tdms else order, refractive_index, air, progress,
@@ -242,7 +251,7 @@ def import_capture(dump: str | os.PathLike, table: str | os.PathLike, output: st
 
 
 def check_settings(dump, samples: int, sample_rate_hz: float | None, modulation: Modulation,
-                   bits: int) -> None:
+                   bits: int | None) -> None:
     """Refuse, before any sample is read, settings the capture layout does not allow
     (capture.validate's limits), naming the input and the setting."""
     where = Path(dump)
@@ -254,7 +263,7 @@ def check_settings(dump, samples: int, sample_rate_hz: float | None, modulation:
         raise CaptureError(where, f"a sample rate of {fs:g} Hz is outside [{lo:g}, {hi:g}] Hz "
                                   "(--sample-rate)")
     lo, hi = LIMITS["bits"]
-    if not lo <= bits <= hi:
+    if bits is not None and not lo <= bits <= hi:
         raise CaptureError(where, f"{bits} bits is outside [{lo}, {hi}] (--bits)")
     f = modulation.frequency_hz
     if not LIMITS["frequency_hz"][0] <= f <= fs / 20:
@@ -281,17 +290,23 @@ def _write_capture(data, dump, table, output, sample_rate_hz, modulation, bits, 
         raise CaptureError(Path(table), f"the G(I) table ({current_a[0] * 1e3:g}-{current_a[-1] * 1e3:g} mA) "
                                         f"does not cover the modulation range ({lo * 1e3:g}-{hi * 1e3:g} mA)")
     ib, isy = (0, 1) if order == "beat,sync" else (1, 0)
-    code_lo, code_hi = -(2 ** (bits - 1)), 2 ** (bits - 1) - 1
+    code_lo, code_hi = -(2 ** ((bits or 16) - 1)), 2 ** ((bits or 16) - 1) - 1
     clipped = np.zeros(2, np.int64)
-    with CaptureWriter(output, n, sample_rate_hz, bits, modulation, current_a, frequency_hz,
+    widest = 0                                           # the largest |code| seen
+    with CaptureWriter(output, n, sample_rate_hz, bits or DUMP_BITS[0], modulation, current_a, frequency_hz,
                        refractive_index, attrs={"imported_from": str(Path(dump).resolve())}) as w:
         for a in range(0, n, CHUNK):
             block = np.asarray(data[a:a + CHUNK])
             clipped += np.sum((block < code_lo) | (block > code_hi), axis=0)
             block = np.clip(block, code_lo, code_hi).astype(np.int16)
+            if block.size:
+                widest = max(widest, int(block.max()), -int(block.min()) - 1)
             w.write(a, block[:, ib], block[:, isy])
             if progress:
                 progress(min(a + CHUNK, n), n, sample_rate_hz)
+        if bits is None:                                 # a dump's codes say how wide they are
+            bits = next(b for b in DUMP_BITS if widest < 2 ** (b - 1) or b == DUMP_BITS[-1])
+            w.set_bits(bits)
     try:
         Capture(output).close()          # the contract's checks, naming the new file
     except CaptureError:

@@ -25,7 +25,9 @@ from .stages.spectrum import Search
 
 DELAY_STRETCHES = 6           # stretches of the capture used to estimate the sync delay
 DELAY_STRETCH_PERIODS = 200
-PERIOD_TOLERANCE = 0.03      # sync period against /modulation frequency_hz
+PERIOD_TOLERANCE = 0.03      # sync period against /modulation frequency_hz: refused beyond
+PERIOD_WARN = 1e-3           # ... stated beyond (the measurement's own scatter: 3e-6)
+SWAPPED_ROUGHNESS = 0.05     # a sync this rough, and rougher than the beat: the channels swapped
 DELAY_BOUND_MPS = 0.002   # a refined delay whose velocity uncertainty is beyond this is warned of
 TABLE, CALIBRATION, OWN_REST = "static G(I) table", "chirp calibration", "chirp calibrated on its own rest"
 
@@ -54,6 +56,7 @@ class Plan:
     lag_at_m: float = float("nan")           # the target's mean distance where it was refined
     tuning: str = TABLE                      # where the LUT comes from: TABLE, CALIBRATION or OWN_REST
     chirp: Chirp | None = None               # the chirp of CALIBRATION or OWN_REST
+    period_ratio: float = 1.0    # the sync's measured period over the attributes' (check_sync_period)
 
     def with_band(self, band: tuple[float, float | None]) -> Plan:
         """The plan with the peak search in `band` (m)."""
@@ -112,7 +115,7 @@ def make_plan(cap: Capture, options: Options, lag: float | None = None,
         chirp = read_chirp(options.chirp)
         check_chirp(chirp, info, options.chirp)
     parts = tuned(info, options, chirp)
-    check_sync_period(cap)
+    period_ratio = check_sync_period(cap)
     options = fit_chunks(options, info, processor)
     known = lag is not None
     lag, votes, misfit = estimate_capture_delay(cap, processor) if lag is None else (lag, 0, 0.0)
@@ -120,7 +123,7 @@ def make_plan(cap: Capture, options: Options, lag: float | None = None,
         raise CaptureError(info.path, "no laser intensity triangle in the beat channel: "
                                       "cannot align the sync to the optics")
     plan = Plan(info, options, lag=lag, lag_periods=votes, lag_misfit=misfit, lag_intensity=lag,
-                tuning=TABLE if chirp is None else CALIBRATION, **parts)
+                tuning=TABLE if chirp is None else CALIBRATION, period_ratio=period_ratio, **parts)
     if not known and options.dechirp:          # the paper's method (--no-dechirp) as published
         plan = refine_lag(cap, plan, processor)
     return plan
@@ -166,6 +169,12 @@ def make_search(options: Options, lut: Lut, model: pairing.DopplerModel) -> Sear
         raise FmcwError(f"{said('max_range', top)} m lies beyond the unambiguous range {unamb:.3f} m of "
                         f"{said('points', options.points)}: a target there would alias (raise "
                         f"{said('points')})")
+    near = options.target_near
+    if near is not None and not lo <= near < (unamb if top is None else top):
+        where = f"beyond the unambiguous range {unamb:.3f} m of {said('points', options.points)}" \
+            if near >= unamb else "outside the band [" + said("min_range", lo) + (
+                f" m, {said('max_range', top)} m)" if top is not None else " m, ...)")
+        raise FmcwError(f"{said('target_near', near)} m lies {where}: no echo there can be the target")
     half = model.nfft // 2
     lo = max(1, int(np.ceil(lo / model.metres_per_bin)))
     hi = half if top is None else min(half, int(np.floor(top / model.metres_per_bin)) + 1)
@@ -183,13 +192,23 @@ def fit_chunks(options: Options, info: CaptureInfo, processor: ChunkProcessor) -
     return replace(options, chunk_periods=wanted)
 
 
-def check_sync_period(cap: Capture, periods: int = 40) -> None:
+def check_sync_period(cap: Capture, periods: int = 40) -> float:
     """The sync must be a triangle at the modulation frequency: a flat or saturated
-    channel, or a period off `frequency_hz` by more than PERIOD_TOLERANCE, is refused."""
+    channel, channels swapped (a beat in /adc/sync), or a period off `frequency_hz` by
+    more than PERIOD_TOLERANCE, is refused. Returns the measured period over the one
+    the attributes give (sample_rate_hz / frequency_hz): a ratio off 1 by more than
+    PERIOD_WARN says one of them is wrong (times and velocities scale with the sample
+    rate), which a track states (`sync_period_ratio`)."""
     info = cap.info
     hp = info.samples_per_period / 2
     a = max(0, info.samples // 2 - int(periods * hp))
-    _, sy = cap.read(a, min(info.samples, a + int(2 * periods * hp)))
+    beat, sy = cap.read(a, min(info.samples, a + int(2 * periods * hp)))
+    rough_sync, rough_beat = roughness(sy), roughness(beat)
+    if rough_sync > SWAPPED_ROUGHNESS and rough_sync > 3 * rough_beat:
+        raise CaptureError(info.path, f"the channels look swapped: /adc/sync changes from sample to sample "
+                                      f"like a beat (roughness {rough_sync:.3f}) and /adc/beat is as smooth "
+                                      f"as a sync triangle ({rough_beat:.3f}); import again with --order "
+                                      "beat,sync (or swap the two datasets)")
     cr = sync.crossings(sy, hp)
     alternate = cr.direction[1:] != cr.direction[:-1]
     whole = alternate[1:] & alternate[:-1]            # two crossings apart: one period
@@ -202,6 +221,15 @@ def check_sync_period(cap: Capture, periods: int = 40) -> None:
         raise CaptureError(info.path, f"the sync repeats every {measured * 1e6:.2f} us but /modulation "
                                       f"frequency_hz ({info.modulation.frequency_hz:g} Hz) says "
                                       f"{nominal * 1e6:.2f} us")
+    return measured / nominal
+
+
+def roughness(codes: np.ndarray) -> float:
+    """rms of the sample-to-sample steps over the rms of the centred codes: a sync
+    triangle's is about 0.004, a beat's 0.1-1.4 (its tones, its noise)."""
+    x = codes.astype(np.float64)
+    spread = float(np.std(x))
+    return float(np.sqrt(np.mean(np.square(np.diff(x)))) / spread) if spread > 0 and x.size > 1 else 0.0
 
 
 def delay_reliable(plan: Plan) -> bool:

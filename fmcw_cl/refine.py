@@ -247,6 +247,11 @@ def line_root(x: np.ndarray, y: np.ndarray, sigma: np.ndarray) -> tuple[float, f
 WIDTH_PERIODS = 100       # periods whose peaks are measured by the tuning check
 WIDTH_LIMIT = 1.1         # peaks this much wider than the window's own say: tuning mismatch
 STILL_MPS = 0.05          # a stretch this slow is measured from plain peaks
+WIDTH_SNR = 10 ** 1.5     # a peak measured by the tuning check stands 15 dB over the band's median
+WIDTH_HEARD = 0.5         # ... in this share of the rows, else the check says nothing (NaN)
+# plain peaks that move this far (interquartile, m) in the stretch: a target moving at no
+# known velocity (a vibration no pair follows), whose Doppler terms widen its peaks
+MOVING_SPREAD_M = 1e-3
 
 
 WIDTH_REACH = 32          # bins either side of a peak searched first for its half-power points
@@ -339,8 +344,29 @@ def peak_width_ratio(cap: Capture, plan, t0_s: float, time_s: np.ndarray | None,
     if not jobs:
         return float("nan")
     # in the target's band: a wall left out of it is not the target's peak
-    widths = [_widths(power, plan.search.lo, plan.search.hi) for power in backend.power_each(jobs, nfft)]
-    return float(np.nanmedian(np.concatenate(widths)) / own_width(plan.lut.points, nfft))
+    powers = backend.power_each(jobs, nfft)
+    widths = np.concatenate([_strong_widths(power, plan.search.lo, plan.search.hi) for power in powers])
+    if not np.isfinite(widths).sum() >= WIDTH_HEARD * widths.size:
+        return float("nan")             # noise's peaks (no target in the band) say nothing of the tuning
+    if known is None and max(_spread(p[:, plan.search.lo: plan.search.hi]) for p in powers) \
+            * plan.model.metres_per_bin > MOVING_SPREAD_M:
+        return float("nan")             # plain peaks of a target moving at no known velocity: smeared
+    return float(np.nanmedian(widths) / own_width(plan.lut.points, nfft))
+
+
+def _spread(band: np.ndarray) -> float:
+    """The interquartile range (bins) of the rows' highest peaks."""
+    q1, q3 = np.percentile(np.argmax(band, axis=1), [25, 75]) if band.shape[0] else (0.0, 0.0)
+    return float(q3 - q1)
+
+
+def _strong_widths(power: np.ndarray, lo: int, hi: int | None) -> np.ndarray:
+    """`_widths` of the rows whose highest peak stands WIDTH_SNR over the band's median
+    power (NaN elsewhere): the highest of a thousand bins of noise reaches about 10 times
+    their median, and its width is the noise's."""
+    band = power[:, lo:hi]
+    strong = band.max(axis=1, initial=0.0) >= WIDTH_SNR * np.median(band, axis=1)
+    return np.where(strong, _widths(power, lo, hi), np.nan)
 
 
 @functools.lru_cache(maxsize=8)

@@ -307,7 +307,7 @@ def _objects(fixed: np.ndarray, time_s, distance_m, valid, e: echoes.Echoes) -> 
     ke = ((e.time_s - t0) // echoes.SLICE_S).astype(np.int64)
     inside = (ke >= 0) & (ke < nslices)
     ke, de = ke[inside], e.distance_m[inside]
-    first = np.r_[True, np.diff(e.time_s[inside]) != 0]
+    first = np.diff(e.time_s[inside], prepend=np.nan) != 0    # a half-sweep's first echo (none: none)
     sweeps = np.bincount(ke[first], minlength=nslices)
     kp = ((e.means["peak_time_s"] - t0) // echoes.SLICE_S).astype(np.int64)     # the mean spectra's peaks
     kept = (kp >= 0) & (kp < nslices)

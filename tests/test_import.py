@@ -172,12 +172,14 @@ def osa(tmp_path):
 def test_daqmx_raw_data_is_read_raw(tmp_path, osa, fmcw):
     """A DAQmx log (raw int16 of a 16-bit device, +-10 V, interleaved, scale properties,
     3 segments): the capture's codes are the ADC's, bit for bit, without
-    --full-scale-volts."""
+    --full-scale-volts, and its resolution is theirs (16 bits), without --bits: a
+    default of 14 clipped half of a PCI-6133's log."""
     from nptdms import TdmsFile
 
     out = tmp_path / "daqmx.h5"
-    fmcw("import", REAL / "npTDMS_raw1.tdms", "--tuning", osa, "-o", out, "--sample-rate", "100e6",
-         "--frequency", "1e6", "--sync-channel", "Layer Data/Fifth Chan", "--bits", "16", "-q")
+    proc = fmcw("import", REAL / "npTDMS_raw1.tdms", "--tuning", osa, "-o", out, "--sample-rate", "100e6",
+                "--frequency", "1e6", "--sync-channel", "Layer Data/Fifth Chan", "-q")
+    assert "clipped" not in proc.stderr
     with TdmsFile.open(REAL / "npTDMS_raw1.tdms") as f:
         beat = f["Layer Data"]["First  Channel"].read_data(scaled=False)
         sync = f["Layer Data"]["Fifth Chan"].read_data(scaled=False)
@@ -188,6 +190,33 @@ def test_daqmx_raw_data_is_read_raw(tmp_path, osa, fmcw):
         b, s = cap.read(0, cap.info.samples)
     np.testing.assert_array_equal(b, beat)
     np.testing.assert_array_equal(s, sync)
+    with Capture(out) as cap:
+        assert cap.info.bits == 16
+
+
+@pytest.mark.parametrize("peak,bits", [(8191, 14), (8192, 16), (-8193, 16), (32767, 16)])
+def test_a_dumps_resolution_is_its_codes_unless_told(tmp_path, static_capture, peak, bits):
+    """Without --bits a dump is 14 bits where its codes fit, else 16, none clipped;
+    told 14, codes beyond are clipped and counted."""
+    with Capture(static_capture) as cap:
+        b, s = cap.read(0, 20_000)
+    b = b.copy()
+    b[100] = peak
+    dump = tmp_path / "d.npy"
+    np.save(dump, np.stack([b, s], axis=1))
+    rows = "\n".join(f"{i}, {C / (193e12 + (i - 100) * 0.4e9) * 1e9:.9f}" for i in range(100, 520, 20))
+    (tmp_path / "osa.csv").write_text(rows + "\n")
+    warned = []
+    out = import_capture(dump, tmp_path / "osa.csv", tmp_path / "d.h5", 100e6, Modulation(20e3, 0.16, 0.48),
+                         warn=warned.append)
+    with Capture(out) as cap:
+        assert cap.info.bits == bits and cap.read(100, 101)[0][0] == peak
+    assert warned == []
+    told = import_capture(dump, tmp_path / "osa.csv", tmp_path / "t.h5", 100e6, Modulation(20e3, 0.16, 0.48),
+                          bits=14, warn=warned.append)
+    with Capture(told) as cap:
+        assert cap.info.bits == 14 and cap.read(100, 101)[0][0] == np.clip(peak, -8192, 8191)
+    assert len(warned) == (bits == 16) and (bits == 14 or "1 samples" in warned[0])
 
 
 def test_labview_group_names_with_slashes(tmp_path, osa, fmcw):
@@ -205,7 +234,8 @@ def test_labview_group_names_with_slashes(tmp_path, osa, fmcw):
 
 
 def test_values_beyond_full_scale_are_clipped_and_counted(tmp_path, osa, fmcw):
-    """LabVIEW's float64 example (big-endian, values up to about 3) with a 1 V range."""
+    """LabVIEW's float64 example (big-endian, values up to about 3) with a 1 V range:
+    volts say nothing of the ADC's resolution: 14 bits unless --bits says otherwise."""
     out = tmp_path / "volts.h5"
     proc = fmcw("import", REAL / "npTDMS_big_endian.tdms", "--tuning", osa, "-o", out,
                 "--full-scale-volts", "1", "--frequency", "10", "-q")

@@ -78,22 +78,32 @@ def _write_text(path: Path, text: str) -> None:
         tmp.write_text(text, encoding="utf-8")
 
 
-def _source(track: Track, capture: str | os.PathLike | None) -> Path | None:
-    src = capture or track.attrs.get("source")
-    return Path(src) if src and Path(src).is_file() else None
+def _source(track: Track, capture: str | os.PathLike | None) -> tuple[Path | None, str]:
+    """The source capture, or None and why it is not at hand."""
+    if capture is not None:
+        if not Path(capture).is_file():
+            raise CaptureError(Path(capture), "no such capture file (--capture)")
+        return Path(capture), ""
+    src = track.attrs.get("source")
+    if not src:
+        return None, "the track names no source capture: give it with --capture"
+    if not Path(src).is_file():
+        return None, f"its capture {src} is not there (moved?): give it with --capture"
+    return Path(src), ""
 
 
 def make_report(track_file: str | os.PathLike, outdir: str | os.PathLike,
                 capture: str | os.PathLike | None = None, at_s: float | None = None,
                 span_s: float = SPECTRA_SPAN_S) -> dict:
-    """Write the report of one track; returns what was written and the event rows.
+    """Write the report of one track; returns what was written (`written`), the event
+    rows (`events`) and what was left out and why (`left_out`).
 
     Parameters
     ----------
     track_file : a track written by `fmcw-cl process`.
     outdir : folder for the report (created).
     capture : the source capture (default: the track's ``source`` attribute); without
-        it there is no truth overlay and no spectra.
+        it there is no truth overlay and no spectra (`left_out` says why).
     at_s : centre (s) of the spectra's stretch; default: the farthest moment where the
         target is slow (the nonlinearity smears far targets most, Doppler none).
     span_s : length (s) of the spectra's stretch.
@@ -106,7 +116,7 @@ def make_report(track_file: str | os.PathLike, outdir: str | os.PathLike,
     except (OSError, ValueError, KeyError) as exc:
         raise CaptureError(Path(track_file), f"not a readable track file ({exc})") from None
     out = output_folder(outdir)
-    src = _source(track, capture)
+    src, missing = _source(track, capture)
     truth = None
     if src is not None:
         with Capture(src) as cap:
@@ -151,7 +161,8 @@ def make_report(track_file: str | os.PathLike, outdir: str | os.PathLike,
         {"track": str(track_file), "source": str(src) if src else None, "events": rows, "left_out": skipped},
         indent=2))
     written += [out / "events.md", out / "events.json"]
-    return {"written": [str(p) for p in written], "events": rows}
+    left = {} if not missing or not track.pairs else {"spectra.png and the truth": missing}
+    return {"written": [str(p) for p in written], "events": rows, "left_out": left}
 
 
 __all__ = ["make_report", "find_events", "compare", "Event", "is_static"]

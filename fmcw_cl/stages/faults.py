@@ -40,6 +40,19 @@ REASONS = {
     UNCALIBRATED: "uncalibrated",
 }
 
+# each reason in plain words, for a line that says why a capture has no valid pair
+MEANINGS = {
+    SYNC_GAP: "no sync turning points there (dropped samples, a broken sync)",
+    CLIPPED: "the beat is clipped at full scale (lower the detector's gain)",
+    NO_ECHO: "no echo stands out of the noise (no target in the beam, too weak, or outside the band)",
+    BEYOND_RANGE: "the target lies beyond the unambiguous range (raise --points)",
+    UNSTABLE: "the Doppler de-chirp did not settle (motion faster than the tracker follows)",
+    DISCONTINUOUS: "the distances jump from pair to pair (a fade's noise peaks, or another echo)",
+    UNVERIFIED: "too few valid neighbours vouch for the pairs",
+    AMBIGUOUS: "the target cannot be told from another echo",
+    UNCALIBRATED: "the laser's chirp has left its G(I) table (fmcw-cl calibrate)",
+}
+
 RANGE_MARGIN = 1.02   # a 2N-point peak beyond this share of the N-point range is an alias
 ALIAS_M = 0.01        # ... when the N-point peak lies this close to its mirror image
 
