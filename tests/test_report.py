@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -121,14 +122,50 @@ def test_cramer_rao_bound_of_a_pair():
 
 
 def test_a_still_targets_axes_read_plain_numbers(tmp_path, static_capture, monkeypatch):
-    """A static target's distance varies by microns: its axis must read 0.25000, not an
-    offset label such as 1e-5+2.5e-1."""
+    """A static target's distance varies by microns: its axis reads microns about its
+    distance in mm (not 0.250006 m, nor an offset label such as 1e-5+2.5e-1), its
+    velocity mm/s; no acceleration within half a window of a run's ends (the quadratic's
+    extrapolation: -0.6 m/s^2 at a still target's first pair)."""
     from fmcw_cl.engine import process
     from fmcw_cl.report import figures
+    from fmcw_cl.stages.kinematics import WINDOW_PAIRS
 
     figs = []
     monkeypatch.setattr(figures.plt, "close", figs.append)
-    figures.kinematics(process(static_capture), tmp_path / "k.png")
+    track = process(static_capture)
+    figures.kinematics(track, tmp_path / "k.png")
     (fig,) = figs
     fig.canvas.draw()
     assert [ax.yaxis.get_major_formatter().get_offset() for ax in fig.axes] == ["", "", ""]
+    labels = [ax.get_ylabel() for ax in fig.axes]
+    assert re.fullmatch(r"distance − 2[45]\d\.\d\d0 mm \(µm\)", labels[0]), labels
+    assert labels[1:] == ["velocity (mm/s)", "acceleration (m/s²)"]
+    distance = fig.axes[0].lines[0].get_ydata()
+    assert np.nanmax(np.abs(distance)) < 20                 # microns
+    acc = fig.axes[2].lines[0].get_ydata()
+    half = WINDOW_PAIRS // 2
+    assert track.valid.all() and np.isnan(acc[:half]).all() and np.isnan(acc[-half:]).all()
+    assert np.isfinite(acc[half:-half]).all()
+
+
+def test_the_pictures_show_what_they_name(tmp_path, jump_track, monkeypatch):
+    """The echoes picture holds the target's de-chirped half-sweeps (a fast target's
+    plain peak is below the CFAR's threshold) with a legend entry for each kind of dot;
+    the precision legend lies off the curves; the spectra name what lies below
+    --min-range."""
+    from fmcw_cl.report import figures
+
+    track = read_track(jump_track)
+    figs = []
+    monkeypatch.setattr(figures.plt, "close", figs.append)
+    figures.echoes(track, tmp_path / "e.png")
+    ax = figs[-1].axes[0]
+    labels = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert any("plain spectra" in x for x in labels) and any("de-chirp" in x for x in labels)
+    own = [c for c in ax.collections if "de-chirp" in str(c.get_label())]
+    assert own and len(own[0].get_offsets()) == 2 * int(track.valid.sum())
+    sp = stretch_spectra(track.attrs["source"], 0.13, 0.14, int(track.attrs["points"]),
+                         float(track.attrs["sync_delay_samples"]), 0.03, track.chirp)
+    figures.spectra(sp, tmp_path / "s.png", 10, float(track.attrs["unambiguous_range_m"]), 0.03)
+    texts = [t.get_text() for t in figs[-1].axes[-1].texts]
+    assert any("below --min-range (30 mm)" in t and "at 12 mm" in t for t in texts), texts

@@ -148,7 +148,8 @@ def make_report(track_file: str | os.PathLike, outdir: str | os.PathLike,
                              track.chirp)
         chosen = int(np.argmin(np.abs(sp.time_s - at_s)))
         with atomic_path(out / "spectra.png") as tmp:
-            figures.spectra(sp, tmp, chosen, float(track.attrs["unambiguous_range_m"]))
+            figures.spectra(sp, tmp, chosen, float(track.attrs["unambiguous_range_m"]),
+                            float(track.attrs["min_range_m"]))
         written.append(out / "spectra.png")
     if is_static(track):
         true_d = float(np.median(truth.distance_m)) if truth is not None else None

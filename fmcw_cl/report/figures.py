@@ -13,10 +13,12 @@ import numpy as np  # noqa: E402
 
 from ..capture import Truth  # noqa: E402
 from ..evaluate import crb_pair_m, eta_from_peak_snr, truth_at  # noqa: E402
+from ..stages.kinematics import centred  # noqa: E402
 from ..track import Track  # noqa: E402
 from .events import Event  # noqa: E402
 from .spectra import Spectra  # noqa: E402
 
+DC_M = 0.004     # the DC's and the intensity ramp's lobe: the spectra's lines below --min-range lie beyond
 PANELS = (("distance_m", "distance (m)"), ("velocity_mps", "velocity (m/s)"),
           ("acceleration_mps2", "acceleration (m/s²)"))
 
@@ -31,18 +33,23 @@ def kinematics(track: Track, path: Path, truth: Truth | None = None,
     t_ms = 1e3 * track.time_s
     fig, axes = plt.subplots(3, 1, sharex=True, figsize=(9, 8), constrained_layout=True)
     true = truth_at(truth, track.time_s) if truth is not None else None
+    shown = (track.valid, track.valid, centred(track.valid))      # no acceleration at a run's edges
     for k, (ax, (name, label)) in enumerate(zip(axes, PANELS, strict=True)):
-        y = np.where(track.valid, getattr(track, name), np.nan)
-        ax.plot(t_ms, y, color="C0", lw=1.0, label="measured")
+        y = np.where(shown[k], getattr(track, name), np.nan)
+        ref, scale, label = _scaled(y, name, label)
+        ax.plot(t_ms, (y - ref) * scale, color="C0", lw=1.0, label="measured")
         if true is not None:
-            ax.plot(t_ms, true[k], color="k", lw=0.8, ls="--", label="truth")
+            ax.plot(t_ms, (true[k] - ref) * scale, color="k", lw=0.8, ls="--", label="truth")
         marks = [e for e in events if e.quantity == name]
         if marks:
-            ax.plot([1e3 * e.time_s for e in marks], [e.value for e in marks], "o", ms=5,
+            ax.plot([1e3 * e.time_s for e in marks], [(e.value - ref) * scale for e in marks], "o", ms=5,
                     mfc="none", color="C3", label="events")
         ax.set_ylabel(label)
-        ax.ticklabel_format(axis="y", useOffset=False)     # a still target: 0.30001, not 1e-5+3e-1
+        ax.ticklabel_format(axis="y", useOffset=False)
         ax.grid(alpha=0.3)
+    if not centred(track.valid).any() and track.valid.any():
+        axes[2].text(0.5, 0.5, "no run of valid pairs as long as the acceleration's window",
+                     transform=axes[2].transAxes, ha="center", va="center", fontsize=9, color="0.4")
     axes[0].legend(loc="best", fontsize=8)
     axes[-1].set_xlabel("time (ms)")
     valid = 100 * np.mean(track.valid) if track.pairs else 0.0
@@ -53,16 +60,30 @@ def kinematics(track: Track, path: Path, truth: Truth | None = None,
     return path
 
 
+def _scaled(y: np.ndarray, name: str, label: str) -> tuple[float, float, str]:
+    """(reference, scale, axis label) that keep a still target's axis readable: its
+    distances in um about their mean in mm (not 0.300006 m), small velocities in mm/s."""
+    finite = y[np.isfinite(y)]
+    if name == "distance_m" and finite.size and np.ptp(finite) < 1e-3:
+        ref = float(np.round(np.median(finite), 5))          # to 10 um: a round number of mm
+        return ref, 1e6, f"distance − {ref * 1e3:.3f} mm (µm)"
+    if name == "velocity_mps" and finite.size and np.abs(finite).max() < 1e-2:
+        return 0.0, 1e3, "velocity (mm/s)"
+    return 0.0, 1.0, label
+
+
 def _pair_step(track: Track) -> float:
     return float(np.median(np.diff(track.time_s))) if track.pairs > 1 else float("nan")
 
 
-def spectra(sp: Spectra, path: Path, chosen: int, max_range_m: float) -> Path:
+def spectra(sp: Spectra, path: Path, chosen: int, max_range_m: float, min_range_m: float = 0.0) -> Path:
     """Waterfalls before/after the correction, and one half-sweep's spectra compared.
 
     The waterfalls show the half-sweeps of the chosen one's direction only: rising and
     falling sweeps of a moving target differ by the Doppler shift, and interleaved they
-    would stripe the picture.
+    would stripe the picture. Below `min_range_m` (not searched) lie the DC, the laser's
+    intensity ramp and internal reflections (a collimating lens's, 12 mm in the
+    simulator): that stretch is shaded and its strongest line named.
     """
     fig = plt.figure(figsize=(11, 8), constrained_layout=True)
     grid = fig.add_gridspec(2, 2, height_ratios=[3, 2])
@@ -78,6 +99,8 @@ def spectra(sp: Spectra, path: Path, chosen: int, max_range_m: float) -> Path:
                        vmin=-40, vmax=0, interpolation="nearest",
                        extent=(t_ms[same][0], t_ms[same][-1], 1e3 * axis[0], 1e3 * axis[keep][-1]))
         ax.axvline(t_ms[chosen], color="w", lw=0.8, ls=":")
+        if min_range_m > 0:
+            ax.axhspan(1e3 * axis[0], 1e3 * min_range_m, color="w", alpha=0.25, lw=0)
         ax.set_title(f"{title}\n(current-{direction} half-sweeps)", fontsize=10)
         ax.set_xlabel("time (ms)")
         ax.set_ylabel("distance (mm)")
@@ -87,6 +110,17 @@ def spectra(sp: Spectra, path: Path, chosen: int, max_range_m: float) -> Path:
                             (sp.distance_m, sp.corrected_db, "after correction")):
         keep = axis <= max_range_m
         ax.plot(1e3 * axis[keep], db[chosen, keep], lw=1.0, label=label)
+    if min_range_m > 0:
+        below = (sp.distance_m > DC_M) & (sp.distance_m < min_range_m)
+        ax.axvspan(0, 1e3 * min_range_m, color="0.85", lw=0, zorder=0)
+        if below.any():
+            k = int(np.flatnonzero(below)[np.argmax(sp.corrected_db[chosen, below])])
+            line_mm = 1e3 * sp.distance_m[k]
+            ax.annotate(f"below --min-range ({1e3 * min_range_m:.0f} mm), not searched: DC, intensity ramp,\n"
+                        f"internal reflections (a lens's; the strongest here at {line_mm:.0f} mm)",
+                        (1e3 * sp.distance_m[k], sp.corrected_db[chosen, k]), xytext=(40, 14),
+                        textcoords="offset points", fontsize=8, va="bottom",
+                        bbox={"fc": "w", "ec": "0.6", "lw": 0.5}, arrowprops={"arrowstyle": "->", "lw": 0.6})
     ax.set_title(f"half-sweep at {t_ms[chosen]:.3f} ms (current {direction})", fontsize=10)
     ax.set_xlabel("distance (mm)")
     ax.set_ylabel("power (dB re. peak)")
@@ -102,7 +136,7 @@ def precision(track: Track, path: Path, true_distance_m: float | None = None) ->
     """Histogram of a static target's distance with its Gaussian fit (the paper's Fig. 6c)."""
     d = track.distance_m[track.valid]
     mean, std = float(np.mean(d)), float(np.std(d))
-    fig, ax = plt.subplots(figsize=(7, 4.5), constrained_layout=True)
+    fig, ax = plt.subplots(figsize=(8, 5.5), constrained_layout=True)
     x_um = 1e6 * (d - mean)
     ax.hist(x_um, bins=min(60, max(10, d.size // 20)), density=True, color="C0", alpha=0.7,
             label=f"{d.size} pairs")
@@ -125,7 +159,7 @@ def precision(track: Track, path: Path, true_distance_m: float | None = None) ->
     ax.set_xlabel(f"distance − {mean * 1e3:.4f} mm (µm)")
     ax.set_ylabel("probability density (1/µm)")
     ax.set_title(f"static target: mean {mean * 1e3:.4f} mm, standard deviation {s_um:.2f} µm")
-    ax.legend(fontsize=8)
+    ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.16), ncol=2)   # off the curves
     ax.grid(alpha=0.3)
     fig.savefig(path, dpi=120, format="png")
     plt.close(fig)
@@ -133,16 +167,28 @@ def precision(track: Track, path: Path, true_distance_m: float | None = None) ->
 
 
 def echoes(track: Track, path: Path) -> Path:
-    """Range-time picture of every echo of every half-sweep (plain spectra, CFAR), its
-    colour the SNR; the tracked target's valid pairs drawn over it, and the persistent
-    echoes (walls, windows) and the rival of the target named."""
+    """Range-time picture of every echo of every half-sweep: those of the plain spectra
+    (CFAR), and the target's own peaks de-chirped at its pair's velocity (a fast
+    target's plain peak is smeared by its Doppler term below the CFAR's threshold), each
+    coloured by its SNR; the tracked target's valid pairs drawn over them, and the
+    persistent echoes (walls, windows) and the rival of the target named."""
     e = track.echoes
-    fig, ax = plt.subplots(figsize=(9, 5), constrained_layout=True)
-    sc = ax.scatter(1e3 * e.time_s, e.distance_m, c=e.snr_db, s=2, cmap="viridis", lw=0,
-                    vmin=float(np.percentile(e.snr_db, 2)) if e.snr_db.size else 0, rasterized=True)
+    fig, ax = plt.subplots(figsize=(9, 5.5), constrained_layout=True)
+    own = track.sweep_distance_dechirped_m
+    heard = (np.repeat(track.valid, 2) & np.isfinite(own)) if own is not None else np.zeros(0, bool)
+    snrs = np.concatenate([e.snr_db, track.sweep_snr_dechirped_db[heard] if heard.any() else []])
+    lo = float(np.percentile(snrs, 2)) if snrs.size else 0.0
+    hi = float(snrs.max()) if snrs.size else 1.0
+    sc = ax.scatter(1e3 * e.time_s, e.distance_m, c=e.snr_db, s=2, cmap="viridis", lw=0, vmin=lo, vmax=hi,
+                    rasterized=True, label="echoes of the plain spectra (CFAR), coloured by SNR")
+    if heard.any():
+        ax.scatter(1e3 * track.sweep_time_s[heard], own[heard], c=track.sweep_snr_dechirped_db[heard], s=2,
+                   marker="s", cmap="viridis", lw=0, vmin=lo, vmax=hi, rasterized=True,
+                   zorder=3, label="the target's half-sweeps after the Doppler de-chirp (its distance then), "
+                                   "coloured by SNR")
     fig.colorbar(sc, ax=ax, label="echo SNR over local noise (dB)")
     d = np.where(track.valid, track.distance_m, np.nan)
-    ax.plot(1e3 * track.time_s, d, color="C3", lw=1.0, label="tracked target (valid pairs)")
+    ax.plot(1e3 * track.time_s, d, color="C3", lw=0.8, zorder=2, label="tracked target (valid pairs)")
     p = e.persistent
     diffuse = p.get("diffuse", np.zeros(p["time_s"].size, bool))
     for mask, marker, label in ((~diffuse, "s", "persistent echoes (per 10 ms)"),
@@ -159,10 +205,11 @@ def echoes(track: Track, path: Path) -> Path:
         if np.isfinite(level):
             ax.axhline(level, color="0.4", ls=ls, lw=0.8, label=f"{name.split('_')[0]} range {level:.3f} m")
     ax.set_xlabel("time (ms)")
-    ax.set_ylabel("distance (m, Doppler shift included)")
+    ax.set_ylabel("distance (m; plain echoes carry their Doppler shift)")
     ax.set_ylim(0, float(track.attrs.get("unambiguous_range_m", 0.5)))
-    ax.set_title(f"every echo: {e.time_s.size} in {track.sweep_time_s.size} half-sweeps")
-    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=3, fontsize=8)
+    ax.set_title(f"every echo: {e.time_s.size} in the plain spectra of {track.sweep_time_s.size} "
+                 f"half-sweeps, {int(heard.sum())} of the target de-chirped")
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=2, fontsize=8, markerscale=4)
     ax.grid(alpha=0.3)
     fig.savefig(path, dpi=120, format="png")
     plt.close(fig)

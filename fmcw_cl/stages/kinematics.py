@@ -31,3 +31,14 @@ def acceleration(velocity: np.ndarray, valid: np.ndarray, period_s: float,
     for w in map(int, np.unique(own[n >= 3])):
         savgol_derivative(velocity, w, min(POLYORDER, w - 1), period_s, spans[(own == w) & (n >= 3)], acc)
     return acc
+
+
+def centred(valid: np.ndarray, window: int = WINDOW_PAIRS) -> np.ndarray:
+    """The valid pairs whose acceleration window of `window` pairs lies whole within
+    their run of valid pairs: within half a window of a run's end the derivative is an
+    extrapolation of the fitted quadratic (a still target's first pair: -0.6 m/s^2)."""
+    out = np.zeros(np.size(valid), bool)
+    half = window // 2
+    for a, b in runs(valid):
+        out[a + half: b - half] = True
+    return out
