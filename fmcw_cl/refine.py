@@ -249,8 +249,10 @@ WIDTH_LIMIT = 1.1         # peaks this much wider than the window's own say: tun
 STILL_MPS = 0.05          # a stretch this slow is measured from plain peaks
 WIDTH_SNR = 10 ** 1.5     # a peak measured by the tuning check stands 15 dB over the band's median
 WIDTH_HEARD = 0.5         # ... in this share of the rows, else the check says nothing (NaN)
-# plain peaks that move this far (interquartile, m) in the stretch: a target moving at no
-# known velocity (a vibration no pair follows), whose Doppler terms widen its peaks
+# plain peaks that move this far (interquartile, m) in the stretch, and farther than
+# they are wide: a target moving at no known velocity (a vibration no pair follows),
+# whose Doppler terms widen its peaks (a 50 um 1 kHz vibration: 27 bins against 4 wide;
+# a still target 5 us of thermal lag off its table: 13 bins against 120)
 MOVING_SPREAD_M = 1e-3
 
 
@@ -348,9 +350,10 @@ def peak_width_ratio(cap: Capture, plan, t0_s: float, time_s: np.ndarray | None,
     widths = np.concatenate([_strong_widths(power, plan.search.lo, plan.search.hi) for power in powers])
     if not np.isfinite(widths).sum() >= WIDTH_HEARD * widths.size:
         return float("nan")             # noise's peaks (no target in the band) say nothing of the tuning
-    if known is None and max(_spread(p[:, plan.search.lo: plan.search.hi]) for p in powers) \
-            * plan.model.metres_per_bin > MOVING_SPREAD_M:
-        return float("nan")             # plain peaks of a target moving at no known velocity: smeared
+    if known is None:
+        spread = max(_spread(p[:, plan.search.lo: plan.search.hi]) for p in powers)
+        if spread * plan.model.metres_per_bin > MOVING_SPREAD_M and spread > np.nanmedian(widths):
+            return float("nan")         # plain peaks of a target moving at no known velocity: smeared
     return float(np.nanmedian(widths) / own_width(plan.lut.points, nfft))
 
 

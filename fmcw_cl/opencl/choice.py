@@ -16,10 +16,8 @@ makes a new set.
 
 from __future__ import annotations
 
-import contextlib
 import fcntl
 import hashlib
-import io
 import json
 import os
 import subprocess
@@ -150,7 +148,7 @@ def cannot_compile(device) -> str | None:
 @dataclass
 class Verdict:
     """A device's self-check: whether it passed, why not, and the seconds of the timed
-    conversion (the best of three, warm) where it passed."""
+    conversion (the best of four) where it passed."""
 
     passed: bool
     why: str = ""
@@ -223,7 +221,7 @@ def check(selector: str, device, capture: Path) -> Verdict:
     if why is not None:
         return Verdict(False, f"cannot compile: {why}")
     try:
-        child = f"from {__name__} import _child; _child({selector!r}, {str(capture)!r})"
+        child = f"from fmcw_cl.opencl.selftest import timed; timed({selector!r}, {str(capture)!r})"
         proc = subprocess.run([sys.executable, "-c", child], capture_output=True, text=True,
                               timeout=CHECK_SECONDS)
     except subprocess.TimeoutExpired:
@@ -255,25 +253,6 @@ def _save(path: Path, store: dict) -> None:
     tmp = path.with_suffix(f".{os.getpid()}.tmp")
     tmp.write_text(json.dumps(store, indent=1))
     tmp.replace(path)
-
-
-def _child(selector: str, capture: str) -> None:
-    """The check of one device (`check`'s child): exits non-zero with the reason on a
-    mismatch; prints the best of three warm conversions' seconds as JSON."""
-    from fmcw_cl.engine import process
-    from fmcw_cl.opencl.processor import OpenCLProcessor
-    from fmcw_cl.opencl.selftest import check as self_check
-    from fmcw_cl.options import Options
-
-    with contextlib.redirect_stdout(io.StringIO()):      # its lines are the parent's to tell, not print
-        self_check(selector, used_variant=True)
-    processor = OpenCLProcessor(selector)
-    best = float("inf")
-    for _ in range(4):                                   # the first builds PoCL's local sizes
-        t = time.perf_counter()
-        process(Path(capture), Options(), processor)
-        best = min(best, time.perf_counter() - t)
-    print(json.dumps({"seconds": best}))
 
 
 DRIVERS = {"NVIDIA": "libnvidia-opencl.so.1", "AMD": "libamdocl64.so", "Intel": "libigdrcl.so"}

@@ -12,8 +12,13 @@ Oclgrind's diagnostics go to its own log (OCLGRIND_LOG), which the test reads.
 
 from __future__ import annotations
 
+import contextlib
+import io
+import json
 import sys
+import time
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 
@@ -206,6 +211,25 @@ def spectra(be, rng, group: str) -> None:
         close("verification, residuals (track_residual)", k_verify.residuals(be.rt, be.bufs, *track)[0],
               pairing.NUMPY.residuals(*track)[0], 1e-9)
     close("power spectra", be.power(d_x, None, None, nfft), pairing.power(x, None, None, nfft), 1e-5)
+
+
+def timed(selector: str, capture: str) -> None:
+    """A device's self-check for the automatic choice (`choice.check` runs it in a child
+    process): `check` of the variant the device uses, its lines kept back (a mismatch
+    exits non-zero naming it), then the best of four conversions of `capture`, printed
+    as JSON ({"seconds": s}; the first builds PoCL's kernels for their local sizes)."""
+    from fmcw_cl.engine import process
+    from fmcw_cl.options import Options
+
+    with contextlib.redirect_stdout(io.StringIO()):
+        check(selector, used_variant=True)
+    processor = OpenCLProcessor(selector)
+    best = float("inf")
+    for _ in range(4):
+        t = time.perf_counter()
+        process(Path(capture), Options(), processor)
+        best = min(best, time.perf_counter() - t)
+    print(json.dumps({"seconds": best}))
 
 
 if __name__ == "__main__":
