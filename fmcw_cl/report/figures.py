@@ -203,13 +203,17 @@ def echoes(track: Track, path: Path) -> Path:
     for name, ls in (("min_range_m", ":"), ("max_range_m", "-.")):
         level = float(track.attrs.get(name, np.nan))
         if np.isfinite(level):
-            ax.axhline(level, color="0.4", ls=ls, lw=0.8, label=f"{name.split('_')[0]} range {level:.3f} m")
+            ax.axhline(level, color="0.4", ls=ls, lw=0.8,
+                       label=f"the target's band {'from' if name == 'min_range_m' else 'to'} {level:.3f} m")
     ax.set_xlabel("time (ms)")
     ax.set_ylabel("distance (m; plain echoes carry their Doppler shift)")
     ax.set_ylim(0, float(track.attrs.get("unambiguous_range_m", 0.5)))
     ax.set_title(f"every echo: {e.time_s.size} in the plain spectra of {track.sweep_time_s.size} "
                  f"half-sweeps, {int(heard.sum())} of the target de-chirped")
-    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=2, fontsize=8, markerscale=4)
+    legend = ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=2, fontsize=8)
+    for handle in legend.legend_handles:           # the echoes' dots, big enough to see their kind
+        if hasattr(handle, "set_sizes"):
+            handle.set_sizes([16])
     ax.grid(alpha=0.3)
     fig.savefig(path, dpi=120, format="png")
     plt.close(fig)
