@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -14,6 +15,8 @@ from fmcw_cl.report import make_report
 from fmcw_cl.report.events import find_events
 from fmcw_cl.report.spectra import stretch_spectra
 from fmcw_cl.track import read_track
+
+ROOT = Path(__file__).parents[1]
 
 
 def exact_extremum(truth, t0, t1, quantity, sign):
@@ -78,6 +81,34 @@ def test_noise_makes_no_events():
     events = find_events(t, 0.3 + 3e-6 * rng.standard_normal(t.size), 4e-4 * rng.standard_normal(t.size),
                          0.3 * rng.standard_normal(t.size))
     assert events == []
+
+
+def test_no_event_at_the_datas_edge_or_at_a_gap():
+    """A take-off cut off while the foot still rises has its largest distance at its
+    last pair: not an apex; an extremum within half the acceleration's window of a gap
+    is not an event either (its extremum may lie in the gap); one well inside a run is."""
+    t = np.arange(2000) * 50e-6
+    rising = 0.07 + 2.0 * t ** 2                          # accelerating away to the last pair
+    assert find_events(t, rising, 4.0 * t, np.full(t.size, 4.0)) == []
+    hump = 0.2 - 8.0 * (t - 0.05) ** 2                    # an apex at 50 ms, velocity 0 there
+    events = find_events(t, hump, -16.0 * (t - 0.05), np.full(t.size, -16.0))
+    assert [(e.kind, round(e.time_s, 4)) for e in events] == [("apex", 0.05)]
+    gap = (t > 0.0503) & (t < 0.06)                       # data missing from 0.3 ms after the apex
+    cut = [np.where(gap, np.nan, x) for x in (hump, -16.0 * (t - 0.05), np.full(t.size, -16.0))]
+    assert find_events(t, *cut) == []
+
+
+def test_at_rest_only_where_the_verified_velocity_says_so(tmp_path):
+    """The shipped sample of a foot moving at 3.6-6.3 m/s has no event in its 8 ms: the
+    table says that no extremum lies in the data, not that the target is at rest."""
+    from fmcw_cl.engine import process
+    from fmcw_cl.track import write_track
+
+    for name, said in (("jump_wall_fading", "no extremum inside the verified stretches"),
+                       ("static_0p3m", "the target is at rest")):
+        track = process(ROOT / "data_samples" / f"{name}.h5")
+        make_report(write_track(tmp_path / f"{name}.track.h5", track), tmp_path / name)
+        assert f"| (none: {said}) |" in (tmp_path / name / "events.md").read_text()
 
 
 def test_correction_sharpens_the_spectrum(jump_capture, jump_track):

@@ -19,7 +19,7 @@ from ..capture import Capture, Truth
 from ..errors import CaptureError
 from ..evaluate import truth_at
 from ..track import Track, read_track
-from .events import Event, compare, find_events, left_out, mark_gaps, verified_stretches
+from .events import WINDOW_PAIRS, Event, compare, find_events, left_out, verified_stretches
 
 STATIC_MPS = 0.01        # a track is "static" when 95 % of its |velocity| is below this
 SLOW_MPS = 0.2           # spectra are shown where the target is this slow (no Doppler smear)
@@ -34,15 +34,16 @@ def is_static(track: Track) -> bool:
     return v.size > 10 and float(np.percentile(np.abs(v), 95)) < STATIC_MPS
 
 
-def true_events(truth: Truth, t0: float, t1: float) -> list[Event]:
-    """Events of the true trajectory between t0 and t1 (s), on a fine grid."""
+def true_events(truth: Truth, t0: float, t1: float, edge_s: float) -> list[Event]:
+    """Events of the true trajectory between t0 and t1 (s), on a fine grid: its own
+    extrema, none within `edge_s` of the span's ends (as for the track)."""
     g = np.arange(max(t0, truth.time_s[0]), min(t1, truth.time_s[-1]), TRUTH_GRID_S)
-    return find_events(g, *truth_at(truth, g), refine_s=20 * TRUTH_GRID_S)
+    return find_events(g, *truth_at(truth, g), refine_s=20 * TRUTH_GRID_S, edge_s=edge_s)
 
 
-def events_markdown(rows: list[dict], title: str, skipped: dict | None = None) -> str:
+def events_markdown(rows: list[dict], title: str, skipped: dict | None = None, at_rest: bool = False) -> str:
     """The event table as Markdown (times in ms; errors when a truth was matched; what
-    was left out, `events.left_out`, under it)."""
+    was left out, `events.left_out`, under it); with no event, `at_rest` says why."""
     truth = any(r["true_time_s"] is not None for r in rows)
     head = "| event | time (ms) | value | unit |"
     rule = "|---|---:|---:|---|"
@@ -51,7 +52,7 @@ def events_markdown(rows: list[dict], title: str, skipped: dict | None = None) -
         rule += "---:|---:|---:|---:|"
     lines = [f"# Events: {title}", "", head, rule]
     for r in rows:
-        kind = r["kind"].replace("_", " ") + (" (next to a gap)" if r.get("near_gap") else "")
+        kind = r["kind"].replace("_", " ")
         line = (f"| {kind} | {1e3 * r['time_s']:.3f} | {r['value']:.4g} | "
                 f"{UNITS[r['quantity']]} |")
         if truth:
@@ -64,7 +65,8 @@ def events_markdown(rows: list[dict], title: str, skipped: dict | None = None) -
                          f"{'–' if rel is None else f'{100 * rel:+.2f}'} |")
         lines.append(line)
     if not rows:
-        lines.append("| (none: the target is at rest) | | | |")
+        lines.append("| (none: the target is at rest) | | | |" if at_rest else
+                     "| (none: no extremum inside the verified stretches) | | | |")
     if skipped:
         k = skipped
         lines += ["", f"Events are taken from runs of at least {k['min_stretch_pairs']} valid pairs only: of "
@@ -125,11 +127,13 @@ def make_report(track_file: str | os.PathLike, outdir: str | os.PathLike,
     used = verified_stretches(track.valid)
     series = (track.distance_m, track.velocity_mps, track.acceleration_mps2)
     kept = [np.where(used, x, np.nan) for x in series]
-    ev = mark_gaps(find_events(track.time_s, *kept), track.time_s, used,
-                   float(track.attrs.get("modulation_period_s", 5e-5)))
+    edge_s = (WINDOW_PAIRS // 2) * float(track.attrs.get("modulation_period_s", 5e-5))
+    ev = find_events(track.time_s, *kept, edge_s=edge_s)
     skipped = left_out(track.valid, used)
     t0, t1 = (float(track.time_s[0]), float(track.time_s[-1])) if track.pairs else (0.0, 0.0)
-    rows = compare(ev, true_events(truth, t0, t1) if truth is not None else [])
+    rows = compare(ev, true_events(truth, t0, t1, edge_s) if truth is not None else [])
+    # at rest: what the verified velocities say, not the want of an event
+    at_rest = bool(used.any() and np.percentile(np.abs(track.velocity_mps[used]), 95) < STATIC_MPS)
 
     with atomic_path(out / "kinematics.png") as tmp:
         figures.kinematics(track, tmp, truth, ev)
@@ -157,7 +161,7 @@ def make_report(track_file: str | os.PathLike, outdir: str | os.PathLike,
             figures.precision(track, tmp, true_d)
         written.append(out / "precision.png")
     title = Path(str(track.attrs.get("source", track_file))).name
-    _write_text(out / "events.md", events_markdown(rows, title, skipped))
+    _write_text(out / "events.md", events_markdown(rows, title, skipped, at_rest))
     _write_text(out / "events.json", json.dumps(
         {"track": str(track_file), "source": str(src) if src else None, "events": rows, "left_out": skipped},
         indent=2))

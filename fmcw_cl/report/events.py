@@ -1,7 +1,7 @@
 """The event table (the paper's Table 1), found in a track without being told where.
 
 Events of a trajectory sampled every pair:
-- ``apex``: the largest distance;
+- ``apex``: the largest prominent maximum of the distance;
 - ``velocity_peak`` / ``velocity_valley``: prominent extrema of the velocity;
 - ``acceleration_peak`` / ``acceleration_valley``: prominent extrema of the acceleration;
 - ``impact``: an acceleration peak that stops an approach (the target moves towards
@@ -17,8 +17,11 @@ spread of its quietest stretch (that drops the noise of a resting target).
 
 Only verified stretches are used (`verified_stretches`): runs of valid pairs at least
 as long as the acceleration's Savitzky-Golay window (stages.kinematics.WINDOW_PAIRS),
-so that an isolated pair is never an event; an event within half a window of a pair
-left out is marked ``near_gap`` (its extremum may lie in the gap).
+so that an isolated pair is never an event. An extremum within half that window of the
+data's edge or of a gap is not an event: what happened may lie outside the data (a
+take-off whose capture ends while the foot still rises has its largest distance at
+its last pair, and no apex). The true events are found the same way on the truth's
+own trajectory over the capture's span.
 """
 
 from __future__ import annotations
@@ -37,6 +40,7 @@ TOP = 0.9            # the cubic is fitted where |y| is above this share of the 
 NOISE_FACTOR = 10.0
 NOISE_BLOCK = 100    # samples per stretch of the noise estimate
 MATCH_S = 5e-3       # a measured event and a true one are the same within this
+EDGE_S = (WINDOW_PAIRS // 2) * 50e-6   # no event this near an edge (s): half the window at 20 kHz
 
 
 @dataclass(frozen=True)
@@ -47,7 +51,6 @@ class Event:
     quantity: str    # distance_m, velocity_mps or acceleration_mps2
     time_s: float
     value: float
-    near_gap: bool = False
 
 
 def verified_stretches(valid: np.ndarray, min_pairs: int = WINDOW_PAIRS) -> np.ndarray:
@@ -63,17 +66,6 @@ def left_out(valid: np.ndarray, used: np.ndarray) -> dict:
     """Pairs an event table left out, by why: invalid, or valid in too short a run."""
     return {"pairs": int(valid.size), "invalid": int(np.sum(~valid)),
             "short_stretches": int(np.sum(valid & ~used)), "min_stretch_pairs": WINDOW_PAIRS}
-
-
-def mark_gaps(events: list[Event], time_s: np.ndarray, used: np.ndarray, period_s: float) -> list[Event]:
-    """`events` with near_gap set where a pair left out lies within half a window."""
-    gaps = time_s[~used]
-    reach = 0.5 * WINDOW_PAIRS * period_s
-    out = []
-    for e in events:
-        near = bool(gaps.size and np.min(np.abs(gaps - e.time_s)) <= reach)
-        out.append(Event(e.kind, e.quantity, e.time_s, e.value, near))
-    return out
 
 
 def _refine(t: np.ndarray, y: np.ndarray, i: int, width: float) -> tuple[float, float]:
@@ -110,21 +102,27 @@ def _noise(y: np.ndarray) -> float:
     return float(np.min(np.std(y[:blocks * NOISE_BLOCK].reshape(blocks, NOISE_BLOCK), axis=1)))
 
 
-def _extrema(t: np.ndarray, y: np.ndarray, sign: int, width: float) -> list[tuple[float, float]]:
-    """Prominent maxima (sign +1) or minima (sign -1) of y(t); NaNs are skipped."""
+def _extrema(t: np.ndarray, y: np.ndarray, sign: int, width: float, edge_s: float,
+             prominence: float = PROMINENCE) -> list[tuple[float, float]]:
+    """Prominent maxima (sign +1) or minima (sign -1) of y(t), none within `edge_s` of
+    an end of y's runs of finite values (the data's edges, its gaps)."""
     ok = np.isfinite(y)
     if ok.sum() < 5:
         return []
+    spans = runs(ok)
+    ends = np.concatenate([t[spans[:, 0]], t[spans[:, 1] - 1]])         # each run's first and last time
     tt, yy = t[ok], y[ok]
     scale = float(np.max(np.abs(yy)))
     if scale == 0:
         return []
-    idx, _ = find_peaks(sign * yy, prominence=max(PROMINENCE * scale, NOISE_FACTOR * _noise(yy)))
-    return [_refine(tt, yy, int(i), width) for i in idx]
+    idx, _ = find_peaks(sign * yy, prominence=max(prominence * scale, NOISE_FACTOR * _noise(yy)))
+    inner = [int(i) for i in idx if np.min(np.abs(ends - tt[i])) > edge_s]
+    return [_refine(tt, yy, i, width) for i in inner]
 
 
 def find_events(time_s: np.ndarray, distance_m: np.ndarray, velocity_mps: np.ndarray,
-                acceleration_mps2: np.ndarray, refine_s: float = REFINE_S) -> list[Event]:
+                acceleration_mps2: np.ndarray, refine_s: float = REFINE_S,
+                edge_s: float = EDGE_S) -> list[Event]:
     """The events of one trajectory (NaN marks invalid pairs), sorted by time.
 
     Parameters
@@ -133,18 +131,20 @@ def find_events(time_s: np.ndarray, distance_m: np.ndarray, velocity_mps: np.nda
     distance_m, velocity_mps, acceleration_mps2 : the track's values at those times.
     refine_s : largest half-width (s) of the cubic fitted around each extremum; a
         noise-free trajectory on a fine grid needs little.
+    edge_s : no extremum within this of the data's edges or gaps is an event (s).
     """
     t = np.asarray(time_s, dtype=np.float64)
     d, v, a = (np.asarray(x, dtype=np.float64) for x in (distance_m, velocity_mps, acceleration_mps2))
     events: list[Event] = []
     ok = np.isfinite(d)
     if ok.sum() > 1 and np.ptp(d[ok]) > NOISE_FACTOR * _noise(d[ok]):   # not at rest
-        i = int(np.flatnonzero(ok)[np.argmax(d[ok])])
-        events.append(Event("apex", "distance_m", *_refine(t, d, i, refine_s)))
+        tops = _extrema(t, d, 1, refine_s, edge_s, prominence=0.0)
+        if tops:
+            events.append(Event("apex", "distance_m", *max(tops, key=lambda top: top[1])))
     for sign, name in ((1, "peak"), (-1, "valley")):
-        for tm, val in _extrema(t, v, sign, refine_s):
+        for tm, val in _extrema(t, v, sign, refine_s, edge_s):
             events.append(Event(f"velocity_{name}", "velocity_mps", tm, val))
-        for tm, val in _extrema(t, a, sign, refine_s):
+        for tm, val in _extrema(t, a, sign, refine_s, edge_s):
             events.append(Event(f"acceleration_{name}", "acceleration_mps2", tm, val))
     vel_at = _interp_finite(t, v)
     for e in [e for e in events if e.kind == "acceleration_peak"]:
