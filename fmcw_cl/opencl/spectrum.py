@@ -52,8 +52,8 @@ def tables(nfft: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 def local_size(rt: Runtime, nfft: int) -> int:
     """Work-group size by device type, at most one work-item per first-stage butterfly.
-    On an H100, a 1 s capture's FFT + peak + echoes took 3.0 ms with 128 work-items, 3.1
-    with 64, 3.5 with 256 and 5.6-5.9 with 512-1024 (benchmarks/README.md, "On a GPU")."""
+    On an H100 (2026-11-23), a 1 s capture's FFT + peak + echoes took 3.0 ms with 128
+    work-items, 3.1 with 64, 3.5 with 256 and 5.6-5.9 with 512-1024."""
     return min(rt.group_size(16, 128), nfft // 4)
 
 
