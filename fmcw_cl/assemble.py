@@ -75,6 +75,9 @@ def assemble(plan: Plan, parts: list[ChunkMeasurements], processor: ChunkProcess
     dist[~valid] = np.nan
     vel[~valid] = np.nan
     acc = kinematics.acceleration(vel, valid, period_s)
+    if options.dechirp:         # the paper's method (--no-dechirp) is reported as the paper did
+        half_gap = with_gaps(0.5 * (t_f - t_r), 0.0)
+        dist -= pairing.acceleration_bias(kinematics.held(acc, valid), half_gap, plan.model)
     integrated = with_gaps(res["integrated"], 0)
     varies = np.unique(integrated[valid]).size > 1
 

@@ -31,7 +31,7 @@ from . import numeric
 from .capture import Capture
 from .chunks import held_end_to_end
 from .processor import Held
-from .stages import resample, sync
+from .stages import kinematics, pairing, resample, sync
 
 STRETCHES = 3
 STRETCH_PERIODS = 240
@@ -47,6 +47,7 @@ FIT_SAMPLES = 5.0         # unsettled trials this near the best are fitted by a 
 TRIAL_ITERATIONS = 3      # de-chirp passes of a trial conversion: on a lab's landings six
                           # moved the delay by 0.02 samples at most, two left it 1-4 samples off
 SETTLED = 0.25            # a mismatch this many of its standard errors from zero is the root
+BIAS_WINDOW = 61          # pairs (3 ms) of the acceleration that corrects trial distances (pairs_of)
 
 
 @dataclass(frozen=True)
@@ -112,10 +113,10 @@ def mismatches(held: Held, plan, lags: list[float], processor) -> list[Mismatch]
     at = held.at(lags)
     each = by_stretch(at, processor.process_apart(at))
     n = len(each) // len(lags)
-    return [mismatch(each[j * n: (j + 1) * n]) for j in range(len(lags))]
+    return [mismatch(each[j * n: (j + 1) * n], plan.model) for j in range(len(lags))]
 
 
-def mismatch(stretches: list[list]) -> Mismatch:
+def mismatch(stretches: list[list], model) -> Mismatch:
     """The kinematic inconsistency of converted trial stretches (each a list of
     ChunkMeasurements): their longest bridged runs' mean drift, its standard error and
     the runs' mean distance."""
@@ -123,7 +124,7 @@ def mismatch(stretches: list[list]) -> Mismatch:
     for parts in stretches:
         if not parts:
             continue
-        t, d, v, ok = pairs_of(parts)
+        t, d, v, ok = pairs_of(parts, model)
         run = max(bridged_runs(t, d, v, ok), key=np.size, default=np.zeros(0, np.int64))
         if run.size < MIN_RUN:
             continue
@@ -156,13 +157,23 @@ def bridged_runs(t: np.ndarray, d: np.ndarray, v: np.ndarray, ok: np.ndarray) ->
     return np.split(idx, np.flatnonzero((b - a > BRIDGE_PAIRS + 1) | ((b - a > 1) & (jump > BRIDGE_M))) + 1)
 
 
-def pairs_of(parts) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def pairs_of(parts, model) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Time (s), distance (m), velocity (m/s) and validity of the pairs of converted
-    chunks (processor.ChunkMeasurements)."""
-    return (np.concatenate([0.5 * (q.t_rise + q.t_fall) for q in parts]),
-            np.concatenate([q.result.distance for q in parts]),
-            np.concatenate([q.result.velocity for q in parts]),
-            np.concatenate([q.reason == 0 for q in parts]))
+    chunks (processor.ChunkMeasurements) of one stretch, the distances of valid runs
+    free of the acceleration's bias (pairing.acceleration_bias, as the track's are;
+    `model`: the plan's DopplerModel)."""
+    t = np.concatenate([0.5 * (q.t_rise + q.t_fall) for q in parts])
+    d = np.concatenate([q.result.distance for q in parts])
+    v = np.concatenate([q.result.velocity for q in parts])
+    ok = np.concatenate([q.reason == 0 for q in parts])
+    if t.size > 1:
+        # over a wider window than the track's: a trial's velocities may be noise (a
+        # chirp far off its table: 17 mm/s a pair), whose acceleration must not move the
+        # distances it is integrated against
+        acc = kinematics.acceleration(np.where(ok, v, np.nan), ok, float(np.median(np.diff(t))), BIAS_WINDOW)
+        half_gap = np.concatenate([0.5 * (q.t_fall - q.t_rise) for q in parts])
+        d = d - pairing.acceleration_bias(kinematics.held(acc, ok, BIAS_WINDOW), half_gap, model)
+    return t, d, v, ok
 
 
 def refine_lag(cap: Capture, plan, processor):

@@ -178,7 +178,7 @@ def test_a_chirp_far_from_its_table_is_calibrated_on_its_own_rest(tmp_path, fmcw
     assert abs(a["rest_calibration_distance_m"] - 0.07) < 0.2e-3
     assert a["scale_uncertainty_ppm"] < 1000 and a["invalid_uncalibrated"] == 0
     assert acc["valid_share"] >= 0.99
-    assert acc["distance_p95_m"] <= 0.3e-3 and acc["distance_max_m"] <= 0.6e-3
+    assert acc["distance_p95_m"] <= 0.1e-3 and acc["distance_max_m"] <= 0.4e-3
     assert acc["velocity_p95_mps"] <= 0.01
     proc = fmcw("process", path, "-o", tmp_path / "o", "--backend", "opencl")
     assert "calibrated on its own rest" in proc.stderr and "warning" not in proc.stderr

@@ -42,3 +42,16 @@ def centred(valid: np.ndarray, window: int = WINDOW_PAIRS) -> np.ndarray:
     for a, b in runs(valid):
         out[a + half: b - half] = True
     return out
+
+
+def held(acceleration: np.ndarray, valid: np.ndarray, window: int = WINDOW_PAIRS) -> np.ndarray:
+    """`acceleration` (computed over `window` pairs) where it is `centred`, each other
+    valid pair of a run taking the nearest centred value (not the run end's
+    extrapolation); 0 in runs shorter than the window, and where not valid. For a
+    correction that needs the acceleration at every valid pair."""
+    out = np.zeros(np.size(valid))
+    half = window // 2
+    for a, b in runs(valid):
+        if b - a > 2 * half:
+            out[a:b] = acceleration[np.clip(np.arange(a, b), a + half, b - half - 1)]
+    return np.nan_to_num(out)
