@@ -67,6 +67,9 @@ class DopplerModel:
         the window-weighted slope of beta, i.e. the effective sweep time.
     metres_per_bin : distance of one bin of the padded FFT (m).
     nfft : padded FFT length.
+    q_rise, q_fall : apparent-distance shift per m/s^2 of acceleration about the
+        half-sweep's own centre (s^2): the window-weighted slope of the displacement
+        a (t - t_c)^2 / 2 as a phase (`acceleration_bias`).
     """
 
     beta_rise: np.ndarray
@@ -75,6 +78,8 @@ class DopplerModel:
     k_fall: float
     metres_per_bin: float
     nfft: int
+    q_rise: float = 0.0
+    q_fall: float = 0.0
 
 
 def doppler_model(lut: Lut, half_sweep_s: float, nfft: int, win: np.ndarray) -> DopplerModel:
@@ -91,11 +96,15 @@ def doppler_model(lut: Lut, half_sweep_s: float, nfft: int, win: np.ndarray) -> 
         # a small phase error eps_j moves the peak by the window-weighted LS slope
         return metres_per_cycle * np.sum(win * j * beta) / np.sum(win * j * j)
 
+    def q_eff(u):
+        # the phase of the displacement a (t - t_c)^2 / 2, per m/s^2, in cycles
+        return k_eff((nidx / C) * lut.nu_hz * np.square((u - 0.5) * half_sweep_s))
+
     br, bf = basis(lut.u_rise), basis(lut.u_fall)
     for beta in (br, bf):
         beta.flags.writeable = False       # a device keeps its first upload (Buffers.constant)
     return DopplerModel(br, bf, float(k_eff(br)), float(k_eff(bf)),
-                        metres_per_cycle / nfft, nfft)
+                        metres_per_cycle / nfft, nfft, float(q_eff(lut.u_rise)), float(q_eff(lut.u_fall)))
 
 
 @dataclass(frozen=True)
@@ -262,14 +271,23 @@ def solve_pair(d_r, d_f, v0, half_gap, model: DopplerModel):
 
 def acceleration_bias(acceleration, half_gap, model: DopplerModel):
     """The bias (m) of `solve_pair`'s distance for a target accelerating at
-    `acceleration` (m/s^2): both half-sweeps are de-chirped at the pair's one velocity,
-    but the rising one's is v - a h and the falling one's v + a h (h = `half_gap`, s);
-    each leftover moves its apparent distance by k (`k_rise`, `k_fall`), and the mean by
-    a h (k_fall - k_rise) / 2, while the velocity, their difference, is unbiased. At the
-    paper's sweep 0.36 um per m/s^2: 0.13 mm at a jump's 360 m/s^2, a drift of the
-    distance against the integrated velocity that the sync delay's refinement took for
-    a delay error (7 samples on a 15 ms take-off)."""
-    return acceleration * half_gap * 0.5 * (model.k_fall - model.k_rise)
+    `acceleration` (m/s^2). Both half-sweeps are de-chirped at the pair's one velocity
+    (its value at the pair's centre), but the target moves by a tau^2 / 2 more, tau the
+    time from that centre: tau = t - t_c -+ h in the rising and falling half-sweep (h =
+    `half_gap`, s). As a phase its window-weighted slope moves each apparent distance,
+    by q -+ h k + h^2 / 2 per m/s^2 (q: the slope of a (t - t_c)^2 / 2, `q_rise`,
+    `q_fall`; -+ h k: the velocity a h off the de-chirp's; h^2 / 2: where the target is at
+    the half-sweep's centre), and `solve_pair` carries them into the distance. At the
+    paper's sweep 0.31 um per m/s^2 (0.11 mm at a jump's 360 m/s^2; 0.29 seen on
+    constant accelerations of 30-300 m/s^2): the distance drifts against the integrated
+    velocity by the acceleration's change, which the sync delay's refinement took for a
+    delay error (7 samples on a 15 ms take-off). The velocity's bias, (c_f - c_r) over
+    the solve's denominator, vanishes for a table's symmetric sweeps."""
+    h = half_gap
+    c_r = model.q_rise - h * model.k_rise + 0.5 * h * h
+    c_f = model.q_fall + h * model.k_fall + 0.5 * h * h
+    dv = (c_f - c_r) / (2 * h + model.k_fall - model.k_rise)
+    return acceleration * (0.5 * (c_r + c_f) - 0.5 * dv * (model.k_rise + model.k_fall))
 
 
 def _residuals(t: np.ndarray, dist: np.ndarray, vel: np.ndarray, trusted: np.ndarray,
