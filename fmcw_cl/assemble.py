@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import __version__, echoes, target, wall_images
+from . import __version__, echoes, target, uncertainty, wall_images
 from .errors import CaptureError
 from .plan import DELAY_BOUND_MPS, PERIOD_WARN, Plan, delay_reliable
 from .processor import SURVEY_KEYS, ChunkMeasurements, ChunkProcessor
@@ -75,11 +75,26 @@ def assemble(plan: Plan, parts: list[ChunkMeasurements], processor: ChunkProcess
     dist[~valid] = np.nan
     vel[~valid] = np.nan
     acc = kinematics.acceleration(vel, valid, period_s)
+    held = kinematics.held(acc, valid)
+    bias = np.zeros(dist.size)
     if options.dechirp:         # the paper's method (--no-dechirp) is reported as the paper did
-        half_gap = with_gaps(0.5 * (t_f - t_r), 0.0)
-        dist -= pairing.acceleration_bias(kinematics.held(acc, valid), half_gap, plan.model)
+        bias = pairing.acceleration_bias(held, with_gaps(0.5 * (t_f - t_r), 0.0), plan.model)
+        dist -= bias
     integrated = with_gaps(res["integrated"], 0)
     varies = np.unique(integrated[valid]).size > 1
+    # validity per quantity: the velocity verified against the distances' course, the
+    # acceleration where its window lies whole on verified velocities
+    noise_m, noise_mps = uncertainty.local_scatter(dist, valid), uncertainty.local_scatter(vel, valid)
+    vel_valid = uncertainty.velocity_verified(dist, vel, valid, period_s, noise_m, noise_mps)
+    acc = kinematics.acceleration(vel, vel_valid, period_s)
+    acc_valid = kinematics.centred(vel_valid)
+    lut = plan.lut
+    u = uncertainty.pair_uncertainty(
+        dist, vel, valid, vel_valid, noise_m, noise_mps,
+        (with_gaps(res["dechirped_snr_rise"], np.nan), with_gaps(res["dechirped_snr_fall"], np.nan)),
+        held, bias, np.maximum(integrated, 1), period_s=period_s, points=options.points,
+        bandwidth_hz=lut.bandwidth_hz, refractive_index=info.refractive_index, scale_ppm=lut.scale_ppm,
+        delay_m=plan.lag_sigma_m, delay_mps=plan.lag_sigma_mps, period_ratio=plan.period_ratio)
 
     def interleave(rise, fall):
         return np.stack([res[rise], res[fall]], axis=1).ravel()
@@ -94,7 +109,6 @@ def assemble(plan: Plan, parts: list[ChunkMeasurements], processor: ChunkProcess
                             np.inf if options.max_range is None else options.max_range,
                             {k: np.concatenate([p.survey[k] for p in parts]) for k in SURVEY_KEYS},
                             _spectrum(parts))
-    lut = plan.lut
     attrs = {
         "points": options.points,
         "fft_length": plan.model.nfft,
@@ -151,6 +165,10 @@ def assemble(plan: Plan, parts: list[ChunkMeasurements], processor: ChunkProcess
         "chirp": str(Path(options.chirp).resolve()) if options.chirp else "",
         "acceleration_smoothing": f"Savitzky-Golay derivative, order {kinematics.POLYORDER}, "
                                   f"{kinematics.WINDOW_PAIRS} pairs",
+        "velocity_check": uncertainty.CHECK,
+        "velocity_unverified_pairs": int(np.sum(valid & ~vel_valid)),
+        "uncertainty_coverage_factor": uncertainty.COVERAGE,
+        **uncertainty.budget_attrs(u),
         "backend": processor.name,
         "device": processor.device,
         "software": f"fmcw-cl {__version__}",
@@ -166,5 +184,7 @@ def assemble(plan: Plan, parts: list[ChunkMeasurements], processor: ChunkProcess
         sweep_distance_dechirped_m=interleave("dechirped_rise", "dechirped_fall"),
         sweep_snr_dechirped_db=interleave("dechirped_snr_rise", "dechirped_snr_fall"),
         time_s=times[order], distance_m=dist, velocity_mps=vel, acceleration_mps2=acc,
-        valid=valid, attrs=attrs, reason=reason, sweep_reason=np.repeat(reason_owned, 2),
+        valid=valid, velocity_valid=vel_valid, acceleration_valid=acc_valid,
+        distance_uncertainty_m=u.distance_m, velocity_uncertainty_mps=u.velocity_mps,
+        attrs=attrs, reason=reason, sweep_reason=np.repeat(reason_owned, 2),
         integrated=integrated if varies else None, period_s=period_s, chirp=plan.chirp)

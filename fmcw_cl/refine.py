@@ -23,7 +23,7 @@ keeps the intensity estimate.
 from __future__ import annotations
 
 import functools
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -54,11 +54,14 @@ BIAS_WINDOW = 61          # pairs (3 ms) of the acceleration that corrects trial
 class Mismatch:
     """Kinematic inconsistency of a trial delay: `mps`, the drift of distance less the
     integrated velocity (m/s, mean over stretches; NaN when none could be measured),
-    `sigma_mps` its standard error, `distance_m` the stretches' mean distance."""
+    `sigma_mps` its standard error, `distance_m` the stretches' mean distance,
+    `distances` every pair's distance of the stretches (NaN where not valid), for the
+    delay's effect on the same pairs."""
 
     mps: float
     sigma_mps: float
     distance_m: float
+    distances: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
 
 def drift(t: np.ndarray, d: np.ndarray, v: np.ndarray) -> tuple[float, float]:
@@ -120,11 +123,12 @@ def mismatch(stretches: list[list], model) -> Mismatch:
     """The kinematic inconsistency of converted trial stretches (each a list of
     ChunkMeasurements): their longest bridged runs' mean drift, its standard error and
     the runs' mean distance."""
-    slopes, errors, dist = [], [], []
+    slopes, errors, dist, every = [], [], [], []
     for parts in stretches:
         if not parts:
             continue
         t, d, v, ok = pairs_of(parts, model)
+        every.append(np.where(ok, d, np.nan))
         run = max(bridged_runs(t, d, v, ok), key=np.size, default=np.zeros(0, np.int64))
         if run.size < MIN_RUN:
             continue
@@ -132,15 +136,16 @@ def mismatch(stretches: list[list], model) -> Mismatch:
         slopes.append(slope)
         errors.append(se)
         dist.append(float(np.mean(d[run])))
+    every = np.concatenate(every) if every else np.zeros(0)
     if not slopes:
-        return Mismatch(float("nan"), float("nan"), float("nan"))
+        return Mismatch(float("nan"), float("nan"), float("nan"), every)
     # the standard error of the mean: from the runs' residuals, or from the stretches'
     # spread where that is larger (the residuals of d - integral of v are not white)
     n = len(slopes)
     sigma = float(np.sqrt(np.sum(np.square(errors)))) / n
     if n > 1:
         sigma = max(sigma, float(np.std(slopes, ddof=1)) / np.sqrt(n))
-    return Mismatch(float(np.mean(slopes)), sigma, float(np.mean(dist)))
+    return Mismatch(float(np.mean(slopes)), sigma, float(np.mean(dist)), every)
 
 
 def bridged_runs(t: np.ndarray, d: np.ndarray, v: np.ndarray, ok: np.ndarray) -> list[np.ndarray]:
@@ -190,7 +195,7 @@ def refine_lag(cap: Capture, plan, processor):
         return plan
     # d(mismatch)/d(lag) and d(distance)/d(lag) from the first step: smooth in the lag
     slope = (ms[1].mps - ms[0].mps) / STEP_SAMPLES
-    moves = (ms[1].distance_m - ms[0].distance_m) / STEP_SAMPLES
+    moves = distance_step(ms[0], ms[1]) / STEP_SAMPLES
     settled = False
     while len(xs) < MAX_EVALUATIONS:
         a, b = [k for k, m in enumerate(ms) if np.isfinite(m.mps)][-2:]
@@ -233,6 +238,16 @@ def refine_lag(cap: Capture, plan, processor):
     return replace(plan, lag=lag, lag_refined=True, lag_mismatch_mps=left,
                    lag_sigma_samples=sigma_lag, lag_sigma_mps=sigma_mps,
                    lag_sigma_m=abs(moves) * sigma_lag, lag_at_m=ms[best].distance_m)
+
+
+def distance_step(a: Mismatch, b: Mismatch) -> float:
+    """How far trial `b` moves the distances of `a` (m): the median over the pairs valid
+    in both (the runs' mean distances differ by which pairs each kept: on a moving
+    target, by centimetres that no delay made). NaN when none are."""
+    if a.distances.size != b.distances.size:
+        return float("nan")
+    both = np.isfinite(a.distances) & np.isfinite(b.distances)
+    return float(np.median(b.distances[both] - a.distances[both])) if both.any() else float("nan")
 
 
 def line_root(x: np.ndarray, y: np.ndarray, sigma: np.ndarray) -> tuple[float, float, float] | None:

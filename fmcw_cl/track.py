@@ -39,6 +39,18 @@ class Track:
     integrated: np.ndarray | None = None      # per pair, half-sweeps of a direction summed (when K varies)
     period_s: float | None = None             # modulation period (s): time resolution of one half-sweep pair
     chirp: Chirp | None = None                # the chirp that replaced the G(I) table, if one did
+    velocity_valid: np.ndarray | None = None  # per pair: the velocity verified (None: as `valid`)
+    acceleration_valid: np.ndarray | None = None   # ... its window whole on verified velocities
+    distance_uncertainty_m: np.ndarray | None = None    # per pair: expanded uncertainty (k = 2)
+    velocity_uncertainty_mps: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        # a track written before validity per quantity: its velocities and accelerations
+        # as valid as its distances
+        if self.velocity_valid is None:
+            self.velocity_valid = np.asarray(self.valid, bool).copy()
+        if self.acceleration_valid is None:
+            self.acceleration_valid = np.asarray(self.valid, bool) & np.isfinite(self.acceleration_mps2)
 
     @property
     def time_resolution_s(self) -> np.ndarray | None:
@@ -105,6 +117,10 @@ def write_track(path: str | os.PathLike, track: Track) -> Path:
         t.create_dataset("valid", data=np.asarray(track.valid, bool))
         if track.reason is not None:
             t.create_dataset("reason", data=np.asarray(track.reason, np.uint8))
+        for name in OPTIONAL_PAIR_DATASETS:
+            x = getattr(track, name)
+            if x is not None:
+                t.create_dataset(name, data=np.asarray(x, bool if name.endswith("valid") else np.float64))
         if track.integrated is not None:
             t.create_dataset("integrated_sweeps", data=np.asarray(track.integrated, np.uint16))
             t.create_dataset("time_resolution_s", data=np.asarray(track.time_resolution_s, np.float64))
@@ -115,6 +131,8 @@ def write_track(path: str | os.PathLike, track: Track) -> Path:
     return path
 
 
+OPTIONAL_PAIR_DATASETS = ("velocity_valid", "acceleration_valid", "distance_uncertainty_m",
+                          "velocity_uncertainty_mps")
 ECHO_COLUMNS = (("time_s", np.float64), ("distance_m", np.float64), ("snr_db", np.float32),
                 ("current_rising", bool), ("tracked", bool))
 PERSISTENT_COLUMNS = ("time_s", "distance_m", "snr_db", "share", "relative_db", "in_band", "diffuse")
@@ -151,7 +169,8 @@ def read_track(path: str | os.PathLike) -> Track:
             ("sweep_distance_dechirped_m", s, "distance_dechirped_m"),
             ("sweep_snr_dechirped_db", s, "snr_dechirped_db"),
             ("sweep_reason", s, "reason"), ("reason", t, "reason"),
-            ("integrated", t, "integrated_sweeps")) if key in g}
+            ("integrated", t, "integrated_sweeps"),
+            *((name, t, name) for name in OPTIONAL_PAIR_DATASETS)) if key in g}
         if "modulation_period_s" in attrs:
             optional["period_s"] = float(attrs["modulation_period_s"])
         if "echoes" in f:

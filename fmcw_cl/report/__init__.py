@@ -3,7 +3,7 @@
 `make_report` writes, into one folder (each file atomically):
 kinematics.png, echoes.png (every echo over range and time, when the track lists
 them), spectra.png (when the source capture is readable), precision.png (static
-targets only), events.md and events.json.
+targets only), events.md and events.json, uncertainty.md (the GUM budget).
 """
 
 from __future__ import annotations
@@ -19,6 +19,7 @@ from ..capture import Capture, Truth
 from ..errors import CaptureError
 from ..evaluate import truth_at
 from ..track import Track, read_track
+from .budget import budget_markdown
 from .events import WINDOW_PAIRS, Event, compare, find_events, left_out, verified_stretches
 
 STATIC_MPS = 0.01        # a track is "static" when 95 % of its |velocity| is below this
@@ -30,7 +31,7 @@ UNITS = {"distance_m": "m", "velocity_mps": "m/s", "acceleration_mps2": "m/s²"}
 
 
 def is_static(track: Track) -> bool:
-    v = track.velocity_mps[track.valid]
+    v = track.velocity_mps[track.velocity_valid]
     return v.size > 10 and float(np.percentile(np.abs(v), 95)) < STATIC_MPS
 
 
@@ -125,15 +126,19 @@ def make_report(track_file: str | os.PathLike, outdir: str | os.PathLike,
             truth = cap.truth()
     written: list[Path] = []
     used = verified_stretches(track.valid)
-    series = (track.distance_m, track.velocity_mps, track.acceleration_mps2)
-    kept = [np.where(used, x, np.nan) for x in series]
+    # each quantity where it is valid itself: a verified distance may carry a velocity
+    # or an acceleration that is not
+    series = ((track.distance_m, used), (track.velocity_mps, used & track.velocity_valid),
+              (track.acceleration_mps2, used & track.acceleration_valid))
+    kept = [np.where(ok, x, np.nan) for x, ok in series]
     edge_s = (WINDOW_PAIRS // 2) * float(track.attrs.get("modulation_period_s", 5e-5))
     ev = find_events(track.time_s, *kept, edge_s=edge_s)
     skipped = left_out(track.valid, used)
     t0, t1 = (float(track.time_s[0]), float(track.time_s[-1])) if track.pairs else (0.0, 0.0)
     rows = compare(ev, true_events(truth, t0, t1, edge_s) if truth is not None else [])
     # at rest: what the verified velocities say, not the want of an event
-    at_rest = bool(used.any() and np.percentile(np.abs(track.velocity_mps[used]), 95) < STATIC_MPS)
+    moving = used & track.velocity_valid
+    at_rest = bool(moving.any() and np.percentile(np.abs(track.velocity_mps[moving]), 95) < STATIC_MPS)
 
     with atomic_path(out / "kinematics.png") as tmp:
         figures.kinematics(track, tmp, truth, ev)
@@ -165,7 +170,8 @@ def make_report(track_file: str | os.PathLike, outdir: str | os.PathLike,
     _write_text(out / "events.json", json.dumps(
         {"track": str(track_file), "source": str(src) if src else None, "events": rows, "left_out": skipped},
         indent=2))
-    written += [out / "events.md", out / "events.json"]
+    _write_text(out / "uncertainty.md", budget_markdown(track, title, truth))
+    written += [out / "events.md", out / "events.json", out / "uncertainty.md"]
     left = {} if not missing or not track.pairs else {"spectra.png and the truth": missing}
     return {"written": [str(p) for p in written], "events": rows, "left_out": left}
 

@@ -13,7 +13,6 @@ import numpy as np  # noqa: E402
 
 from ..capture import Truth  # noqa: E402
 from ..evaluate import crb_pair_m, eta_from_peak_snr, truth_at  # noqa: E402
-from ..stages.kinematics import centred  # noqa: E402
 from ..track import Track  # noqa: E402
 from .events import Event  # noqa: E402
 from .spectra import Spectra  # noqa: E402
@@ -33,7 +32,7 @@ def kinematics(track: Track, path: Path, truth: Truth | None = None,
     t_ms = 1e3 * track.time_s
     fig, axes = plt.subplots(3, 1, sharex=True, figsize=(9, 8), constrained_layout=True)
     true = truth_at(truth, track.time_s) if truth is not None else None
-    shown = (track.valid, track.valid, centred(track.valid))      # no acceleration at a run's edges
+    shown = (track.valid, track.velocity_valid, track.acceleration_valid)   # each where valid itself
     for k, (ax, (name, label)) in enumerate(zip(axes, PANELS, strict=True)):
         y = np.where(shown[k], getattr(track, name), np.nan)
         ref, scale, label = _scaled(y, name, label)
@@ -47,8 +46,8 @@ def kinematics(track: Track, path: Path, truth: Truth | None = None,
         ax.set_ylabel(label)
         ax.ticklabel_format(axis="y", useOffset=False)
         ax.grid(alpha=0.3)
-    if not centred(track.valid).any() and track.valid.any():
-        axes[2].text(0.5, 0.5, "no run of valid pairs as long as the acceleration's window",
+    if not track.acceleration_valid.any() and track.valid.any():
+        axes[2].text(0.5, 0.5, "no run of verified velocities as long as the acceleration's window",
                      transform=axes[2].transAxes, ha="center", va="center", fontsize=9, color="0.4")
     axes[0].legend(loc="best", fontsize=8)
     axes[-1].set_xlabel("time (ms)")
@@ -144,6 +143,10 @@ def precision(track: Track, path: Path, true_distance_m: float | None = None) ->
     g = np.linspace(x_um.min(), x_um.max(), 300)
     ax.plot(g, np.exp(-0.5 * (g / s_um) ** 2) / (s_um * np.sqrt(2 * np.pi)), "k", lw=1.2,
             label=f"Gaussian: σ = {s_um:.2f} µm")
+    if track.distance_uncertainty_m is not None and track.valid.any():
+        u_um = 1e6 * float(np.median(track.distance_uncertainty_m[track.valid]))
+        ax.axvspan(-u_um, u_um, color="C1", alpha=0.12, lw=0,
+                   label=f"expanded uncertainty (k = 2), median of the pairs: ±{u_um:.2f} µm")
     if true_distance_m is not None:
         ax.axvline(1e6 * (true_distance_m - mean), color="C3", ls="--",
                    label=f"truth ({1e6 * (mean - true_distance_m):+.1f} µm bias)")

