@@ -23,6 +23,7 @@ from fmcw_cl.capture import Capture
 from fmcw_cl.options import Options
 from fmcw_cl.plan import make_plan
 from fmcw_cl.processor import NumpyProcessor
+from fmcw_cl.refine import disagreement
 from fmcw_cl.simulator import LAB, SimulationConfig, jump, rail, simulate_capture
 
 parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -36,8 +37,8 @@ rng = np.random.default_rng(args.seed)
 SPANS = {"take-off": (jump(0.3), 0.045, 0.09), "landing": (jump(0.3), 0.17, 0.22),
          "rail": (rail(0.4), 0.04, 0.08)}
 print("| capture | instrument | seed | ms | true | stated | error | sigmas | covered | velocity bias mm/s | "
-      "stated mm/s | covered |")
-print("|---|---|---|---|---|---|---|---|---|---|---|---|")
+      "stated mm/s | covered | intensity | its error | disagreement (sigmas) |")
+print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
 covered = within = 0
 for i in range(args.count):
     kind = str(rng.choice(list(SPANS)))
@@ -63,6 +64,7 @@ for i in range(args.count):
     print(f"| {kind} {1e3 * start:.0f} ms | {'lab' if lab else 'default'} | {seed} | {1e3 * duration:.0f} | "
           f"{true:+.2f} | {plan.lag:+.2f} +-{sigma:.2f} | {err:+.2f} | {abs(err) / sigma:.1f} | "
           f"{'yes' if ok else 'NO'} | {bias:.2f} | {1e3 * plan.lag_sigma_mps:.2f} | "
-          f"{'yes' if vel_ok else 'NO'} |", flush=True)
+          f"{'yes' if vel_ok else 'NO'} | {plan.lag_intensity:+.2f} +-{plan.lag_intensity_sigma:.2f} | "
+          f"{plan.lag_intensity - true:+.2f} | {disagreement(plan):.1f} |", flush=True)
 print(f"\ndelays within 3 sigma + 0.3 samples: {covered} of {args.count}; velocity bias within 3x its "
       f"stated uncertainty + 1 mm/s: {within} of {args.count}")

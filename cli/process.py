@@ -83,6 +83,14 @@ def report(s: dict, attrs: dict, quiet: bool, as_json: bool) -> None:
                    "target would alias: raise --points", err=True)
     if not attrs["sync_delay_reliable"]:
         click.echo(f"warning: {cap}: {delay_doubt(attrs)}", err=True)
+    apart = float(attrs.get("sync_delay_disagreement_sigmas", np.nan))
+    if apart > float(attrs.get("sync_delay_disagreement_limit", np.inf)):
+        click.echo(f"note: {cap}: the sync delay refined on the target ({attrs['sync_delay_samples']:+.2f} "
+                   f"+-{attrs['sync_delay_uncertainty_samples']:.2f} samples) and the intensity triangle's "
+                   f"({attrs['sync_delay_intensity_samples']:+.2f} "
+                   f"+-{attrs['sync_delay_intensity_uncertainty_samples']:.2f}) are {apart:.1f} sigmas "
+                   "apart: the refined one is used (the velocities depend on it; a moving target's beat "
+                   "and a laser's thermal lag move the intensity's)", err=True)
     if attrs.get("rest_calibration") == "made":
         span = attrs["rest_calibration_span_s"]
         click.echo(f"note: {cap}: the laser's chirp is far from its G(I) table (peaks "

@@ -12,6 +12,7 @@ from . import __version__, echoes, target, uncertainty, wall_images
 from .errors import CaptureError
 from .plan import DELAY_BOUND_MPS, PERIOD_WARN, Plan, delay_reliable
 from .processor import SURVEY_KEYS, ChunkMeasurements, ChunkProcessor
+from .refine import DISAGREE_SIGMAS, disagreement
 from .stages import cfar, faults, kinematics, pairing
 from .stages.cfar import Detections
 from .track import Track
@@ -157,11 +158,14 @@ def assemble(plan: Plan, parts: list[ChunkMeasurements], processor: ChunkProcess
         "sync_delay_refined": bool(plan.lag_refined),
         "sync_delay_mismatch_mps": float(plan.lag_mismatch_mps),
         "sync_delay_intensity_samples": float(plan.lag_intensity),
+        "sync_delay_intensity_uncertainty_samples": float(plan.lag_intensity_sigma),
+        "sync_delay_disagreement_sigmas": float(disagreement(plan)),
         "sync_delay_uncertainty_samples": float(plan.lag_sigma_samples),
         "sync_delay_velocity_uncertainty_mps": float(plan.lag_sigma_mps),
         "sync_delay_distance_uncertainty_m": float(plan.lag_sigma_m),
         "sync_delay_refined_at_m": float(plan.lag_at_m),
         "sync_delay_velocity_bound_mps": DELAY_BOUND_MPS,
+        "sync_delay_disagreement_limit": DISAGREE_SIGMAS,
         "chirp": str(Path(options.chirp).resolve()) if options.chirp else "",
         "acceleration_smoothing": f"Savitzky-Golay derivative, order {kinematics.POLYORDER}, "
                                   f"{kinematics.WINDOW_PAIRS} pairs",

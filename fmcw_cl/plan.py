@@ -53,6 +53,7 @@ class Plan:
     lag_sigma_mps: float = float("nan")      # ... as a velocity bias (m/s)
     lag_sigma_m: float = float("nan")        # ... as a distance bias (m)
     lag_intensity: float = float("nan")      # the first estimate, from the intensity triangle
+    lag_intensity_sigma: float = float("nan")   # ... its standard error (the periods' spread)
     lag_at_m: float = float("nan")           # the target's mean distance where it was refined
     tuning: str = TABLE                      # where the LUT comes from: TABLE, CALIBRATION or OWN_REST
     chirp: Chirp | None = None               # the chirp of CALIBRATION or OWN_REST
@@ -72,10 +73,11 @@ class Plan:
         return replace(self, **parts, tuning=tuning)
 
 
-def estimate_capture_delay(cap: Capture, processor: ChunkProcessor | None = None) -> tuple[float, int, float]:
+def estimate_capture_delay(cap: Capture, processor: ChunkProcessor | None = None
+                           ) -> tuple[float, int, float, float]:
     """Sync lag (samples) pooled over stretches spread through the capture.
 
-    Returns (lag, periods used, misfit); see `sync.combine_delays`. `processor` runs the
+    Returns (lag, periods used, misfit, standard error); see `sync.combine_delays`. `processor` runs the
     low-pass and the per-period fit (default numpy).
     """
     processor = processor or NumpyProcessor()
@@ -118,11 +120,13 @@ def make_plan(cap: Capture, options: Options, lag: float | None = None,
     period_ratio = check_sync_period(cap)
     options = fit_chunks(options, info, processor)
     known = lag is not None
-    lag, votes, misfit = estimate_capture_delay(cap, processor) if lag is None else (lag, 0, 0.0)
+    lag, votes, misfit, spread = (estimate_capture_delay(cap, processor) if lag is None
+                                  else (lag, 0, 0.0, float("nan")))
     if not np.isfinite(lag):
         raise CaptureError(info.path, "no laser intensity triangle in the beat channel: "
                                       "cannot align the sync to the optics")
     plan = Plan(info, options, lag=lag, lag_periods=votes, lag_misfit=misfit, lag_intensity=lag,
+                lag_intensity_sigma=spread,
                 tuning=TABLE if chirp is None else CALIBRATION, period_ratio=period_ratio, **parts)
     if not known and options.dechirp:          # the paper's method (--no-dechirp) as published
         plan = refine_lag(cap, plan, processor)

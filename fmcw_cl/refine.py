@@ -240,6 +240,25 @@ def refine_lag(cap: Capture, plan, processor):
                    lag_sigma_m=abs(moves) * sigma_lag, lag_at_m=ms[best].distance_m)
 
 
+DISAGREE_SIGMAS = 3.0     # the refined delay and the intensity's this far apart are said to disagree
+
+
+def disagreement(plan) -> float:
+    """How many standard uncertainties apart the refined delay and the intensity
+    triangle's estimate lie (NaN when not refined or either has none).
+
+    The rule where they disagree (over DISAGREE_SIGMAS): the refined delay is kept. It
+    is measured on the target's own motion, what the velocities depend on; the
+    intensity triangle is not the optical frequency (a laser's thermal tuning lags its
+    current), and a moving target's beat leaks into its fit: of 36 short captures
+    (benchmarks/delay.py, seeds 1-3) four disagreed by 2.8-9.7 sigmas, each time the
+    intensity estimate 16-109 samples off and the refined one within 0.3."""
+    if not plan.lag_refined:
+        return float("nan")
+    both = float(np.hypot(plan.lag_sigma_samples, plan.lag_intensity_sigma))
+    return abs(plan.lag - plan.lag_intensity) / both
+
+
 def distance_step(a: Mismatch, b: Mismatch) -> float:
     """How far trial `b` moves the distances of `a` (m): the median over the pairs valid
     in both (the runs' mean distances differ by which pairs each kept: on a moving

@@ -17,7 +17,8 @@ distance
 velocity
     noise: its local scatter; sync delay: the refined delay's uncertainty as a
     velocity; time base: the sync's measured period against the file's attributes,
-    |ratio - 1| |v|; integration: a K T / sqrt(12).
+    |ratio - 1| (|v| + the median |v|: the delay refined on the target moves with it);
+    integration: a K T / sqrt(12).
 """
 
 from __future__ import annotations
@@ -166,11 +167,14 @@ def pair_uncertainty(distance: np.ndarray, velocity: np.ndarray, valid: np.ndarr
     }
     known = np.isfinite(noise_mps)
     v_noise = np.where(known, noise_mps, np.median(noise_mps[known]) if known.any() else 0.0)
+    typical = float(np.median(np.abs(velocity[valid]))) if valid.any() else 0.0
     v_src = {
         "noise": v_noise,
         "sync delay": np.full(distance.size, finite_or_zero(delay_mps)),
-        "time base": abs(finite_or_zero(period_ratio) - 1.0) * np.abs(velocity) if period_ratio else
-        np.zeros(distance.size),
+        # a wrong time base scales each Doppler velocity, and moves the delay refined on
+        # the target by as much of its mean speed (the refinement balances the distances
+        # against the integrated velocity, both on the wrong clock)
+        "time base": abs(finite_or_zero(period_ratio) - 1.0) * (np.abs(velocity) + typical),
         "integration": a * span / np.sqrt(12),
     }
     for src, ok in ((d_src, valid), (v_src, np.asarray(velocity_valid, bool))):

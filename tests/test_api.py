@@ -93,7 +93,8 @@ def test_tables_and_labelled_arrays(jump_track):
     track = fmcw_cl.read_track(jump_track)
     df = track.to_pandas()
     assert list(df.columns) == ["time_s", "distance_m", "velocity_mps", "acceleration_mps2", "valid",
-                                "reason"]
+                                "velocity_valid", "acceleration_valid", "distance_uncertainty_m",
+                                "velocity_uncertainty_mps", "reason"]
     assert len(df) == track.pairs and df.attrs["points"] == 1000
     assert set(df.reason.cat.categories) >= {"ok", "no_echo", "discontinuous"}
     sweeps = track.to_pandas(per="sweep")
@@ -102,6 +103,7 @@ def test_tables_and_labelled_arrays(jump_track):
     ds = track.to_xarray()
     assert dict(ds.sizes) == {"time_s": track.pairs, "sweep_time_s": track.sweep_time_s.size}
     assert ds.distance_m.attrs["units"] == "m" and ds.acceleration_mps2.attrs["units"] == "m/s^2"
+    assert ds.distance_uncertainty_m.attrs["units"] == "m"
     np.testing.assert_array_equal(ds.distance_m.values, track.distance_m)
     assert ds.attrs["unambiguous_range_m"] == track.attrs["unambiguous_range_m"]
 

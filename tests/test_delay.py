@@ -333,3 +333,30 @@ def test_the_second_look_converts_the_stretches_the_refinement_read(static_captu
     assert looks == [1, 1] and reads == [1, 1, 1]
     for key in ("distance_m", "velocity_mps", "valid", "reason"):
         np.testing.assert_array_equal(getattr(got, key), getattr(want, key))
+
+
+@pytest.mark.parametrize(("seed", "start_s", "duration_s"), [(95, 0.064, 0.032), (692, 0.060, 0.033)])
+def test_where_the_refined_delay_and_the_triangles_disagree_the_rule_is_said(tmp_path, fmcw, seed, start_s,
+                                                                            duration_s):
+    """Short take-offs at a lab's SNR: the moving beat leaks into the intensity
+    triangle's fit (76-113 samples, stated +-11-14), the refinement on the target's own
+    motion is right. They disagree by more than 3 sigmas: `process` says so and which
+    one it uses (refine.disagreement's rule), and the refined one covers the truth."""
+    path = tmp_path / "takeoff.h5"
+    true = simulate_capture(path, jump(0.3), duration_s, seed=seed, config=LAB,
+                            start_s=start_s)["sync_delay_samples"]
+    a = process(path).attrs
+    assert a["sync_delay_disagreement_sigmas"] > a["sync_delay_disagreement_limit"] == refine.DISAGREE_SIGMAS
+    assert abs(a["sync_delay_samples"] - true) <= 3 * a["sync_delay_uncertainty_samples"] + 0.3
+    assert abs(a["sync_delay_intensity_samples"] - true) > 10
+    err = fmcw("process", path, "-o", tmp_path / "o").stderr
+    assert "sigmas apart: the refined one is used" in err
+
+
+def test_the_intensity_estimates_error_is_the_medians():
+    from fmcw_cl.stages import sync
+
+    rng = np.random.default_rng(4)
+    sigmas = [sync.combine_delays(rng.normal(5.0, 2.0, 400), np.full(400, 0.1))[3] for _ in range(3)]
+    assert all(0.1 < s < 0.15 for s in sigmas)         # 1.25 x 2 / sqrt(400) = 0.125
+    assert np.isnan(sync.combine_delays(np.array([1.0, 2.0]), np.array([0.1, 0.1]))[3])

@@ -512,22 +512,28 @@ def _shifted(z: np.ndarray, windows: np.ndarray, shift: np.ndarray) -> np.ndarra
 CLEAN_MISFIT = 0.2  # a clean intensity triangle fits to a few percent rms
 
 
-def combine_delays(lags: np.ndarray, misfit: np.ndarray) -> tuple[float, int, float]:
+def combine_delays(lags: np.ndarray, misfit: np.ndarray) -> tuple[float, int, float, float]:
     """Median lag over the periods that fit well: misfit within 3x the best decile's.
 
     A stretch where a target's beat sweeps through 0 Hz in every period (a fast
     target near the lens) fits badly; gating on the best decile keeps the clean
     periods even when they are few.
 
-    Returns (lag, periods used, misfit of the best decile); (nan, 0, nan) if none.
-    The estimate is unreliable when the last exceeds CLEAN_MISFIT.
+    Returns (lag, periods used, misfit of the best decile, the median's standard
+    error: 1.25 x the periods' robust spread / sqrt(periods), NaN under 3 periods);
+    (nan, 0, nan, nan) if none. The estimate is unreliable when the misfit exceeds
+    CLEAN_MISFIT.
     """
     ok = np.isfinite(lags) & np.isfinite(misfit)
     if not np.any(ok):
-        return float("nan"), 0, float("nan")
+        return float("nan"), 0, float("nan"), float("nan")
     best = float(np.percentile(misfit[ok], 10))
     ok &= misfit <= 3.0 * best
-    return float(np.median(lags[ok])), int(ok.sum()), best
+    used = lags[ok]
+    mid = float(np.median(used))
+    spread = 1.4826 * float(np.median(np.abs(used - mid)))
+    sigma = 1.2533 * spread / np.sqrt(used.size) if used.size >= 3 else float("nan")
+    return mid, int(ok.sum()), best, sigma
 
 
 @dataclass(frozen=True)
