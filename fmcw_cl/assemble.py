@@ -85,17 +85,21 @@ def assemble(plan: Plan, parts: list[ChunkMeasurements], processor: ChunkProcess
     varies = np.unique(integrated[valid]).size > 1
     # validity per quantity: the velocity verified against the distances' course, the
     # acceleration where its window lies whole on verified velocities
-    noise_m, noise_mps = uncertainty.local_scatter(dist, valid), uncertainty.local_scatter(vel, valid)
+    lut = plan.lut
+    crb = uncertainty.pair_crb((with_gaps(res["dechirped_snr_rise"], np.nan),
+                                with_gaps(res["dechirped_snr_fall"], np.nan)),
+                               options.points, lut.bandwidth_hz, info.refractive_index)
+    weak = uncertainty.weakness(crb, valid)
+    noise_m = uncertainty.local_scatter(dist, valid) * weak
+    noise_mps = uncertainty.local_scatter(vel, valid) * weak
     vel_valid = uncertainty.velocity_verified(dist, vel, valid, period_s, noise_m, noise_mps)
     acc = kinematics.acceleration(vel, vel_valid, period_s)
     acc_valid = kinematics.centred(vel_valid)
-    lut = plan.lut
+    u_acc = uncertainty.acceleration_uncertainty(acc, acc_valid, noise_mps, period_s)
     u = uncertainty.pair_uncertainty(
-        dist, vel, valid, vel_valid, noise_m, noise_mps,
-        (with_gaps(res["dechirped_snr_rise"], np.nan), with_gaps(res["dechirped_snr_fall"], np.nan)),
-        held, bias, np.maximum(integrated, 1), period_s=period_s, points=options.points,
-        bandwidth_hz=lut.bandwidth_hz, refractive_index=info.refractive_index, scale_ppm=lut.scale_ppm,
-        delay_m=plan.lag_sigma_m, delay_mps=plan.lag_sigma_mps, period_ratio=plan.period_ratio)
+        dist, vel, valid, vel_valid, noise_m, noise_mps, crb, held, bias, np.maximum(integrated, 1),
+        period_s=period_s, scale_ppm=lut.scale_ppm, delay_m=plan.lag_sigma_m, delay_mps=plan.lag_sigma_mps,
+        period_ratio=plan.period_ratio)
 
     def interleave(rise, fall):
         return np.stack([res[rise], res[fall]], axis=1).ravel()
@@ -190,5 +194,6 @@ def assemble(plan: Plan, parts: list[ChunkMeasurements], processor: ChunkProcess
         time_s=times[order], distance_m=dist, velocity_mps=vel, acceleration_mps2=acc,
         valid=valid, velocity_valid=vel_valid, acceleration_valid=acc_valid,
         distance_uncertainty_m=u.distance_m, velocity_uncertainty_mps=u.velocity_mps,
+        acceleration_uncertainty_mps2=u_acc,
         attrs=attrs, reason=reason, sweep_reason=np.repeat(reason_owned, 2),
         integrated=integrated if varies else None, period_s=period_s, chirp=plan.chirp)

@@ -18,6 +18,7 @@ from .stages.faults import REASONS
 FORMATS = {"csv": ".csv", "parquet": ".parquet", "netcdf": ".nc"}
 UNITS = {"time_s": "s", "distance_m": "m", "velocity_mps": "m/s", "acceleration_mps2": "m/s^2",
          "distance_uncertainty_m": "m", "velocity_uncertainty_mps": "m/s",
+         "acceleration_uncertainty_mps2": "m/s^2",
          "snr_db": "dB", "distance_dechirped_m": "m", "snr_dechirped_db": "dB"}
 
 
@@ -54,6 +55,7 @@ def columns(track, per: str = "pair") -> dict[str, np.ndarray]:
                 "velocity_valid": track.velocity_valid, "acceleration_valid": track.acceleration_valid,
                 "distance_uncertainty_m": track.distance_uncertainty_m,
                 "velocity_uncertainty_mps": track.velocity_uncertainty_mps,
+                "acceleration_uncertainty_mps2": track.acceleration_uncertainty_mps2,
                 "reason": _reason_names(track.reason), "integrated_sweeps": track.integrated,
                 "time_resolution_s": track.time_resolution_s}
     elif per == "sweep":

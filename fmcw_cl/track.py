@@ -43,6 +43,7 @@ class Track:
     acceleration_valid: np.ndarray | None = None   # ... its window whole on verified velocities
     distance_uncertainty_m: np.ndarray | None = None    # per pair: expanded uncertainty (k = 2)
     velocity_uncertainty_mps: np.ndarray | None = None
+    acceleration_uncertainty_mps2: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         # a track written before validity per quantity: its velocities and accelerations
@@ -132,7 +133,7 @@ def write_track(path: str | os.PathLike, track: Track) -> Path:
 
 
 OPTIONAL_PAIR_DATASETS = ("velocity_valid", "acceleration_valid", "distance_uncertainty_m",
-                          "velocity_uncertainty_mps")
+                          "velocity_uncertainty_mps", "acceleration_uncertainty_mps2")
 ECHO_COLUMNS = (("time_s", np.float64), ("distance_m", np.float64), ("snr_db", np.float32),
                 ("current_rising", bool), ("tracked", bool))
 PERSISTENT_COLUMNS = ("time_s", "distance_m", "snr_db", "share", "relative_db", "in_band", "diffuse")

@@ -30,6 +30,7 @@ import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
 from .numeric import runs, savgol_derivative, savgol_rows
+from .stages.kinematics import WINDOW_PAIRS
 
 COVERAGE = 2.0          # k of the expanded uncertainties
 SCATTER_PAIRS = 41      # window (pairs) of the local scatter
@@ -87,6 +88,28 @@ def local_scatter(x: np.ndarray, valid: np.ndarray, window: int = SCATTER_PAIRS)
     return 1.4826 * out / np.sqrt(6.0)
 
 
+def weakness(crb: np.ndarray, valid: np.ndarray, window: int = SCATTER_PAIRS) -> np.ndarray:
+    """Per valid pair, its Cramer-Rao bound over the median of its run's within `window`
+    pairs, at least 1: how much noisier than the pairs its local scatter was measured on
+    its own SNR makes it (a fade's edge, the pairs beside a gap). 1 elsewhere."""
+    out = np.ones(np.size(crb))
+    half = window // 2
+    for a, b in runs(valid):
+        pad = np.full(b - a + 2 * half, np.nan)
+        pad[half:half + b - a] = crb[a:b]
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            typical = np.nanmedian(sliding_window_view(pad, window), axis=1)
+        out[a:b] = np.fmax(1.0, np.nan_to_num(crb[a:b] / typical, nan=1.0))
+    return out
+
+
+def pair_crb(snr_db: tuple[np.ndarray, np.ndarray], points: int, bandwidth_hz: float,
+             refractive_index: float) -> np.ndarray:
+    """Cramer-Rao bound (m) of each pair's distance from its two half-sweeps' SNRs."""
+    return 0.5 * np.hypot(*(crb_sweep_m(s, points, bandwidth_hz, refractive_index) for s in snr_db))
+
+
 def distance_slope(distance: np.ndarray, valid: np.ndarray, period_s: float,
                    window: int = SLOPE_PAIRS) -> tuple[np.ndarray, np.ndarray]:
     """The slope (m/s) of the distances at each valid pair, by a quadratic
@@ -142,18 +165,16 @@ def finite_or_zero(x: float) -> float:
 
 def pair_uncertainty(distance: np.ndarray, velocity: np.ndarray, valid: np.ndarray,
                      velocity_valid: np.ndarray, noise_m: np.ndarray, noise_mps: np.ndarray,
-                     snr_db: tuple[np.ndarray, np.ndarray], acceleration: np.ndarray,
-                     bias_correction_m: np.ndarray, integrated: np.ndarray, *, period_s: float,
-                     points: int, bandwidth_hz: float, refractive_index: float, scale_ppm: float,
-                     delay_m: float, delay_mps: float, period_ratio: float) -> Uncertainty:
+                     crb: np.ndarray, acceleration: np.ndarray, bias_correction_m: np.ndarray,
+                     integrated: np.ndarray, *, period_s: float, scale_ppm: float, delay_m: float,
+                     delay_mps: float, period_ratio: float) -> Uncertainty:
     """Each valid pair's expanded uncertainties (k = COVERAGE) and their sources (see
     the module's text). `noise_m`, `noise_mps`: `local_scatter` of the distances and
-    velocities; `snr_db`: the pair's rising and falling half-sweeps' SNR (dB);
+    velocities (times the pair's `weakness`); `crb`: the pair's Cramer-Rao bound (m);
     `acceleration`: at every valid pair (m/s^2, kinematics.held); `bias_correction_m`:
     the acceleration bias taken off each distance; `integrated`: half-sweeps of a
     direction summed per pair. NaN where the quantity is not valid."""
     valid = np.asarray(valid, bool)
-    crb = 0.5 * np.hypot(*(crb_sweep_m(s, points, bandwidth_hz, refractive_index) for s in snr_db))
     noise = np.fmax(np.nan_to_num(noise_m, nan=-1.0), crb)
     noise = np.where(np.isfinite(noise_m), noise, 3 * crb)    # an isolated pair: no scatter measured
     span = np.asarray(integrated, np.float64) * period_s
@@ -210,3 +231,34 @@ def budget_from_attrs(attrs: dict, quantity: str) -> list[tuple[str, float, floa
     share = np.atleast_1d(attrs[f"uncertainty_{quantity}_share"])
     rows = list(zip(str(names).split(", "), map(float, rms), map(float, share), strict=True))
     return rows + [("combined", float(np.sqrt(np.nansum(rms**2))), 1.0)]
+
+
+def acceleration_uncertainty(acceleration: np.ndarray, acceleration_valid: np.ndarray, noise_mps: np.ndarray,
+                             period_s: float, window: int = WINDOW_PAIRS) -> np.ndarray:
+    """Expanded uncertainty (k = COVERAGE, m/s^2) of each valid acceleration, a
+    Savitzky-Golay derivative (quadratic over `window` pairs) of the velocities: their
+    noise through the derivative's weights, sqrt(sum w_j^2 sigma_j^2); and the smoothing's
+    bias, which a quadratic leaves where the acceleration bends: the fitted slope is
+    v' + v''' T^2 sum k^4 / (6 sum k^2), v''' = a'' taken over half a window either
+    side. NaN where the acceleration is not valid."""
+    ok = np.asarray(acceleration_valid, bool)
+    half = window // 2
+    weights = savgol_rows(window, 2)[half] / period_s
+    # each velocity's own noise through its weight: sum w_j^2 sigma_j^2 over the window
+    var = np.zeros(ok.size)
+    if ok.size >= window:
+        var[half:-half] = np.correlate(np.nan_to_num(noise_mps) ** 2, weights**2, "valid")
+    k = np.arange(1, half + 1, dtype=np.float64)
+    bend = period_s**2 * float(np.sum(k**4) / np.sum(k**2)) / 6
+    a = np.where(ok, acceleration, np.nan)
+    curve = np.full(a.size, np.nan)
+    if a.size > 2 * half:
+        curve[half:-half] = (a[2 * half:] - 2 * a[half:-half] + a[:-2 * half]) / (half * period_s) ** 2
+    curve = np.abs(curve)
+    # where a bend cannot be taken (within half a window of a stretch's end): its
+    # stretch's largest
+    for lo, hi in runs(ok):
+        seen = curve[lo:hi][np.isfinite(curve[lo:hi])]
+        curve[lo:hi] = np.where(np.isfinite(curve[lo:hi]), curve[lo:hi], seen.max() if seen.size else 0.0)
+    u = np.hypot(np.sqrt(var), bend * curve)
+    return np.where(ok, COVERAGE * u, np.nan)

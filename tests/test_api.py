@@ -94,7 +94,7 @@ def test_tables_and_labelled_arrays(jump_track):
     df = track.to_pandas()
     assert list(df.columns) == ["time_s", "distance_m", "velocity_mps", "acceleration_mps2", "valid",
                                 "velocity_valid", "acceleration_valid", "distance_uncertainty_m",
-                                "velocity_uncertainty_mps", "reason"]
+                                "velocity_uncertainty_mps", "acceleration_uncertainty_mps2", "reason"]
     assert len(df) == track.pairs and df.attrs["points"] == 1000
     assert set(df.reason.cat.categories) >= {"ok", "no_echo", "discontinuous"}
     sweeps = track.to_pandas(per="sweep")

@@ -76,7 +76,8 @@ def test_a_velocity_off_its_distances_course_is_not_verified(seed):
 
 
 QUANTITIES = (("distance", "distance_m", "distance_uncertainty_m", "valid"),
-              ("velocity", "velocity_mps", "velocity_uncertainty_mps", "velocity_valid"))
+              ("velocity", "velocity_mps", "velocity_uncertainty_mps", "velocity_valid"),
+              ("acceleration", "acceleration_mps2", "acceleration_uncertainty_mps2", "acceleration_valid"))
 
 
 def pooled(tracks_truths):
@@ -87,7 +88,7 @@ def pooled(tracks_truths):
         err, u = [], []
         for track, truth in tracks_truths:
             ok = getattr(track, flag)
-            true = truth_at(truth, track.time_s)[0 if name == "distance" else 1]
+            true = truth_at(truth, track.time_s)[[q[0] for q in QUANTITIES].index(name)]
             err.append(np.abs(getattr(track, value) - true)[ok])
             u.append(getattr(track, unc)[ok])
         err, u = np.concatenate(err), np.concatenate(u)
@@ -118,6 +119,8 @@ def test_uncertainties_cover_a_moving_target(tmp_path):
     res = convert(tmp_path, [(rail(0.4), 0.05, 0.05, LAB), landing], (5, 6))
     assert res["distance"][0] >= 0.93 and res["distance"][1] <= 3.0
     assert res["velocity"][0] >= 0.95 and res["velocity"][1] <= 3.5
+    assert res["acceleration"][0] >= 0.95 and res["acceleration"][1] <= 3.0
+    assert np.all(res["acceleration"][2] <= 3 * res["acceleration"][3])
 
 
 def test_uncertainties_cover_a_static_target(tmp_path):
@@ -128,6 +131,7 @@ def test_uncertainties_cover_a_static_target(tmp_path):
                   range(1, 7))
     assert res["distance"][0] >= 0.9 and res["distance"][1] <= 3.0
     assert res["velocity"][0] >= 0.95 and res["velocity"][1] <= 3.0
+    assert res["acceleration"][0] >= 0.95 and res["acceleration"][1] <= 3.0
 
 
 def test_the_track_file_carries_validity_and_uncertainty(tmp_path, jump_track, jump_capture):
@@ -142,7 +146,8 @@ def test_the_track_file_carries_validity_and_uncertainty(tmp_path, jump_track, j
     with Capture(jump_capture) as cap:
         res = pooled([(track, cap.truth())])
     assert np.all(res["distance"][2] <= 3 * res["distance"][3])
-    assert res["distance"][0] >= 0.95 and res["velocity"][0] >= 0.95
+    assert res["distance"][0] >= 0.95 and res["velocity"][0] >= 0.95 and res["acceleration"][0] >= 0.95
+    assert np.all(res["acceleration"][2] <= 3 * res["acceleration"][3])
     names = [name for name, _, _ in budget_from_attrs(track.attrs, "distance")]
     assert names == ["noise", "scale", "sync delay", "model", "integration", "combined"]
     shares = [s for _, _, s in budget_from_attrs(track.attrs, "distance")[:-1]]

@@ -13,14 +13,17 @@ from ..track import Track
 from ..uncertainty import budget_from_attrs
 
 QUANTITIES = (("distance", "distance_m", "distance_uncertainty_m", "valid", 1e6, "µm"),
-              ("velocity", "velocity_mps", "velocity_uncertainty_mps", "velocity_valid", 1e3, "mm/s"))
+              ("velocity", "velocity_mps", "velocity_uncertainty_mps", "velocity_valid", 1e3, "mm/s"),
+              ("acceleration", "acceleration_mps2", "acceleration_uncertainty_mps2", "acceleration_valid",
+               1.0, "m/s²"))
 
 
 def coverage(track: Track, truth: Truth) -> dict[str, tuple[int, float, float]]:
     """Per quantity: (pairs checked, share within their expanded uncertainty, median
     uncertainty over the rms error) against `truth`."""
     out = {}
-    true = dict(zip(("distance_m", "velocity_mps"), truth_at(truth, track.time_s)[:2], strict=True))
+    true = dict(zip(("distance_m", "velocity_mps", "acceleration_mps2"), truth_at(truth, track.time_s),
+                    strict=True))
     for name, value, unc, flag, _, _ in QUANTITIES:
         ok = getattr(track, flag)
         u = getattr(track, unc)
@@ -42,6 +45,12 @@ def budget_markdown(track: Track, title: str, truth: Truth | None = None) -> str
         rows = budget_from_attrs(track.attrs, name)
         u = getattr(track, unc)
         ok = getattr(track, flag)
+        if name == "acceleration" and u is not None and ok.any():
+            lines += [f"Acceleration ({int(ok.sum())} pairs): expanded uncertainty (k = {k:g}) median "
+                      f"{np.median(u[ok]):.3g} m/s², 95th percentile {np.percentile(u[ok], 95):.3g} m/s² "
+                      "(the velocities' noise through the derivative, and the smoothing's bias where the "
+                      "acceleration bends; `/track/acceleration_uncertainty_mps2`).", ""]
+            continue
         if not rows or u is None or not ok.any():
             lines += [f"{name.capitalize()}: no valid pair, no budget.", ""]
             continue
