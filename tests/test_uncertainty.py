@@ -170,3 +170,13 @@ def test_report_writes_the_budget(tmp_path, jump_track, jump_capture):
     assert "| noise |" in text and "| sync delay |" in text and "| time base |" in text
     row = next(line for line in text.splitlines() if line.startswith("| distance |"))
     assert float(row.split("|")[3].strip().rstrip(" %")) >= 95.0
+
+
+def test_no_acceleration_is_centred_in_a_run_shorter_than_its_window():
+    from fmcw_cl.stages.kinematics import WINDOW_PAIRS, centred
+
+    ok = np.zeros(100, bool)
+    ok[:5] = True                      # a short run at the start: its end index less half a window is < 0
+    ok[40:40 + WINDOW_PAIRS] = True
+    got = centred(ok)
+    assert np.flatnonzero(got).tolist() == [40 + WINDOW_PAIRS // 2]

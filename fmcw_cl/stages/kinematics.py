@@ -40,7 +40,8 @@ def centred(valid: np.ndarray, window: int = WINDOW_PAIRS) -> np.ndarray:
     out = np.zeros(np.size(valid), bool)
     half = window // 2
     for a, b in runs(valid):
-        out[a + half: b - half] = True
+        if b - a > 2 * half:         # (a shorter run near the start: b - half < 0 would wrap)
+            out[a + half: b - half] = True
     return out
 
 
