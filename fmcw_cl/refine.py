@@ -251,7 +251,7 @@ def disagreement(plan) -> float:
     is measured on the target's own motion, what the velocities depend on; the
     intensity triangle is not the optical frequency (a laser's thermal tuning lags its
     current), and a moving target's beat leaks into its fit: of 36 short captures
-    (benchmarks/delay.py, seeds 1-3) four disagreed by 2.8-9.7 sigmas, each time the
+    (benchmarks/delay.py, seeds 1-3) four disagreed by 3.3-9.7 sigmas, each time the
     intensity estimate 16-109 samples off and the refined one within 0.3."""
     if not plan.lag_refined:
         return float("nan")
