@@ -99,7 +99,9 @@ def assemble(plan: Plan, parts: list[ChunkMeasurements], processor: ChunkProcess
     u = uncertainty.pair_uncertainty(
         dist, vel, valid, vel_valid, noise_m, noise_mps, crb, held, bias, np.maximum(integrated, 1),
         period_s=period_s, scale_ppm=lut.scale_ppm, delay_m=plan.lag_sigma_m, delay_mps=plan.lag_sigma_mps,
-        period_ratio=plan.period_ratio)
+        period_ratio=plan.period_ratio, resolution_m=lut.range_resolution_m,
+        # the beat's cycles per sample per metre: 2 n B / (c x the half-sweep's samples)
+        cycles_per_sample_per_m=1.0 / (lut.range_resolution_m * 0.5 * info.samples_per_period))
 
     def interleave(rise, fall):
         return np.stack([res[rise], res[fall]], axis=1).ravel()

@@ -10,7 +10,8 @@ distance
     noise: the scatter of the pair's own distances about a smooth course, measured
     locally (second differences, robust), never below the Cramer-Rao bound at its
     half-sweeps' SNR; scale: the G(I) table's (or calibration's) relative
-    uncertainty times the distance; sync delay: the refined delay's uncertainty as a
+    uncertainty times the distance; resampling: the cubic convolution's phase error at
+    the beat's frequency (`resampling_m`); sync delay: the refined delay's uncertainty as a
     distance; model: a quarter of the acceleration's bias correction (its model and the
     smoothed acceleration it uses); integration: the motion within the half-sweeps summed
     for a weak echo, a (K T)^2 / 12.
@@ -23,6 +24,7 @@ velocity
 
 from __future__ import annotations
 
+import functools
 import warnings
 from dataclasses import dataclass
 
@@ -31,6 +33,7 @@ from numpy.lib.stride_tricks import sliding_window_view
 
 from .numeric import runs, savgol_derivative, savgol_rows
 from .stages.kinematics import WINDOW_PAIRS
+from .stages.resample import keys_weights
 
 COVERAGE = 2.0          # k of the expanded uncertainties
 SCATTER_PAIRS = 41      # window (pairs) of the local scatter
@@ -43,7 +46,7 @@ SLOPE_FLOOR_MPS = 0.01  # ... plus this (the distances' correlated errors: the t
 
 CHECK = (f"against the distances' slope (quadratic over {SLOPE_PAIRS} pairs) within {SLOPE_SIGMAS:g} "
          f"standard errors + {SLOPE_FLOOR_MPS:g} m/s")
-DISTANCE_SOURCES = ("noise", "scale", "sync delay", "model", "integration")
+DISTANCE_SOURCES = ("noise", "scale", "resampling", "sync delay", "model", "integration")
 VELOCITY_SOURCES = ("noise", "sync delay", "time base", "integration")
 
 
@@ -158,6 +161,30 @@ def crb_sweep_m(snr_db: np.ndarray, points: int, bandwidth_hz: float, refractive
     return 299_792_458.0 * points / (2 * refractive_index * bandwidth_hz) * np.sqrt(var_f)
 
 
+@functools.lru_cache(maxsize=1)
+def _keys_phase_error() -> tuple[np.ndarray, np.ndarray]:
+    """(f, the largest phase error (rad) of cubic convolution over the fractional
+    positions) for tones of f cycles per sample, 0-0.5."""
+    f = np.linspace(0.0, 0.5, 257)
+    phi = np.linspace(0.0, 1.0, 129)
+    w = keys_weights(phi)
+    h = sum(wk[None, :] * np.exp(2j * np.pi * f[:, None] * (k - phi[None, :]))
+            for k, wk in zip((-1, 0, 1, 2), w, strict=True))
+    return f, np.max(np.abs(np.angle(h)), axis=1)
+
+
+def resampling_m(distance: np.ndarray, cycles_per_sample_per_m: float, resolution_m: float) -> np.ndarray:
+    """Standard uncertainty (m) the resampling's cubic convolution leaves in a distance:
+    at the beat's frequency f (cycles per sample) its phase error reaches eps(f) at some
+    fractional positions, and a phase ramp of up to 2 eps across the half-sweep moves
+    the peak by eps / pi bins; a bound, as a rectangular distribution (/ sqrt 3). It
+    does not average: with a period a whole number of samples every period has the
+    same fractional positions (0.1 um at 0.1 m, 1.5 um at 0.3 m, 5 um at 0.45 m)."""
+    f, eps = _keys_phase_error()
+    at = np.clip(np.abs(np.nan_to_num(distance)) * cycles_per_sample_per_m, 0.0, 0.5)
+    return np.interp(at, f, eps) / np.pi * resolution_m / np.sqrt(3.0)
+
+
 def finite_or_zero(x: float) -> float:
     """x, or 0 where not finite (a source the capture could not measure)."""
     return float(x) if np.isfinite(x) else 0.0
@@ -167,7 +194,8 @@ def pair_uncertainty(distance: np.ndarray, velocity: np.ndarray, valid: np.ndarr
                      velocity_valid: np.ndarray, noise_m: np.ndarray, noise_mps: np.ndarray,
                      crb: np.ndarray, acceleration: np.ndarray, bias_correction_m: np.ndarray,
                      integrated: np.ndarray, *, period_s: float, scale_ppm: float, delay_m: float,
-                     delay_mps: float, period_ratio: float) -> Uncertainty:
+                     delay_mps: float, period_ratio: float, cycles_per_sample_per_m: float = 0.0,
+                     resolution_m: float = 0.0) -> Uncertainty:
     """Each valid pair's expanded uncertainties (k = COVERAGE) and their sources (see
     the module's text). `noise_m`, `noise_mps`: `local_scatter` of the distances and
     velocities (times the pair's `weakness`); `crb`: the pair's Cramer-Rao bound (m);
@@ -182,6 +210,7 @@ def pair_uncertainty(distance: np.ndarray, velocity: np.ndarray, valid: np.ndarr
     d_src = {
         "noise": noise,
         "scale": 1e-6 * finite_or_zero(scale_ppm) * np.abs(distance),
+        "resampling": resampling_m(distance, cycles_per_sample_per_m, resolution_m),
         "sync delay": np.full(distance.size, finite_or_zero(delay_m)),
         "model": MODEL_SHARE * np.abs(bias_correction_m),
         "integration": a * span**2 / 12,

@@ -149,7 +149,7 @@ def test_the_track_file_carries_validity_and_uncertainty(tmp_path, jump_track, j
     assert res["distance"][0] >= 0.95 and res["velocity"][0] >= 0.95 and res["acceleration"][0] >= 0.95
     assert np.all(res["acceleration"][2] <= 3 * res["acceleration"][3])
     names = [name for name, _, _ in budget_from_attrs(track.attrs, "distance")]
-    assert names == ["noise", "scale", "sync delay", "model", "integration", "combined"]
+    assert names == ["noise", "scale", "resampling", "sync delay", "model", "integration", "combined"]
     shares = [s for _, _, s in budget_from_attrs(track.attrs, "distance")[:-1]]
     assert sum(shares) == pytest.approx(1.0)
 
@@ -180,3 +180,14 @@ def test_no_acceleration_is_centred_in_a_run_shorter_than_its_window():
     ok[40:40 + WINDOW_PAIRS] = True
     got = centred(ok)
     assert np.flatnonzero(got).tolist() == [40 + WINDOW_PAIRS // 2]
+
+
+def test_the_resampling_bound_grows_with_the_beat_frequency():
+    from fmcw_cl.uncertainty import resampling_m
+
+    d = np.array([0.1, 0.3, 0.45, 0.8])
+    u = resampling_m(d, 1 / (0.937e-3 * 2500), 0.937e-3)
+    assert np.all(np.diff(u) > 0)
+    # a noise-free table's static biases (seeds 1-5): within 1 um at 0.1-0.3 m, up to
+    # 5.6 um at 0.45 m; the bound (sqrt 3 u) holds the latter
+    assert 0.5e-6 < np.sqrt(3) * u[1] < 5e-6 and 5.6e-6 < np.sqrt(3) * u[2] < 15e-6
