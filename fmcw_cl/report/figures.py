@@ -135,7 +135,7 @@ def precision(track: Track, path: Path, true_distance_m: float | None = None) ->
     """Histogram of a static target's distance with its Gaussian fit (the paper's Fig. 6c)."""
     d = track.distance_m[track.valid]
     mean, std = float(np.mean(d)), float(np.std(d))
-    fig, ax = plt.subplots(figsize=(8, 5.5), constrained_layout=True)
+    fig, ax = plt.subplots(figsize=(8, 6.5), constrained_layout=True)
     x_um = 1e6 * (d - mean)
     ax.hist(x_um, bins=min(60, max(10, d.size // 20)), density=True, color="C0", alpha=0.7,
             label=f"{d.size} pairs")
@@ -146,7 +146,7 @@ def precision(track: Track, path: Path, true_distance_m: float | None = None) ->
     if track.distance_uncertainty_m is not None and track.valid.any():
         u_um = 1e6 * float(np.median(track.distance_uncertainty_m[track.valid]))
         ax.axvspan(-u_um, u_um, color="C1", alpha=0.12, lw=0,
-                   label=f"expanded uncertainty (k = 2), median of the pairs: ±{u_um:.2f} µm")
+                   label=f"expanded uncertainty (k = 2), the pairs' median: ±{u_um:.2f} µm")
     if true_distance_m is not None:
         ax.axvline(1e6 * (true_distance_m - mean), color="C3", ls="--",
                    label=f"truth ({1e6 * (mean - true_distance_m):+.1f} µm bias)")
@@ -162,7 +162,7 @@ def precision(track: Track, path: Path, true_distance_m: float | None = None) ->
     ax.set_xlabel(f"distance − {mean * 1e3:.4f} mm (µm)")
     ax.set_ylabel("probability density (1/µm)")
     ax.set_title(f"static target: mean {mean * 1e3:.4f} mm, standard deviation {s_um:.2f} µm")
-    ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.16), ncol=2)   # off the curves
+    ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.16), ncol=1)   # off the curves
     ax.grid(alpha=0.3)
     fig.savefig(path, dpi=120, format="png")
     plt.close(fig)
