@@ -8,6 +8,7 @@ from scipy.interpolate import CubicSpline
 from .capture import Truth
 from .stages import faults
 from .track import Track
+from .uncertainty import crb_m, peak_eta
 
 
 def truth_at(truth: Truth, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -60,16 +61,11 @@ def accuracy(track: Track, truth: Truth) -> dict:
 
 def crb_pair_m(eta: float, points: int, bandwidth_hz: float, refractive_index: float = 1.0) -> float:
     """Cramer-Rao bound (m, standard deviation) of one pair's distance from the N resampled
-    points: a tone of per-point SNR eta = A^2 / (2 sigma^2) in white noise has
-    var(f) >= 12 / ((2 pi)^2 eta N (N^2 - 1)) cycles per point; a cycle per point is
-    N c / (2 n B) metres, and a pair averages two half-sweeps."""
-    var_f = 12 / ((2 * np.pi) ** 2 * eta * points * (points**2 - 1))
-    metres_per_cycle = 299_792_458.0 * points / (2 * refractive_index * bandwidth_hz)
-    return float(metres_per_cycle * np.sqrt(var_f) / np.sqrt(2))
+    points of per-point SNR eta (`uncertainty.crb_m`): a pair averages two half-sweeps."""
+    return float(crb_m(eta, points, bandwidth_hz, refractive_index) / np.sqrt(2))
 
 
 def eta_from_peak_snr(snr_db, points: int) -> float:
-    """Per-point SNR eta of the resampled half-sweeps from their peaks' SNR (dB, peak
-    over mean noise per bin, Hann window, zero-padded FFT): peak (A N / 4)^2 over
-    sigma^2 3N/8 is eta N / 3."""
-    return float(3 * 10 ** (np.median(np.asarray(snr_db, float)) / 10) / points)
+    """Per-point SNR eta of the resampled half-sweeps from their peaks' median SNR (dB;
+    `uncertainty.peak_eta`)."""
+    return float(peak_eta(np.median(np.asarray(snr_db, float)), points))

@@ -31,8 +31,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
-from .numeric import runs, savgol_derivative, savgol_rows
-from .stages.kinematics import WINDOW_PAIRS
+from .numeric import runs, savgol_rows
+from .stages import kinematics
 from .stages.resample import keys_weights
 
 COVERAGE = 2.0          # k of the expanded uncertainties
@@ -72,45 +72,47 @@ class Uncertainty:
         return rows + [("combined", float(np.sqrt(total)), 1.0)]
 
 
+def run_median(x: np.ndarray, valid: np.ndarray, window: int = SCATTER_PAIRS) -> np.ndarray:
+    """Per valid pair, the median of the finite values of x over `window` pairs of its
+    own run (NaN where there are none); NaN outside `valid`."""
+    out = np.full(np.size(x), np.nan)
+    half = window // 2
+    for a, b in runs(valid):
+        pad = np.full(b - a + 2 * half, np.nan)
+        pad[half:half + b - a] = x[a:b]
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)     # a window of NaN only
+            out[a:b] = np.nanmedian(sliding_window_view(pad, window), axis=1)
+    return out
+
+
 def local_scatter(x: np.ndarray, valid: np.ndarray, window: int = SCATTER_PAIRS) -> np.ndarray:
     """Per valid pair, the standard deviation of x's white part near it: from its run's
     second differences (6 sigma^2 for white noise; a motion's smooth part, a T^2, lies far
     below), robustly (1.4826 median |.| / sqrt 6) over `window` pairs of its run. NaN
     where its run has fewer than 3 pairs."""
     x = np.asarray(x, np.float64)
-    out = np.full(x.size, np.nan)
-    half = window // 2
-    for a, b in runs(valid):
-        if b - a < 3:
-            continue
-        d2 = np.full(b - a + 2 * half, np.nan)
-        d2[half + 1: half + b - a - 1] = np.abs(x[a:b - 2] - 2 * x[a + 1:b - 1] + x[a + 2:b])
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)
-            out[a:b] = np.nanmedian(sliding_window_view(d2, window), axis=1)
-    return 1.4826 * out / np.sqrt(6.0)
+    d2 = np.full(x.size, np.nan)
+    d2[1:-1] = np.abs(x[:-2] - 2 * x[1:-1] + x[2:])
+    # only second differences whole within a run: not at its first and last pair
+    spans = runs(valid)
+    d2[spans[:, 0]] = np.nan
+    d2[spans[:, 1] - 1] = np.nan
+    return 1.4826 * run_median(d2, valid, window) / np.sqrt(6.0)
 
 
 def weakness(crb: np.ndarray, valid: np.ndarray, window: int = SCATTER_PAIRS) -> np.ndarray:
     """Per valid pair, its Cramer-Rao bound over the median of its run's within `window`
     pairs, at least 1: how much noisier than the pairs its local scatter was measured on
     its own SNR makes it (a fade's edge, the pairs beside a gap). 1 elsewhere."""
-    out = np.ones(np.size(crb))
-    half = window // 2
-    for a, b in runs(valid):
-        pad = np.full(b - a + 2 * half, np.nan)
-        pad[half:half + b - a] = crb[a:b]
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)
-            typical = np.nanmedian(sliding_window_view(pad, window), axis=1)
-        out[a:b] = np.fmax(1.0, np.nan_to_num(crb[a:b] / typical, nan=1.0))
-    return out
+    return np.fmax(1.0, np.nan_to_num(crb / run_median(crb, valid, window), nan=1.0))
 
 
 def pair_crb(snr_db: tuple[np.ndarray, np.ndarray], points: int, bandwidth_hz: float,
              refractive_index: float) -> np.ndarray:
     """Cramer-Rao bound (m) of each pair's distance from its two half-sweeps' SNRs."""
-    return 0.5 * np.hypot(*(crb_sweep_m(s, points, bandwidth_hz, refractive_index) for s in snr_db))
+    rise, fall = (crb_m(peak_eta(s, points), points, bandwidth_hz, refractive_index) for s in snr_db)
+    return 0.5 * np.hypot(rise, fall)
 
 
 def distance_slope(distance: np.ndarray, valid: np.ndarray, period_s: float,
@@ -120,20 +122,15 @@ def distance_slope(distance: np.ndarray, valid: np.ndarray, period_s: float,
     the first and last pairs from the run's end windows), and the gain (1/s) that turns
     the distances' white noise (m) into the slope's standard error. NaN in runs shorter
     than SLOPE_MIN_PAIRS."""
-    slope = np.full(np.size(distance), np.nan)
+    slope = kinematics.derivative(distance, valid, period_s, window, SLOPE_MIN_PAIRS)
     gain = np.full(np.size(distance), np.nan)
-    spans = runs(valid)
-    n = spans[:, 1] - spans[:, 0]
-    own = np.where(n >= window, window, n - 1 + n % 2)
-    for w in map(int, np.unique(own[n >= SLOPE_MIN_PAIRS])):
-        picked = spans[(own == w) & (n >= SLOPE_MIN_PAIRS)]
-        savgol_derivative(distance, w, 2, period_s, picked, slope)
-        norms = np.linalg.norm(savgol_rows(w, 2), axis=1) / period_s
+    spans, own = kinematics.run_windows(valid, window, SLOPE_MIN_PAIRS)
+    for (a, b), w in zip(spans, map(int, own), strict=True):
+        norms = np.linalg.norm(savgol_rows(w, kinematics.POLYORDER), axis=1) / period_s
         half = w // 2
-        for a, b in picked:
-            gain[a:b] = norms[half]
-            gain[a:a + half] = norms[:half]
-            gain[b - half:b] = norms[half + 1:]
+        gain[a:b] = norms[half]
+        gain[a:a + half] = norms[:half]
+        gain[b - half:b] = norms[half + 1:]
     return slope, gain
 
 
@@ -151,13 +148,19 @@ def velocity_verified(distance: np.ndarray, velocity: np.ndarray, valid: np.ndar
         return np.asarray(valid, bool) & (np.abs(velocity - slope) <= tol)
 
 
-def crb_sweep_m(snr_db: np.ndarray, points: int, bandwidth_hz: float, refractive_index: float) -> np.ndarray:
-    """Cramer-Rao bound (m, standard deviation) of one half-sweep's distance from its
-    peak's SNR (dB, peak over mean noise per bin, Hann window): per-point SNR eta =
-    3 snr / N; var(f) >= 12 / ((2 pi)^2 eta N (N^2 - 1)) cycles per point, a cycle per
-    point N c / (2 n B) metres."""
-    eta = 3 * 10 ** (np.asarray(snr_db, np.float64) / 10) / points
-    var_f = 12 / ((2 * np.pi) ** 2 * eta * points * (points**2 - 1))
+def peak_eta(snr_db, points: int) -> np.ndarray:
+    """Per-point SNR eta = A^2 / (2 sigma^2) of N resampled points from their peak's SNR
+    (dB, peak over mean noise per bin, Hann window, zero-padded FFT): peak (A N / 4)^2
+    over sigma^2 3N/8 is eta N / 3."""
+    return 3 * 10 ** (np.asarray(snr_db, np.float64) / 10) / points
+
+
+def crb_m(eta, points: int, bandwidth_hz: float, refractive_index: float = 1.0) -> np.ndarray:
+    """Cramer-Rao bound (m, standard deviation) of one half-sweep's distance from N
+    resampled points of per-point SNR eta: a tone in white noise has var(f) >= 12 /
+    ((2 pi)^2 eta N (N^2 - 1)) cycles per point; a cycle per point is N c / (2 n B)
+    metres."""
+    var_f = 12 / ((2 * np.pi) ** 2 * np.asarray(eta, np.float64) * points * (points**2 - 1))
     return 299_792_458.0 * points / (2 * refractive_index * bandwidth_hz) * np.sqrt(var_f)
 
 
@@ -263,7 +266,7 @@ def budget_from_attrs(attrs: dict, quantity: str) -> list[tuple[str, float, floa
 
 
 def acceleration_uncertainty(acceleration: np.ndarray, acceleration_valid: np.ndarray, noise_mps: np.ndarray,
-                             period_s: float, window: int = WINDOW_PAIRS) -> np.ndarray:
+                             period_s: float, window: int = kinematics.WINDOW_PAIRS) -> np.ndarray:
     """Expanded uncertainty (k = COVERAGE, m/s^2) of each valid acceleration, a
     Savitzky-Golay derivative (quadratic over `window` pairs) of the velocities: their
     noise through the derivative's weights, sqrt(sum w_j^2 sigma_j^2); and the smoothing's

@@ -22,15 +22,29 @@ def acceleration(velocity: np.ndarray, valid: np.ndarray, period_s: float,
     Invalid pairs are skipped: each run of consecutive valid pairs is differentiated
     on its own, so no value is invented across a gap. Invalid pairs get NaN.
     """
-    acc = np.full(velocity.shape, np.nan)
+    return derivative(velocity, valid, period_s, window)
+
+
+def run_windows(valid: np.ndarray, window: int, min_pairs: int = 3) -> tuple[np.ndarray, np.ndarray]:
+    """The runs of `valid` of at least `min_pairs` ((R, 2) start, stop) and each one's
+    window: `window`, or the run's own length made odd where shorter."""
     spans = runs(valid)
     n = spans[:, 1] - spans[:, 0]
-    # a run's window: `window`, or its own length (odd) where shorter; the runs of each
-    # window at once
     own = np.where(n >= window, window, n - 1 + n % 2)
-    for w in map(int, np.unique(own[n >= 3])):
-        savgol_derivative(velocity, w, min(POLYORDER, w - 1), period_s, spans[(own == w) & (n >= 3)], acc)
-    return acc
+    keep = n >= min_pairs
+    return spans[keep], own[keep]
+
+
+def derivative(x: np.ndarray, valid: np.ndarray, period_s: float, window: int = WINDOW_PAIRS,
+               min_pairs: int = 3) -> np.ndarray:
+    """Savitzky-Golay derivative (order POLYORDER) of x sampled every `period_s`, each
+    run of `valid` (of at least `min_pairs`) on its own (`run_windows`), the runs of
+    one window at once; NaN elsewhere."""
+    out = np.full(np.shape(x), np.nan)
+    spans, own = run_windows(valid, window, min_pairs)
+    for w in map(int, np.unique(own)):
+        savgol_derivative(x, w, min(POLYORDER, w - 1), period_s, spans[own == w], out)
+    return out
 
 
 def centred(valid: np.ndarray, window: int = WINDOW_PAIRS) -> np.ndarray:
