@@ -75,8 +75,7 @@ def assemble(plan: Plan, parts: list[ChunkMeasurements], processor: ChunkProcess
     vel = with_gaps(res["velocity"], np.nan)
     dist[~valid] = np.nan
     vel[~valid] = np.nan
-    acc = kinematics.acceleration(vel, valid, period_s)
-    held = kinematics.held(acc, valid)
+    held = kinematics.held_acceleration(vel, valid, period_s)
     bias = np.zeros(dist.size)
     if options.dechirp:         # the paper's method (--no-dechirp) is reported as the paper did
         bias = pairing.acceleration_bias(held, with_gaps(0.5 * (t_f - t_r), 0.0), plan.model)

@@ -175,9 +175,10 @@ def pairs_of(parts, model) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarr
         # over a wider window than the track's: a trial's velocities may be noise (a
         # chirp far off its table: 17 mm/s a pair), whose acceleration must not move the
         # distances it is integrated against
-        acc = kinematics.acceleration(np.where(ok, v, np.nan), ok, float(np.median(np.diff(t))), BIAS_WINDOW)
+        held = kinematics.held_acceleration(np.where(ok, v, np.nan), ok, float(np.median(np.diff(t))),
+                                            BIAS_WINDOW)
         half_gap = np.concatenate([0.5 * (q.t_fall - q.t_rise) for q in parts])
-        d = d - pairing.acceleration_bias(kinematics.held(acc, ok, BIAS_WINDOW), half_gap, model)
+        d = d - pairing.acceleration_bias(held, half_gap, model)
     return t, d, v, ok
 
 

@@ -70,3 +70,11 @@ def held(acceleration: np.ndarray, valid: np.ndarray, window: int = WINDOW_PAIRS
         if b - a > 2 * half:
             out[a:b] = acceleration[np.clip(np.arange(a, b), a + half, b - half - 1)]
     return np.nan_to_num(out)
+
+
+def held_acceleration(velocity: np.ndarray, valid: np.ndarray, period_s: float,
+                      window: int = WINDOW_PAIRS) -> np.ndarray:
+    """The acceleration of `velocity`'s valid runs over `window` pairs, `held` at every
+    valid pair: what the acceleration's bias correction of a distance needs
+    (pairing.acceleration_bias)."""
+    return held(acceleration(velocity, valid, period_s, window), valid, window)
