@@ -23,6 +23,14 @@ def valid_errors(track: Track, truth: Truth) -> np.ndarray:
     return np.abs(track.distance_m[track.valid] - r)
 
 
+def covered(track: Track, errors: np.ndarray) -> str:
+    """The share (%) of valid pairs whose distance error (`valid_errors`) lies within
+    their expanded uncertainty, as printed in a benchmark's row ("-" without pairs)."""
+    if not errors.size or track.distance_uncertainty_m is None:
+        return "-"
+    return f"{100 * np.mean(errors <= track.distance_uncertainty_m[track.valid]):.1f}"
+
+
 def invalid_reasons(track: Track) -> str:
     """The invalid pairs' count by reason ("no_echo 12, unstable 3"; empty when none)."""
     return ", ".join(f"{faults.REASONS[k]} {int(np.sum(track.reason == k))}"
