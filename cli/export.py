@@ -15,8 +15,10 @@ import click
 @click.option("--format", "fmt", type=click.Choice(["csv", "parquet", "netcdf"]), default="csv",
               show_default=True,
               help="csv and parquet: one table; netcdf: pairs and half-sweeps, with units.")
-@click.option("--per", type=click.Choice(["pair", "sweep", "echo"]), default="pair", show_default=True,
-              help="The table of csv and parquet: one row per pair, per half-sweep or per echo.")
+@click.option("--per", type=click.Choice(["pair", "object", "sweep", "echo"]), default="pair",
+              show_default=True,
+              help="The table of csv and parquet: one row per pair of the target, per pair of every "
+                   "object (with its id and kind), per half-sweep or per echo.")
 def command(tracks, outdir, fmt, per):
     """Write TRACK files as CSV, Parquet or NetCDF tables.
 

@@ -34,6 +34,8 @@ def summary(capture, out, attrs: dict, valid: np.ndarray) -> dict:
         "rival_echo": ({"distance_m": float(a["rival_echo_m"]), "relative_db": float(a["rival_echo_db"]),
                         "moving": bool(a.get("rival_echo_diffuse", False))}
                        if np.isfinite(a.get("rival_echo_m", np.nan)) else None),
+        "target_object": int(a["target_object"]) if "target_object" in a else None,
+        "objects": int(a.get("objects", 1)),
     }
 
 
@@ -47,7 +49,12 @@ def tracked(attrs: dict) -> str:
 
 
 def target_lines(cap, attrs: dict) -> None:
-    """One line on the target choice where it left echoes out or could not decide."""
+    """One line on the target choice where it left echoes out or could not decide, and
+    one naming the scene's other objects, each with the option that chooses it."""
+    others = attrs.get("target_others", "")
+    if others:
+        click.echo(f"note: {cap}: the target is object #{attrs['target_object']} of {attrs['objects']} "
+                   f"({tracked(attrs)}); the others: {others}", err=True)
     fixed = np.asarray(attrs.get("target_fixed_echoes_m", ()), float)
     band = np.asarray(attrs.get("target_band_m", (np.nan, np.nan)), float)
     amb = int(attrs.get("invalid_ambiguous", 0))

@@ -107,6 +107,17 @@ class Truth:
     distance_m: np.ndarray
     velocity_mps: np.ndarray
     acceleration_mps2: np.ndarray
+    visible: np.ndarray | None = None   # where the echo can be seen (None: always)
+    kind: str = "moving"                # "moving", or "fixed" for a static reflector
+
+
+TRUTH_FIELDS = ("time_s", "distance_m", "velocity_mps", "acceleration_mps2")
+
+
+def _read_truth(g: h5py.Group) -> Truth:
+    visible = np.asarray(g["visible"][()], bool) if "visible" in g else None
+    return Truth(*(np.asarray(g[k][()], dtype=np.float64) for k in TRUTH_FIELDS), visible,
+                 str(g.attrs.get("kind", "moving")))
 
 
 def _attr(obj: h5py.HLObject, name: str, path: Path, where: str):
@@ -453,9 +464,17 @@ class Capture:
         """The simulator's true trajectory, or None when the capture has none."""
         if not self.info.has_truth:
             return None
+        return _read_truth(self._file["truth"])
+
+    def truth_objects(self) -> list[Truth]:
+        """The simulator's truth of every echo of the scene, the target first, then the
+        other moving echoes and the static reflectors (`Truth.kind`), each with where it
+        can be seen; [] when the capture has no truth."""
+        if not self.info.has_truth:
+            return []
         g = self._file["truth"]
-        return Truth(*(np.asarray(g[k][()], dtype=np.float64) for k in
-                       ("time_s", "distance_m", "velocity_mps", "acceleration_mps2")))
+        others = g.get("objects", {})
+        return [_read_truth(g), *(_read_truth(others[k]) for k in sorted(others, key=int))]
 
 
 class CaptureWriter:
@@ -522,10 +541,16 @@ class CaptureWriter:
         self.beat[start:start + beat.size] = beat
         self.sync[start:start + sync.size] = sync
 
-    def write_truth(self, truth: Truth) -> None:
+    def write_truth(self, truth: Truth, others: tuple[Truth, ...] = ()) -> None:
+        """The target's `truth` in /truth, the scene's other echoes' in /truth/objects/<k>."""
         g = self._file.require_group("truth")
-        for name in ("time_s", "distance_m", "velocity_mps", "acceleration_mps2"):
-            g.create_dataset(name, data=np.asarray(getattr(truth, name), np.float64))
+        for t, where in [(truth, g)] + [(o, g.create_group(f"objects/{k}")) for k, o in enumerate(others, 1)]:
+            for name in TRUTH_FIELDS:
+                where.create_dataset(name, data=np.asarray(getattr(t, name), np.float64))
+            if t.visible is not None:
+                where.create_dataset("visible", data=np.asarray(t.visible, bool))
+            if where is not g:
+                where.attrs["kind"] = t.kind
 
     def _abort(self, exc: BaseException) -> None:
         f = getattr(self, "_file", None)

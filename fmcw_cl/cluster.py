@@ -23,8 +23,9 @@ from .assemble import assemble
 from .backend import make_processor
 from .capture import Capture
 from .chunks import capture_parts, split_ranges
-from .engine import check_tuning, chosen, process, with_choice
+from .engine import check_tuning, chosen, process, with_choice, with_objects
 from .errors import FmcwError
+from .objects import SceneObject
 from .options import Options
 from .plan import make_plan
 from .processor import NumpyProcessor
@@ -193,13 +194,17 @@ def _collect(client, jobs: dict, samples: dict, refused: list, backend: str, dev
             track = assemble(plan, parts, made, time.perf_counter() - started, choice)
             if choice is None:                    # the first pass: which echo is the target
                 with Capture(cap) as c:
-                    choice = chosen(c, plan, NumpyProcessor(), track)
+                    choice = chosen(c, plan, NumpyProcessor(), track)[0]
                 if choice.band_m != plan.options.band_m:    # its band: the ranges again
                     submit_ranges(cap, out, plan.with_band(choice.band_m), cuts, choice)
                     continue
                 track = with_choice(plan, parts, made, time.perf_counter() - started, track, choice)
             with Capture(cap) as c:
                 check_tuning(c, plan, track, NumpyProcessor())
+            # a capture split into ranges gives its target only: the objects' own bands
+            # would each be a pass over every range
+            only = "the target: a capture split into ranges is converted for its target only"
+            track = with_objects([SceneObject(1, bool(choice.moving), track, only)], 0)
             value = _written(str(cap), out, track)
         n, fs = samples[str(cap)]
         done += n

@@ -17,7 +17,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from . import heap, rest_calibration, target
+from . import heap, objects, rest_calibration, scene, target
 from .assemble import assemble
 from .band import echo_outside
 from .capture import Capture
@@ -62,16 +62,29 @@ def process(path, options: Options | None = None, processor: ChunkProcessor | No
             with read_chunks(cap, fit_chunks(options, cap.info, processor)) as ahead:
                 plan = make_plan(cap, options, processor=processor)
                 parts = capture_parts(cap, plan, processor, progress=progress, ahead=ahead)
-            track = assemble(plan, parts, processor, time.perf_counter() - started)
-            choice = chosen(cap, plan, processor, track)
+            first = assemble(plan, parts, processor, time.perf_counter() - started)
+            choice, fixed, beside = chosen(cap, plan, processor, first)
+            was = scene.First(plan, parts, first, fixed, beside)
             if choice.band_m != plan.options.band_m:          # the target alone in its band: again
                 plan = plan.with_band(choice.band_m)
                 parts = capture_parts(cap, plan, processor, progress=progress)
                 track = assemble(plan, parts, processor, time.perf_counter() - started, choice)
             else:
-                track = with_choice(plan, parts, processor, time.perf_counter() - started, track, choice)
+                track = with_choice(plan, parts, processor, time.perf_counter() - started, first, choice)
+            if plan.options.target == "strongest" and plan.options.target_near is None:
+                found, pick = [objects.SceneObject(1, bool(choice.moving), track, "the strongest echo "
+                                                   "of the band, pair by pair")], 0
+            else:
+                own = scene.Converted(objects.Candidate(np.nan, np.nan, bool(choice.moving)), choice, plan,
+                                      parts, track)
+                found, pick, own = scene.objects_of(cap, was, choice, own, processor,
+                                                    lambda: time.perf_counter() - started, progress)
+                plan, choice, track = own.plan, own.choice, own.track
             if check_tuning(cap, plan, track, processor) > UNCALIBRATED_RATIO and plan.options.dechirp:
                 track = calibrated_on_rest(cap, plan, track, processor, choice, started, progress)
+                found, pick = [objects.SceneObject(1, bool(choice.moving), track, "the target: objects not "
+                                                   "sought on a chirp calibrated on its rest")], 0
+            track = with_objects(found, pick)
             check_band(cap, plan, options, track, processor)
     finally:
         processor.close()
@@ -89,16 +102,33 @@ def with_choice(plan: Plan, parts: list[ChunkMeasurements], processor: ChunkProc
     return track
 
 
-def chosen(cap: Capture, plan: Plan, processor: ChunkProcessor, track: Track) -> target.Choice:
+def chosen(cap: Capture, plan: Plan, processor: ChunkProcessor, track: Track
+           ) -> tuple[target.Choice, target.Fixed, list[tuple[float, float]]]:
     """The target of a first conversion `track` (choose_target), with a second look
-    (fmcw_cl.second_look, by `processor`) beside a lone fixed echo."""
+    (fmcw_cl.second_look, by `processor`) beside a lone fixed echo; the fixed echoes of
+    its tables and the moving echoes the second look found."""
     fixed = target.fixed_of(track.echoes, plan.lut.unambiguous_range_m, track.time_s, track.distance_m,
                             track.valid)
     choice = choose_target(plan, track, fixed)
+    beside: list[tuple[float, float]] = []
     if choice.lone:
         beside = moving_beside(cap, plan, processor, float(choice.fixed_m[0]))
         choice = choose_target(plan, track, fixed, beside)
-    return choice
+    return choice, fixed, beside
+
+
+def with_objects(found: list[objects.SceneObject], pick: int) -> Track:
+    """The track of the target, `found[pick]`, with the scene's objects and the target's
+    id (`target_object`); the other objects named, each with the option that chooses it
+    (`target_others`)."""
+    chosen_track = found[pick].track
+    others = [o for k, o in enumerate(found) if k != pick]
+    chosen_track.attrs.update(
+        target_object=int(found[pick].id), objects=len(found),
+        target_others="; ".join(f"{objects.describe(o)}: --target-near {objects.where_m(o):.3f} chooses it"
+                                for o in others))
+    chosen_track.objects = found
+    return chosen_track
 
 
 def choose_target(plan: Plan, track: Track, fixed: target.Fixed, beside: list | None = None) -> target.Choice:

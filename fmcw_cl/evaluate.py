@@ -77,3 +77,64 @@ def eta_from_peak_snr(snr_db, points: int) -> float:
     """Per-point SNR eta of the resampled half-sweeps from their peaks' median SNR (dB;
     `uncertainty.peak_eta`)."""
     return float(peak_eta(np.median(np.asarray(snr_db, float)), points))
+
+
+WRONG_M = 2e-3   # a valid pair further than this from its own object's truth is wrong
+
+
+def truth_visible(truth: Truth, t: np.ndarray, span_s: float = 0.0) -> np.ndarray:
+    """Whether the object of `truth` can be seen at times `t` (s), or anywhere within
+    +-`span_s` / 2 of them (a pair that integrates half-sweeps over `span_s`)."""
+    if truth.visible is None:
+        return np.ones(np.shape(t), bool)
+    seen = np.r_[0, np.cumsum(truth.visible)]
+    lo = np.clip(np.searchsorted(truth.time_s, np.asarray(t) - span_s / 2), 0, truth.time_s.size - 1)
+    hi = np.clip(np.searchsorted(truth.time_s, np.asarray(t) + span_s / 2), 0, truth.time_s.size - 1)
+    return seen[hi + 1] - seen[lo] > 0
+
+
+def on_objects(track: Track, truths: list[Truth]) -> np.ndarray:
+    """For each valid pair of `track`, the index of the truth object (of `truths`)
+    within WRONG_M of its distance, visible then (within the span of half-sweeps it
+    integrates; the nearest where several are), or -1 where none is."""
+    t, d = track.time_s[track.valid], track.distance_m[track.valid]
+    span = float(track.attrs.get("time_resolution_s", 0.0))
+    err = np.full((len(truths), t.size), np.inf)
+    for k, tr in enumerate(truths):
+        e = np.abs(d - truth_at(tr, t)[0])
+        err[k] = np.where(truth_visible(tr, t, span), e, np.inf)
+    best = np.argmin(err, axis=0) if truths else np.zeros(t.size, np.int64)
+    return np.where(np.min(err, axis=0, initial=np.inf) <= WRONG_M, best, -1)
+
+
+def periods_tracked(track: Track, truth: Truth) -> float:
+    """The share of the pairs where `truth`'s object is visible (the whole pair) at
+    which `track` holds a valid pair within WRONG_M of it."""
+    half = 0.5 * (track.period_s or 50e-6)
+    t = track.time_s
+    seen = truth_visible(truth, t - half) & truth_visible(truth, t + half)
+    near = track.valid & (np.abs(track.distance_m - truth_at(truth, t)[0]) <= WRONG_M)
+    return float(np.sum(near & seen) / max(1, np.sum(seen)))
+
+
+def object_scores(track: Track, truths: list[Truth]) -> list[dict]:
+    """Per object of `track` (`Track.objects`; the track alone where it lists none): its
+    id, the truth it follows (the index of `truths` most of its valid pairs lie on,
+    `on_objects`; None without valid pairs), its valid pairs more than WRONG_M from
+    that truth or while it is hidden ("wrong"), and the share of that truth's visible
+    periods it holds ("tracked", `periods_tracked`)."""
+    out = []
+    for o in track.objects or [None]:
+        t = track if o is None else o.track
+        ident = int(track.attrs.get("target_object", 1)) if o is None else o.id
+        if not t.valid.any():
+            out.append({"id": ident, "truth": None, "wrong": 0, "tracked": 0.0})
+            continue
+        on = on_objects(t, truths)
+        own = int(np.bincount(on[on >= 0], minlength=len(truths)).argmax()) if (on >= 0).any() else 0
+        when = t.time_s[t.valid]
+        err = np.abs(t.distance_m[t.valid] - truth_at(truths[own], when)[0])
+        seen = truth_visible(truths[own], when, float(t.attrs.get("time_resolution_s", 0.0)))
+        out.append({"id": ident, "truth": own, "wrong": int(np.sum((err > WRONG_M) | ~seen)),
+                    "tracked": periods_tracked(t, truths[own])})
+    return out

@@ -48,9 +48,22 @@ def _reason_names(codes) -> list[str] | None:
 
 
 def columns(track, per: str = "pair") -> dict[str, np.ndarray]:
-    """The columns of one table of `track`: per "pair", "sweep" or "echo"."""
+    """The columns of one table of `track`: per "pair" (the target's, with its object
+    id), "object" (the pairs of every object of the scene, with their object's id and
+    kind), "sweep" or "echo"."""
+    if per == "object":
+        scene = track.objects or []
+        if not scene:
+            raise FmcwError("this track lists no objects (written before /objects existed)")
+        tables = [columns(o.track, "pair") | {"object": np.full(o.track.pairs, o.id),
+                                               "kind": np.full(o.track.pairs, o.kind)} for o in scene]
+        names = ["object", "kind"] + [k for k in tables[0] if k not in ("object", "kind")
+                                      and all(k in t for t in tables)]
+        return {k: np.concatenate([t[k] for t in tables]) for k in names}
     if per == "pair":
-        cols = {"time_s": track.time_s, "distance_m": track.distance_m, "velocity_mps": track.velocity_mps,
+        cols = {"object": None if track.attrs.get("target_object") is None
+                else np.full(track.pairs, int(track.attrs["target_object"])),
+                "time_s": track.time_s, "distance_m": track.distance_m, "velocity_mps": track.velocity_mps,
                 "acceleration_mps2": track.acceleration_mps2, "valid": track.valid,
                 "velocity_valid": track.velocity_valid, "acceleration_valid": track.acceleration_valid,
                 "distance_uncertainty_m": track.distance_uncertainty_m,
@@ -70,7 +83,7 @@ def columns(track, per: str = "pair") -> dict[str, np.ndarray]:
         cols = {"time_s": e.time_s, "distance_m": e.distance_m, "snr_db": e.snr_db,
                 "current_rising": e.rising, "tracked": e.tracked}
     else:
-        raise FmcwError(f"per={per!r} is not one of pair, sweep, echo")
+        raise FmcwError(f"per={per!r} is not one of pair, object, sweep, echo")
     return {k: v for k, v in cols.items() if v is not None}
 
 

@@ -84,6 +84,9 @@ TOGETHER_S = 2e-3    # pairs this close in time but APART_M apart are two moving
 AWAY_SHARE = 0.5      # a fixed echo seen in this share of the slices where the target is away is an object
 OTHERS_SHARE = 0.1    # "one echo" only while fewer half-sweeps than this share hold another echo (false
                       # alarms: 0.1-0.8 % of all; a rail start under noise at full scale beside a wall: 22 %)
+REST_SIGMAS = 6.0     # a fixed object's pair further than this many robust sigmas from its median ...
+REST_M = 2.5e-4       # ... and than this is a blend with another echo beside it (a foot at rest 5 mm from
+                      # a window read the window 3 mm off)
 SPLIT_M = 0.002       # a fixed echo's directions this far apart in the mean spectra: the conversion is off
 HARMONICS = 3         # a fixed echo at 2..HARMONICS times the distance of a far stronger one ...
 HARMONIC_M = 0.002    # ... within this (a distortion's tone lies at the multiple of the bin) ...
@@ -127,11 +130,14 @@ class Choice:
     unseen_rest: bool = False   # no echo at all: the pairs at rest (under MOVING_MPS) stand on none
     walls_m: np.ndarray = field(default_factory=lambda: np.zeros(0))
     walls_db: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    at_rest_m: float | None = None    # a fixed object (fmcw_cl.objects): its pairs only at rest, there
+    taken_s: np.ndarray = field(default_factory=lambda: np.zeros(0))   # pair times another object shares
 
     @property
     def undecided(self) -> bool:
         """Whether some pairs may be ambiguous under this choice."""
-        return bool(self.ambiguous_m.size or self.ambiguous_spans_m.size or self.unseen_rest)
+        return bool(self.ambiguous_m.size or self.ambiguous_spans_m.size or self.unseen_rest
+                    or self.at_rest_m is not None or self.taken_s.size)
 
     def attrs(self) -> dict:
         return {"target_rule": self.rule,
@@ -367,14 +373,18 @@ def fixed_of(e: echoes.Echoes, unambiguous_m: float, time_s, distance_m, valid) 
 def choose(rule: str, near_m: float | None, time_s, distance_m, velocity_mps, valid,
            e: echoes.Echoes, unambiguous_m: float, band: tuple[float, float | None],
            beside: list[tuple[float, float]] | None = None, clipped: bool = False,
-           fixed: Fixed | None = None) -> Choice:
+           fixed: Fixed | None = None, moving: bool | None = None, sides: bool = False) -> Choice:
     """The target of a first conversion's pairs (valid, distances, velocities) and echo
     table `e` (see the module); `unambiguous_m` is the capture's unambiguous range,
     `band` the user's (lo, hi) in m. A lone fixed echo (`auto`, `moving`) comes back
     with `lone` set until `beside`, the moving echoes found beside it by a second look
     (fmcw_cl.second_look), is given. `clipped`: some pairs are clipped (their distortion
     puts peaks into the mean spectra). `fixed`: `fixed_of` these arguments, where known
-    (the call after a second look takes the first call's)."""
+    (the call after a second look takes the first call's). `moving`: with `near_m`, a
+    moving span (True) or a fixed echo (False) before the other where both lie at D
+    (fmcw_cl.objects: a wall inside a leg's span). `sides`: the caller tracks a moving
+    echo on each side of the fixed objects inside its span (fmcw_cl.scene), so its band
+    is never one side of them."""
     if fixed is None:
         fixed = fixed_of(e, unambiguous_m, time_s, distance_m, valid)
     listed, d, level = fixed.listed, fixed.distance_m, fixed.level_db
@@ -383,7 +393,7 @@ def choose(rule: str, near_m: float | None, time_s, distance_m, velocity_mps, va
     groups = [members[np.abs(members - f) < APART_M] for f in d]
     extent = np.array([(min(f, g.min()), max(f, g.max())) for f, g in zip(d, groups, strict=True)])
     choice = _choose(rule, near_m, time_s, distance_m, velocity_mps, valid, e, unambiguous_m, band, beside,
-                     clipped, d, extent.reshape(-1, 2), fixed.objects)
+                     clipped, d, extent.reshape(-1, 2), fixed.objects, moving, sides)
     if choice.ambiguous_m.size:   # with the echoes each one stands for
         near = np.min(np.abs(members[:, None] - choice.ambiguous_m[None, :]), axis=1) < APART_M
         choice.ambiguous_m = np.union1d(choice.ambiguous_m, members[near])
@@ -399,9 +409,11 @@ def choose(rule: str, near_m: float | None, time_s, distance_m, velocity_mps, va
 def _choose(rule: str, near_m: float | None, time_s, distance_m, velocity_mps, valid,
             e: echoes.Echoes, unambiguous_m: float, band: tuple[float, float | None],
             beside: list[tuple[float, float]] | None, clipped: bool, fixed: np.ndarray,
-            extent: np.ndarray, objects: np.ndarray) -> Choice:
+            extent: np.ndarray, objects: np.ndarray, prefer: bool | None = None, sides: bool = False
+            ) -> Choice:
     """`choose` with the capture's fixed echoes `fixed` (m), the (lo, hi) of the echoes
-    each stands for, `extent` (m), and whether each is an object (`_objects`)."""
+    each stands for, `extent` (m), whether each is an object (`_objects`), and the kind
+    `prefer`red at a tie of `near_m`."""
     inband = (fixed >= band[0]) & (fixed < (band[1] or np.inf))
     fixed, extent, objects = fixed[inband], extent[inband], objects[inband]
     diffuse = smeared(e, band)
@@ -421,7 +433,8 @@ def _choose(rule: str, near_m: float | None, time_s, distance_m, velocity_mps, v
     # the candidates: every fixed echo (a point) and each moving span
     cands = [((f, f), False) for f in fixed] + [(span, True) for span in spans]
     if near_m is not None:
-        target = min(cands, key=lambda c: max(c[0][0] - near_m, near_m - c[0][1], 0.0), default=None)
+        target = min(cands, key=lambda c: (max(c[0][0] - near_m, near_m - c[0][1], 0.0), c[1] != prefer),
+                     default=None)
     elif rule == "nearest":
         target = min(cands, key=lambda c: c[0][0], default=None)
     elif len(spans) > 1:      # several echoes move: the rule cannot tell which is the target
@@ -485,7 +498,7 @@ def _choose(rule: str, near_m: float | None, time_s, distance_m, velocity_mps, v
     for a, b in extent[inner]:
         on |= (distance_m >= a - GATE_M) & (distance_m <= b + GATE_M)
     held = valid.any() and (on & valid).sum() >= 0.5 * valid.sum()
-    if held and not np.any(valid & (np.abs(velocity_mps) >= MOVING_MPS)):
+    if held and not sides and not np.any(valid & (np.abs(velocity_mps) >= MOVING_MPS)):
         # found by its smeared energy alone, while the first conversion held an object (half
         # its verified pairs on one): the objects inside its span would hold the tracker again
         # (a take-off through a wall of 800 codes: every pair on the wall). The part beside
@@ -627,4 +640,17 @@ def ambiguous(code: np.ndarray, time_s: np.ndarray, distance_m: np.ndarray, velo
         out[(out == faults.OK) & near] = faults.AMBIGUOUS
     if imaged is not None:
         out[(out == faults.OK) & imaged] = faults.AMBIGUOUS
+    if choice.at_rest_m is not None:        # a fixed object: what moves, or lies elsewhere, is another
+        other = (np.abs(distance_m - choice.at_rest_m) > GATE_M) | (np.abs(velocity_mps) >= MOVING_MPS)
+        out[(out == faults.OK) & other] = faults.AMBIGUOUS
+        ok = out == faults.OK
+        if ok.sum() >= 20:              # ... and so does a blend with an echo beside it: its peak moves
+            mid = np.median(distance_m[ok])
+            spread = 1.4826 * np.median(np.abs(distance_m[ok] - mid))
+            out[ok & (np.abs(distance_m - mid) > max(REST_SIGMAS * spread, REST_M))] = faults.AMBIGUOUS
+    if choice.taken_s.size:                 # another object's path within GATE_M (fmcw_cl.objects)
+        k = np.clip(np.searchsorted(choice.taken_s, time_s), 1, choice.taken_s.size)
+        near = np.minimum(np.abs(choice.taken_s[k - 1] - time_s),
+                          np.abs(choice.taken_s[np.minimum(k, choice.taken_s.size - 1)] - time_s)) < 1e-9
+        out[(out == faults.OK) & near] = faults.AMBIGUOUS
     return out

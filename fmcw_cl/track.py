@@ -12,6 +12,7 @@ import numpy as np
 from .atomic import atomic_hdf5
 from .chirp import Chirp, read_directions, write_directions
 from .echoes import MEAN_KEYS, Echoes, no_means
+from .stages.faults import REASONS
 
 FORMAT = "track"
 FORMAT_VERSION = 1
@@ -44,6 +45,7 @@ class Track:
     distance_uncertainty_m: np.ndarray | None = None    # per pair: expanded uncertainty (k = 2)
     velocity_uncertainty_mps: np.ndarray | None = None
     acceleration_uncertainty_mps2: np.ndarray | None = None
+    objects: list | None = None               # the scene's objects.SceneObject, the target among them
 
     def __post_init__(self) -> None:
         # a track written before validity per quantity: its velocities and accelerations
@@ -74,9 +76,10 @@ class Track:
                 f"{valid}>")
 
     def to_pandas(self, per: str = "pair"):
-        """A pandas DataFrame per "pair" (time_s, distance_m, velocity_mps,
-        acceleration_mps2, valid, reason), per "sweep" (each half-sweep) or per "echo";
-        the attributes in `.attrs`. Needs pandas (`pip install ".[tables]"` in the
+        """A pandas DataFrame per "pair" (object, time_s, distance_m, velocity_mps,
+        acceleration_mps2, valid, reason), per "object" (the pairs of every object of the
+        scene, with its id and kind), per "sweep" (each half-sweep) or per "echo"; the
+        attributes in `.attrs`. Needs pandas (`pip install ".[tables]"` in the
         fmcw-cl folder)."""
         from .tables import to_pandas
 
@@ -110,21 +113,13 @@ def write_track(path: str | os.PathLike, track: Track) -> Path:
             s.create_dataset("snr_dechirped_db", data=np.asarray(track.sweep_snr_dechirped_db, np.float32))
         if track.sweep_reason is not None:
             s.create_dataset("reason", data=np.asarray(track.sweep_reason, np.uint8))
-        t = f.create_group("track")
-        t.create_dataset("time_s", data=np.asarray(track.time_s, np.float64))
-        t.create_dataset("distance_m", data=np.asarray(track.distance_m, np.float64))
-        t.create_dataset("velocity_mps", data=np.asarray(track.velocity_mps, np.float64))
-        t.create_dataset("acceleration_mps2", data=np.asarray(track.acceleration_mps2, np.float64))
-        t.create_dataset("valid", data=np.asarray(track.valid, bool))
-        if track.reason is not None:
-            t.create_dataset("reason", data=np.asarray(track.reason, np.uint8))
-        for name in OPTIONAL_PAIR_DATASETS:
-            x = getattr(track, name)
-            if x is not None:
-                t.create_dataset(name, data=np.asarray(x, bool if name.endswith("valid") else np.float64))
-        if track.integrated is not None:
-            t.create_dataset("integrated_sweeps", data=np.asarray(track.integrated, np.uint16))
-            t.create_dataset("time_resolution_s", data=np.asarray(track.time_resolution_s, np.float64))
+        _write_pairs(f.create_group("track"), track)
+        for o in track.objects or ():
+            g = f.create_group(f"objects/{o.id}")
+            _write_pairs(g, o.track)
+            for k, v in {**{k: o.track.attrs[k] for k in OBJECT_TRACK_ATTRS if k in o.track.attrs},
+                         **o.attrs()}.items():
+                g.attrs[k] = v
         if track.echoes is not None:
             _write_echoes(f.create_group("echoes"), track.echoes)
         if track.chirp is not None:
@@ -132,6 +127,37 @@ def write_track(path: str | os.PathLike, track: Track) -> Path:
     return path
 
 
+def _write_pairs(t: h5py.Group, track: Track) -> None:
+    """The per-pair datasets of `track` (contract: /track) into group `t`."""
+    t.create_dataset("time_s", data=np.asarray(track.time_s, np.float64))
+    t.create_dataset("distance_m", data=np.asarray(track.distance_m, np.float64))
+    t.create_dataset("velocity_mps", data=np.asarray(track.velocity_mps, np.float64))
+    t.create_dataset("acceleration_mps2", data=np.asarray(track.acceleration_mps2, np.float64))
+    t.create_dataset("valid", data=np.asarray(track.valid, bool))
+    if track.reason is not None:
+        t.create_dataset("reason", data=np.asarray(track.reason, np.uint8))
+    for name in OPTIONAL_PAIR_DATASETS:
+        x = getattr(track, name)
+        if x is not None:
+            t.create_dataset(name, data=np.asarray(x, bool if name.endswith("valid") else np.float64))
+    if track.integrated is not None:
+        t.create_dataset("integrated_sweeps", data=np.asarray(track.integrated, np.uint16))
+        t.create_dataset("time_resolution_s", data=np.asarray(track.time_resolution_s, np.float64))
+
+
+def _read_pairs(t: h5py.Group, attrs: dict, period_s: float | None) -> Track:
+    """A track of the per-pair datasets of group `t` alone (an object of /objects)."""
+    optional = {name: t[key][()] for name, key in (("reason", "reason"), ("integrated", "integrated_sweeps"),
+                                                   *((n, n) for n in OPTIONAL_PAIR_DATASETS)) if key in t}
+    empty = np.zeros(0)
+    return Track(empty, np.zeros(0, bool), empty, empty, t["time_s"][()], t["distance_m"][()],
+                 t["velocity_mps"][()], t["acceleration_mps2"][()], t["valid"][()], attrs, period_s=period_s,
+                 **optional)
+
+
+# an object's track attributes written beside its own (fmcw_cl.objects.SceneObject.attrs)
+OBJECT_TRACK_ATTRS = ("target_band_m", "target_choice", "time_resolution_s", "target_tracked_m",
+                      *(f"invalid_{name}" for code, name in REASONS.items() if code))
 OPTIONAL_PAIR_DATASETS = ("velocity_valid", "acceleration_valid", "distance_uncertainty_m",
                           "velocity_uncertainty_mps", "acceleration_uncertainty_mps2")
 ECHO_COLUMNS = (("time_s", np.float64), ("distance_m", np.float64), ("snr_db", np.float32),
@@ -159,6 +185,17 @@ def _read_echoes(g) -> Echoes:
                           if name in g["persistent"]}, means)
 
 
+def _read_objects(g: h5py.Group, period_s: float | None) -> list:
+    from .objects import SceneObject
+
+    out = []
+    for key in sorted(g, key=int):
+        attrs = {k: (v.decode() if isinstance(v, bytes) else v) for k, v in g[key].attrs.items()}
+        out.append(SceneObject(int(key), attrs.get("object_kind") == "moving",
+                               _read_pairs(g[key], attrs, period_s), str(attrs.get("object_note", ""))))
+    return out
+
+
 def read_track(path: str | os.PathLike) -> Track:
     """Read a track file written by `write_track` (or any writer of the contract)."""
     with h5py.File(path, "r") as f:
@@ -178,6 +215,8 @@ def read_track(path: str | os.PathLike) -> Track:
             optional["echoes"] = _read_echoes(f["echoes"])
         if "chirp" in f:
             optional["chirp"] = Chirp(*read_directions(f["chirp"]))
+        if "objects" in f:
+            optional["objects"] = _read_objects(f["objects"], optional.get("period_s"))
         return Track(s["time_s"][()], s["current_rising"][()], s["distance_m"][()],
                      s["snr_db"][()], t["time_s"][()], t["distance_m"][()],
                      t["velocity_mps"][()], t["acceleration_mps2"][()], t["valid"][()], attrs,

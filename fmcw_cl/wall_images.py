@@ -84,3 +84,30 @@ def confused(velocity: np.ndarray, peaks_m: tuple, snr_db: tuple, walls_m: np.nd
             strong = levels[:, None] + at >= snr[idx] - IMAGE_MARGIN_DB
             out[idx] |= (near[:, idx] & core & strong).any(axis=0)
     return out
+
+
+def confused_moving(velocity: np.ndarray, peaks_m: tuple, snr_db: tuple, other_m: np.ndarray,
+                    other_mps: np.ndarray, other_db: float, model: DopplerModel, window: np.ndarray,
+                    rows: np.ndarray) -> np.ndarray:
+    """`confused` for another object that moves: at `other_m` (m) with `other_mps` (m/s)
+    at each pair (NaN: not there). Its tone carries its own Doppler term, so a
+    half-sweep de-chirped at v shows it as a still tone de-chirped at v - u (its mirror,
+    the conjugate, at v + u); `other_db` is its level (dB over the floor)."""
+    out = np.zeros(rows.size, bool)
+    v = np.asarray(velocity, np.float64)
+    there = rows & np.isfinite(other_m) & np.isfinite(other_mps) & np.isfinite(v)
+    for sign in (1.0, -1.0):                       # the tone, then its mirror
+        rel = v - sign * np.nan_to_num(other_mps)
+        tone = sign * np.nan_to_num(other_m)
+        for beta, k, peak, snr in zip((model.beta_rise, model.beta_fall), (model.k_rise, model.k_fall),
+                                      peaks_m, snr_db, strict=True):
+            shift = -rel * k
+            offset = peak - tone
+            near = there & (np.abs(offset - shift) <= IMAGE_REACH_M + IMAGE_REACH_SHARE * np.abs(shift))
+            idx = np.flatnonzero(near)
+            if idx.size:
+                at, top = image_gain_db(beta, rel[idx], offset[None, idx], window, model)
+                core = at[0] >= top - IMAGE_CORE_DB
+                strong = other_db + at[0] >= snr[idx] - IMAGE_MARGIN_DB
+                out[idx] |= core & strong
+    return out

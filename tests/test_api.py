@@ -92,10 +92,14 @@ def test_one_validated_configuration():
 def test_tables_and_labelled_arrays(jump_track):
     track = fmcw_cl.read_track(jump_track)
     df = track.to_pandas()
-    assert list(df.columns) == ["time_s", "distance_m", "velocity_mps", "acceleration_mps2", "valid",
-                                "velocity_valid", "acceleration_valid", "distance_uncertainty_m",
+    assert list(df.columns) == ["object", "time_s", "distance_m", "velocity_mps", "acceleration_mps2",
+                                "valid", "velocity_valid", "acceleration_valid", "distance_uncertainty_m",
                                 "velocity_uncertainty_mps", "acceleration_uncertainty_mps2", "reason"]
     assert len(df) == track.pairs and df.attrs["points"] == 1000
+    assert (df.object == track.attrs["target_object"]).all()
+    scene = track.to_pandas(per="object")
+    assert list(scene.columns[:3]) == ["object", "kind", "time_s"]
+    assert len(scene) == sum(o.track.pairs for o in track.objects)
     assert set(df.reason.cat.categories) >= {"ok", "no_echo", "discontinuous"}
     sweeps = track.to_pandas(per="sweep")
     assert len(sweeps) == track.sweep_time_s.size and sweeps.current_rising.sum() == len(sweeps) // 2

@@ -11,7 +11,7 @@ from conftest import realistic
 
 from fmcw_cl.capture import Capture
 from fmcw_cl.engine import process
-from fmcw_cl.evaluate import accuracy, truth_at, valid_errors
+from fmcw_cl.evaluate import accuracy, object_scores, truth_at, valid_errors
 from fmcw_cl.options import Options
 from fmcw_cl.simulator import SimulationConfig, simulate_capture, static
 from fmcw_cl.stages import faults
@@ -27,6 +27,15 @@ def scored(path, **opts):
 def wrong(track, truth, limit=2e-3) -> int:
     """Valid pairs more than `limit` m from the truth."""
     return int(np.sum(valid_errors(track, truth) > limit))
+
+
+def scene_of(track, path) -> list[dict]:
+    """evaluate.object_scores of `track`'s objects against every truth of the capture;
+    asserts that no object holds a valid pair off the truth it follows."""
+    with Capture(path) as cap:
+        scores = object_scores(track, cap.truth_objects())
+    assert sum(s["wrong"] for s in scores) == 0, scores
+    return scores
 
 
 def test_the_moving_target_is_tracked_past_a_stronger_wall(wall_capture, tmp_path, fmcw):
@@ -92,24 +101,29 @@ def test_an_accelerating_targets_doppler_image_is_no_fixed_echo(tmp_path, seed):
     assert track.attrs["invalid_ambiguous"] == 0 and track.valid.mean() >= 0.99
 
 
-def test_two_static_reflectors_are_ambiguous_until_the_user_chooses(tmp_path, fmcw):
+def test_two_static_reflectors_are_two_objects_until_the_user_chooses(tmp_path, fmcw):
     path = tmp_path / "two.h5"
     cfg = SimulationConfig(snr_db=0.0, reflectors=((0.37, 400.0),))
     simulate_capture(path, static(0.02, 0.21), 0.02, seed=41, config=cfg)
     track = process(path)
-    # no echo moves: the rule cannot tell the target from the other echo
-    assert not track.valid.any() and (track.reason == faults.AMBIGUOUS).all()
+    # no echo moves: each is an object, tracked on its own; the target is one, the other named
+    scores = scene_of(track, path)
+    assert sorted(s["truth"] for s in scores) == [0, 1] and min(s["tracked"] for s in scores) >= 0.95
+    other = 0.37 if np.nanmedian(track.distance_m) < 0.3 else 0.21
     proc = fmcw("process", path, "-o", tmp_path / "out", "--backend", "numpy")
-    assert "pairs ambiguous: no echo moves: the fixed echoes at 0.210, 0.370 m" in proc.stderr
+    assert "the others: #" in proc.stderr and f"--target-near {other:.3f} chooses it" in proc.stderr
     e = track.echoes
     near = lambda d: np.abs(e.distance_m - d) < 1e-3  # noqa: E731
     sweeps = track.sweep_time_s.size
-    assert near(0.21).sum() >= 0.98 * sweeps and e.tracked[near(0.21)].all()
-    assert near(0.37).sum() >= 0.98 * sweeps and not e.tracked[near(0.37)].any()
+    mine = 0.58 - other
+    assert near(mine).sum() >= 0.98 * sweeps and e.tracked[near(mine)].all()
+    assert near(other).sum() >= 0.98 * sweeps and not e.tracked[near(other)].any()
     assert np.sum(~near(0.21) & ~near(0.37)) <= 0.02 * sweeps        # false echoes are rare
-    # 400 codes at 0.37 m against 1500 * 0.1/0.21 = 714 at 0.21 m: about 5 dB weaker
-    assert track.attrs["rival_echo_m"] == pytest.approx(0.37, abs=1e-3)
-    assert -8 < track.attrs["rival_echo_db"] < -2
+    # 400 codes at 0.37 m against 1500 * 0.1/0.21 = 714 at 0.21 m: about 5 dB weaker, the
+    # rival of the strongest echo of the whole band
+    strongest = process(path, Options(target="strongest"))
+    assert strongest.attrs["rival_echo_m"] == pytest.approx(0.37, abs=1e-3)
+    assert -8 < strongest.attrs["rival_echo_db"] < -2
     # each rule that names one: that one
     for opts, want in (({"target": "nearest"}, 0.21), ({"target": "strongest"}, 0.21),
                        ({"target_near": 0.36}, 0.37)):
@@ -124,20 +138,20 @@ def test_a_stronger_wall_under_full_scale_noise_is_told_from_the_target(tmp_path
     0.45 m (800 codes): the CFAR sees neither echo in enough single half-sweeps, their
     mean spectra see both, so the rule cannot tell which is the target and no pair is
     valid (tracking the wall as "one echo: the target" put 94 % of the pairs 150 mm from
-    the target). The sync delay is refined on the wall across the isolated pairs noise
-    leaves invalid (without bridging them, seed 2 kept an intensity estimate 51 samples
-    off and every velocity 0.24 m/s off)."""
+    the target). Each is an object: no pair of either on the other. The sync delay is
+    refined on the wall across the isolated pairs noise leaves invalid (without
+    bridging them, seed 2 kept an intensity estimate 51 samples off and every velocity
+    0.24 m/s off)."""
     import fmcw_cl
 
     path = tmp_path / "fs.h5"
     drawn = fmcw_cl.simulate(path, "static", duration=0.05, seed=seed, noise=3000.0, lab=True,
                              no_headroom=True, reflectors=((0.45, 800.0),))["sync_delay_samples"]
     track = process(path)
-    assert not track.valid.any() and track.attrs["invalid_ambiguous"] > 0.9 * track.time_s.size
-    assert "cannot be told apart" in track.attrs["target_choice"]
+    scene_of(track, path)
     fixed = np.sort(track.attrs["target_fixed_echoes_m"])
     assert fixed.size == 2 and np.all(np.abs(fixed - [0.30, 0.45]) < 2e-3)
-    m = track.echoes.means
+    m = process(path, Options(target="strongest")).echoes.means     # the whole band's mean spectra
     for rising in (True, False):           # both echoes in every full mean spectrum of both directions
         blocks = np.unique(m["mean_time_s"][m["mean_rising"] == rising])
         for d in (0.30, 0.45):
@@ -147,9 +161,10 @@ def test_a_stronger_wall_under_full_scale_noise_is_told_from_the_target(tmp_path
     assert abs(track.attrs["sync_delay_samples"] - drawn) < 1.0
 
 
-def test_two_moving_echoes_are_ambiguous_until_the_user_chooses(tmp_path, fmcw):
+def test_two_moving_echoes_are_two_objects(tmp_path, fmcw):
     """The jump and, beyond it, a second limb swinging 0.38-0.42 m at 8 Hz (1 m/s) and
-    stronger than the target in flight: the strongest echo hops between the two."""
+    stronger than the target in flight: the strongest echo hops between the two; each is
+    an object, the leg (it travels furthest) the target."""
     from fmcw_cl.simulator.scene import Trajectory
 
     w = 2 * np.pi * 8
@@ -162,11 +177,11 @@ def test_two_moving_echoes_are_ambiguous_until_the_user_chooses(tmp_path, fmcw):
     on_sway = np.abs(strongest.distance_m - sway.at(strongest.time_s)[0]) < 2e-3
     assert np.sum(strongest.valid & on_sway) > 1000        # the scene is what it claims
     track = process(path)
-    assert not track.valid.any() and track.attrs["invalid_ambiguous"] > 0.9 * track.time_s.size
-    spans = track.attrs["target_ambiguous_spans_m"].reshape(-1, 2)
-    assert spans.shape == (2, 2) and spans[0, 1] < 0.31 and 0.37 < spans[1, 0] < spans[1, 1] < 0.43
+    scores = scene_of(track, path)            # each its own object, neither's pair on the other
+    assert {s["truth"] for s in scores if s["tracked"] >= 0.8} == {0, 1}, scores
+    assert next(s["truth"] for s in scores if s["id"] == track.attrs["target_object"]) == 0   # the leg
     proc = fmcw("process", path, "-o", tmp_path / "out", "--backend", "numpy")
-    assert "pairs ambiguous: the moving echoes at 0.0" in proc.stderr and "--target-near" in proc.stderr
+    assert "(moving, 0.3" in proc.stderr and "--target-near 0.4" in proc.stderr, proc.stderr
     for opts in ({"target": "nearest"}, {"target_near": 0.2}):
         got = process(path, Options(**opts))
         assert wrong(got, truth) == 0 and got.valid.mean() >= 0.90, opts
@@ -177,9 +192,9 @@ def test_two_moving_echoes_are_ambiguous_until_the_user_chooses(tmp_path, fmcw):
 def test_a_target_at_rest_behind_a_far_stronger_wall_is_never_the_wall(tmp_path, seed, noise):
     """A lab's target at rest at 0.40 m (375 codes) and a wall at 0.25 m 12 dB
     stronger: tracking the wall as "one echo: the target" put every pair 150 mm off.
-    Both are fixed echoes at any level, so no pair is valid until the user names one.
-    Under noise at full scale (seed 2) the target's mean-spectrum peaks are in 3 and 4
-    of 6 blocks of each direction, in both of one block in fewer than 3."""
+    Both are fixed echoes at any level: each is an object, and neither holds a pair of
+    the other. Under noise at full scale (seed 2) the target's mean-spectrum peaks are
+    in 3 and 4 of 6 blocks of each direction, in both of one block in fewer than 3."""
     from fmcw_cl.simulator import LAB
 
     path = tmp_path / "behind.h5"
@@ -187,7 +202,7 @@ def test_a_target_at_rest_behind_a_far_stronger_wall_is_never_the_wall(tmp_path,
     simulate_capture(path, static(0.05, 0.40), 0.05, seed=seed,
                      config=replace(lab, reflectors=((0.25, 1500.0),)))
     track = process(path)
-    assert not track.valid.any() and (track.reason == faults.AMBIGUOUS).all()
+    scene_of(track, path)
     assert np.allclose(np.sort(track.attrs["target_fixed_echoes_m"]), [0.25, 0.40], atol=2e-3)
     got = process(path, Options(target_near=0.40))
     assert got.valid.mean() >= 0.95                       # 97.9 % under noise at full scale
@@ -381,9 +396,8 @@ def test_a_target_at_rest_near_twice_a_walls_distance_is_no_harmonic(tmp_path):
     simulate_capture(path, static(0.05, 0.35986565), 0.05, seed=138,
                      config=replace(LAB, reflectors=((0.17564, 400.0),), speckle_s=3e-3))
     track = process(path)
-    with Capture(path) as cap:
-        assert wrong(track, cap.truth()) == 0
-    assert "cannot be told apart" in track.attrs["target_choice"]
+    scores = scene_of(track, path)
+    assert {s["truth"] for s in scores} <= {0, 1}
 
 
 def with_a_wrong_run(size, d0, noise_m, run, seed, d_run, v_run):
@@ -637,13 +651,11 @@ def test_a_lab_capture_beside_walls_has_no_wrong_pair(tmp_path, kind, walls, spe
     if seed == 613:                                  # noise at full scale
         lab = replace(lab, noise_codes=3000.0, headroom=None)
     simulate_capture(path, traj, 0.05, seed=seed, config=lab, start_s=start)
-    with Capture(path) as cap:
-        truth = cap.truth()
     for backend in ("numpy", "opencl"):
         track = process(path, processor=make_processor(backend))
-        assert wrong(track, truth) == 0, backend
-        if unlike == "elsewhere":
-            assert "cannot be told apart" in track.attrs["target_choice"], backend
+        scene_of(track, path)
+        if unlike == "elsewhere":       # the echoes each an object: none on another's distance
+            assert len(track.objects) >= 2, backend
         elif unlike == "object":    # the weak wall is named; the take-off beyond it goes unseen
             assert "0.309" in track.attrs["target_choice"], backend
         else:

@@ -42,7 +42,8 @@ def true_events(truth: Truth, t0: float, t1: float, edge_s: float) -> list[Event
     return find_events(g, *truth_at(truth, g), refine_s=20 * TRUTH_GRID_S, edge_s=edge_s)
 
 
-def events_markdown(rows: list[dict], title: str, skipped: dict | None = None, at_rest: bool = False) -> str:
+def events_markdown(rows: list[dict], title: str, skipped: dict | None = None, at_rest: bool = False,
+                    who: str = "the target") -> str:
     """The event table as Markdown (times in ms; errors when a truth was matched; what
     was left out, `events.left_out`, under it); with no event, `at_rest` says why."""
     truth = any(r["true_time_s"] is not None for r in rows)
@@ -66,7 +67,7 @@ def events_markdown(rows: list[dict], title: str, skipped: dict | None = None, a
                          f"{'–' if rel is None else f'{100 * rel:+.2f}'} |")
         lines.append(line)
     if not rows:
-        lines.append("| (none: the target is at rest) | | | |" if at_rest else
+        lines.append(f"| (none: {who} is at rest) | | | |" if at_rest else
                      "| (none: no extremum inside the verified stretches) | | | |")
     if skipped:
         k = skipped
@@ -74,6 +75,19 @@ def events_markdown(rows: list[dict], title: str, skipped: dict | None = None, a
                       f"{k['pairs']} pairs, {k['invalid']} invalid and {k['short_stretches']} valid ones in "
                       "shorter runs were left out."]
     return "\n".join(lines) + "\n"
+
+
+def _object_events(o, edge_s: float) -> tuple:
+    """An object's events (no truth: the capture's is the target's): (object, rows,
+    what was left out, at rest)."""
+    t = o.track
+    used = verified_stretches(t.valid)
+    series = ((t.distance_m, used), (t.velocity_mps, used & t.velocity_valid),
+              (t.acceleration_mps2, used & t.acceleration_valid))
+    ev = find_events(t.time_s, *[np.where(ok, x, np.nan) for x, ok in series], edge_s=edge_s)
+    moving = used & t.velocity_valid
+    at_rest = bool(moving.any() and np.percentile(np.abs(t.velocity_mps[moving]), 95) < STATIC_MPS)
+    return o, compare(ev, []), left_out(t.valid, used), at_rest
 
 
 def _write_text(path: Path, text: str) -> None:
@@ -166,9 +180,16 @@ def make_report(track_file: str | os.PathLike, outdir: str | os.PathLike,
             figures.precision(track, tmp, true_d)
         written.append(out / "precision.png")
     title = Path(str(track.attrs.get("source", track_file))).name
-    _write_text(out / "events.md", events_markdown(rows, title, skipped, at_rest))
+    others = [_object_events(o, edge_s) for o in track.objects or []
+              if o.id != track.attrs.get("target_object")]
+    text = events_markdown(rows, title if not others else f"{title}: the target, object "
+                           f"#{track.attrs['target_object']}", skipped, at_rest)
+    text += "".join("\n" + events_markdown(r, f"{title}: object #{o.id} ({o.kind})", s, a, "the object")
+                    for o, r, s, a in others)
+    _write_text(out / "events.md", text)
     _write_text(out / "events.json", json.dumps(
-        {"track": str(track_file), "source": str(src) if src else None, "events": rows, "left_out": skipped},
+        {"track": str(track_file), "source": str(src) if src else None, "events": rows, "left_out": skipped,
+         "objects": [{"object": o.id, "kind": o.kind, "events": r, "left_out": s} for o, r, s, _ in others]},
         indent=2))
     _write_text(out / "uncertainty.md", budget_markdown(track, title, truth))
     written += [out / "events.md", out / "events.json", out / "uncertainty.md"]

@@ -173,8 +173,9 @@ def echoes(track: Track, path: Path) -> Path:
     """Range-time picture of every echo of every half-sweep: those of the plain spectra
     (CFAR), and the target's own peaks de-chirped at its pair's velocity (a fast
     target's plain peak is smeared by its Doppler term below the CFAR's threshold), each
-    coloured by its SNR; the tracked target's valid pairs drawn over them, and the
-    persistent echoes (walls, windows) and the rival of the target named."""
+    coloured by its SNR; the valid pairs of the target and of every other object of the
+    scene drawn over them, each in its own colour, and the persistent echoes (walls,
+    windows) and the rival of the target named."""
     e = track.echoes
     fig, ax = plt.subplots(figsize=(9, 5.5), constrained_layout=True)
     own = track.sweep_distance_dechirped_m
@@ -190,8 +191,16 @@ def echoes(track: Track, path: Path) -> Path:
                    zorder=3, label="the target's half-sweeps after the Doppler de-chirp (its distance then), "
                                    "coloured by SNR")
     fig.colorbar(sc, ax=ax, label="echo SNR over local noise (dB)")
+    target = track.attrs.get("target_object")
+    for k, o in enumerate(track.objects or []):        # every object in its own colour, the target red
+        if o.id == target or not o.track.valid.any():
+            continue
+        d = np.where(o.track.valid, o.track.distance_m, np.nan)
+        ax.plot(1e3 * o.track.time_s, d, color=f"C{4 + k % 6}", lw=1.0, zorder=2,
+                label=f"object #{o.id} ({o.kind}, valid pairs)")
     d = np.where(track.valid, track.distance_m, np.nan)
-    ax.plot(1e3 * track.time_s, d, color="C3", lw=0.8, zorder=2, label="tracked target (valid pairs)")
+    who = "tracked target" if target is None else f"target: object #{target}"
+    ax.plot(1e3 * track.time_s, d, color="C3", lw=1.2, zorder=4, label=f"{who} (valid pairs)")
     p = e.persistent
     diffuse = p.get("diffuse", np.zeros(p["time_s"].size, bool))
     for mask, marker, label in ((~diffuse, "s", "persistent echoes (per 10 ms)"),

@@ -2,8 +2,8 @@
 
 from .laser import DfbLaser, paper_dfb
 from .many import simulate_captures
-from .scene import DURATIONS_S, SCENARIOS, Trajectory, jump, rail, static
-from .writer import LAB, SimulationConfig, simulate_capture
+from .scene import DURATIONS_S, SCENARIOS, Trajectory, glide, jump, rail, static, sway
+from .writer import LAB, Mover, SimulationConfig, simulate_capture
 
-__all__ = ["DfbLaser", "paper_dfb", "Trajectory", "static", "rail", "jump", "SCENARIOS", "DURATIONS_S",
-           "SimulationConfig", "LAB", "simulate_capture", "simulate_captures"]
+__all__ = ["DfbLaser", "paper_dfb", "Trajectory", "static", "rail", "jump", "glide", "sway", "Mover",
+           "SCENARIOS", "DURATIONS_S", "SimulationConfig", "LAB", "simulate_capture", "simulate_captures"]

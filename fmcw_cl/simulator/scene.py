@@ -141,5 +141,38 @@ def jump(duration: float, ground_m: float = 0.07) -> Trajectory:
     return Trajectory.from_velocity(0.0, max(duration, 0.3), vel, acc, ground_m)
 
 
+def glide(duration: float, start_m: float, end_m: float, t_start: float, t_end: float) -> Trajectory:
+    """At rest at `start_m`, then a smooth move (a raised-cosine velocity) to `end_m`
+    between `t_start` and `t_end` (s), at rest there after: a hand put into the beam, a
+    target moved while something hides it, a slow pass through a wall's distance."""
+    span = t_end - t_start
+
+    def vel(t):
+        x = np.clip((t - t_start) / span, 0.0, 1.0)
+        inside = (t > t_start) & (t < t_end)
+        return np.where(inside, (end_m - start_m) / span * (1 - np.cos(2 * np.pi * x)), 0.0)
+
+    def acc(t):
+        x = np.clip((t - t_start) / span, 0.0, 1.0)
+        inside = (t > t_start) & (t < t_end)
+        return np.where(inside, (end_m - start_m) / span**2 * 2 * np.pi * np.sin(2 * np.pi * x), 0.0)
+
+    return Trajectory.from_velocity(0.0, duration, vel, acc, start_m)
+
+
+def sway(duration: float, centre_m: float = 0.42, amplitude_m: float = 0.02, frequency_hz: float = 4.0,
+         phase: float = 0.0) -> Trajectory:
+    """A sinusoidal sway about `centre_m`: a cable, a second limb, a swinging object."""
+    w = 2 * np.pi * frequency_hz
+
+    def vel(t):
+        return amplitude_m * w * np.cos(w * t + phase)
+
+    def acc(t):
+        return -amplitude_m * w * w * np.sin(w * t + phase)
+
+    return Trajectory.from_velocity(0.0, duration, vel, acc, centre_m + amplitude_m * np.sin(phase))
+
+
 SCENARIOS: dict[str, Callable[..., Trajectory]] = {"static": static, "rail": rail, "jump": jump}
 DURATIONS_S = {"static": 0.05, "rail": 0.4, "jump": 0.3}   # default capture length of each

@@ -4,7 +4,8 @@ The beat phase comes from the optical phase, phi = 2 pi [nu(t) tau - nu'(t) tau^
 with tau = 2 R(t) n / c, so a moving target gets its Doppler shift from the physics;
 laser phase noise enters as the difference of one random-walk phase at t and t - tau.
 A real scene adds static reflectors (a wall, a window), other moving echoes (a second
-limb; their truth is not written), speckle fading of the
+limb, a hand in the beam), stretches where an echo is hidden (an occlusion; the truth
+of every echo is written with where it can be seen), speckle fading of the
 target's echo (a complex Gaussian field, Rayleigh amplitude), relative intensity
 noise of the laser and white detector noise set by a per-sample SNR
 (docs/pipeline.md, "The simulator").
@@ -29,6 +30,29 @@ HISTORY = 64  # phase-noise history kept across chunks (supports tau < 64 sample
 SNR_REF_M = 0.3      # --snr-db is the target's SNR at this distance
 SPECKLE_GRID = 40    # points per correlation time of the tabulated speckle field
 HEADROOM = 6.0       # a lab sets the detector gain so that the noise's rms stays this far below full scale
+
+
+EDGE_S = 50e-6       # an occluding edge crosses the beam in this time
+
+
+@dataclass(frozen=True)
+class Mover:
+    """Another moving echo: its trajectory, amplitude (codes at 320 mA) and the
+    stretches (start, end s) where it is hidden (or out of the beam)."""
+
+    trajectory: Trajectory
+    amplitude_codes: float
+    hidden: tuple[tuple[float, float], ...] = ()
+
+
+def visibility(t: np.ndarray, hidden: tuple[tuple[float, float], ...]) -> np.ndarray:
+    """The share (0-1) of an echo seen at times `t` (s), hidden over the `hidden`
+    stretches, each edge a linear ramp of EDGE_S."""
+    seen = np.ones_like(t)
+    for a, b in hidden:
+        inside = np.clip(np.minimum(t - a, b - t) / EDGE_S + 0.5, 0.0, 1.0)
+        seen = np.minimum(seen, 1.0 - inside)
+    return seen
 
 
 @dataclass(frozen=True)
@@ -61,7 +85,8 @@ class SimulationConfig:
     thermal_fraction: float = 0.8   # share of the tuning that is thermal (the rest: carriers)
     snr_db: float | None = None     # target's per-sample SNR at 0.3 m, mid-sweep; sets the noise
     reflectors: tuple[tuple[float, float], ...] = ()   # static echoes: (distance m, amplitude codes)
-    movers: tuple[tuple[Trajectory, float], ...] = ()  # other moving echoes: (trajectory, amplitude codes)
+    movers: tuple = ()              # other moving echoes: Mover, or (trajectory, amplitude codes)
+    target_hidden: tuple[tuple[float, float], ...] = ()   # (start, end s) where the target is hidden
     speckle_s: float = 0.0          # correlation time of the target's speckle fading (0: none)
     rin_db_hz: float | None = None  # laser relative intensity noise, one-sided (dB/Hz)
     headroom: float | None = HEADROOM  # the gain keeps the noise's rms this far below full scale;
@@ -181,7 +206,7 @@ def simulate_capture(path, trajectory: Trajectory, duration_s: float, seed: int 
     gain = 1.0 if cfg.headroom is None else min(1.0, 2 ** (cfg.bits - 1) / (cfg.headroom * max(noise, 1e-9)))
     speckle = speckle_field(duration_s, cfg.speckle_s, rng) if cfg.speckle_s > 0 else None
     walls = [(2 * d * n_idx / C, a, rng.uniform(0, 2 * np.pi)) for d, a in cfg.reflectors]
-    movers = [(trj, a, rng.uniform(0, 2 * np.pi)) for trj, a in cfg.movers]
+    movers = [(m if isinstance(m, Mover) else Mover(*m), rng.uniform(0, 2 * np.pi)) for m in cfg.movers]
     rin = 0.0 if cfg.rin_db_hz is None else np.sqrt(10 ** (cfg.rin_db_hz / 10) * fs / 2)
 
     writer = CaptureWriter(path, samples, fs, cfg.bits, mod, table_i, table_f,
@@ -215,6 +240,8 @@ def simulate_capture(path, trajectory: Trajectory, duration_s: float, seed: int 
 
             phase = echo(tau, target_phase)
             amp = cfg.echo_amplitude(dist) * power
+            if cfg.target_hidden:
+                amp = amp * visibility(t + start_s, cfg.target_hidden)
             if speckle is not None:
                 g = speckle(t)
                 amp = amp * np.abs(g)
@@ -226,8 +253,10 @@ def simulate_capture(path, trajectory: Trajectory, duration_s: float, seed: int 
                     + rng.normal(0, noise, m))
             for tau_w, a_w, ph_w in walls:
                 beat += a_w * power * np.cos(echo(tau_w, ph_w))
-            for trj, a_m, ph_m in movers:
-                beat += a_m * power * np.cos(echo(2 * trj.at(t + start_s)[0] * n_idx / C, ph_m))
+            for mv, ph_m in movers:
+                seen = visibility(t + start_s, mv.hidden) if mv.hidden else 1.0
+                tau_m = 2 * mv.trajectory.at(t + start_s)[0] * n_idx / C
+                beat += mv.amplitude_codes * seen * power * np.cos(echo(tau_m, ph_m))
 
             tri_s, _ = _triangle((t - delay / fs) * mod.frequency_hz + phase0)
             sync = cfg.sync_codes * (tri_s - 0.5) + rng.normal(0, cfg.sync_noise_codes, m)
@@ -237,7 +266,13 @@ def simulate_capture(path, trajectory: Trajectory, duration_s: float, seed: int 
                 progress(start + m, samples)
 
         tt = np.arange(0, samples / fs, TRUTH_STEP_S)
-        writer.write_truth(Truth(tt, *trajectory.at(tt + start_s)))
+        def seen(hidden):
+            return visibility(tt + start_s, hidden) >= 0.5 if hidden else None
+
+        others = [Truth(tt, *mv.trajectory.at(tt + start_s), seen(mv.hidden)) for mv, _ in movers]
+        others += [Truth(tt, np.full(tt.size, d), np.zeros(tt.size), np.zeros(tt.size), None, "fixed")
+                   for d, _ in cfg.reflectors]
+        writer.write_truth(Truth(tt, *trajectory.at(tt + start_s), seen(cfg.target_hidden)), tuple(others))
         writer._file.attrs["sim_seed"] = int(seed)
     return {"sync_delay_samples": float(delay), "start_phase": float(phase0)}
 

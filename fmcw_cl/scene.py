@@ -1,0 +1,262 @@
+"""Each object of the scene converted in a band of its own (fmcw_cl.objects says the rules).
+
+`objects_of` takes the first conversion (its track, measurements and tables) and the
+target's conversion, converts every other candidate in its own band, and returns the
+objects, the target among them by the user's rule.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from . import objects, target
+from .assemble import assemble
+from .capture import Capture
+from .chunks import capture_parts
+from .options import RANGE_GAP_M
+from .plan import Plan
+from .processor import ChunkMeasurements, ChunkProcessor
+from .track import Track
+
+# a moving echo's side bands end this far from a fixed object inside its span (a target
+# through a wall at 0.25 m: 73 and 79 % of its periods valid on two seeds; 15 mm: 72 and
+# 78 %, its path within GATE_M of the wall ambiguous all the same)
+SIDE_MARGIN_M = target.WALL_MARGIN_M
+
+
+@dataclass
+class Converted:
+    """One candidate's conversion: the choice that set its band, the plan and
+    measurements in that band, and its track."""
+
+    candidate: objects.Candidate
+    choice: target.Choice
+    plan: Plan
+    parts: list[ChunkMeasurements]
+    track: Track
+    joined: bool = False        # the track joins several bands' (`plan`, `parts`: one of them)
+
+
+@dataclass
+class First:
+    """The first conversion (the user's band): plan, measurements, track, the fixed
+    echoes of its tables and the moving echoes a second look found (`beside`)."""
+
+    plan: Plan
+    parts: list[ChunkMeasurements]
+    track: Track
+    fixed: target.Fixed
+    beside: list[tuple[float, float]]
+
+
+def objects_of(cap: Capture, first: First, choice: target.Choice, own: Converted, processor: ChunkProcessor,
+               seconds: Callable[[], float], progress=None
+               ) -> tuple[list[objects.SceneObject], int, Converted]:
+    """The scene's objects, the index of the target among them and its conversion: the
+    candidates of `first`'s tables (objects.candidates), the target's own conversion
+    `own` (made under `choice`) standing for the one it holds, each other one converted
+    by `processor` in its band (`seconds()`: the time spent so far, for the tracks)."""
+    options = first.plan.options
+    tr = first.track
+    band = options.band_m
+    spans = sorted(target.moving_spans(tr.time_s, tr.distance_m, tr.velocity_mps, tr.valid,
+                                       target.smeared(tr.echoes, band)) + list(first.beside))
+    made: dict[tuple, list[ChunkMeasurements]] = {first.plan.options.band_m: first.parts,
+                                                 own.plan.options.band_m: own.parts}
+    extra: list[tuple[float, float]] = []
+    for _ in range(2):                   # once more where a tracker still held two echoes
+        cands = objects.candidates(first.fixed, sorted(spans + extra), choice, band)
+        if len(cands) <= 1 and not extra and not objects.parts_of(own.track):
+            alone = objects.SceneObject(1, bool(choice.moving), own.track, "the target: no other echo")
+            return [alone], 0, own
+        # the target's conversion stands for the candidate it holds, unless it held two echoes
+        share = [objects.holds(own.track, c) for c in cands]
+        held = int(np.argmax(share)) if share and max(share) >= 0.5 and not objects.parts_of(own.track) \
+            else None
+        mine = held if held is not None and _stands_for(own, cands[held]) else None
+        done = [own if i == mine else _convert(cap, first, c, spans + extra, made, processor, seconds,
+                                               progress, own if i == held else None)
+                for i, c in enumerate(cands)]
+        found = [s for d in done for s in objects.parts_of(d.track) + _passing(d, first, processor, seconds)
+                 if not any(c.lo - target.APART_M <= 0.5 * (s[0] + s[1]) <= c.hi + target.APART_M
+                            and c.moving for c in cands)]
+        if not found or extra:
+            break
+        extra = found
+    done = _distinct(done, first, seconds, processor)
+    done = _exclusive(done, first, seconds, processor)
+    of = {id(d.track): d for d in done}
+    scene = _rejoined([objects.SceneObject(0, _moving(d), d.track, d.choice.note) for d in done])
+    scene.sort(key=lambda o: (o.attrs()["first_seen_s"] if o.track.valid.any() else np.inf,
+                              o.attrs()["distance_span_m"][0]))
+    for k, o in enumerate(scene, 1):
+        o.id = k
+    try:
+        pick = objects.choose(scene, options.target, options.target_near)
+    except ValueError:
+        pick = 0
+    # a target joined of two conversions is re-converted by neither: its first's plan stands
+    conv = of.get(id(scene[pick].track)) or next(d for d in done if d.track.valid.any()) if done else own
+    return scene, pick, replace(conv, track=scene[pick].track)
+
+
+def _stands_for(own: Converted, c: objects.Candidate) -> bool:
+    """Whether the target's own conversion `own`, which holds candidate `c` alone, is
+    its conversion: its band covers the candidate's span, and no fixed object lies
+    inside that span (a moving echo is then tracked on each side of them: `_convert`)."""
+    lo, hi = own.choice.band_m
+    covered = lo <= c.lo and (hi is None or hi >= c.hi)
+    return covered and not (c.moving and own.choice.ambiguous_m.size)
+
+
+def _moving(d: Converted) -> bool:
+    """A moving span's object moves; an echo of the mean spectra moves where its track does."""
+    return d.candidate.moving or (not d.candidate.fixed and objects.moves(d.track))
+
+
+def _convert(cap: Capture, first: First, c: objects.Candidate, spans: list[tuple[float, float]],
+             made: dict, processor: ChunkProcessor, seconds, progress, own: Converted | None = None
+             ) -> Converted:
+    """Candidate `c` converted in its own band (target.choose with `near_m` at its centre,
+    its kind before the other at a tie), the measurements of a band already converted
+    (`made`) assembled again. A moving echo whose span holds fixed objects is converted
+    in its band and on each side of them (SIDE_MARGIN_M off), the tracks one
+    (objects.joined; where two verify one pair more than objects.SAME_M apart, it is
+    `ambiguous`): a band that holds a wall lets the tracker hold the wall while the
+    target is weaker, a side loses the target near it. `own`: the target's conversion,
+    where it holds this candidate but not alone (one side of the fixed objects inside
+    its span: target.choose), joined the same way."""
+    tr = first.track
+    beside = list(spans) + ([] if c.fixed or c.moving else [(c.lo, c.hi)])
+    choice = target.choose("auto", c.centre_m, tr.time_s, tr.distance_m, tr.velocity_mps, tr.valid, tr.echoes,
+                           first.plan.lut.unambiguous_range_m, first.plan.options.band_m, beside,
+                           fixed=first.fixed, moving=c.moving, sides=c.moving)
+    if c.fixed:
+        choice = replace(choice, at_rest_m=c.centre_m)
+    bands = [choice.band_m]
+    if c.moving and choice.moving and choice.ambiguous_m.size:
+        bands += _sides(choice.band_m, choice.ambiguous_m)
+    # the user's --target-near chooses among the objects, and need not lie in this one's band
+    unnamed = replace(first.plan, options=replace(first.plan.options, target_near=None))
+    out = None
+    if own is not None and own.choice.band_m not in bands:
+        bands.append(own.choice.band_m)
+    for band in bands:
+        plan = unnamed.with_band(band)
+        if own is not None and band == own.choice.band_m:
+            side, parts, track = own.choice, own.parts, replace(own.track, attrs=dict(own.track.attrs))
+        else:
+            if band not in made:
+                made[band] = capture_parts(cap, plan, processor, progress=progress)
+            side, parts = replace(choice, band_m=band), made[band]
+            seen = tr.echoes if band == first.plan.options.band_m else None     # the band's own echo table
+            track = assemble(plan, parts, processor, seconds(), side, seen)
+        if out is None:
+            out = Converted(c, side, plan, parts, track)
+        else:                           # a side's pairs where only it holds them; both apart: ambiguous
+            both = out.track.valid & track.valid
+            apart = both & (np.abs(out.track.distance_m - track.distance_m) > objects.SAME_M)
+            objects.invalidate(out.track, apart)
+            objects.invalidate(track, apart | both)
+            joined = objects.joined(out.track, track)
+            pick = track.valid.sum() > out.track.valid.sum()
+            out = Converted(c, side if pick else out.choice, plan if pick else out.plan,
+                            parts if pick else out.parts, joined, True)
+    if len(bands) > 1:
+        out.track.attrs["object_bands_m"] = np.asarray([(a, np.nan if b is None else b)
+                                                         for a, b in bands]).ravel()
+    return out
+
+
+def _passing(d: Converted, first: First, processor, seconds) -> list[tuple[float, float]]:
+    """The spans (m) of what moves through a fixed object's band: its measurements
+    assembled without the fixed object's bounds (target.Choice.at_rest_m), the moving
+    spans of their verified pairs more than APART_M from it (a rail passing a swaying
+    cable, beyond it)."""
+    if d.choice.at_rest_m is None:
+        return []
+    loose = assemble(d.plan, d.parts, processor, seconds(), replace(d.choice, at_rest_m=None), d.track.echoes)
+    away = np.abs(loose.distance_m - d.choice.at_rest_m) > target.APART_M
+    return target.moving_spans(loose.time_s, loose.distance_m, loose.velocity_mps, loose.valid & away,
+                               np.zeros(0))
+
+
+def _sides(band: tuple[float, float | None], inner: np.ndarray) -> list[tuple[float, float | None]]:
+    """`band` cut at the fixed objects `inner` (m), SIDE_MARGIN_M off each, the parts at
+    least options.RANGE_GAP_M wide."""
+    edges = [(band[0], None)]
+    for f in np.sort(np.asarray(inner, float)):
+        edges[-1] = (edges[-1][0], f - SIDE_MARGIN_M)
+        edges.append((f + SIDE_MARGIN_M, None))
+    edges[-1] = (edges[-1][0], band[1])
+    return [(a, b) for a, b in edges if (b is None or b - a >= RANGE_GAP_M)] or [band]
+
+
+def _distinct(done: list[Converted], first: First, seconds, processor) -> list[Converted]:
+    """The conversions less those that follow the same echo as another (objects.same):
+    the moving one kept, else the one with more verified pairs. A kept moving echo that
+    a fixed one's track followed (a target slowing onto its plateau, a fixed echo of the
+    tables) is no longer ambiguous where it passes that fixed echo: assembled again."""
+    out: list[Converted] = []
+    for d in sorted(done, key=lambda d: (not d.candidate.moving, -int(d.track.valid.sum()))):
+        twin = next((k for k, o in enumerate(out) if objects.same(d.track, o.track)), None)
+        if twin is None:
+            out.append(d)
+            continue
+        o = out[twin]
+        if d.candidate.fixed and o.choice.ambiguous_m.size and not o.joined:
+            keep = np.abs(o.choice.ambiguous_m - d.candidate.centre_m) > target.APART_M
+            choice = replace(o.choice, ambiguous_m=o.choice.ambiguous_m[keep])
+            track = assemble(o.plan, o.parts, processor, seconds(), choice, o.track.echoes)
+            out[twin] = replace(o, choice=choice, track=track)
+    return out
+
+
+def _exclusive(done: list[Converted], first: First, seconds, processor) -> list[Converted]:
+    """Each conversion assembled again where another object's path comes within
+    objects.GATE_M of its own, a harmonic of another's (objects.harmonics) or its
+    de-chirped image (objects.images): those pairs `ambiguous` (target.Choice.taken_s)."""
+    clash = objects.conflicts([d.track for d in done])
+    tracks = [d.track for d in done]
+    ghost = objects.harmonics(tracks, first.plan.lut.unambiguous_range_m)
+    image = objects.images(tracks, [d.candidate.moving or objects.moves(d.track) for d in done],
+                           first.plan.model, first.plan.window)
+    out = []
+    for d, c, g, m in zip(done, clash, ghost, image, strict=True):
+        c = (c | g | m) & d.track.valid
+        if c.any() and d.joined:            # several bands' track: its pairs taken as they stand
+            track = replace(d.track, attrs=dict(d.track.attrs))
+            objects.invalidate(track, c)
+            d = replace(d, track=track)
+        elif c.any():
+            choice = replace(d.choice, taken_s=np.sort(d.track.time_s[c]))
+            track = assemble(d.plan, d.parts, processor, seconds(), choice, d.track.echoes)
+            d = replace(d, choice=choice, track=track)
+        out.append(d)
+    return out
+
+
+def _rejoined(scene: list[objects.SceneObject]) -> list[objects.SceneObject]:
+    """The objects with those seen again joined (objects.returns): one object. Only
+    objects of one kind: a fixed object that a mover crossed is not the mover after it
+    (a swaying cable that a rail passed, the rail beyond it)."""
+    merged = True
+    while merged:
+        merged = False
+        for i in range(len(scene)):
+            for j in range(i + 1, len(scene)):
+                if scene[i].moving == scene[j].moving and objects.returns(scene[i].track, scene[j].track):
+                    a, b = scene[i], scene[j]
+                    moved = a.moving or b.moving or abs(np.nanmedian(a.track.distance_m)
+                                                        - np.nanmedian(b.track.distance_m)) > objects.GATE_M
+                    scene[i] = objects.SceneObject(0, moved, objects.joined(a.track, b.track),
+                                                   f"{a.note}; seen again: {b.note}")
+                    del scene[j]
+                    merged = True
+                    break
+            if merged:
+                break
+    return scene
