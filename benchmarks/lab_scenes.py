@@ -21,7 +21,7 @@ from scratch import folder
 from fmcw_cl.backend import make_processor
 from fmcw_cl.capture import Capture
 from fmcw_cl.engine import process
-from fmcw_cl.evaluate import covered, invalid_reasons, valid_errors
+from fmcw_cl.evaluate import covered, invalid_reasons, objects_cell, valid_errors
 from fmcw_cl.simulator import LAB, jump, rail, simulate_capture, static
 
 parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -49,8 +49,9 @@ for s in (1, 2):
                 replace(LAB, reflectors=((0.20, 3000.0),)))]
 scenes += [("jump 0.3 s, lab + wall 0.42:800 + speckle", jump(0.3), 0.3, 0.0, 4,
             replace(LAB, reflectors=((0.42, 800.0),), speckle_s=3e-3))]
-print("| scene | seed | valid % | wrong | max error mm | within U % | invalid pairs by reason |")
-print("|---|---|---|---|---|---|---|")
+print("| scene | seed | valid % | wrong | max error mm | within U % | objects (wrong) "
+      "| invalid pairs by reason |")
+print("|---|---|---|---|---|---|---|---|")
 worst = 0
 for i, (name, traj, dur, start, seed, cfg) in enumerate(scenes):
     path = out / f"c{i}.h5"
@@ -58,14 +59,15 @@ for i, (name, traj, dur, start, seed, cfg) in enumerate(scenes):
     try:
         t = process(path, processor=be)
     except Exception as exc:  # noqa: BLE001 - a scene that cannot be converted is a row too
-        print(f"| {name} | {seed} | error: {exc} | | | | |")
+        print(f"| {name} | {seed} | error: {exc} | | | | | |")
         continue
     with Capture(path) as cap:
         err = valid_errors(t, cap.truth())
+        scene = objects_cell(t, cap.truth_objects())
     bad = int(np.sum(err > 2e-3))
     within = covered(t, err)
     worst += bad
     why = invalid_reasons(t)
     print(f"| {name} | {seed} | {100 * t.valid.mean():.1f} | {bad} | "
-          f"{np.max(err) * 1e3 if err.size else float('nan'):.2f} | {within} | {why} |", flush=True)
+          f"{np.max(err) * 1e3 if err.size else float('nan'):.2f} | {within} | {scene} | {why} |", flush=True)
 print("valid pairs > 2 mm off, all scenes:", worst)

@@ -20,7 +20,7 @@ import fmcw_cl
 from fmcw_cl.backend import make_processor
 from fmcw_cl.capture import Capture
 from fmcw_cl.engine import process
-from fmcw_cl.evaluate import covered, invalid_reasons, valid_errors
+from fmcw_cl.evaluate import covered, invalid_reasons, objects_cell, valid_errors
 
 parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
 parser.add_argument("--out", default=None, help="folder for the captures, kept (default: a removed temp dir)")
@@ -44,8 +44,9 @@ scenes += [("static 0.40 m behind a wall 1500 at 0.25 m, noise 3000 at full scal
              "reflectors": ((0.25, 1500.0),)}) for s in (1, 2)]
 scenes += [("clean jump (simulator defaults)", 5, {"scenario": "jump"}),
            ("clean static 0.3 m", 6, {"scenario": "static"})]
-print("| scene | seed | valid % | wrong | dist p95 mm | dist max mm | within U % | invalid pairs by reason |")
-print("|---|---|---|---|---|---|---|---|")
+print("| scene | seed | valid % | wrong | dist p95 mm | dist max mm | within U % | objects (wrong) "
+      "| invalid pairs by reason |")
+print("|---|---|---|---|---|---|---|---|---|")
 be = make_processor("auto")
 sample = Path(__file__).resolve().parents[1] / "data_samples" / "jump_wall_fading.h5"
 runs = [(name, seed, out / f"r{i}.h5", kw) for i, (name, seed, kw) in enumerate(scenes)]
@@ -57,11 +58,12 @@ for name, seed, path, kw in runs:
     t = process(path, processor=be)
     with Capture(path) as cap:
         err = valid_errors(t, cap.truth())
+        scene = objects_cell(t, cap.truth_objects())
     bad = int(np.sum(err > 2e-3))
     within = covered(t, err)
     worst += bad
     why = invalid_reasons(t)
     p95, top = (f"{np.percentile(err, 95) * 1e3:.2f}", f"{err.max() * 1e3:.2f}") if err.size else ("-", "-")
-    print(f"| {name} | {seed} | {100 * t.valid.mean():.1f} | {bad} | {p95} | {top} | {within} | {why} |",
-          flush=True)
+    print(f"| {name} | {seed} | {100 * t.valid.mean():.1f} | {bad} | {p95} | {top} | {within} | {scene} | "
+          f"{why} |", flush=True)
 print("valid pairs > 2 mm off, all scenes:", worst)

@@ -52,16 +52,18 @@ def target_lines(cap, attrs: dict) -> None:
     """One line on the target choice where it left echoes out or could not decide, and
     one naming the scene's other objects, each with the option that chooses it."""
     others = attrs.get("target_others", "")
-    if others:
+    if others and int(attrs.get("target_object", 1)):
         click.echo(f"note: {cap}: the target is object #{attrs['target_object']} of {attrs['objects']} "
                    f"({tracked(attrs)}); the others: {others}", err=True)
+    elif others:
+        click.echo(f"warning: {cap}: {attrs['target_choice']}; the objects: {others}", err=True)
     fixed = np.asarray(attrs.get("target_fixed_echoes_m", ()), float)
     band = np.asarray(attrs.get("target_band_m", (np.nan, np.nan)), float)
     amb = int(attrs.get("invalid_ambiguous", 0))
     choice = attrs.get("target_choice", "")
     hint = "--target, --target-near choose another"
     left = fixed[(fixed < band[0]) | (fixed >= np.nan_to_num(band[1], nan=np.inf))]
-    if amb:
+    if amb and int(attrs.get("target_object", 1)):
         click.echo(f"warning: {cap}: {amb} pairs ambiguous: {choice} ({hint})", err=True)
     elif left.size:
         top = "the end" if not np.isfinite(band[1]) else f"{band[1]:.3f} m"

@@ -14,6 +14,7 @@ from __future__ import annotations
 import contextlib
 import time
 from collections.abc import Callable
+from dataclasses import replace
 
 import numpy as np
 
@@ -120,11 +121,20 @@ def chosen(cap: Capture, plan: Plan, processor: ChunkProcessor, track: Track
 def with_objects(found: list[objects.SceneObject], pick: int) -> Track:
     """The track of the target, `found[pick]`, with the scene's objects and the target's
     id (`target_object`); the other objects named, each with the option that chooses it
-    (`target_others`)."""
-    chosen_track = found[pick].track
+    (`target_others`). `pick` -1: no object is told to be the target (objects.choose):
+    the pairs of the one with the most verified pairs, every one `ambiguous`, id 0."""
+    if pick < 0:        # no object moves: several fixed ones, none told to be the target
+        base = max(found, key=lambda o: int(o.track.valid.sum()))
+        chosen_track = replace(base.track, attrs=dict(base.track.attrs))
+        objects.invalidate(chosen_track, chosen_track.valid.copy())
+        seen = ", ".join(f"{objects.where_m(o):.3f}" for o in found if o.track.valid.any())
+        chosen_track.attrs["target_choice"] = (f"no object moves: the fixed objects at {seen} m cannot be "
+                                               "told apart as the target")
+    else:
+        chosen_track = found[pick].track
     others = [o for k, o in enumerate(found) if k != pick]
     chosen_track.attrs.update(
-        target_object=int(found[pick].id), objects=len(found),
+        target_object=int(found[pick].id) if pick >= 0 else 0, objects=len(found),
         target_others="; ".join(f"{objects.describe(o)}: --target-near {objects.where_m(o):.3f} chooses it"
                                 for o in others))
     chosen_track.objects = found

@@ -138,3 +138,13 @@ def object_scores(track: Track, truths: list[Truth]) -> list[dict]:
         out.append({"id": ident, "truth": own, "wrong": int(np.sum((err > WRONG_M) | ~seen)),
                     "tracked": periods_tracked(t, truths[own])})
     return out
+
+
+def objects_cell(track: Track, truths: list[Truth]) -> str:
+    """A benchmark's cell for the scene: the objects found and, in brackets, their valid
+    pairs off the truth each follows (`object_scores`; "?" where the capture holds no
+    truth of its other echoes: written before /truth/objects)."""
+    n = len(track.objects or [None])
+    if n > 1 and len(truths) < 2:
+        return f"{n} (?)"
+    return f"{n} ({sum(s['wrong'] for s in object_scores(track, truths))})"

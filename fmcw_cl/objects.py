@@ -21,8 +21,9 @@ pairs are verified as the target's are. Then:
 - an object last seen where another is first seen, within RETURN_M, the two never
   seen at once, is one object that was hidden or faded (re-identified);
 - the target is the object the rule names (`choose`): `auto` takes a moving one before
-  a fixed one, the one that travels furthest (a leg before a swaying cable), else the
-  fixed one with the most verified pairs.
+  a fixed one, the one that travels furthest (a leg before a swaying cable); where no
+  object moves and several hold verified pairs, nothing tells which is the target, and
+  /track's pairs are ``ambiguous`` (each object keeps its own).
 
 A scene of one candidate costs what the target's conversion costs; each further one a
 conversion in its own band (none where its band is the user's: the first conversion's
@@ -208,17 +209,33 @@ def path(track: Track) -> np.ndarray:
     return out
 
 
-def conflicts(tracks: list[Track]) -> list[np.ndarray]:
+def conflicts(tracks: list[Track], fixed: list[bool] | None = None) -> list[np.ndarray]:
     """For each track, the pairs where another object's path (`path`) lies within
-    GATE_M of its own: the two echoes cannot be told apart there."""
+    GATE_M of its own: the two echoes cannot be told apart there. A `fixed` object is
+    there all along, at the span of its verified distances (1st-99th percentile),
+    whether or not its own track holds it then: a pair of another within GATE_M of that
+    span is ambiguous on both (a cable swaying +-10 mm, a fixed echo of the tables,
+    whose band edge cut its near swing: the rail's tracker held that swing once the
+    rail had left its band)."""
+    fixed = fixed or [False] * len(tracks)
     paths = [path(t) for t in tracks]
     out = [np.zeros(t.pairs, bool) for t in tracks]
     for i in range(len(tracks)):
         for j in range(i + 1, len(tracks)):
             close = np.abs(paths[i] - paths[j]) <= GATE_M      # NaN: False
+            for a, b in ((i, j), (j, i)):
+                if fixed[b] and tracks[b].valid.any():
+                    close |= _within_span(tracks[b], paths[a])
             out[i] |= close
             out[j] |= close
     return out
+
+
+def _within_span(fixed: Track, d: np.ndarray) -> np.ndarray:
+    """Where distances `d` (m, per pair) lie within GATE_M of a fixed object's span of
+    verified distances."""
+    lo, hi = np.percentile(fixed.distance_m[fixed.valid], [1, 99])
+    return (d >= lo - GATE_M) & (d <= hi + GATE_M)
 
 
 def harmonics(tracks: list[Track], unambiguous_m: float) -> list[np.ndarray]:
@@ -359,8 +376,9 @@ def recount(t: Track) -> None:
 def choose(objects: list[SceneObject], rule: str, near_m: float | None) -> int:
     """The index in `objects` of the target (see the module): `--target-near D` the one
     whose span lies nearest D, `nearest` the one nearest the instrument, `auto` and
-    `moving` a moving one before a fixed one, the mover that travels furthest, else the
-    fixed one with the most verified pairs (a tie: the nearer)."""
+    `moving` a moving one before a fixed one, the mover that travels furthest; -1 where
+    no object moves and several hold verified pairs (nothing tells which is the target:
+    /track is then ambiguous, each object valid on its own); else the one that does."""
     if not objects:
         raise ValueError("no object")
     span = [o.attrs()["distance_span_m"] for o in objects]
@@ -372,8 +390,8 @@ def choose(objects: list[SceneObject], rule: str, near_m: float | None) -> int:
     movers = [i for i, o in enumerate(objects) if o.moving and o.track.valid.any()]
     if movers:
         return max(movers, key=lambda i: _travel(objects[i].track))
-    return max(range(len(objects)),
-               key=lambda i: (int(objects[i].track.valid.sum()), -np.nan_to_num(span[i][0])))
+    held = [i for i, o in enumerate(objects) if o.track.valid.any()]
+    return held[0] if len(held) == 1 else (-1 if held else 0)
 
 
 def _travel(t: Track) -> float:

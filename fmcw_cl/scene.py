@@ -98,9 +98,12 @@ def objects_of(cap: Capture, first: First, choice: target.Choice, own: Converted
         pick = objects.choose(scene, options.target, options.target_near)
     except ValueError:
         pick = 0
+    if pick < 0 and own.track.valid.any():     # the target's choice told one (6c): that one stands
+        pick = max(range(len(scene)), key=lambda k: int(np.sum(scene[k].track.valid & own.track.valid)))
     # a target joined of two conversions is re-converted by neither: its first's plan stands
-    conv = of.get(id(scene[pick].track)) or next(d for d in done if d.track.valid.any()) if done else own
-    return scene, pick, replace(conv, track=scene[pick].track)
+    mine = scene[max(pick, 0)].track
+    conv = of.get(id(mine)) or next((d for d in done if d.track.valid.any()), own)
+    return scene, pick, replace(conv, track=mine)
 
 
 def _stands_for(own: Converted, c: objects.Candidate) -> bool:
@@ -219,7 +222,7 @@ def _exclusive(done: list[Converted], first: First, seconds, processor) -> list[
     """Each conversion assembled again where another object's path comes within
     objects.GATE_M of its own, a harmonic of another's (objects.harmonics) or its
     de-chirped image (objects.images): those pairs `ambiguous` (target.Choice.taken_s)."""
-    clash = objects.conflicts([d.track for d in done])
+    clash = objects.conflicts([d.track for d in done], [not _moving(d) for d in done])
     tracks = [d.track for d in done]
     ghost = objects.harmonics(tracks, first.plan.lut.unambiguous_range_m)
     image = objects.images(tracks, [d.candidate.moving or objects.moves(d.track) for d in done],

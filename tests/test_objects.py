@@ -165,7 +165,10 @@ def test_choose_rules():
     assert objects.choose(scene, "auto", None) == 0        # the mover that travels furthest
     assert objects.choose([cable, wall], "auto", None) == 0
     assert objects.choose([wall, hand], "auto", None) == 1  # a moving one before a fixed one
-    assert objects.choose([wall, objects.SceneObject(5, False, _track(np.full(n, 0.3)))], "auto", None) == 1
+    still = objects.SceneObject(5, False, _track(np.full(n, 0.3)))
+    assert objects.choose([wall, still], "auto", None) == -1        # nothing tells which is the target
+    empty = objects.SceneObject(6, False, _track(np.full(n, np.nan)))
+    assert objects.choose([empty, still], "auto", None) == 1
     assert objects.choose(scene, "nearest", None) == 0
     assert objects.choose(scene, "auto", 0.44) == 2
     assert objects.choose(scene, "auto", 0.41) == 1

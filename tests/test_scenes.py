@@ -106,22 +106,23 @@ def test_two_static_reflectors_are_two_objects_until_the_user_chooses(tmp_path, 
     cfg = SimulationConfig(snr_db=0.0, reflectors=((0.37, 400.0),))
     simulate_capture(path, static(0.02, 0.21), 0.02, seed=41, config=cfg)
     track = process(path)
-    # no echo moves: each is an object, tracked on its own; the target is one, the other named
+    # no echo moves: each is an object, valid on its own; nothing tells which is the
+    # target, so /track's pairs are ambiguous and both objects are named
     scores = scene_of(track, path)
     assert sorted(s["truth"] for s in scores) == [0, 1] and min(s["tracked"] for s in scores) >= 0.95
-    other = 0.37 if np.nanmedian(track.distance_m) < 0.3 else 0.21
+    assert not track.valid.any() and (track.reason == faults.AMBIGUOUS).all()
+    assert track.attrs["target_object"] == 0
     proc = fmcw("process", path, "-o", tmp_path / "out", "--backend", "numpy")
-    assert "the others: #" in proc.stderr and f"--target-near {other:.3f} chooses it" in proc.stderr
-    e = track.echoes
+    assert "no object moves: the fixed objects at 0.210, 0.370 m cannot be told apart" in proc.stderr
+    assert "--target-near 0.210 chooses it" in proc.stderr and "--target-near 0.370 chooses it" in proc.stderr
+    strongest = process(path, Options(target="strongest"))     # the tracker alone, in the whole band
+    e = strongest.echoes
     near = lambda d: np.abs(e.distance_m - d) < 1e-3  # noqa: E731
-    sweeps = track.sweep_time_s.size
-    mine = 0.58 - other
-    assert near(mine).sum() >= 0.98 * sweeps and e.tracked[near(mine)].all()
-    assert near(other).sum() >= 0.98 * sweeps and not e.tracked[near(other)].any()
+    sweeps = strongest.sweep_time_s.size
+    assert near(0.21).sum() >= 0.98 * sweeps and e.tracked[near(0.21)].all()
+    assert near(0.37).sum() >= 0.98 * sweeps and not e.tracked[near(0.37)].any()
     assert np.sum(~near(0.21) & ~near(0.37)) <= 0.02 * sweeps        # false echoes are rare
-    # 400 codes at 0.37 m against 1500 * 0.1/0.21 = 714 at 0.21 m: about 5 dB weaker, the
-    # rival of the strongest echo of the whole band
-    strongest = process(path, Options(target="strongest"))
+    # 400 codes at 0.37 m against 1500 * 0.1/0.21 = 714 at 0.21 m: about 5 dB weaker
     assert strongest.attrs["rival_echo_m"] == pytest.approx(0.37, abs=1e-3)
     assert -8 < strongest.attrs["rival_echo_db"] < -2
     # each rule that names one: that one
