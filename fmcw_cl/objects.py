@@ -8,18 +8,20 @@ echoes its mean spectra hold and the verified pairs found elsewhere. Each is a
 pairs are verified as the target's are. Then:
 
 - a tracker that still holds two echoes (a scene whose first conversion saw one of
-  them only) is split: its verified pairs part where APART_M of range holds none and
-  pairs of both parts were measured within TOGETHER_S (`target.moving_spans`), and
-  each part is a candidate of its own (once);
+  them only) is split (`parts_of`): its verified pairs part where target.APART_M of
+  range holds none and it passes between the parts faster than a body moves; each part
+  is a candidate of its own (once);
 - two candidates whose verified pairs agree (within SAME_M at SAME_SHARE of the pairs
   both hold) are one echo (a target slowing onto its plateau is also a fixed echo);
-- a fixed object's pairs are its own only at rest (under target.MOVING_MPS) within
-  GATE_M of its distance: anything else its band holds is something passing;
-- where two objects lie within GATE_M of each other at one time (their verified pairs,
-  or their paths across gaps of up to BRIDGE_S), their echoes cannot be told apart
-  there and those pairs are ``ambiguous`` on both: never given to the wrong one;
-- an object last seen where another is first seen, within RETURN_M, the two never
-  seen at once, is one object that was hidden or faded (re-identified);
+- a fixed object's pairs are its own only at rest (under target.MOVING_MPS), within
+  GATE_M of its distance and close to its median (target.ambiguous): anything else its
+  band holds is something passing, or a blend with an echo beside it;
+- where two objects lie within GATE_M of each other at one time (`conflicts`: their
+  verified pairs across gaps of up to BRIDGE_S, a fixed one's span all along), or a
+  pair lies on another's harmonic (`harmonics`) or de-chirped image (`images`), their
+  echoes cannot be told apart there: ``ambiguous`` on both, never given to the wrong one;
+- an object last seen where another of its kind is first seen, within RETURN_M, the
+  two never seen at once, is one object that was hidden or faded (`returns`, `joined`);
 - the target is the object the rule names (`choose`): `auto` takes a moving one before
   a fixed one, the one that travels furthest (a leg before a swaying cable); where no
   object moves and several hold verified pairs, nothing tells which is the target, and
@@ -297,14 +299,6 @@ def images(tracks: list[Track], moving: list[bool], model, window: np.ndarray) -
             out[i] |= a.valid & confused_moving(a.velocity_mps, tuple(peaks), tuple(snr), path(b), u, level,
                                                 model, window, a.valid)
     return out
-
-
-def at_rest_elsewhere(track: Track, fixed_m: float) -> np.ndarray:
-    """The verified pairs of a fixed object's `track` that are not its own: moving
-    (target.MOVING_MPS or faster) or further than GATE_M from its distance `fixed_m`."""
-    far = np.abs(track.distance_m - fixed_m) > GATE_M
-    fast = np.abs(track.velocity_mps) >= target.MOVING_MPS
-    return track.valid & (far | fast)
 
 
 def returns(a: Track, b: Track) -> bool:
