@@ -88,21 +88,20 @@ class SceneObject:
         ok = t.valid
         seen = t.time_s[ok]
         snr = t.sweep_snr_dechirped_db
-        level = float(np.nanmedian(snr[np.repeat(_owned_valid(t), 2)])) if snr is not None and snr.size \
-            and ok.any() else float(t.attrs.get("strength_db", np.nan))   # read back: no half-sweeps
+        strength = level(t) if snr is not None and snr.size else float(t.attrs.get("strength_db", np.nan))
         return {"object_id": self.id, "object_kind": self.kind,
                 "first_seen_s": float(seen[0]) if seen.size else float("nan"),
                 "last_seen_s": float(seen[-1]) if seen.size else float("nan"),
                 "distance_span_m": np.percentile(t.distance_m[ok], [1, 99]) if ok.any()
                 else np.full(2, np.nan),
-                "strength_db": level, "valid_pairs": int(ok.sum()), "object_note": self.note}
+                "strength_db": strength, "valid_pairs": int(ok.sum()), "object_note": self.note}
 
 
-def _owned_valid(t: Track) -> np.ndarray:
-    """Whether each owned pair (the half-sweeps' pairs, gaps not filled) is valid."""
-    if t.sweep_reason is None:
-        return np.zeros(t.sweep_time_s.size // 2, bool)
-    return t.sweep_reason[::2] == faults.OK
+def level(t: Track) -> float:
+    """An object's strength: the median de-chirped SNR (dB) of its verified pairs'
+    half-sweeps (NaN with none)."""
+    return float(np.nanmedian(per_pair(t, "sweep_snr_dechirped_db")[:, t.valid])) if t.valid.any() \
+        else float("nan")
 
 
 def candidates(fixed: target.Fixed, spans: list[tuple[float, float]], choice: target.Choice,
@@ -164,15 +163,13 @@ def parts_of(track: Track) -> list[tuple[float, float]]:
     dt = t[step + 1] - t[step]
     miss = np.abs(d[step + 1] - d[step] - dt * 0.5 * (v[step] + v[step + 1]))
     apart = miss > 1e-3 + 500.0 * dt * dt / 8
-    joined_parts = set()
-    for k in step[~apart]:
-        joined_parts.add((min(label[k], label[k + 1]), max(label[k], label[k + 1])))
-    # parts are one echo where every passage between neighbours was possible
+    low = np.minimum(label[step], label[step + 1])
+    high = np.maximum(label[step], label[step + 1])
+    # neighbouring parts are one echo where the track passed between them, and always could
     groups = list(range(cuts.size + 1))
     for k in range(cuts.size):
-        pair = (k, k + 1)
-        between = [i for i in step if {label[i], label[i + 1]} == set(pair)]
-        if pair in joined_parts and not any(apart[np.searchsorted(step, i)] for i in between):
+        between = (low == k) & (high == k + 1)
+        if between.any() and not apart[between].any():
             groups[k + 1] = groups[k]
     spans = []
     for g in sorted(set(groups)):
@@ -248,12 +245,11 @@ def harmonics(tracks: list[Track], unambiguous_m: float) -> list[np.ndarray]:
     a distortion's ghost of a strong echo, which a band of its own lets a tracker hold."""
     out = [np.zeros(t.pairs, bool) for t in tracks]
     for i, a in enumerate(tracks):
-        level = np.nanmin(per_pair(a, "sweep_snr_dechirped_db"), axis=0)
+        weakest = np.nanmin(per_pair(a, "sweep_snr_dechirped_db"), axis=0)
         for j, b in enumerate(tracks):
             if i == j or not b.valid.any():
                 continue
-            top = np.nanmedian(per_pair(b, "sweep_snr_dechirped_db")[:, b.valid])
-            weak = level <= top - target.HARMONIC_DB
+            weak = weakest <= level(b) - target.HARMONIC_DB
             for k in range(2, target.HARMONICS + 1):
                 at = np.mod(k * b.distance_m, 2 * unambiguous_m)
                 fold = at > unambiguous_m
@@ -271,10 +267,15 @@ def per_pair(t: Track, name: str) -> np.ndarray:
     out = np.full((2, t.pairs), np.nan)
     if x is None:
         return out
-    mid = 0.5 * (t.sweep_time_s[::2] + t.sweep_time_s[1::2])
-    k = np.clip(np.searchsorted(t.time_s, mid), 0, t.pairs - 1)
+    k = _pair_of_sweeps(t)
     out[0, k], out[1, k] = x[::2], x[1::2]
     return out
+
+
+def _pair_of_sweeps(t: Track) -> np.ndarray:
+    """The pair index of each owned pair of half-sweeps (by the pair's centre time)."""
+    mid = 0.5 * (t.sweep_time_s[::2] + t.sweep_time_s[1::2])
+    return np.clip(np.searchsorted(t.time_s, mid), 0, t.pairs - 1)
 
 
 def images(tracks: list[Track], moving: list[bool], model, window: np.ndarray) -> list[np.ndarray]:
@@ -286,18 +287,21 @@ def images(tracks: list[Track], moving: list[bool], model, window: np.ndarray) -
     from .wall_images import confused_moving
 
     out = [np.zeros(t.pairs, bool) for t in tracks]
+    sources = {}                        # each moving object's path, velocity and level
+    for j, b in enumerate(tracks):
+        if moving[j] and b.valid.any():
+            where = path(b)
+            u = np.interp(b.time_s, b.time_s[b.valid], b.velocity_mps[b.valid])
+            u[np.isnan(where)] = np.nan
+            sources[j] = (where, u, level(b))
     for i, a in enumerate(tracks):
         if not a.valid.any():
             continue
         peaks, snr = per_pair(a, "sweep_distance_dechirped_m"), per_pair(a, "sweep_snr_dechirped_db")
-        for j, b in enumerate(tracks):
-            if i == j or not moving[j] or not b.valid.any():
-                continue
-            level = float(np.nanmedian(per_pair(b, "sweep_snr_dechirped_db")[:, b.valid]))
-            u = np.interp(b.time_s, b.time_s[b.valid], b.velocity_mps[b.valid])
-            u[np.isnan(path(b))] = np.nan
-            out[i] |= a.valid & confused_moving(a.velocity_mps, tuple(peaks), tuple(snr), path(b), u, level,
-                                                model, window, a.valid)
+        for j, (where, u, top) in sources.items():
+            if j != i:
+                out[i] |= a.valid & confused_moving(a.velocity_mps, tuple(peaks), tuple(snr), where, u, top,
+                                                    model, window, a.valid)
     return out
 
 
@@ -325,8 +329,8 @@ def joined(a: Track, b: Track) -> Track:
     # the half-sweeps of the pairs taken from b: matched by their pair's time
     if (a.sweep_reason is not None and b.sweep_reason is not None
             and a.sweep_time_s.shape == b.sweep_time_s.shape):
+        k = _pair_of_sweeps(b)
         mid = 0.5 * (b.sweep_time_s[::2] + b.sweep_time_s[1::2])
-        k = np.clip(np.searchsorted(b.time_s, mid), 0, b.pairs - 1)
         sweeps = np.repeat(take[k] & (np.abs(b.time_s[k] - mid) < 1e-9), 2)
         for name in ("sweep_distance_m", "sweep_snr_db", "sweep_distance_dechirped_m",
                      "sweep_snr_dechirped_db", "sweep_reason"):
@@ -352,9 +356,7 @@ def invalidate(t: Track, where: np.ndarray, code: int = faults.AMBIGUOUS) -> Non
         if x is not None:
             setattr(t, name, np.where(hit, np.nan, x))
     if t.sweep_reason is not None:
-        mid = 0.5 * (t.sweep_time_s[::2] + t.sweep_time_s[1::2])
-        k = np.clip(np.searchsorted(t.time_s, mid), 0, t.pairs - 1)
-        t.sweep_reason = np.where(np.repeat(hit[k], 2), code, t.sweep_reason)
+        t.sweep_reason = np.where(np.repeat(hit[_pair_of_sweeps(t)], 2), code, t.sweep_reason)
     recount(t)
 
 

@@ -67,15 +67,15 @@ def objects_of(cap: Capture, first: First, choice: target.Choice, own: Converted
     made: dict[tuple, list[ChunkMeasurements]] = {first.plan.options.band_m: first.parts,
                                                  own.plan.options.band_m: own.parts}
     extra: list[tuple[float, float]] = []
+    two = bool(objects.parts_of(own.track))       # the target's conversion held two echoes
     for _ in range(2):                   # once more where a tracker still held two echoes
         cands = objects.candidates(first.fixed, sorted(spans + extra), choice, band)
-        if len(cands) <= 1 and not extra and not objects.parts_of(own.track):
+        if len(cands) <= 1 and not extra and not two:
             alone = objects.SceneObject(1, bool(choice.moving), own.track, "the target: no other echo")
             return [alone], 0, own
         # the target's conversion stands for the candidate it holds, unless it held two echoes
         share = [objects.holds(own.track, c) for c in cands]
-        held = int(np.argmax(share)) if share and max(share) >= 0.5 and not objects.parts_of(own.track) \
-            else None
+        held = int(np.argmax(share)) if share and max(share) >= 0.5 and not two else None
         mine = held if held is not None and _stands_for(own, cands[held]) else None
         done = [own if i == mine else _convert(cap, first, c, spans + extra, made, processor, seconds,
                                                progress, own if i == held else None)
@@ -181,7 +181,7 @@ def _passing(d: Converted, first: First, processor, seconds) -> list[tuple[float
     cable, beyond it)."""
     if d.choice.at_rest_m is None:
         return []
-    loose = assemble(d.plan, d.parts, processor, seconds(), replace(d.choice, at_rest_m=None), d.track.echoes)
+    loose = _again(d, replace(d.choice, at_rest_m=None), processor, seconds)
     away = np.abs(loose.distance_m - d.choice.at_rest_m) > target.APART_M
     return target.moving_spans(loose.time_s, loose.distance_m, loose.velocity_mps, loose.valid & away,
                                np.zeros(0))
@@ -213,8 +213,7 @@ def _distinct(done: list[Converted], first: First, seconds, processor) -> list[C
         if d.candidate.fixed and o.choice.ambiguous_m.size and not o.joined:
             keep = np.abs(o.choice.ambiguous_m - d.candidate.centre_m) > target.APART_M
             choice = replace(o.choice, ambiguous_m=o.choice.ambiguous_m[keep])
-            track = assemble(o.plan, o.parts, processor, seconds(), choice, o.track.echoes)
-            out[twin] = replace(o, choice=choice, track=track)
+            out[twin] = replace(o, choice=choice, track=_again(o, choice, processor, seconds))
     return out
 
 
@@ -222,11 +221,10 @@ def _exclusive(done: list[Converted], first: First, seconds, processor) -> list[
     """Each conversion assembled again where another object's path comes within
     objects.GATE_M of its own, a harmonic of another's (objects.harmonics) or its
     de-chirped image (objects.images): those pairs `ambiguous` (target.Choice.taken_s)."""
-    clash = objects.conflicts([d.track for d in done], [not _moving(d) for d in done])
-    tracks = [d.track for d in done]
+    tracks, moving = [d.track for d in done], [_moving(d) for d in done]
+    clash = objects.conflicts(tracks, [not m for m in moving])
     ghost = objects.harmonics(tracks, first.plan.lut.unambiguous_range_m)
-    image = objects.images(tracks, [d.candidate.moving or objects.moves(d.track) for d in done],
-                           first.plan.model, first.plan.window)
+    image = objects.images(tracks, moving, first.plan.model, first.plan.window)
     out = []
     for d, c, g, m in zip(done, clash, ghost, image, strict=True):
         c = (c | g | m) & d.track.valid
@@ -236,8 +234,7 @@ def _exclusive(done: list[Converted], first: First, seconds, processor) -> list[
             d = replace(d, track=track)
         elif c.any():
             choice = replace(d.choice, taken_s=np.sort(d.track.time_s[c]))
-            track = assemble(d.plan, d.parts, processor, seconds(), choice, d.track.echoes)
-            d = replace(d, choice=choice, track=track)
+            d = replace(d, choice=choice, track=_again(d, choice, processor, seconds))
         out.append(d)
     return out
 
@@ -246,20 +243,19 @@ def _rejoined(scene: list[objects.SceneObject]) -> list[objects.SceneObject]:
     """The objects with those seen again joined (objects.returns): one object. Only
     objects of one kind: a fixed object that a mover crossed is not the mover after it
     (a swaying cable that a rail passed, the rail beyond it)."""
-    merged = True
-    while merged:
-        merged = False
-        for i in range(len(scene)):
-            for j in range(i + 1, len(scene)):
-                if scene[i].moving == scene[j].moving and objects.returns(scene[i].track, scene[j].track):
-                    a, b = scene[i], scene[j]
-                    moved = a.moving or b.moving or abs(np.nanmedian(a.track.distance_m)
-                                                        - np.nanmedian(b.track.distance_m)) > objects.GATE_M
-                    scene[i] = objects.SceneObject(0, moved, objects.joined(a.track, b.track),
-                                                   f"{a.note}; seen again: {b.note}")
-                    del scene[j]
-                    merged = True
-                    break
-            if merged:
-                break
-    return scene
+    while True:
+        pair = next(((i, j) for i in range(len(scene)) for j in range(i + 1, len(scene))
+                     if scene[i].moving == scene[j].moving
+                     and objects.returns(scene[i].track, scene[j].track)), None)
+        if pair is None:
+            return scene
+        a, b = scene[pair[0]], scene.pop(pair[1])
+        moved = a.moving or abs(np.nanmedian(a.track.distance_m)
+                                - np.nanmedian(b.track.distance_m)) > objects.GATE_M
+        scene[pair[0]] = objects.SceneObject(0, moved, objects.joined(a.track, b.track),
+                                             f"{a.note}; seen again: {b.note}")
+
+
+def _again(d: Converted, choice: target.Choice, processor: ChunkProcessor, seconds) -> Track:
+    """Conversion `d`'s measurements assembled again under `choice` (its echo table kept)."""
+    return assemble(d.plan, d.parts, processor, seconds(), choice, d.track.echoes)

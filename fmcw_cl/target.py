@@ -649,8 +649,6 @@ def ambiguous(code: np.ndarray, time_s: np.ndarray, distance_m: np.ndarray, velo
             spread = 1.4826 * np.median(np.abs(distance_m[ok] - mid))
             out[ok & (np.abs(distance_m - mid) > max(REST_SIGMAS * spread, REST_M))] = faults.AMBIGUOUS
     if choice.taken_s.size:                 # another object's path within GATE_M (fmcw_cl.objects)
-        k = np.clip(np.searchsorted(choice.taken_s, time_s), 1, choice.taken_s.size)
-        near = np.minimum(np.abs(choice.taken_s[k - 1] - time_s),
-                          np.abs(choice.taken_s[np.minimum(k, choice.taken_s.size - 1)] - time_s)) < 1e-9
+        near = np.abs(choice.taken_s[nearest(choice.taken_s, time_s)] - time_s) < 1e-9
         out[(out == faults.OK) & near] = faults.AMBIGUOUS
     return out

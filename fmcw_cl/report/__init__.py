@@ -77,17 +77,25 @@ def events_markdown(rows: list[dict], title: str, skipped: dict | None = None, a
     return "\n".join(lines) + "\n"
 
 
-def _object_events(o, edge_s: float) -> tuple:
-    """An object's events (no truth: the capture's is the target's): (object, rows,
-    what was left out, at rest)."""
-    t = o.track
+def _events_of(t: Track, edge_s: float) -> tuple[list, dict, bool]:
+    """A track's events from its verified stretches, what was left out, and whether it is
+    at rest (what the verified velocities say, not the want of an event)."""
     used = verified_stretches(t.valid)
+    # each quantity where it is valid itself: a verified distance may carry a velocity
+    # or an acceleration that is not
     series = ((t.distance_m, used), (t.velocity_mps, used & t.velocity_valid),
               (t.acceleration_mps2, used & t.acceleration_valid))
     ev = find_events(t.time_s, *[np.where(ok, x, np.nan) for x, ok in series], edge_s=edge_s)
     moving = used & t.velocity_valid
     at_rest = bool(moving.any() and np.percentile(np.abs(t.velocity_mps[moving]), 95) < STATIC_MPS)
-    return o, compare(ev, []), left_out(t.valid, used), at_rest
+    return ev, left_out(t.valid, used), at_rest
+
+
+def _object_events(o, edge_s: float) -> tuple:
+    """An object's events (no truth: the capture's is the target's): (object, rows,
+    what was left out, at rest)."""
+    ev, skipped, at_rest = _events_of(o.track, edge_s)
+    return o, compare(ev, []), skipped, at_rest
 
 
 def _write_text(path: Path, text: str) -> None:
@@ -139,20 +147,10 @@ def make_report(track_file: str | os.PathLike, outdir: str | os.PathLike,
         with Capture(src) as cap:
             truth = cap.truth()
     written: list[Path] = []
-    used = verified_stretches(track.valid)
-    # each quantity where it is valid itself: a verified distance may carry a velocity
-    # or an acceleration that is not
-    series = ((track.distance_m, used), (track.velocity_mps, used & track.velocity_valid),
-              (track.acceleration_mps2, used & track.acceleration_valid))
-    kept = [np.where(ok, x, np.nan) for x, ok in series]
     edge_s = (WINDOW_PAIRS // 2) * float(track.attrs.get("modulation_period_s", 5e-5))
-    ev = find_events(track.time_s, *kept, edge_s=edge_s)
-    skipped = left_out(track.valid, used)
+    ev, skipped, at_rest = _events_of(track, edge_s)
     t0, t1 = (float(track.time_s[0]), float(track.time_s[-1])) if track.pairs else (0.0, 0.0)
     rows = compare(ev, true_events(truth, t0, t1, edge_s) if truth is not None else [])
-    # at rest: what the verified velocities say, not the want of an event
-    moving = used & track.velocity_valid
-    at_rest = bool(moving.any() and np.percentile(np.abs(track.velocity_mps[moving]), 95) < STATIC_MPS)
 
     with atomic_path(out / "kinematics.png") as tmp:
         figures.kinematics(track, tmp, truth, ev)
