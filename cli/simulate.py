@@ -28,7 +28,8 @@ def parse_reflector(text: str) -> tuple[float, float]:
               help="Seconds of capture [default: static 0.05, rail 0.4, jump 0.3].")
 @click.option("--seed", default=0, show_default=True, help="Seed of every random draw.")
 @click.option("--distance", default=None, type=float,
-              help="static: target distance (m) [0.3]; jump: the ground's distance (m) [0.07].")
+              help="static, vibration, creep: target distance (m) [0.3]; jump: the ground's distance "
+                   "(m) [0.07].")
 @click.option("--start", default=0.0, show_default=True,
               help="Scenario time (s) at the capture's first sample (for excerpts).")
 @click.option("--noise", default=None, type=float, help="Beat noise, rms ADC codes [25].")
@@ -57,11 +58,14 @@ def parse_reflector(text: str) -> tuple[float, float]:
               help="No gain setting: noise peaks reach full scale (--noise 3000: 0.7 % of the codes).")
 @click.option("--compress", is_flag=True, help="gzip the ADC channels (small files, slow reads).")
 @click.option("--overwrite", is_flag=True, help="Replace OUTPUT where it exists (else that is refused).")
+@click.option("--amplitude-um", default=None, type=float, help="vibration: its amplitude (um) [50].")
+@click.option("--frequency-hz", default=None, type=float, help="vibration: its frequency (Hz) [1000].")
+@click.option("--speed-mmps", default=None, type=float, help="creep: its speed (mm/s) [1].")
 @click.option("-q", "--quiet", is_flag=True, help="No progress.")
 def command(scenario, output, duration, seed, distance, start, noise, snr_db, reflectors, speckle_ms,
             table_noise_mhz, rin_db_hz, sync_delay, thermal_lag_us, lab, no_headroom, compress, overwrite,
-            quiet):
-    """Simulate SCENARIO (static, rail or jump) into a capture file.
+            amplitude_um, frequency_hz, speed_mmps, quiet):
+    """Simulate SCENARIO (static, rail, jump, vibration or creep) into a capture file.
 
     \b
     Example:
@@ -69,6 +73,7 @@ def command(scenario, output, duration, seed, distance, start, noise, snr_db, re
       fmcw-cl simulate static -o static.h5 --distance 0.25
       fmcw-cl simulate jump -o wall.h5 --snr-db 0 --reflector 0.42:800 --speckle-ms 3
       fmcw-cl simulate static -o lab.h5 --lab --distance 0.4
+      fmcw-cl simulate vibration -o vib.h5 --amplitude-um 50 --frequency-hz 1000
     """
     reflectors = tuple(parse_reflector(r) for r in reflectors)
     duration = DURATIONS_S[scenario] if duration is None else duration
@@ -78,7 +83,8 @@ def command(scenario, output, duration, seed, distance, start, noise, snr_db, re
                               noise=noise, snr_db=snr_db, reflectors=reflectors, speckle_ms=speckle_ms,
                               table_noise_mhz=table_noise_mhz, rin_db_hz=rin_db_hz, sync_delay=sync_delay,
                               thermal_lag_us=thermal_lag_us, compress=compress, lab=lab,
-                              no_headroom=no_headroom, overwrite=overwrite, progress=bar)
+                              no_headroom=no_headroom, overwrite=overwrite, amplitude_um=amplitude_um,
+                              frequency_hz=frequency_hz, speed_mmps=speed_mmps, progress=bar)
     bar.close()
     if not quiet:
         click.echo(f"{output}: {scenario}, {duration:g} s, seed {seed}, "

@@ -90,16 +90,20 @@ def simulate(path: PathLike, scenario: str = "jump", *, duration: float | None =
              speckle_ms: float = 0.0, table_noise_mhz: float | None = None, rin_db_hz: float | None = None,
              sync_delay: float | None = None, thermal_lag_us: float = 0.0, compress: bool = False,
              lab: bool = False, no_headroom: bool = False, overwrite: bool = False,
+             amplitude_um: float | None = None, frequency_hz: float | None = None,
+             speed_mmps: float | None = None,
              progress: Callable[[int, int], None] | None = None) -> dict:
     """Write a simulated capture with `/truth` (the options of `fmcw-cl simulate`).
 
     Parameters
     ----------
     path : the capture file to write.
-    scenario : "static", "rail" or "jump".
-    duration : seconds of capture (default: static 0.05, rail 0.4, jump 0.3).
+    scenario : "static", "rail", "jump", "vibration" or "creep".
+    duration : seconds of capture (default: static 0.05, rail 0.4, jump 0.3, vibration
+        0.1, creep 0.2).
     seed : seed of every random draw.
-    distance : static: the target's distance (m, 0.3); jump: the ground's (m, 0.07).
+    distance : static, vibration, creep: the target's distance (m, 0.3); jump: the
+        ground's (m, 0.07).
     start : scenario time (s) at the first sample.
     noise, snr_db : beat noise in rms codes (25), or set by the target's per-sample SNR
         at 0.3 m (dB); not both.
@@ -116,6 +120,8 @@ def simulate(path: PathLike, scenario: str = "jump", *, duration: float | None =
     no_headroom : no gain setting: the noise's peaks reach full scale where its rms is
         near it (3000 codes rms on 14 bits: 0.7 % of the codes).
     overwrite : replace `path` where it exists (else that is refused).
+    amplitude_um, frequency_hz : vibration: its amplitude (um, 50) and frequency (Hz, 1000).
+    speed_mmps : creep: its speed (mm/s, 1).
 
     Returns
     -------
@@ -146,7 +152,17 @@ def simulate(path: PathLike, scenario: str = "jump", *, duration: float | None =
     if distance is not None:
         if scenario == "rail":
             raise FmcwError("the rail has no distance option")
-        kwargs = {"distance" if scenario == "static" else "ground_m": distance}
+        kwargs = {"ground_m" if scenario == "jump" else "distance": distance}
+    for name, value, scale, own in (("amplitude_um", amplitude_um, 1e-6, "vibration"),
+                                    ("frequency_hz", frequency_hz, 1.0, "vibration"),
+                                    ("speed_mmps", speed_mmps, 1e-3, "creep")):
+        if value is None:
+            continue
+        if scenario != own:
+            raise FmcwError(f"{opts.said(name, value)}: only the {own} scenario has it")
+        if not value > 0:
+            raise FmcwError(f"{opts.said(name, value)} must be more than 0")
+        kwargs[{"amplitude_um": "amplitude_m", "speed_mmps": "speed_mps"}.get(name, name)] = value * scale
     for d, a in reflectors:
         if d <= 0 or a < 0:
             raise FmcwError(f"reflector {d:g}:{a:g}: the distance must be > 0 m and the amplitude >= 0")

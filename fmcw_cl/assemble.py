@@ -8,12 +8,12 @@ from pathlib import Path
 
 import numpy as np
 
-from . import __version__, echoes, target, uncertainty, wall_images
+from . import __version__, displacement, echoes, target, uncertainty, wall_images
 from .errors import CaptureError
 from .plan import DELAY_BOUND_MPS, PERIOD_WARN, Plan, delay_reliable
 from .processor import SURVEY_KEYS, ChunkMeasurements, ChunkProcessor
 from .refine import DISAGREE_SIGMAS, disagreement
-from .stages import cfar, faults, kinematics, pairing
+from .stages import cfar, faults, kinematics, pairing, phase
 from .stages.cfar import Detections
 from .track import Track
 
@@ -33,6 +33,20 @@ def _spectrum(parts: list[ChunkMeasurements]) -> tuple[np.ndarray, int] | None:
     direction summed (None: no chunk surveyed)."""
     got = [p for p in parts if p.spectrum is not None]
     return (sum(p.spectrum for p in got), sum(p.spectrum_rows for p in got)) if got else None
+
+
+def _displacement(res: dict, with_gaps, times: tuple, dist: np.ndarray, vel: np.ndarray, ok: np.ndarray,
+                  rad_per_m: float, dist_u: np.ndarray, acc: np.ndarray,
+                  moments: tuple[float, float]) -> displacement.Displacement:
+    """The displacement from the half-sweeps' phases (none measured: not valid)."""
+    if res.get("phase_rise") is None:
+        return displacement.Displacement.none(dist.size)
+    t_r, t_f = (with_gaps(t, np.nan) for t in times)
+    return displacement.displacement(t_r, t_f, with_gaps(res["phase_rise"], np.nan),
+                                     with_gaps(res["phase_fall"], np.nan),
+                                     with_gaps(res["dechirped_snr_rise"], np.nan),
+                                     with_gaps(res["dechirped_snr_fall"], np.nan), dist, vel, ok, rad_per_m,
+                                     dist_u, acc, moments)
 
 
 def assemble(plan: Plan, parts: list[ChunkMeasurements], processor: ChunkProcessor, seconds: float,
@@ -101,6 +115,10 @@ def assemble(plan: Plan, parts: list[ChunkMeasurements], processor: ChunkProcess
         period_ratio=plan.period_ratio, resolution_m=lut.range_resolution_m,
         # the beat's cycles per sample per metre: 2 n B / (c x the half-sweep's samples)
         cycles_per_sample_per_m=1.0 / (lut.range_resolution_m * 0.5 * info.samples_per_period))
+
+    moved = _displacement(res, with_gaps, (t_r, t_f), dist, vel, valid & vel_valid,
+                          phase.radians_per_metre(lut.nu_hz, info.refractive_index), u.distance_m, held,
+                          phase.centre_moments(lut.u_rise, 0.5 * period_s, plan.window))
 
     def interleave(rise, fall):
         return np.stack([res[rise], res[fall]], axis=1).ravel()
@@ -178,6 +196,8 @@ def assemble(plan: Plan, parts: list[ChunkMeasurements], processor: ChunkProcess
         "velocity_unverified_pairs": int(np.sum(valid & ~vel_valid)),
         "uncertainty_coverage_factor": uncertainty.COVERAGE,
         **uncertainty.budget_attrs(u),
+        **moved.attrs(),
+        "displacement_rad_per_m": phase.radians_per_metre(lut.nu_hz, info.refractive_index),
         "backend": processor.name,
         "device": processor.device,
         "software": f"fmcw-cl {__version__}",
@@ -192,9 +212,11 @@ def assemble(plan: Plan, parts: list[ChunkMeasurements], processor: ChunkProcess
         sweep_snr_db=interleave("snr_rise", "snr_fall"),
         sweep_distance_dechirped_m=interleave("dechirped_rise", "dechirped_fall"),
         sweep_snr_dechirped_db=interleave("dechirped_snr_rise", "dechirped_snr_fall"),
+        sweep_phase_rad=None if res.get("phase_rise") is None else interleave("phase_rise", "phase_fall"),
         time_s=times[order], distance_m=dist, velocity_mps=vel, acceleration_mps2=acc,
         valid=valid, velocity_valid=vel_valid, acceleration_valid=acc_valid,
         distance_uncertainty_m=u.distance_m, velocity_uncertainty_mps=u.velocity_mps,
-        acceleration_uncertainty_mps2=u_acc,
+        acceleration_uncertainty_mps2=u_acc, displacement_m=moved.metres, displacement_valid=moved.valid,
+        displacement_uncertainty_m=moved.uncertainty_m, displacement_stretch=moved.stretch,
         attrs=attrs, reason=reason, sweep_reason=np.repeat(reason_owned, 2),
         integrated=integrated if varies else None, period_s=period_s, chirp=plan.chirp)

@@ -318,11 +318,14 @@ def returns(a: Track, b: Track) -> bool:
 
 def joined(a: Track, b: Track) -> Track:
     """One track of `a` and `b` (the same object, never verified at once): each pair,
-    and its half-sweeps, from the one that verified it (from `a` where neither did)."""
+    and its half-sweeps, from the one that verified it (from `a` where neither did);
+    the displacement is `a`'s (its phase's reference is its own conversion's)."""
     take = b.valid
     out = replace(a, attrs=dict(a.attrs))
     for f in fields(Track):
         x, y = getattr(a, f.name), getattr(b, f.name)
+        if f.name.startswith("displacement"):
+            continue        # a's: each conversion's phase has its own reference
         if isinstance(x, np.ndarray) and isinstance(y, np.ndarray) and x.shape == y.shape:
             if x.shape[:1] == (a.pairs,):
                 setattr(out, f.name, np.where(take, y, x) if x.ndim == 1 else x)
@@ -333,7 +336,7 @@ def joined(a: Track, b: Track) -> Track:
         mid = 0.5 * (b.sweep_time_s[::2] + b.sweep_time_s[1::2])
         sweeps = np.repeat(take[k] & (np.abs(b.time_s[k] - mid) < 1e-9), 2)
         for name in ("sweep_distance_m", "sweep_snr_db", "sweep_distance_dechirped_m",
-                     "sweep_snr_dechirped_db", "sweep_reason"):
+                     "sweep_snr_dechirped_db", "sweep_reason", "sweep_phase_rad"):
             x, y = getattr(a, name), getattr(b, name)
             if x is not None and y is not None:
                 setattr(out, name, np.where(sweeps, y, x))
@@ -357,7 +360,22 @@ def invalidate(t: Track, where: np.ndarray, code: int = faults.AMBIGUOUS) -> Non
             setattr(t, name, np.where(hit, np.nan, x))
     if t.sweep_reason is not None:
         t.sweep_reason = np.where(np.repeat(hit[_pair_of_sweeps(t)], 2), code, t.sweep_reason)
+    if t.displacement_valid is not None:
+        _cut_displacement(t, hit)
     recount(t)
+
+
+def _cut_displacement(t: Track, hit: np.ndarray) -> None:
+    """The displacement after a pair `hit` in its stretch is not valid: the phase was
+    followed across that pair's velocity and phase, which may be another object's."""
+    lost = hit.copy()
+    for s in np.unique(t.displacement_stretch[hit & t.displacement_valid]):
+        mine = t.displacement_stretch == s
+        lost |= mine & (np.cumsum(hit & mine) > 0)
+    t.displacement_valid = t.displacement_valid & ~lost
+    t.displacement_stretch = np.where(lost, -1, t.displacement_stretch)
+    for name in ("displacement_m", "displacement_uncertainty_m"):
+        setattr(t, name, np.where(lost, np.nan, getattr(t, name)))
 
 
 def recount(t: Track) -> None:

@@ -18,7 +18,8 @@ from .stages.faults import REASONS
 FORMATS = {"csv": ".csv", "parquet": ".parquet", "netcdf": ".nc"}
 UNITS = {"time_s": "s", "distance_m": "m", "velocity_mps": "m/s", "acceleration_mps2": "m/s^2",
          "distance_uncertainty_m": "m", "velocity_uncertainty_mps": "m/s",
-         "acceleration_uncertainty_mps2": "m/s^2",
+         "acceleration_uncertainty_mps2": "m/s^2", "displacement_m": "m", "displacement_uncertainty_m": "m",
+         "phase_rad": "rad",
          "snr_db": "dB", "distance_dechirped_m": "m", "snr_dechirped_db": "dB"}
 
 
@@ -69,13 +70,17 @@ def columns(track, per: str = "pair") -> dict[str, np.ndarray]:
                 "distance_uncertainty_m": track.distance_uncertainty_m,
                 "velocity_uncertainty_mps": track.velocity_uncertainty_mps,
                 "acceleration_uncertainty_mps2": track.acceleration_uncertainty_mps2,
+                "displacement_m": track.displacement_m, "displacement_valid": track.displacement_valid,
+                "displacement_uncertainty_m": track.displacement_uncertainty_m,
+                "displacement_stretch": track.displacement_stretch,
                 "reason": _reason_names(track.reason), "integrated_sweeps": track.integrated,
                 "time_resolution_s": track.time_resolution_s}
     elif per == "sweep":
         cols = {"time_s": track.sweep_time_s, "current_rising": track.sweep_rising,
                 "distance_m": track.sweep_distance_m, "snr_db": track.sweep_snr_db,
                 "distance_dechirped_m": track.sweep_distance_dechirped_m,
-                "snr_dechirped_db": track.sweep_snr_dechirped_db, "reason": _reason_names(track.sweep_reason)}
+                "snr_dechirped_db": track.sweep_snr_dechirped_db, "phase_rad": track.sweep_phase_rad,
+                "reason": _reason_names(track.sweep_reason)}
     elif per == "echo":
         e = track.echoes
         if e is None:

@@ -46,6 +46,11 @@ class Track:
     velocity_uncertainty_mps: np.ndarray | None = None
     acceleration_uncertainty_mps2: np.ndarray | None = None
     objects: list | None = None               # the scene's objects.SceneObject, the target among them
+    displacement_m: np.ndarray | None = None       # per pair: from the beat's phase (fmcw_cl.displacement)
+    displacement_valid: np.ndarray | None = None
+    displacement_uncertainty_m: np.ndarray | None = None   # expanded (k = 2)
+    displacement_stretch: np.ndarray | None = None  # its reference's stretch (-1: not valid)
+    sweep_phase_rad: np.ndarray | None = None       # per half-sweep: the beat's phase at its peak
 
     def __post_init__(self) -> None:
         # a track written before validity per quantity: its velocities and accelerations
@@ -113,6 +118,8 @@ def write_track(path: str | os.PathLike, track: Track) -> Path:
             s.create_dataset("snr_dechirped_db", data=np.asarray(track.sweep_snr_dechirped_db, np.float32))
         if track.sweep_reason is not None:
             s.create_dataset("reason", data=np.asarray(track.sweep_reason, np.uint8))
+        if track.sweep_phase_rad is not None:
+            s.create_dataset("phase_rad", data=np.asarray(track.sweep_phase_rad, np.float64))
         _write_pairs(f.create_group("track"), track)
         for o in track.objects or ():
             g = f.create_group(f"objects/{o.id}")
@@ -139,7 +146,8 @@ def _write_pairs(t: h5py.Group, track: Track) -> None:
     for name in OPTIONAL_PAIR_DATASETS:
         x = getattr(track, name)
         if x is not None:
-            t.create_dataset(name, data=np.asarray(x, bool if name.endswith("valid") else np.float64))
+            kind = bool if name.endswith("valid") else np.int32 if name.endswith("stretch") else np.float64
+            t.create_dataset(name, data=np.asarray(x, kind))
     if track.integrated is not None:
         t.create_dataset("integrated_sweeps", data=np.asarray(track.integrated, np.uint16))
         t.create_dataset("time_resolution_s", data=np.asarray(track.time_resolution_s, np.float64))
@@ -159,7 +167,8 @@ def _read_pairs(t: h5py.Group, attrs: dict, period_s: float | None) -> Track:
 OBJECT_TRACK_ATTRS = ("target_band_m", "target_choice", "time_resolution_s", "target_tracked_m",
                       *(f"invalid_{name}" for code, name in REASONS.items() if code))
 OPTIONAL_PAIR_DATASETS = ("velocity_valid", "acceleration_valid", "distance_uncertainty_m",
-                          "velocity_uncertainty_mps", "acceleration_uncertainty_mps2")
+                          "velocity_uncertainty_mps", "acceleration_uncertainty_mps2", "displacement_m",
+                          "displacement_valid", "displacement_uncertainty_m", "displacement_stretch")
 ECHO_COLUMNS = (("time_s", np.float64), ("distance_m", np.float64), ("snr_db", np.float32),
                 ("current_rising", bool), ("tracked", bool))
 PERSISTENT_COLUMNS = ("time_s", "distance_m", "snr_db", "share", "relative_db", "in_band", "diffuse")
@@ -206,7 +215,7 @@ def read_track(path: str | os.PathLike) -> Track:
         optional = {name: g[key][()] for name, g, key in (
             ("sweep_distance_dechirped_m", s, "distance_dechirped_m"),
             ("sweep_snr_dechirped_db", s, "snr_dechirped_db"),
-            ("sweep_reason", s, "reason"), ("reason", t, "reason"),
+            ("sweep_reason", s, "reason"), ("reason", t, "reason"), ("sweep_phase_rad", s, "phase_rad"),
             ("integrated", t, "integrated_sweeps"),
             *((name, t, name) for name in OPTIONAL_PAIR_DATASETS)) if key in g}
         if "modulation_period_s" in attrs:

@@ -94,7 +94,9 @@ def test_tables_and_labelled_arrays(jump_track):
     df = track.to_pandas()
     assert list(df.columns) == ["object", "time_s", "distance_m", "velocity_mps", "acceleration_mps2",
                                 "valid", "velocity_valid", "acceleration_valid", "distance_uncertainty_m",
-                                "velocity_uncertainty_mps", "acceleration_uncertainty_mps2", "reason"]
+                                "velocity_uncertainty_mps", "acceleration_uncertainty_mps2", "displacement_m",
+                                "displacement_valid", "displacement_uncertainty_m", "displacement_stretch",
+                                "reason"]
     assert len(df) == track.pairs and df.attrs["points"] == 1000
     assert (df.object == track.attrs["target_object"]).all()
     scene = track.to_pandas(per="object")

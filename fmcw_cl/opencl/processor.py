@@ -26,6 +26,7 @@ from . import delay as k_delay
 from . import faults as k_faults
 from . import integrate as k_integrate
 from . import lpf as k_lpf
+from . import phase as k_phase
 from . import resample as k_resample
 from . import spectrum as k_spectrum
 from . import survey as k_survey
@@ -50,7 +51,7 @@ class OpenCLProcessor(ChunkProcessor):
     # whatever its size (0.4 s of capture: 160 MB of codes, 65 MB of resampled rows)
     chunk_default = 8192
     programs = ("lpf", "delay", "sync", "resample", "spectrum", "integrate", "survey", "faults", "track",
-                "verify", "copy")
+                "verify", "copy", "phase")
 
     def __init__(self, selector: str | None = None, rt: Runtime | None = None) -> None:
         super().__init__()
@@ -295,6 +296,12 @@ class OpenCLProcessor(ChunkProcessor):
             store = DeviceRows(self.bufs, x.shape[0], nfft // 2)
         k_spectrum.measure(self.rt, self.bufs, x, beta, v, nfft, 1, index=rows, store=store)
         return store
+
+    def phasors_each(self, xs, betas, v, bins, nfft):
+        """Twin: pairing.SpectrumOps.phasors_each; on the device where the rows are."""
+        if not self._fits(nfft):
+            return pairing.NUMPY.phasors_each(xs, betas, v, bins, nfft)
+        return k_phase.phasors_each(self.rt, self.bufs, xs, betas, v, bins, nfft)
 
     def survey(self, x, beta, v, nfft, rows, lo, tracked_bin, plain_bin, others):
         return self.survey_each([x], [beta], v, nfft, rows, lo, [tracked_bin], [plain_bin], [others])[0]

@@ -191,6 +191,14 @@ def spectra(be, rng, group: str) -> None:
     got = be.measure(d_x, beta, v[pick], model, Search(3, nfft // 2), pick)
     want = pairing.measure(x, beta, v[pick], model, Search(3, nfft // 2), pick)
     close("de-chirp + FFT + peak, picked rows", got[0], want[0], 1e-4)
+    # the phase at a fractional peak (phase.cl), de-chirped and plain, both directions
+    bins = [rng.uniform(20, 40, sweeps), rng.uniform(20, 40, sweeps)]
+    for vel in (v, None):
+        got = be.phasors_each((d_x, d_y), (beta, -beta), vel, bins, nfft)
+        want = pairing.NUMPY.phasors_each((x, y), (beta, -beta), vel, bins, nfft)
+        for g, w in zip(got, want, strict=True):
+            close(f"peak phasor{'' if vel is None else ', de-chirped'} (peak_phasor)",
+                  np.stack([g.real, g.imag]), np.stack([w.real, w.imag]), 1e-4)
     if k_track.supported(be.rt):
         # the passes' decisions on the device against the host's, on the same peaks
         got = be.track((d_x, d_y), times, model, search, 3, True)[1]

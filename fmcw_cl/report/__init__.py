@@ -3,7 +3,8 @@
 `make_report` writes, into one folder (each file atomically):
 kinematics.png, echoes.png (every echo over range and time, when the track lists
 them), spectra.png (when the source capture is readable), precision.png (static
-targets only), events.md and events.json, uncertainty.md (the GUM budget).
+targets only), displacement.png (the displacement from the phase and its amplitude
+spectrum, where it holds), events.md and events.json, uncertainty.md (the GUM budget).
 """
 
 from __future__ import annotations
@@ -177,6 +178,10 @@ def make_report(track_file: str | os.PathLike, outdir: str | os.PathLike,
         with atomic_path(out / "precision.png") as tmp:
             figures.precision(track, tmp, true_d)
         written.append(out / "precision.png")
+    if track.displacement_valid is not None and track.displacement_valid.any():
+        with atomic_path(out / "displacement.png") as tmp:
+            figures.displacement(track, tmp, truth)
+        written.append(out / "displacement.png")
     title = Path(str(track.attrs.get("source", track_file))).name
     others = [_object_events(o, edge_s) for o in track.objects or []
               if o.id != track.attrs.get("target_object")]

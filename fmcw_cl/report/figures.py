@@ -230,3 +230,76 @@ def echoes(track: Track, path: Path) -> Path:
     fig.savefig(path, dpi=120, format="png")
     plt.close(fig)
     return path
+
+
+def longest_stretch(track: Track) -> np.ndarray:
+    """The pairs (indices) of the longest stretch of valid displacement, from its first
+    valid pair to its last (gaps inside it included)."""
+    s = track.displacement_stretch
+    if s is None or not track.displacement_valid.any():
+        return np.zeros(0, np.int64)
+    ids, counts = np.unique(s[s >= 0], return_counts=True)
+    mine = np.flatnonzero(s == ids[np.argmax(counts)])
+    return np.arange(mine[0], mine[-1] + 1)
+
+
+def displacement_spectrum(t: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Frequencies (Hz), amplitude spectral density (m/sqrt(Hz)) and line amplitude (m)
+    of a displacement sampled at times `t` (uniform; NaN gaps filled linearly), its
+    straight line taken off, under a Hann window."""
+    ok = np.isfinite(x)
+    x = np.interp(t, t[ok], x[ok])
+    x = x - np.polyval(np.polyfit(t, x, 1), t)
+    w = np.hanning(x.size)
+    spec = np.fft.rfft(w * x)
+    fs = 1.0 / float(np.median(np.diff(t)))
+    return (np.fft.rfftfreq(x.size, 1.0 / fs), np.abs(spec) * np.sqrt(2.0 / (fs * np.sum(w * w))),
+            2.0 * np.abs(spec) / np.sum(w))
+
+
+def displacement(track: Track, path: Path, truth: Truth | None = None) -> Path:
+    """The displacement from the phase over time, with its expanded uncertainty and the
+    truth, and the amplitude spectrum of its longest stretch: its strongest line (m)
+    and its floor (m/sqrt(Hz))."""
+    ok = track.displacement_valid
+    t_ms = 1e3 * track.time_s
+    x = np.where(ok, track.displacement_m, np.nan)
+    most = np.nanmax(np.abs(x), initial=0)
+    scale, unit = (1e9, "nm") if most < 2e-6 else (1e6, "µm") if most < 2e-3 else (1e3, "mm")
+    fig, (ax, bx) = plt.subplots(2, 1, figsize=(9, 7.5), constrained_layout=True)
+    ax.plot(t_ms, scale * x, color="C0", lw=0.8, label="from the phase")
+    u = np.where(ok, track.displacement_uncertainty_m, np.nan)
+    ax.fill_between(t_ms, scale * (x - u), scale * (x + u), color="C0", alpha=0.2, lw=0,
+                    label="expanded uncertainty (k = 2)")
+    if truth is not None and ok.any():
+        r = truth_at(truth, track.time_s)[0]
+        ax.plot(t_ms, scale * (r - r[np.flatnonzero(ok)[0]]), color="k", lw=0.8, ls="--", label="truth")
+    ax.set_xlabel("time (ms)")
+    ax.set_ylabel(f"displacement ({unit})")
+    stretches = int(track.attrs.get("displacement_stretches", 0))
+    ax.set_title(f"{Path(str(track.attrs.get('source', ''))).name}: displacement from the beat's phase, "
+                 f"{100 * ok.mean():.1f} % valid, {stretches} stretch{'es' if stretches != 1 else ''}")
+    ax.legend(fontsize=8, loc="best")
+    ax.grid(alpha=0.3)
+    run = longest_stretch(track)
+    if run.size >= 64:
+        f, asd, amp = displacement_spectrum(track.time_s[run], x[run])
+        line = 1 + int(np.argmax(amp[1:]))
+        floor = float(np.median(asd[1:]))
+        bx.semilogy(f[1:] / 1e3, asd[1:], color="C0", lw=0.8)
+        bx.axhline(floor, color="C2", ls=":", label=f"median floor {floor:.3g} m/√Hz")
+        bx.plot(f[line] / 1e3, asd[line], "o", mfc="none", color="C3",
+                label=f"strongest line: {f[line]:.0f} Hz, amplitude {amp[line]:.3g} m")
+        span_ms = 1e3 * (track.time_s[run[-1]] - track.time_s[run[0]])
+        bx.set_title(f"amplitude spectrum of the longest stretch ({span_ms:.1f} ms, its straight line "
+                     "taken off, Hann window)")
+        bx.legend(fontsize=8, loc="best")
+    else:
+        bx.text(0.5, 0.5, "no stretch of 64 pairs for a spectrum", transform=bx.transAxes, ha="center",
+                va="center", color="0.4")
+    bx.set_xlabel("frequency (kHz)")
+    bx.set_ylabel("amplitude spectral density (m/√Hz)")
+    bx.grid(alpha=0.3, which="both")
+    fig.savefig(path, dpi=120, format="png")
+    plt.close(fig)
+    return path

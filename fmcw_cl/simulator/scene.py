@@ -174,5 +174,22 @@ def sway(duration: float, centre_m: float = 0.42, amplitude_m: float = 0.02, fre
     return Trajectory.from_velocity(0.0, duration, vel, acc, centre_m + amplitude_m * np.sin(phase))
 
 
-SCENARIOS: dict[str, Callable[..., Trajectory]] = {"static": static, "rail": rail, "jump": jump}
-DURATIONS_S = {"static": 0.05, "rail": 0.4, "jump": 0.3}   # default capture length of each
+def vibration(duration: float, distance: float = 0.3, amplitude_m: float = 50e-6,
+              frequency_hz: float = 1000.0) -> Trajectory:
+    """A target vibrating about `distance` (m): amplitude `amplitude_m` (m) at
+    `frequency_hz` (50 um at 1 kHz: 0.31 m/s, 1970 m/s^2 at its peaks)."""
+    return sway(duration, distance, amplitude_m, frequency_hz)
+
+
+def creep(duration: float, distance: float = 0.3, speed_mps: float = 1e-3) -> Trajectory:
+    """A target moving away from `distance` (m) at a constant `speed_mps` (m/s)."""
+    def vel(t):
+        return np.full_like(t, speed_mps)
+
+    return Trajectory.from_velocity(0.0, duration, vel, np.zeros_like, distance, dt=1e-4)
+
+
+SCENARIOS: dict[str, Callable[..., Trajectory]] = {"static": static, "rail": rail, "jump": jump,
+                                                   "vibration": vibration, "creep": creep}
+# default capture length of each
+DURATIONS_S = {"static": 0.05, "rail": 0.4, "jump": 0.3, "vibration": 0.1, "creep": 0.2}

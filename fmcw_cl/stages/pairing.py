@@ -23,7 +23,7 @@ import numpy as np
 from .. import numeric
 from ..numeric import median, padded, row_nanmedian
 from ..physics import C
-from . import cfar, integrate
+from . import cfar, integrate, phase
 from .lut import Lut
 from .spectrum import Search, find_peaks, power_spectra
 
@@ -132,6 +132,8 @@ class PairResult:
     integrated: np.ndarray | None = None          # half-sweeps of a direction summed per pair
     echoes_rise: cfar.Detections | None = None   # every echo of the plain spectra
     echoes_fall: cfar.Detections | None = None
+    phase_rise: np.ndarray | None = None     # the beat's phase at each final peak (rad, stages.phase)
+    phase_fall: np.ndarray | None = None
 
     def take(self, rows: np.ndarray) -> PairResult:
         """The pairs `rows` (a boolean mask or indices)."""
@@ -247,6 +249,11 @@ class SpectrumOps:
         plain = power(x, None, None, nfft, rows)
         return (*hidden(plain, power(x, beta, v, nfft, rows), lo, tracked_bin, plain_bin, others),
                 block_sums(plain))
+
+    def phasors_each(self, xs, betas, v, bins, nfft: int) -> list[np.ndarray]:
+        """stages.phase.phasors of each x of `xs` (a pair's two directions) with its beta
+        and peak bins of `betas` and `bins`, the same velocities (a backend: one trip)."""
+        return [phase.phasors(x, beta, v, b, nfft) for x, beta, b in zip(xs, betas, bins, strict=True)]
 
     def survey_each(self, xs, betas, v, nfft: int, rows, lo: int, tracked_bins, plain_bins, others) -> list:
         """`survey` of each x of `xs` (a pair's two directions) with its beta, tracked and
@@ -696,16 +703,30 @@ def track_pairs(xr: np.ndarray, xf: np.ndarray, times: Times, model: DopplerMode
             state = ops.integrated((xr, xf), times, model, replace(search, echoes=False), iterations, k)
         return result(first, state, times, model, dechirp)
 
-    if integrate_k is not None and integrate_k > 1:
-        return tracked(integrate_k)
-    one = tracked(1, single)
-    if integrate_k is not None or one.heard.size == 0 or one.heard.mean() >= integrate.AUTO_SHARE:
-        return one
-    probe = tracked(integrate.PROBE)
-    k = integrate.choose(measured_snr(probe), SNR_MIN_DB)
-    if k == 1:                  # the probe heard more than the single pairs: `one` it is
-        return one
-    return probe if k == integrate.PROBE else tracked(k)
+    def chosen() -> PairResult:
+        if integrate_k is not None and integrate_k > 1:
+            return tracked(integrate_k)
+        one = tracked(1, single)
+        if integrate_k is not None or one.heard.size == 0 or one.heard.mean() >= integrate.AUTO_SHARE:
+            return one
+        probe = tracked(integrate.PROBE)
+        k = integrate.choose(measured_snr(probe), SNR_MIN_DB)
+        if k == 1:                  # the probe heard more than the single pairs: `one` it is
+            return one
+        return probe if k == integrate.PROBE else tracked(k)
+
+    res = chosen()
+    return with_phases(res, (xr, xf), model, ops, dechirp)
+
+
+def with_phases(res: PairResult, rows: tuple, model: DopplerModel, ops: SpectrumOps,
+                dechirp: bool = True) -> PairResult:
+    """`res` with the beat's phase at each half-sweep's final peak (stages.phase), each
+    de-chirped at its pair's velocity (plain without de-chirp)."""
+    v = np.nan_to_num(res.velocity) if dechirp else None
+    bins = [np.nan_to_num(d / model.metres_per_bin) for d in (res.dechirped_rise, res.dechirped_fall)]
+    z_r, z_f = ops.phasors_each(rows, (model.beta_rise, model.beta_fall), v, bins, model.nfft)
+    return replace(res, phase_rise=np.angle(z_r), phase_fall=np.angle(z_f))
 
 
 def measured_snr(res: PairResult) -> float:

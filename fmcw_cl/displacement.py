@@ -1,0 +1,235 @@
+"""The target's displacement from the beat's phase: nanometres where the peaks give micrometres.
+
+Each half-sweep's phase at its peak (stages.phase) reads k R(t_c), k = 4 pi n nu_c / c
+(2 pi per half wavelength), up to a constant of its direction (the scene's phase, the
+sync delay's and the chirp's share, which differ between rising and falling sweeps).
+Along time the phase of each direction is unwrapped with the motion the pairs'
+velocities predict between half-sweeps (trapezoids: 50 us at 7 m/s is 450 half
+wavelengths, which no unwrapping of the phase alone follows): the step's residual,
+wrapped into (-pi, pi], is the prediction's error. The pair's displacement is the mean
+of its two directions, each relative to the stretch's first pair: the mean refers it
+to the pair's centre time and cancels what differs in sign between the directions (the
+residual video phase, a delay error).
+
+A step is followed only between verified pairs (distance and velocity valid), across at
+most GAP_PAIRS missing ones, and only where its residual stays within SLIP_RAD in both
+directions and the two directions agree within SLIP_RAD: beyond that a whole turn (a
+slip of half a wavelength) cannot be excluded, and the stretch ends there. A stretch
+shorter than MIN_PAIRS is not valid. A later stretch is referred to the first by the
+peaks' distances (their mean difference to the phase over each stretch), with their
+uncertainty; within a stretch, the peaks check the phase: where the distance leaves
+the displacement by more than CHECK_SIGMAS of their local scatter plus a quarter
+wavelength (a slip the residuals missed, several in a row), the pairs are not valid.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .numeric import median, running_median
+
+SLIP_RAD = np.pi / 2      # a step's residual (or the directions' disagreement) beyond this may hide a turn
+GAP_PAIRS = 4             # the phase is followed across at most this many missing pairs (150 us)
+MIN_PAIRS = 8             # a stretch this short is not valid
+CHECK_PAIRS = 64          # the peaks' check: running means over this many pairs
+CHECK_SIGMAS = 5.0
+COVERAGE = 2.0            # expanded uncertainty, k = 2 (as the distance's)
+BLOCKS = 8                # a stretch's reference from the peaks: its error from this many blocks' means
+JERK_PASSES = 3           # the third differences checked, the pairs of a wrong turn dropped, this often
+
+
+@dataclass(frozen=True)
+class Displacement:
+    """Per pair: displacement (m, from the first valid pair), whether it holds, its
+    expanded uncertainty (m, k = 2), its stretch (0, 1, ...; -1 where not valid)."""
+
+    metres: np.ndarray
+    valid: np.ndarray
+    uncertainty_m: np.ndarray
+    stretch: np.ndarray
+
+    @classmethod
+    def none(cls, pairs: int) -> Displacement:
+        """No pair's displacement (none measured, or none followed)."""
+        nan = np.full(pairs, np.nan)
+        return cls(nan, np.zeros(pairs, bool), nan.copy(), np.full(pairs, -1, np.int32))
+
+    def attrs(self) -> dict:
+        ok = self.valid
+        return {"displacement_stretches": int(self.stretch.max(initial=-1) + 1),
+                "displacement_valid_pairs": int(ok.sum()),
+                "displacement_slip_rad": SLIP_RAD, "displacement_gap_pairs": GAP_PAIRS}
+
+
+def _wrap(a: np.ndarray) -> np.ndarray:
+    return np.angle(np.exp(1j * a))
+
+
+def phase_sigma(snr_db: np.ndarray) -> np.ndarray:
+    """Standard deviation (rad) of a peak's phase at its SNR (peak power over the mean
+    noise power of a bin): the noise's component across the phasor, 1 / sqrt(2 SNR)."""
+    return 1.0 / np.sqrt(2.0 * 10 ** (np.asarray(snr_db, np.float64) / 10))
+
+
+def displacement(t_r: np.ndarray, t_f: np.ndarray, phase_r: np.ndarray, phase_f: np.ndarray,
+                 snr_r: np.ndarray, snr_f: np.ndarray, distance: np.ndarray, velocity: np.ndarray,
+                 ok: np.ndarray, rad_per_m: float, distance_u: np.ndarray | None = None,
+                 acceleration: np.ndarray | None = None, moments: tuple[float, float] = (0.0, 0.0)
+                 ) -> Displacement:
+    """The displacement of every pair (see the module's text).
+
+    Parameters
+    ----------
+    t_r, t_f : (P,) centre times (s) of each pair's rising and falling half-sweep.
+    phase_r, phase_f : (P,) the beat's phase at their peaks (rad; NaN: none).
+    snr_r, snr_f : (P,) their SNR (dB).
+    distance, velocity : (P,) the pairs' distance (m) and velocity (m/s).
+    distance_u : (P,) the distances' expanded uncertainty (m, k = 2; None: their scatter
+        alone): a later stretch's reference carries it (its systematic part, a Doppler or
+        acceleration bias, does not average out over the stretch).
+    ok : (P,) pairs whose distance and velocity are verified.
+    rad_per_m : the phase's rate with distance (stages.phase.radians_per_metre).
+    """
+    n = distance.size
+    metres, valid, u, stretch = vars(Displacement.none(n)).values()
+    use = np.flatnonzero(ok & np.isfinite(phase_r) & np.isfinite(phase_f) & np.isfinite(velocity)
+                         & np.isfinite(distance))
+    if use.size < MIN_PAIRS:
+        return Displacement.none(n)
+    h_all = 0.5 * (t_f - t_r)
+    acc = np.zeros(n) if acceleration is None else np.nan_to_num(acceleration)
+    mean_s, half_square_s2 = moments
+    bent_all = acc * (0.5 * h_all * h_all + half_square_s2 - h_all * mean_s)
+    for _ in range(JERK_PASSES):
+        x, incs, starts, ends = _unwrapped(use, t_r, t_f, phase_r, phase_f, velocity, bent_all, rad_per_m)
+        bad = _jerked(x, 0.5 * (t_r[use] + t_f[use]), starts, ends, rad_per_m)
+        if not bad.any():
+            break
+        use = use[~bad]
+        if use.size < MIN_PAIRS:
+            return Displacement.none(n)
+    else:
+        x, incs, starts, ends = _unwrapped(use, t_r, t_f, phase_r, phase_f, velocity, bent_all, rad_per_m)
+    sig = phase_sigma(np.stack([snr_r[use], snr_f[use]]))
+    sig_pair = 0.5 * np.sqrt(sig[0] ** 2 + sig[1] ** 2) / rad_per_m       # one pair's phase noise (m)
+    # the directions' disagreement from step to step: 8 times a pair's phase variance
+    # (each direction's error enters twice), whatever the SNR says
+    step = incs[1] - incs[0]
+    seen = np.concatenate([[np.nan], _local_scatter(step)]) / np.sqrt(8.0)
+    kept = [(a, b) for a, b in zip(starts, ends, strict=True) if b - a >= MIN_PAIRS]
+    if not kept:
+        return Displacement.none(n)
+    sig_pair = np.fmax(sig_pair, seen)
+    d = distance[use]
+    ref_offset, ref_u = None, 0.0
+    s_id = 0
+    sd = np.zeros(use.size) if distance_u is None else np.nan_to_num(distance_u[use]) / COVERAGE
+    for a, b in kept:
+        rest = d[a:b] - d[kept[0][0]] - x[a:b]
+        offset, off_u = _reference(rest)
+        off_u = max(off_u, median(sd[a:b]))
+        if ref_offset is None:
+            ref_offset, ref_u = offset, off_u
+            shift, shift_u = 0.0, 0.0
+        else:
+            shift, shift_u = offset - ref_offset, np.hypot(off_u, ref_u)
+        good = _checked(rest - offset, d[a:b] - d[a], rad_per_m, COVERAGE * sd[a:b])
+        idx = use[a:b]
+        metres[idx] = x[a:b] + shift
+        valid[idx] = good
+        stretch[idx] = np.where(good, s_id, -1)
+        u[idx] = COVERAGE * np.sqrt(sig_pair[a:b] ** 2 + sig_pair[a] ** 2 + shift_u ** 2)
+        s_id += 1
+    metres[~valid] = np.nan
+    u[~valid] = np.nan
+    return Displacement(metres, valid, u, stretch)
+
+
+def _unwrapped(use, t_r, t_f, phase_r, phase_f, velocity, bent, rad_per_m):
+    """The phase of the pairs `use` unwrapped along each direction (the steps the
+    velocities predict, their residuals wrapped), the stretches' starts and ends (in
+    `use`), and the pairs' displacement within their stretch (m, 0 at its start; the
+    acceleration's share `bent` taken off)."""
+    t_mid = 0.5 * (t_r[use] + t_f[use])
+    incs, resid = [], []
+    for t, ph in ((t_r, phase_r), (t_f, phase_f)):
+        # the velocity at the half-sweep's own time (a pair's is at its centre, 12.5 us
+        # away: at a take-off's 300 m/s^2 that alone moves a step by 1.5 rad)
+        v = np.interp(t[use], t_mid, velocity[use])
+        pred = 0.5 * (v[:-1] + v[1:]) * np.diff(t[use])
+        r = _wrap(np.diff(ph[use]) - rad_per_m * pred)
+        incs.append(pred + r / rad_per_m)
+        resid.append(r)
+    breaks = ((np.diff(use) > GAP_PAIRS + 1) | (np.abs(resid[0]) > SLIP_RAD) | (np.abs(resid[1]) > SLIP_RAD)
+              | (np.abs(resid[1] - resid[0]) > SLIP_RAD))
+    starts = np.concatenate([[0], np.flatnonzero(breaks) + 1])
+    ends = np.concatenate([starts[1:], [use.size]])
+    x = np.zeros(use.size)
+    bent = bent[use]
+    for a, b in zip(starts, ends, strict=True):
+        x[a + 1:b] = 0.5 * (np.cumsum(incs[0][a:b - 1]) + np.cumsum(incs[1][a:b - 1]))
+        x[a:b] -= bent[a:b] - bent[a]
+    return x, incs, starts, ends
+
+
+def _jerked(x, t, starts, ends, rad_per_m) -> np.ndarray:
+    """The pairs (of `x`, at times `t`) in a window of four of a stretch whose third
+    difference exceeds a quarter wavelength: a whole turn taken wrong at one of them
+    (one velocity wrong by a turn's worth, both directions alike, which their
+    residuals cannot show). Real motion's third difference is jerk x dt^3: 1.5 nm for
+    50 um at 1 kHz."""
+    bad = np.zeros(x.size, bool)
+    for a, b in zip(starts, ends, strict=True):
+        if b - a < 4:
+            continue
+        xs, ts = x[a:b], t[a:b]
+        d = xs
+        for k in (1, 2, 3):                   # divided differences: exact for any spacing
+            d = np.diff(d) / (ts[k:] - ts[:-k])
+        span = ts[3:] - ts[:-3]
+        hit = np.abs(6.0 * d) * (span / 3.0) ** 3 > np.pi / rad_per_m
+        for k in range(4):
+            bad[a + k: b - 3 + k] |= hit
+    return bad
+
+
+def _local_scatter(x: np.ndarray) -> np.ndarray:
+    """A robust standard deviation of `x` about each point, over CHECK_PAIRS of them
+    (1.4826 x the running median of |x - its running median|)."""
+    if x.size == 0:
+        return x
+    size = min(CHECK_PAIRS + 1, x.size - 1 + x.size % 2)        # odd
+    dev = np.abs(x - running_median(x, size))
+    return 1.4826 * running_median(dev, size)
+
+
+def _reference(rest: np.ndarray) -> tuple[float, float]:
+    """The peaks' distance less the phase's displacement over a stretch: its mean and the
+    mean's standard error from BLOCKS blocks (the peaks' errors correlate over pairs)."""
+    blocks = [b.mean() for b in np.array_split(rest, min(BLOCKS, rest.size)) if b.size]
+    mean = float(np.mean(rest))
+    if len(blocks) < 2:
+        return mean, float(np.std(rest))
+    return mean, float(np.std(blocks, ddof=1) / np.sqrt(len(blocks)))
+
+
+def _checked(rest: np.ndarray, travel: np.ndarray, rad_per_m: float, allowed: np.ndarray) -> np.ndarray:
+    """The pairs of a stretch where the peaks' distance agrees with the phase (`rest`:
+    their difference less its mean; `travel`: the distance travelled, m): its running
+    mean over CHECK_PAIRS, less a line in `travel` (the distance scale's error of the
+    G(I) table, ppm, grows with the travel), within CHECK_SIGMAS of its scatter plus a
+    quarter wavelength plus the distance's own uncertainty `allowed` (m, k = 2: its
+    biases in motion do not average out)."""
+    m = rest.size
+    if m < 2 * CHECK_PAIRS:
+        return np.ones(m, bool)
+    design = np.stack([np.ones(m), travel], axis=1)
+    coef, *_ = np.linalg.lstsq(design, rest, rcond=None)
+    left = rest - design @ coef
+    kernel = np.ones(CHECK_PAIRS) / CHECK_PAIRS
+    smooth = np.convolve(left, kernel, mode="same")
+    scatter = 1.4826 * median(np.abs(left - median(left)))
+    limit = CHECK_SIGMAS * scatter / np.sqrt(CHECK_PAIRS) + np.pi / rad_per_m + allowed
+    return np.abs(smooth) <= limit

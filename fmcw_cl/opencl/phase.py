@@ -1,0 +1,34 @@
+"""Launcher of kernels/phase.cl (twin: fmcw_cl.stages.phase.phasors)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .buffers import Buffers, Packed
+from .context import Runtime, cl
+from .spectrum import as_device
+
+
+def phasors_each(rt: Runtime, bufs: Buffers, xs, betas, v: np.ndarray | None, bins,
+                 nfft: int) -> list[np.ndarray]:
+    """stages.phase.phasors of a pair's two directions `xs` (DeviceRows or host arrays,
+    one shape) with their Doppler bases `betas` and peak bins `bins`, the same
+    velocities `v` (None: plain): one upload of the velocities and bins, one launch, one
+    download of the (2, rows) complex values."""
+    rows_of = [as_device(bufs, x) for x in xs]
+    rows, points = rows_of[0].shape
+    if rows == 0:
+        return [np.zeros(0, np.complex128), np.zeros(0, np.complex128)]
+    vel = np.zeros(rows, np.float32) if v is None else np.asarray(v, np.float32)
+    d_v, d_bins = Packed(bufs, "phase_in", [(np.float32, rows), (np.float32, 2 * rows)]).upload(
+        vel, np.concatenate([np.asarray(b, np.float32) for b in bins]))
+    out = Packed(bufs, "phase_out", [(np.float32, 4 * rows)])
+    lsz = rt.group_size(16, 128)
+    d_beta = [bufs.constant("beta", b, np.float32) for b in betas]
+    rt.kernel("phase", "peak_phasor")(
+        rt.queue, (rows * lsz, 2), (lsz, 1), rows_of[0].buffer, rows_of[1].buffer, *d_beta, d_v, d_bins,
+        np.int32(rows), np.int32(points), np.float32(1.0 / nfft), np.int32(v is not None), *out.buffers,
+        cl.LocalMemory(8 * lsz))
+    (z,) = out.download()
+    z = z.astype(np.float64).reshape(2, rows, 2)
+    return [z[k, :, 0] + 1j * z[k, :, 1] for k in range(2)]

@@ -1,0 +1,231 @@
+"""The displacement from the beat's phase: the peak's phasor (numpy and its kernel), the
+unwrapping along time and its slips, and nanometres on simulated captures (static at a
+lab's SNR, a creep, the 7 m/s jump) against their truth."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import h5py
+import numpy as np
+import pytest
+from scipy.interpolate import CubicSpline
+
+from fmcw_cl import displacement
+from fmcw_cl.engine import process
+from fmcw_cl.simulator import LAB, SimulationConfig, creep, simulate_capture, static
+from fmcw_cl.stages import pairing, phase
+from fmcw_cl.stages.resample import window
+from fmcw_cl.track import read_track, write_track
+
+N, NFFT = 1000, 2048
+K = phase.radians_per_metre(np.array([193.4e12]))      # rad/m at 1550 nm
+
+
+def _rows(rng, rows, bins, v, beta, offset):
+    """Windowed tones at `bins` with the Doppler phase v beta and the phase `offset`
+    at the centre point, under noise."""
+    j = np.arange(N) - 0.5 * (N - 1)
+    psi = 2 * np.pi * (np.outer(bins, j) / NFFT + np.outer(v, beta)) + offset[:, None]
+    return (np.cos(psi) * window(N) * 1000 + rng.normal(0, 1, (rows, N))).astype(np.float32)
+
+
+def test_phasor_reads_the_phase_at_the_centre():
+    """The angle is the tone's phase at the centre point, de-chirped at the velocity,
+    and moves by mrad only for a peak 0.1 bin or a velocity 1 mm/s off."""
+    rng = np.random.default_rng(1)
+    beta = np.linspace(-16, 16, N) + 0.5 * np.linspace(-1, 1, N) ** 2
+    bins = rng.uniform(40, 900, 50)
+    v = rng.uniform(-7, 7, 50)
+    offset = rng.uniform(-np.pi, np.pi, 50)
+    x = _rows(rng, 50, bins, v, beta, offset)
+    err = np.angle(phase.phasors(x, beta, v, bins, NFFT) * np.exp(-1j * offset))
+    # what is left: the real beat's image, de-chirped into a chirp twice as steep (0.7 nm)
+    assert np.max(np.abs(err)) < 1e-2 and np.median(np.abs(err)) < 1e-3
+    off = np.angle(phase.phasors(x, beta, v + 1e-3, bins + 0.1, NFFT) * np.exp(-1j * offset))
+    assert np.max(np.abs(off)) < 0.02
+    # without the de-chirp a 7 m/s row's phase is lost
+    plain = np.angle(phase.phasors(x, beta, None, bins, NFFT) * np.exp(-1j * offset))
+    assert np.max(np.abs(plain)) > 0.5
+
+
+@pytest.fixture(scope="module")
+def backend():
+    from fmcw_cl.opencl.processor import OpenCLProcessor
+
+    return OpenCLProcessor()
+
+
+@pytest.mark.parametrize("rows", [1, 37, 700])
+def test_kernel_matches_numpy(backend, rows):
+    """peak_phasor against its twin: both directions, de-chirped and plain, peaks near
+    the band's top (250 cycles a row in float32) and near 0 Hz."""
+    rng = np.random.default_rng(rows)
+    beta = np.linspace(-16, 16, N)
+    bins = rng.uniform(2, 1020, rows)
+    v = rng.uniform(-8, 8, rows)
+    xr = _rows(rng, rows, bins, v, beta, rng.uniform(-3, 3, rows))
+    xf = _rows(rng, rows, bins + 3, v, -beta, rng.uniform(-3, 3, rows))
+    for vel in (v, None):
+        got = backend.phasors_each((xr, xf), (beta, -beta), vel, (bins, bins + 3), NFFT)
+        want = pairing.NUMPY.phasors_each((xr, xf), (beta, -beta), vel, (bins, bins + 3), NFFT)
+        for g, w, x in zip(got, want, (xr, xf), strict=True):
+            scale = np.sum(np.abs(x), axis=1)         # float32 sums of these terms
+            assert np.all(np.abs(g - w) <= 1e-5 * scale)
+            strong = np.abs(w) > 0.05 * scale
+            assert np.max(np.abs(np.angle(g[strong] / w[strong])), initial=0) < 1e-3
+
+
+def _synthetic(seed, pairs=2000, sigma=0.02, v0=0.3):
+    """The phases of both directions of a target moving at v0 + a sine (m/s), with phase
+    noise `sigma` (rad), its velocities with 0.2 mm/s of noise."""
+    rng = np.random.default_rng(seed)
+    t_mid = 50e-6 * np.arange(pairs)
+    t_r, t_f = t_mid - 12.5e-6, t_mid + 12.5e-6
+
+    def r(t):
+        return 0.3 + v0 * t + 1e-4 * np.sin(2 * np.pi * 40 * t)
+
+    def vel(t):
+        return v0 + 1e-4 * 2 * np.pi * 40 * np.cos(2 * np.pi * 40 * t)
+
+    v = vel(t_mid) + rng.normal(0, 2e-4, pairs)
+    ph = [np.angle(np.exp(1j * (K * r(t) + c + rng.normal(0, sigma, pairs))))
+          for t, c in ((t_r, 0.4), (t_f, -1.1))]
+    snr = np.full(pairs, 10 * np.log10(1 / (2 * sigma**2)))
+    dist = r(t_mid) + rng.normal(0, 3e-6, pairs)
+    return t_r, t_f, ph, snr, dist, v, r(t_mid)
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_unwrapping_follows_the_motion(seed):
+    """0.3 m/s (19 half wavelengths a period) and a sine: one stretch, nanometres."""
+    t_r, t_f, ph, snr, dist, v, truth = _synthetic(seed)
+    got = displacement.displacement(t_r, t_f, *ph, snr, snr, dist, v, np.ones(v.size, bool), K)
+    assert got.valid.all() and got.stretch.max() == 0
+    err = got.metres - (truth - truth[0])
+    assert np.sqrt(np.mean(err**2)) < 5e-9
+    assert np.mean(np.abs(err) <= got.uncertainty_m) >= 0.9
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_never_a_hidden_slip(seed):
+    """One pair's velocity off by 6 mm/s to 0.3 m/s (its step predicted 1-45 rad
+    wrong, some by whole turns in both directions): within every stretch no valid pair
+    is a turn off, and the first stretch keeps nanometres; at a low SNR (0.7 rad of
+    phase noise) the stretches are many, and none holds a slip."""
+    lam4 = np.pi / K
+    for dv in (6e-3, 41e-3, 124e-3, 0.3):
+        t_r, t_f, ph, snr, dist, v, truth = _synthetic(seed)
+        v[700] += dv
+        sd = np.full(v.size, 6e-6)
+        got = displacement.displacement(t_r, t_f, *ph, snr, snr, dist, v, np.ones(v.size, bool), K, sd)
+        _no_slip(got, truth, lam4)
+        assert np.all(np.abs(got.metres[got.stretch == 0] - (truth - truth[0])[got.stretch == 0]) < 1e-8)
+        later = got.valid & (got.stretch > 0)
+        assert np.all(np.abs(got.metres - (truth - truth[0]))[later] <= got.uncertainty_m[later])
+    t_r, t_f, ph, snr, dist, v, truth = _synthetic(seed, sigma=0.7)
+    got = displacement.displacement(t_r, t_f, *ph, snr, snr, dist, v, np.ones(v.size, bool), K,
+                                    np.full(v.size, 6e-6))
+    assert got.stretch.max() >= 2
+    _no_slip(got, truth, lam4)
+
+
+def _no_slip(got, truth, lam4):
+    for s in range(got.stretch.max() + 1):
+        mine = np.flatnonzero(got.stretch == s)
+        rel = got.metres[mine] - got.metres[mine[0]] - (truth[mine] - truth[mine[0]])
+        assert np.all(np.abs(rel) < lam4), f"a slip inside stretch {s}"
+
+
+def _truth_at(capture, times):
+    with h5py.File(capture) as f:
+        return CubicSpline(f["truth/time_s"][()], f["truth/distance_m"][()])(times)
+
+
+def _error(capture, track):
+    ok = track.displacement_valid
+    r = _truth_at(capture, track.time_s)
+    first = np.flatnonzero(ok)[0]
+    return ok, track.displacement_m - (r - r[first])
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_static_target_at_a_labs_snr(tmp_path, seed):
+    """0.4 m, 50 ms, a lab's instrument (-1 dB per sample at 0.3 m, 20 MHz table
+    scatter): std <= 10 nm, >= 95 % valid, the error within its uncertainty."""
+    path = tmp_path / "static.h5"
+    simulate_capture(path, static(0.05, 0.4), 0.05, seed=seed, config=LAB)
+    track = process(path)
+    ok, err = _error(path, track)
+    assert ok.mean() >= 0.95
+    assert np.std(track.displacement_m[ok]) <= 10e-9
+    assert np.mean(np.abs(err[ok]) <= track.displacement_uncertainty_m[ok]) >= 0.8
+    out = write_track(tmp_path / "t.h5", track)
+    back = read_track(out)
+    assert np.array_equal(back.displacement_valid, ok)
+    assert np.allclose(back.displacement_m[ok], track.displacement_m[ok], rtol=0, atol=0)
+    assert back.attrs["displacement_stretches"] == 1
+
+
+def test_creep_slope_and_error(tmp_path):
+    """1 mm/s for 100 ms at the default SNR: the slope within 0.5 %, rms <= 100 nm."""
+    path = tmp_path / "creep.h5"
+    simulate_capture(path, creep(0.1, 0.3, 1e-3), 0.1, seed=4, config=SimulationConfig())
+    track = process(path)
+    ok, err = _error(path, track)
+    assert ok.mean() >= 0.95
+    slope = np.polyfit(track.time_s[ok], track.displacement_m[ok], 1)[0]
+    assert slope == pytest.approx(1e-3, rel=5e-3)
+    assert np.sqrt(np.mean(err[ok] ** 2)) <= 100e-9
+
+
+def test_jump_displacement_agrees_with_truth_and_peaks(jump_capture, jump_track):
+    """Through the 7 m/s jump: nanometres from the truth where valid, and the peaks'
+    distance within their joint uncertainty of the displacement."""
+    track = read_track(jump_track)
+    ok, err = _error(jump_capture, track)
+    assert ok.mean() >= 0.9
+    assert np.sqrt(np.mean(err[ok] ** 2)) <= 20e-9
+    first = np.flatnonzero(ok)[0]
+    moved = track.distance_m - track.distance_m[first]
+    joint = (track.displacement_uncertainty_m + track.distance_uncertainty_m
+             + track.distance_uncertainty_m[first])
+    assert np.mean(np.abs(moved[ok] - track.displacement_m[ok]) <= joint[ok]) >= 0.95
+
+
+def test_a_lost_pair_ends_its_stretch(jump_track):
+    """objects.invalidate: the displacement after a pair found ambiguous is not valid in
+    its stretch (it was followed across that pair)."""
+    from fmcw_cl.objects import invalidate
+
+    track = read_track(jump_track)
+    ok = np.flatnonzero(track.displacement_valid)
+    hit = np.zeros(track.pairs, bool)
+    hit[ok[100]] = True
+    s = track.displacement_stretch[ok[100]]
+    after = (track.displacement_stretch == s) & (np.arange(track.pairs) > ok[100])
+    invalidate(track, hit)
+    assert not track.displacement_valid[ok[100]]
+    assert not track.displacement_valid[after].any()
+    assert track.displacement_valid[ok[:100]].all()
+    assert np.isnan(track.displacement_m[after]).all()
+
+
+def test_simulated_phase_follows_the_optical_carrier(tmp_path):
+    """The simulator's beat phase moves 2 pi per half wavelength: a target 0.2 um
+    further (0.26 turn) reads that much more phase in every pair, to a few mrad (one
+    seed: the same noise and scene phase in both)."""
+    cfg = replace(SimulationConfig(), sync_delay_samples=0.0, start_phase=0.0)
+    phases = []
+    for r in (0.3, 0.3 + 0.2e-6):
+        path = tmp_path / f"at{r}.h5"
+        simulate_capture(path, static(0.004, r), 0.004, seed=5, config=cfg)
+        track = process(path)
+        phases.append(track.sweep_phase_rad)
+        k = track.attrs["displacement_rad_per_m"]
+    # each conversion estimates its own sync delay: a grid 0.2 samples apart turns the
+    # rising and falling phases by -+0.17 rad, which the pair's mean cancels
+    moved = np.angle(np.exp(1j * (phases[1] - phases[0]))).reshape(-1, 2).mean(axis=1)
+    assert np.median(moved) == pytest.approx(k * 0.2e-6, abs=5e-3)
+    assert np.std(moved) < 5e-3
