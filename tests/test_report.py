@@ -55,9 +55,9 @@ def test_jump_events_match_truth(jump_report, jump_capture, kind, quantity, wind
 def test_jump_report_files(jump_report):
     out, got = jump_report
     names = {p.rsplit("/", 1)[-1] for p in got["written"]}
-    assert names == {"kinematics.png", "echoes.png", "spectra.png", "events.md", "events.json",
-                     "uncertainty.md"}  # moving
-    for name in ("kinematics.png", "echoes.png", "spectra.png"):
+    assert names == {"kinematics.png", "echoes.png", "spectra.png", "displacement.png", "events.md",
+                     "events.json", "uncertainty.md"}  # moving
+    for name in ("kinematics.png", "echoes.png", "spectra.png", "displacement.png"):
         assert (out / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert not list(out.glob("*.part"))
     table = json.loads((out / "events.json").read_text())

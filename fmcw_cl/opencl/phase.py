@@ -24,11 +24,33 @@ def phasors_each(rt: Runtime, bufs: Buffers, xs, betas, v: np.ndarray | None, bi
         vel, np.concatenate([np.asarray(b, np.float32) for b in bins]))
     out = Packed(bufs, "phase_out", [(np.float32, 4 * rows)])
     lsz = rt.group_size(16, 128)
-    d_beta = [bufs.constant("beta", b, np.float32) for b in betas]
     rt.kernel("phase", "peak_phasor")(
-        rt.queue, (rows * lsz, 2), (lsz, 1), rows_of[0].buffer, rows_of[1].buffer, *d_beta, d_v, d_bins,
-        np.int32(rows), np.int32(points), np.float32(1.0 / nfft), np.int32(v is not None), *out.buffers,
-        cl.LocalMemory(8 * lsz))
+        rt.queue, (rows * lsz, 2), (lsz, 1), rows_of[0].buffer, rows_of[1].buffer, *_betas(bufs, betas), d_v,
+        d_bins, np.int32(rows), np.int32(points), np.float32(1.0 / nfft), np.int32(v is not None),
+        *out.buffers, cl.LocalMemory(8 * lsz))
     (z,) = out.download()
-    z = z.astype(np.float64).reshape(2, rows, 2)
+    return complex_pairs(z)
+
+
+def launch_state(rt: Runtime, bufs: Buffers, rows: tuple, model, vel, d_r, d_f, out) -> None:
+    """Enqueue the phasors of both directions of `rows` (DeviceRows) at the velocities
+    `vel` and apparent distances `d_r`, `d_f` (double device buffers, where the tracker's
+    passes left them) into the device buffer `out` (4 float32 a pair; `complex_pairs`)."""
+    pairs, points = rows[0].shape
+    if pairs == 0:
+        return
+    lsz = rt.group_size(16, 128)
+    rt.kernel("phase", "peak_phasor_state")(
+        rt.queue, (pairs * lsz, 2), (lsz, 1), rows[0].buffer, rows[1].buffer,
+        *_betas(bufs, (model.beta_rise, model.beta_fall)), vel, d_r, d_f, np.float64(model.metres_per_bin),
+        np.int32(pairs), np.int32(points), np.float32(1.0 / model.nfft), out, cl.LocalMemory(8 * lsz))
+
+
+def _betas(bufs: Buffers, betas) -> list:
+    return [bufs.constant("beta", b, np.float32) for b in betas]
+
+
+def complex_pairs(z: np.ndarray) -> list[np.ndarray]:
+    """The (rising, falling) complex phasors of a download of 4 float32 a pair."""
+    z = np.asarray(z, np.float64).reshape(2, -1, 2)
     return [z[k, :, 0] + 1j * z[k, :, 1] for k in range(2)]

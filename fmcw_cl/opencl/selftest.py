@@ -210,6 +210,15 @@ def spectra(be, rng, group: str) -> None:
         # a residual is infinite with too few valid neighbours: -1 m here
         close("tracker verdict, residuals (track_residual)", *(np.nan_to_num(r, posinf=-1.0)
                                                               for r in (got.verdict[1], resid)), 1e-9)
+        # the phasors at the passes' final peaks and velocities, made on the device (this
+        # state's velocities reach 1e6 m/s: the device's float32 basis, as the spectra's)
+        _, vel, _ = pairing.solve_pair(got.d_r, got.d_f, got.vd, times.half_gap, model)
+        bins = [np.nan_to_num(d / model.metres_per_bin) for d in (got.d_r, got.d_f)]
+        b32 = beta.astype(np.float32).astype(np.float64)
+        want = pairing.NUMPY.phasors_each((x, y), (b32, b32), np.nan_to_num(vel), bins, nfft)
+        for g, w in zip(got.phasors, want, strict=True):
+            close("peak phasor at the passes' state (peak_phasor_state)", np.stack([g.real, g.imag]),
+                  np.stack([w.real, w.imag]), 1e-4)
         # the verification's tests on a track with an echo 3 mm off for 12 pairs
         track = [np.arange(60) * 50e-6]
         track += [0.1 + 0.5 * track[0] + np.where((track[0] > 1e-3) & (track[0] < 1.6e-3), 3e-3, 0.0),

@@ -14,6 +14,7 @@ import numpy as np
 from ..stages import integrate, pairing
 from ..stages.spectrum import Search
 from . import integrate as k_integrate
+from . import phase as k_phase
 from . import spectrum as k_spectrum
 from .buffers import Buffers, DeviceRows, Packed
 from .context import Runtime, cl
@@ -66,14 +67,14 @@ def track(rt: Runtime, bufs: Buffers, rows: tuple[DeviceRows, DeviceRows], times
     pairs = rows[0].shape[0]
     plain = [(x, None, None) for x in rows]
     head = k_spectrum.parts(plain, pairs, model.nfft, search.echoes)
-    out = Packed(bufs, "tracked", [*head, *_state_parts(pairs)], riders)
+    out = Packed(bufs, "tracked", [*head, *_state_parts(pairs), _phasor_part(pairs)], riders)
     times = _times_here(bufs, times)
     band = (model.nfft, search.lo, search.hi)
     k_spectrum.measure_each(rt, bufs, plain, None, *band, echoes=search.echoes, out=out, groups=times.groups,
                             d_groups=times.device[3])
     dechirp = [(rows[0], model.beta_rise, None), (rows[1], model.beta_fall, None)]
     again = Packed(bufs, "track_pass", k_spectrum.parts(dechirp, pairs, model.nfft))
-    run = _Passes(rt, bufs, pairs, times, model, out.buffers[len(head):])
+    run = _Passes(rt, bufs, pairs, times, model, out.buffers[len(head):-1])
     for it in range(iterations):
         got = (out if it == 0 else again).buffers      # each direction's peaks: parts 0, 1 and 6, 7
         run.launch(it, iterations, [got[i] for i in (0, 1, 6, 7)])
@@ -81,9 +82,10 @@ def track(rt: Runtime, bufs: Buffers, rows: tuple[DeviceRows, DeviceRows], times
                                 out=again)
     run.launch(iterations, iterations, [again.buffers[i] for i in (0, 1, 6, 7)])
     run.verdict()
+    k_phase.launch_state(rt, bufs, rows, model, run.vel, run.d_r, run.d_f, out.buffers[-1])
     views = out.download(meanwhile)
     first = k_spectrum.results(views[: len(head)], plain, pairs, model.nfft, search.echoes)
-    return first, _passes(views[len(head):], np.ones(pairs, np.int32), 1)
+    return first, _passes(views[len(head):-1], np.ones(pairs, np.int32), 1, views[-1])
 
 
 def integrated(rt: Runtime, bufs: Buffers, rows: tuple[DeviceRows, DeviceRows], times: pairing.Times,
@@ -97,7 +99,8 @@ def integrated(rt: Runtime, bufs: Buffers, rows: tuple[DeviceRows, DeviceRows], 
     `riders`); the pairs' times go up where `times.device` lacks them."""
     pairs = rows[0].shape[0]
     half = model.nfft // 2
-    out = Packed(bufs, "integrated_state", [*_state_parts(pairs), (np.int32, pairs)], riders)
+    out = Packed(bufs, "integrated_state", [*_state_parts(pairs), (np.int32, pairs), _phasor_part(pairs)],
+                 riders)
     times = _times_here(bufs, times)
     d_bounds = times.device[2]
     stores = [DeviceRows(bufs, pairs, half) for _ in rows]
@@ -108,11 +111,11 @@ def integrated(rt: Runtime, bufs: Buffers, rows: tuple[DeviceRows, DeviceRows], 
                                                           strict=True)]
     # each direction's (bin, SNR, count): the falling one's counts (the same) come down
     got = Packed(bufs, "integrated_peaks", [(np.float32, pairs), (np.float32, pairs), (np.int32, pairs)] * 2
-                 ).buffers[:5] + out.buffers[-1:]
+                 ).buffers[:5] + out.buffers[-2:-1]
     jobs = [(stores[0], *got[:3]), (stores[1], *got[3:])]
     measured = [got[0], got[1], got[3], got[4]]
     disp = bufs.get("track_disp", 4 * pairs)
-    run = _Passes(rt, bufs, pairs, times, model, out.buffers[:-1],
+    run = _Passes(rt, bufs, pairs, times, model, out.buffers[:-2],
                   (got[5], bufs.constant("floors", floors(k), np.float64), disp))
     rt.kernel("track", "track_start")(rt.queue, *rt.items(pairs), np.int32(pairs), run.vd, disp, run.state)
     k_integrate.launch(rt, bufs, jobs, disp, d_bounds, k, search, run.state)
@@ -122,8 +125,9 @@ def integrated(rt: Runtime, bufs: Buffers, rows: tuple[DeviceRows, DeviceRows], 
         k_integrate.launch(rt, bufs, jobs, disp, d_bounds, k, search, run.state)
     run.launch(iterations, iterations, measured)
     run.verdict()
+    k_phase.launch_state(rt, bufs, rows, model, run.vel, run.d_r, run.d_f, out.buffers[-1])
     views = out.download()
-    return _passes(views[:-1], views[-1].copy(), k)
+    return _passes(views[:-2], views[-2].copy(), k, views[-1])
 
 
 def _state_parts(pairs: int) -> list[tuple]:
@@ -133,10 +137,16 @@ def _state_parts(pairs: int) -> list[tuple]:
     return [(f64, pairs), (f32, pairs), (f64, pairs), (f32, pairs), (f64, pairs), (i32, pairs), (f64, pairs)]
 
 
-def _passes(views: list, count: np.ndarray, k: int) -> pairing.Passes:
-    """pairing.Passes from the downloaded parts of `_state_parts`."""
+def _phasor_part(pairs: int) -> tuple:
+    """The phasors' part of a download (kernels/phase.cl `peak_phasor_state`)."""
+    return (np.float32, 4 * pairs)
+
+
+def _passes(views: list, count: np.ndarray, k: int, phasors: np.ndarray) -> pairing.Passes:
+    """pairing.Passes from the downloaded parts of `_state_parts` and the phasors."""
     *state, valid, resid = (v.copy() for v in views)
-    return pairing.Passes(*state, count, k, verdict=(valid.astype(bool), resid))
+    return pairing.Passes(*state, count, k, verdict=(valid.astype(bool), resid),
+                          phasors=tuple(k_phase.complex_pairs(phasors)))
 
 
 @functools.lru_cache(maxsize=4)

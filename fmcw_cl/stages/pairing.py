@@ -716,13 +716,14 @@ def track_pairs(xr: np.ndarray, xf: np.ndarray, times: Times, model: DopplerMode
         return probe if k == integrate.PROBE else tracked(k)
 
     res = chosen()
-    return with_phases(res, (xr, xf), model, ops, dechirp)
+    return res if res.phase_rise is not None else with_phases(res, (xr, xf), model, ops, dechirp)
 
 
 def with_phases(res: PairResult, rows: tuple, model: DopplerModel, ops: SpectrumOps,
                 dechirp: bool = True) -> PairResult:
     """`res` with the beat's phase at each half-sweep's final peak (stages.phase), each
-    de-chirped at its pair's velocity (plain without de-chirp)."""
+    de-chirped at its pair's velocity (plain without de-chirp). A device whose passes
+    ran there made them with its state (Passes.phasors)."""
     v = np.nan_to_num(res.velocity) if dechirp else None
     bins = [np.nan_to_num(d / model.metres_per_bin) for d in (res.dechirped_rise, res.dechirped_fall)]
     z_r, z_f = ops.phasors_each(rows, (model.beta_rise, model.beta_fall), v, bins, model.nfft)
@@ -780,6 +781,7 @@ class Passes:
     count: np.ndarray
     k: int = 1
     verdict: tuple | None = None      # (valid, residuals) where a device made them (`verdict`)
+    phasors: tuple | None = None      # (rising, falling) stages.phase.phasors where a device made them
 
     @property
     def snr_min(self) -> np.ndarray | float:
@@ -857,6 +859,7 @@ def result(first: tuple, state: Passes, times: Times, model: DopplerModel, dechi
     if dechirp:
         valid, resid = state.verdict or verdict(state, times, model)
         continuous = agreeing(resid, valid, times.groups)
+    phases = [None, None] if state.phasors is None else [np.angle(z) for z in state.phasors]
     return PairResult(dist, vel, valid, d_r.copy(), d_f.copy(), s_r.copy(), s_f.copy(), state.d_r, state.d_f,
                       state.s_r, state.s_f, heard, continuous, state.count,
-                      *(e_r or [None]), *(e_f or [None]))
+                      *(e_r or [None]), *(e_f or [None]), *phases)
