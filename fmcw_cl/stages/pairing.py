@@ -716,15 +716,15 @@ def track_pairs(xr: np.ndarray, xf: np.ndarray, times: Times, model: DopplerMode
         return probe if k == integrate.PROBE else tracked(k)
 
     res = chosen()
-    return res if res.phase_rise is not None else with_phases(res, (xr, xf), model, ops, dechirp)
+    # the paper's method (no de-chirp) is reported as the paper did: without the phase
+    return res if res.phase_rise is not None or not dechirp else with_phases(res, (xr, xf), model, ops)
 
 
-def with_phases(res: PairResult, rows: tuple, model: DopplerModel, ops: SpectrumOps,
-                dechirp: bool = True) -> PairResult:
+def with_phases(res: PairResult, rows: tuple, model: DopplerModel, ops: SpectrumOps) -> PairResult:
     """`res` with the beat's phase at each half-sweep's final peak (stages.phase), each
-    de-chirped at its pair's velocity (plain without de-chirp). A device whose passes
-    ran there made them with its state (Passes.phasors)."""
-    v = np.nan_to_num(res.velocity) if dechirp else None
+    de-chirped at its pair's velocity (a device whose passes ran there made them with
+    its state: Passes.phasors)."""
+    v = np.nan_to_num(res.velocity)
     bins = [np.nan_to_num(d / model.metres_per_bin) for d in (res.dechirped_rise, res.dechirped_fall)]
     z_r, z_f = ops.phasors_each(rows, (model.beta_rise, model.beta_fall), v, bins, model.nfft)
     return replace(res, phase_rise=np.angle(z_r), phase_fall=np.angle(z_f))
