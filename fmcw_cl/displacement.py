@@ -7,7 +7,9 @@ Along time the phase of each direction is unwrapped with the motion the pairs'
 velocities predict between half-sweeps (trapezoids: 50 us at 7 m/s is 450 half
 wavelengths, which no unwrapping of the phase alone follows): the step's residual,
 wrapped into (-pi, pi], is the prediction's error. The pair's displacement is the mean
-of its two directions, each relative to the stretch's first pair: the mean refers it
+of its two directions, each unwrapped from the stretch's first pair (0 is the mean of
+the first stretch's first ZERO_PAIRS: a capture's first pair reads a nanometre or two
+off, the sync's edge): the mean refers it
 to the pair's centre time and cancels what differs in sign between the directions (the
 residual video phase, a delay error).
 
@@ -37,13 +39,15 @@ CHECK_PAIRS = 64          # the peaks' check: running means over this many pairs
 CHECK_SIGMAS = 5.0
 COVERAGE = 2.0            # expanded uncertainty, k = 2 (as the distance's)
 BLOCKS = 8                # a stretch's reference from the peaks: its error from this many blocks' means
+ZERO_PAIRS = 8            # the displacement's zero: the mean of the first stretch's first pairs
 JERK_PASSES = 3           # the third differences checked, the pairs of a wrong turn dropped, this often
 
 
 @dataclass(frozen=True)
 class Displacement:
-    """Per pair: displacement (m, from the first valid pair), whether it holds, its
-    expanded uncertainty (m, k = 2), its stretch (0, 1, ...; -1 where not valid)."""
+    """Per pair: displacement (m; 0 is the mean of the first stretch's first ZERO_PAIRS
+    pairs), whether it holds, its expanded uncertainty (m, k = 2), its stretch (0, 1,
+    ...; -1 where not valid)."""
 
     metres: np.ndarray
     valid: np.ndarray
@@ -121,26 +125,30 @@ def displacement(t_r: np.ndarray, t_f: np.ndarray, phase_r: np.ndarray, phase_f:
     kept = [(a, b) for a, b in zip(starts, ends, strict=True) if b - a >= MIN_PAIRS]
     if not kept:
         return Displacement.none(n)
-    sig_pair = np.fmax(sig_pair, seen)
+    sig_pair = np.fmax(np.fmax(sig_pair, seen), _rough(x, starts, ends))
     d = distance[use]
     ref_offset, ref_u = None, 0.0
     s_id = 0
     sd = np.zeros(use.size) if distance_u is None else np.nan_to_num(distance_u[use]) / COVERAGE
+    a0 = kept[0][0]
+    zero = slice(a0, a0 + ZERO_PAIRS)
+    x[a0:kept[0][1]] -= np.mean(x[zero])
+    zero_sig = float(np.sqrt(np.mean(sig_pair[zero] ** 2) / sig_pair[zero].size))
     for a, b in kept:
-        rest = d[a:b] - d[kept[0][0]] - x[a:b]
+        rest = d[a:b] - d[a0] - x[a:b]
         offset, off_u = _reference(rest)
         off_u = max(off_u, median(sd[a:b]))
         if ref_offset is None:
             ref_offset, ref_u = offset, off_u
-            shift, shift_u = 0.0, 0.0
-        else:
+            shift, shift_u = 0.0, zero_sig
+        else:   # its own zero's noise is in its offset: the peaks' reference stands for it
             shift, shift_u = offset - ref_offset, np.hypot(off_u, ref_u)
         good = _checked(rest - offset, d[a:b] - d[a], rad_per_m, COVERAGE * sd[a:b])
         idx = use[a:b]
         metres[idx] = x[a:b] + shift
         valid[idx] = good
         stretch[idx] = np.where(good, s_id, -1)
-        u[idx] = COVERAGE * np.sqrt(sig_pair[a:b] ** 2 + sig_pair[a] ** 2 + shift_u ** 2)
+        u[idx] = COVERAGE * np.sqrt(sig_pair[a:b] ** 2 + shift_u ** 2)
         s_id += 1
     metres[~valid] = np.nan
     u[~valid] = np.nan
@@ -193,6 +201,20 @@ def _jerked(x, t, starts, ends, rad_per_m) -> np.ndarray:
         for k in range(4):
             bad[a + k: b - 3 + k] |= hit
     return bad
+
+
+def _rough(x: np.ndarray, starts: np.ndarray, ends: np.ndarray) -> np.ndarray:
+    """A pair's noise (m) from the displacement itself: the local scatter of its third
+    differences within each stretch / sqrt(20) (a white error enters 1, 3, 3, 1 times);
+    what both directions share (a de-chirp's, the sync's) shows here and not in their
+    disagreement. NaN where a stretch is too short."""
+    out = np.full(x.size, np.nan)
+    for a, b in zip(starts, ends, strict=True):
+        if b - a >= 8:
+            third = _local_scatter(np.diff(x[a:b], 3)) / np.sqrt(20.0)
+            out[a + 1:b - 2] = third
+            out[a], out[b - 2:b] = third[0], third[-1]
+    return out
 
 
 def _local_scatter(x: np.ndarray) -> np.ndarray:
