@@ -39,11 +39,11 @@ def _displacement(res: dict, with_gaps, times: tuple, dist: np.ndarray, vel: np.
                   rad_per_m: float, dist_u: np.ndarray, acc: np.ndarray,
                   moments: tuple[float, float]) -> displacement.Displacement:
     """The displacement from the half-sweeps' phases (none measured: not valid)."""
-    if res.get("phase_rise") is None:
+    if res.get("phasor_rise") is None:
         return displacement.Displacement.none(dist.size)
     t_r, t_f = (with_gaps(t, np.nan) for t in times)
-    return displacement.displacement(t_r, t_f, with_gaps(res["phase_rise"], np.nan),
-                                     with_gaps(res["phase_fall"], np.nan),
+    return displacement.displacement(t_r, t_f, with_gaps(res["phasor_rise"], np.nan),
+                                     with_gaps(res["phasor_fall"], np.nan),
                                      with_gaps(res["dechirped_snr_rise"], np.nan),
                                      with_gaps(res["dechirped_snr_fall"], np.nan), dist, vel, ok, rad_per_m,
                                      dist_u, acc, moments)
@@ -212,7 +212,8 @@ def assemble(plan: Plan, parts: list[ChunkMeasurements], processor: ChunkProcess
         sweep_snr_db=interleave("snr_rise", "snr_fall"),
         sweep_distance_dechirped_m=interleave("dechirped_rise", "dechirped_fall"),
         sweep_snr_dechirped_db=interleave("dechirped_snr_rise", "dechirped_snr_fall"),
-        sweep_phase_rad=None if res.get("phase_rise") is None else interleave("phase_rise", "phase_fall"),
+        sweep_phase_rad=None if res.get("phasor_rise") is None else np.angle(interleave("phasor_rise",
+                                                                                         "phasor_fall")),
         time_s=times[order], distance_m=dist, velocity_mps=vel, acceleration_mps2=acc,
         valid=valid, velocity_valid=vel_valid, acceleration_valid=acc_valid,
         distance_uncertainty_m=u.distance_m, velocity_uncertainty_mps=u.velocity_mps,

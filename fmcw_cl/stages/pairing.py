@@ -132,8 +132,8 @@ class PairResult:
     integrated: np.ndarray | None = None          # half-sweeps of a direction summed per pair
     echoes_rise: cfar.Detections | None = None   # every echo of the plain spectra
     echoes_fall: cfar.Detections | None = None
-    phase_rise: np.ndarray | None = None     # the beat's phase at each final peak (rad, stages.phase)
-    phase_fall: np.ndarray | None = None
+    phasor_rise: np.ndarray | None = None    # the beat's phasor at each final peak (stages.phase)
+    phasor_fall: np.ndarray | None = None
 
     def take(self, rows: np.ndarray) -> PairResult:
         """The pairs `rows` (a boolean mask or indices)."""
@@ -717,7 +717,7 @@ def track_pairs(xr: np.ndarray, xf: np.ndarray, times: Times, model: DopplerMode
 
     res = chosen()
     # the paper's method (no de-chirp) is reported as the paper did: without the phase
-    return res if res.phase_rise is not None or not dechirp else with_phases(res, (xr, xf), model, ops)
+    return res if res.phasor_rise is not None or not dechirp else with_phases(res, (xr, xf), model, ops)
 
 
 def with_phases(res: PairResult, rows: tuple, model: DopplerModel, ops: SpectrumOps) -> PairResult:
@@ -727,7 +727,7 @@ def with_phases(res: PairResult, rows: tuple, model: DopplerModel, ops: Spectrum
     v = np.nan_to_num(res.velocity)
     bins = [np.nan_to_num(d / model.metres_per_bin) for d in (res.dechirped_rise, res.dechirped_fall)]
     z_r, z_f = ops.phasors_each(rows, (model.beta_rise, model.beta_fall), v, bins, model.nfft)
-    return replace(res, phase_rise=np.angle(z_r), phase_fall=np.angle(z_f))
+    return replace(res, phasor_rise=z_r, phasor_fall=z_f)
 
 
 def measured_snr(res: PairResult) -> float:
@@ -859,7 +859,7 @@ def result(first: tuple, state: Passes, times: Times, model: DopplerModel, dechi
     if dechirp:
         valid, resid = state.verdict or verdict(state, times, model)
         continuous = agreeing(resid, valid, times.groups)
-    phases = [None, None] if state.phasors is None else [np.angle(z) for z in state.phasors]
+    phases = [None, None] if state.phasors is None else list(state.phasors)
     return PairResult(dist, vel, valid, d_r.copy(), d_f.copy(), s_r.copy(), s_f.copy(), state.d_r, state.d_f,
                       state.s_r, state.s_f, heard, continuous, state.count,
                       *(e_r or [None]), *(e_f or [None]), *phases)
