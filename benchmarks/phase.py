@@ -5,7 +5,8 @@
 Scenes of the issue "Nanometres": a static target at 0.4 m (50 ms), at the default
 SNR and at a lab's (`--lab`); a creep of 1 mm/s (200 ms), both; the 7 m/s jump
 (300 ms), both; a static target and the jump under speckle decorrelating in 3 ms;
-2 mm at 50 Hz and 50 um at 1 kHz (100 ms, 0.3 m). Default options, the
+vibrations at 0.3 m (100 ms): 5 um at 200 Hz, 1 um at 1 kHz, 2 mm at 50 Hz, 50 um
+at 1 kHz. Default options, the
 default backend. Per scene and seed: the distance's valid share, the displacement's
 valid share and stretches, its error against the truth (from the displacement's zero):
 rms and largest, the standard deviation of a static target's displacement, a creep's
@@ -36,6 +37,8 @@ SCENES = {
     "jump, lab": ("jump", {"lab": True}),
     "static 0.3 m, speckle 3 ms": ("static", {"speckle_ms": 3.0}),
     "jump, speckle 3 ms, 0 dB": ("jump", {"speckle_ms": 3.0, "snr_db": 0.0}),
+    "5 um at 200 Hz": ("vibration", {"amplitude_um": 5, "frequency_hz": 200}),
+    "1 um at 1 kHz": ("vibration", {"amplitude_um": 1, "frequency_hz": 1000}),
     "2 mm at 50 Hz": ("vibration", {"amplitude_um": 2000, "frequency_hz": 50}),
     "50 um at 1 kHz": ("vibration", {}),
 }

@@ -116,7 +116,8 @@ def assemble(plan: Plan, parts: list[ChunkMeasurements], processor: ChunkProcess
         # the beat's cycles per sample per metre: 2 n B / (c x the half-sweep's samples)
         cycles_per_sample_per_m=1.0 / (lut.range_resolution_m * 0.5 * info.samples_per_period))
 
-    moved = _displacement(res, with_gaps, (t_r, t_f), dist, vel, valid & vel_valid,
+    # the unverified velocities of valid pairs still predict the phase's steps
+    moved = _displacement(res, with_gaps, (t_r, t_f), dist, vel, valid,
                           phase.radians_per_metre(lut.nu_hz, info.refractive_index), u.distance_m, held,
                           phase.centre_moments(lut.u_rise, 0.5 * period_s, plan.window))
 

@@ -13,7 +13,8 @@ off, the sync's edge): the mean refers it
 to the pair's centre time and cancels what differs in sign between the directions (the
 residual video phase, a delay error).
 
-A step is followed only between verified pairs (distance and velocity valid), across at
+A step is followed only between pairs whose distance is verified (their velocities,
+verified or not, only predict it: the residuals and third differences judge), across at
 most GAP_PAIRS missing ones, and only where its residual stays within SLIP_RAD in both
 directions and the two directions agree within SLIP_RAD: beyond that a whole turn (a
 slip of half a wavelength) cannot be excluded, and the stretch ends there. A stretch
@@ -101,7 +102,7 @@ def displacement(t_r: np.ndarray, t_f: np.ndarray, phasor_r: np.ndarray, phasor_
     distance_u : (P,) the distances' expanded uncertainty (m, k = 2; None: their scatter
         alone): a later stretch's reference carries it (its systematic part, a Doppler or
         acceleration bias, does not average out over the stretch).
-    ok : (P,) pairs whose distance and velocity are verified.
+    ok : (P,) pairs whose distance is verified.
     rad_per_m : the phase's rate with distance (stages.phase.radians_per_metre).
     """
     n = distance.size

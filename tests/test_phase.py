@@ -282,3 +282,21 @@ def test_speckle_decorrelating_is_refused(tmp_path, seed):
     ok, err = _error(path, track)
     assert ok.mean() < 0.5
     assert np.all(np.abs(err[ok]) <= np.fmax(track.displacement_uncertainty_m[ok], np.pi / K))
+
+
+def test_a_small_fast_vibration(tmp_path):
+    """1 um at 1 kHz (6 mm/s, 39 m/s^2), 50 ms at 0.3 m: one stretch, nanometres, the
+    amplitude read from the spectrum."""
+    from fmcw_cl.report.figures import displacement_spectrum, longest_stretch
+    from fmcw_cl.simulator import vibration
+
+    path = tmp_path / "vibration.h5"
+    simulate_capture(path, vibration(0.05, 0.3, 1e-6, 1000.0), 0.05, seed=7, config=SimulationConfig())
+    track = process(path)
+    ok, err = _error(path, track)
+    assert ok.mean() >= 0.95
+    assert np.sqrt(np.mean(err[ok] ** 2)) <= 10e-9
+    run = longest_stretch(track)
+    f, _, amp = displacement_spectrum(track.time_s[run], track.displacement_m[run])
+    line = 1 + np.argmax(amp[1:])
+    assert f[line] == pytest.approx(1000, abs=25) and amp[line] == pytest.approx(1e-6, rel=0.05)
