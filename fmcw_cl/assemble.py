@@ -36,8 +36,8 @@ def _spectrum(parts: list[ChunkMeasurements]) -> tuple[np.ndarray, int] | None:
 
 
 def _displacement(res: dict, with_gaps, times: tuple, dist: np.ndarray, vel: np.ndarray, ok: np.ndarray,
-                  rad_per_m: float, dist_u: np.ndarray, acc: np.ndarray,
-                  moments: tuple[float, float]) -> displacement.Displacement:
+                  rad_per_m: float, dist_u: np.ndarray, moments: tuple[float, float]
+                  ) -> displacement.Displacement:
     """The displacement from the half-sweeps' phases (none measured: not valid)."""
     if res.get("phasor_rise") is None:
         return displacement.Displacement.none(dist.size)
@@ -46,7 +46,7 @@ def _displacement(res: dict, with_gaps, times: tuple, dist: np.ndarray, vel: np.
                                      with_gaps(res["phasor_fall"], np.nan),
                                      with_gaps(res["dechirped_snr_rise"], np.nan),
                                      with_gaps(res["dechirped_snr_fall"], np.nan), dist, vel, ok, rad_per_m,
-                                     dist_u, acc, moments)
+                                     dist_u, moments)
 
 
 def assemble(plan: Plan, parts: list[ChunkMeasurements], processor: ChunkProcessor, seconds: float,
@@ -118,7 +118,7 @@ def assemble(plan: Plan, parts: list[ChunkMeasurements], processor: ChunkProcess
 
     # the unverified velocities of valid pairs still predict the phase's steps
     moved = _displacement(res, with_gaps, (t_r, t_f), dist, vel, valid,
-                          phase.radians_per_metre(lut.nu_hz, info.refractive_index), u.distance_m, held,
+                          phase.radians_per_metre(lut.nu_hz, info.refractive_index), u.distance_m,
                           phase.centre_moments(lut.u_rise, 0.5 * period_s, plan.window))
 
     def interleave(rise, fall):

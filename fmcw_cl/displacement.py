@@ -88,8 +88,7 @@ def phase_sigma(snr_db: np.ndarray) -> np.ndarray:
 def displacement(t_r: np.ndarray, t_f: np.ndarray, phasor_r: np.ndarray, phasor_f: np.ndarray,
                  snr_r: np.ndarray, snr_f: np.ndarray, distance: np.ndarray, velocity: np.ndarray,
                  ok: np.ndarray, rad_per_m: float, distance_u: np.ndarray | None = None,
-                 acceleration: np.ndarray | None = None, moments: tuple[float, float] = (0.0, 0.0)
-                 ) -> Displacement:
+                 moments: tuple[float, float] = (0.0, 0.0)) -> Displacement:
     """The displacement of every pair (see the module's text).
 
     Parameters
@@ -104,6 +103,13 @@ def displacement(t_r: np.ndarray, t_f: np.ndarray, phasor_r: np.ndarray, phasor_
         acceleration bias, does not average out over the stretch).
     ok : (P,) pairs whose distance is verified.
     rad_per_m : the phase's rate with distance (stages.phase.radians_per_metre).
+    moments : (m, s2) of the rising direction (stages.phase.centre_moments). An
+        acceleration a moves the mean of the directions by a (h^2 / 2 + s2 - h m) from
+        the pair's centre, taken off: h^2 / 2 as the directions lie at t_c -+ h, s2 as
+        the de-chirp is linear in time, - h m as each direction is de-chirped at the
+        pair's velocity, -+ a h off its own (the falling one's m is -m). 6.4e-11 s^2:
+        23 nm at a take-off's 360 m/s^2, 2.5 nm for 1 um at 1 kHz. a is the velocities'
+        own derivative between neighbours (a smoothed one misses a vibration's).
     """
     n = distance.size
     phase_r, phase_f = np.angle(phasor_r), np.angle(phasor_f)
@@ -113,12 +119,8 @@ def displacement(t_r: np.ndarray, t_f: np.ndarray, phasor_r: np.ndarray, phasor_
                          & np.isfinite(distance))
     if use.size < MIN_PAIRS:
         return Displacement.none(n)
-    h_all = 0.5 * (t_f - t_r)
-    acc = np.zeros(n) if acceleration is None else np.nan_to_num(acceleration)
-    mean_s, half_square_s2 = moments
-    bent_all = acc * (0.5 * h_all * h_all + half_square_s2 - h_all * mean_s)
     for _ in range(JERK_PASSES):
-        x, incs, starts, ends = _unwrapped(use, t_r, t_f, phase_r, phase_f, velocity, bent_all, rad_per_m)
+        x, incs, starts, ends = _unwrapped(use, t_r, t_f, phase_r, phase_f, velocity, moments, rad_per_m)
         bad = _jerked(x, 0.5 * (t_r[use] + t_f[use]), starts, ends, rad_per_m)
         if not bad.any():
             break
@@ -126,13 +128,14 @@ def displacement(t_r: np.ndarray, t_f: np.ndarray, phasor_r: np.ndarray, phasor_
         if use.size < MIN_PAIRS:
             return Displacement.none(n)
     else:
-        x, incs, starts, ends = _unwrapped(use, t_r, t_f, phase_r, phase_f, velocity, bent_all, rad_per_m)
+        x, incs, starts, ends = _unwrapped(use, t_r, t_f, phase_r, phase_f, velocity, moments, rad_per_m)
     sig = phase_sigma(np.stack([snr_r[use], snr_f[use]]))
     sig_pair = 0.5 * np.sqrt(sig[0] ** 2 + sig[1] ** 2) / rad_per_m       # one pair's phase noise (m)
-    # the directions' disagreement from step to step: 8 times a pair's phase variance
-    # (each direction's error enters twice), whatever the SNR says
-    step = incs[1] - incs[0]
-    seen = np.concatenate([[np.nan], _local_scatter(step)]) / np.sqrt(8.0)
+    # the directions' disagreement from step to step, less its mean of three (a
+    # vibration's own share): -(e[k+1] - 3 e[k] + 3 e[k-1] - e[k-2]) / 3 of the
+    # directions' difference e, whose variance is 4 pair variances: 80/9 of a pair's
+    step = _less_mean3(incs[1] - incs[0])
+    seen = np.concatenate([[np.nan], _local_scatter(step)]) * 3.0 / np.sqrt(80.0)
     kept = [(a, b) for a, b in zip(starts, ends, strict=True) if b - a >= MIN_PAIRS]
     level = 0.5 * np.log(np.abs(phasor_r[use] * phasor_f[use]))       # ln of the amplitudes' mean
     judged = [(a, b) for a, b in kept if not _scintillates(level[a:b])]
@@ -171,11 +174,11 @@ def displacement(t_r: np.ndarray, t_f: np.ndarray, phasor_r: np.ndarray, phasor_
     return Displacement(metres, valid, u, stretch, scintillating)
 
 
-def _unwrapped(use, t_r, t_f, phase_r, phase_f, velocity, bent, rad_per_m):
+def _unwrapped(use, t_r, t_f, phase_r, phase_f, velocity, moments, rad_per_m):
     """The phase of the pairs `use` unwrapped along each direction (the steps the
     velocities predict, their residuals wrapped), the stretches' starts and ends (in
     `use`), and the pairs' displacement within their stretch (m, 0 at its start; the
-    acceleration's share `bent` taken off)."""
+    acceleration's share taken off, `displacement`'s `moments`)."""
     t_mid = 0.5 * (t_r[use] + t_f[use])
     incs, resid = [], []
     for t, ph in ((t_r, phase_r), (t_f, phase_f)):
@@ -190,8 +193,10 @@ def _unwrapped(use, t_r, t_f, phase_r, phase_f, velocity, bent, rad_per_m):
               | (np.abs(resid[1] - resid[0]) > SLIP_RAD))
     starts = np.concatenate([[0], np.flatnonzero(breaks) + 1])
     ends = np.concatenate([starts[1:], [use.size]])
+    h = 0.5 * (t_f[use] - t_r[use])
+    mean_s, half_square_s2 = moments
+    bent = np.gradient(velocity[use], t_mid) * (0.5 * h * h + half_square_s2 - h * mean_s)
     x = np.zeros(use.size)
-    bent = bent[use]
     for a, b in zip(starts, ends, strict=True):
         x[a + 1:b] = 0.5 * (np.cumsum(incs[0][a:b - 1]) + np.cumsum(incs[1][a:b - 1]))
         x[a:b] -= bent[a:b] - bent[a]
@@ -200,10 +205,12 @@ def _unwrapped(use, t_r, t_f, phase_r, phase_f, velocity, bent, rad_per_m):
 
 def _jerked(x, t, starts, ends, rad_per_m) -> np.ndarray:
     """The pairs (of `x`, at times `t`) in a window of four of a stretch whose third
-    difference exceeds a quarter wavelength: a whole turn taken wrong at one of them
-    (one velocity wrong by a turn's worth, both directions alike, which their
-    residuals cannot show). Real motion's third difference is jerk x dt^3: 1.5 nm for
-    50 um at 1 kHz."""
+    difference leaves the running median of three of them by more than a quarter
+    wavelength: a whole turn taken wrong at one of them (one velocity wrong by a turn's
+    worth, both directions alike, which their residuals cannot show) is a spike of
+    (1, -3, 3, -1) or (1, -2, 1) half wavelengths. Real motion's third difference is
+    jerk x dt^3 (31 nm for 1 um at 1 kHz, 1.5 um for 50 um) and smooth: the median
+    takes it off to (1 - cos(2 pi f dt)) of itself, 75 nm at 50 um."""
     bad = np.zeros(x.size, bool)
     for a, b in zip(starts, ends, strict=True):
         if b - a < 4:
@@ -212,8 +219,8 @@ def _jerked(x, t, starts, ends, rad_per_m) -> np.ndarray:
         d = xs
         for k in (1, 2, 3):                   # divided differences: exact for any spacing
             d = np.diff(d) / (ts[k:] - ts[:-k])
-        span = ts[3:] - ts[:-3]
-        hit = np.abs(6.0 * d) * (span / 3.0) ** 3 > np.pi / rad_per_m
+        third = 6.0 * d * ((ts[3:] - ts[:-3]) / 3.0) ** 3
+        hit = np.abs(third - running_median(third, 3)) > np.pi / rad_per_m
         for k in range(4):
             bad[a + k: b - 3 + k] |= hit
     return bad
@@ -236,16 +243,27 @@ def _scintillates(level: np.ndarray) -> bool:
 
 def _rough(x: np.ndarray, starts: np.ndarray, ends: np.ndarray) -> np.ndarray:
     """A pair's noise (m) from the displacement itself: the local scatter of its third
-    differences within each stretch / sqrt(20) (a white error enters 1, 3, 3, 1 times);
-    what both directions share (a de-chirp's, the sync's) shows here and not in their
-    disagreement. NaN where a stretch is too short."""
+    differences less their mean of three (a vibration's own share; -1/3 of a fifth
+    difference, into which a white error enters 252/9 times its variance) within each
+    stretch / sqrt(28); what both directions share (a de-chirp's, the sync's) shows here
+    and not in their disagreement. NaN where a stretch is too short."""
     out = np.full(x.size, np.nan)
     for a, b in zip(starts, ends, strict=True):
         if b - a >= 8:
-            third = _local_scatter(np.diff(x[a:b], 3)) / np.sqrt(20.0)
+            third = _local_scatter(_less_mean3(np.diff(x[a:b], 3))) / np.sqrt(28.0)
             out[a + 1:b - 2] = third
             out[a], out[b - 2:b] = third[0], third[-1]
     return out
+
+
+def _less_mean3(x: np.ndarray) -> np.ndarray:
+    """x less the mean of each value and its two neighbours (the ends: their
+    neighbour's): what varies from one value to the next, a smooth course taken off."""
+    y = np.array(x, np.float64)
+    if y.size >= 3:
+        y[1:-1] = x[1:-1] - (x[:-2] + x[1:-1] + x[2:]) / 3.0
+        y[0], y[-1] = y[1], y[-2]
+    return y
 
 
 def _local_scatter(x: np.ndarray) -> np.ndarray:

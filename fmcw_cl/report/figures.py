@@ -259,21 +259,33 @@ def displacement_spectrum(t: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.
 
 def displacement(track: Track, path: Path, truth: Truth | None = None) -> Path:
     """The displacement from the phase over time, with its expanded uncertainty and the
-    truth, and the amplitude spectrum of its longest stretch: its strongest line (m)
-    and its floor (m/sqrt(Hz))."""
+    truth (and, with a truth, its error), and the amplitude spectrum of its longest
+    stretch: its strongest line (m) and its floor (m/sqrt(Hz))."""
+    from ..displacement import ZERO_PAIRS
+
     ok = track.displacement_valid
     t_ms = 1e3 * track.time_s
     x = np.where(ok, track.displacement_m, np.nan)
     most = np.nanmax(np.abs(x), initial=0)
     scale, unit = (1e9, "nm") if most < 2e-6 else (1e6, "µm") if most < 2e-3 else (1e3, "mm")
-    fig, (ax, bx) = plt.subplots(2, 1, figsize=(9, 7.5), constrained_layout=True)
+    known = truth is not None and ok.any()
+    fig, axes = plt.subplots(3 if known else 2, 1, figsize=(9, 10 if known else 7.5), constrained_layout=True)
+    ax, bx = axes[0], axes[-1]
     ax.plot(t_ms, scale * x, color="C0", lw=0.8, label="from the phase")
     u = np.where(ok, track.displacement_uncertainty_m, np.nan)
     ax.fill_between(t_ms, scale * (x - u), scale * (x + u), color="C0", alpha=0.2, lw=0,
                     label="expanded uncertainty (k = 2)")
-    if truth is not None and ok.any():
+    if known:
         r = truth_at(truth, track.time_s)[0]
-        ax.plot(t_ms, scale * (r - r[np.flatnonzero(ok)[0]]), color="k", lw=0.8, ls="--", label="truth")
+        r = r - np.mean(r[np.flatnonzero(track.displacement_stretch == 0)[:ZERO_PAIRS]])    # the same zero
+        ax.plot(t_ms, scale * r, color="k", lw=0.8, ls="--", label="truth")
+        cx = axes[1]
+        cx.plot(t_ms, 1e9 * (x - r), color="C3", lw=0.6, label="from the phase − truth")
+        cx.fill_between(t_ms, -1e9 * u, 1e9 * u, color="C0", alpha=0.2, lw=0, label="± expanded uncertainty")
+        cx.set_xlabel("time (ms)")
+        cx.set_ylabel("error (nm)")
+        cx.legend(fontsize=8, loc="best")
+        cx.grid(alpha=0.3)
     ax.set_xlabel("time (ms)")
     ax.set_ylabel(f"displacement ({unit})")
     stretches = int(track.attrs.get("displacement_stretches", 0))
