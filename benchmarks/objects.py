@@ -15,7 +15,7 @@ truth they follow (must be 0); the target's truth; the conversion's time.
 import argparse
 import time
 
-from scratch import folder
+from scratch import folder, seeds
 
 from fmcw_cl import objects
 from fmcw_cl.backend import make_processor
@@ -23,12 +23,6 @@ from fmcw_cl.capture import Capture
 from fmcw_cl.engine import process
 from fmcw_cl.evaluate import object_scores
 from fmcw_cl.simulator import several
-
-
-def seeds(text: str) -> list[int]:
-    lo, _, hi = text.partition("-")
-    return list(range(int(lo), int(hi or lo) + 1))
-
 
 parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
 parser.add_argument("--seeds", default="1-3", help="seeds, as A-B (default 1-3)")

@@ -20,7 +20,7 @@ import time
 
 import numpy as np
 from scipy.interpolate import CubicSpline
-from scratch import folder
+from scratch import folder, seeds
 
 import fmcw_cl
 from fmcw_cl.backend import make_processor
@@ -42,11 +42,6 @@ SCENES = {
     "2 mm at 50 Hz": ("vibration", {"amplitude_um": 2000, "frequency_hz": 50}),
     "50 um at 1 kHz": ("vibration", {}),
 }
-
-
-def seeds(text: str) -> list[int]:
-    lo, _, hi = text.partition("-")
-    return list(range(int(lo), int(hi or lo) + 1))
 
 
 def row(track, truth, scenario: str) -> str:

@@ -117,8 +117,8 @@ def assemble(plan: Plan, parts: list[ChunkMeasurements], processor: ChunkProcess
         cycles_per_sample_per_m=1.0 / (lut.range_resolution_m * 0.5 * info.samples_per_period))
 
     # the unverified velocities of valid pairs still predict the phase's steps
-    moved = _displacement(res, with_gaps, (t_r, t_f), dist, vel, valid,
-                          phase.radians_per_metre(lut.nu_hz, info.refractive_index), u.distance_m,
+    rad_per_m = phase.radians_per_metre(lut.nu_hz, info.refractive_index)
+    moved = _displacement(res, with_gaps, (t_r, t_f), dist, vel, valid, rad_per_m, u.distance_m,
                           phase.centre_moments(lut.u_rise, 0.5 * period_s, plan.window))
 
     def interleave(rise, fall):
@@ -198,7 +198,7 @@ def assemble(plan: Plan, parts: list[ChunkMeasurements], processor: ChunkProcess
         "uncertainty_coverage_factor": uncertainty.COVERAGE,
         **uncertainty.budget_attrs(u),
         **moved.attrs(),
-        "displacement_rad_per_m": phase.radians_per_metre(lut.nu_hz, info.refractive_index),
+        "displacement_rad_per_m": rad_per_m,
         "backend": processor.name,
         "device": processor.device,
         "software": f"fmcw-cl {__version__}",

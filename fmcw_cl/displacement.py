@@ -118,17 +118,15 @@ def displacement(t_r: np.ndarray, t_f: np.ndarray, phasor_r: np.ndarray, phasor_
     use = np.flatnonzero(ok & np.isfinite(phase_r) & np.isfinite(phase_f) & np.isfinite(velocity)
                          & np.isfinite(distance))
     if use.size < MIN_PAIRS:
-        return Displacement.none(n)
-    for _ in range(JERK_PASSES):
+        return none
+    for checks_left in range(JERK_PASSES, -1, -1):      # the last unwrapping is not checked again
         x, incs, starts, ends = _unwrapped(use, t_r, t_f, phase_r, phase_f, velocity, moments, rad_per_m)
-        bad = _jerked(x, 0.5 * (t_r[use] + t_f[use]), starts, ends, rad_per_m)
-        if not bad.any():
+        bad = _jerked(x, 0.5 * (t_r[use] + t_f[use]), starts, ends, rad_per_m) if checks_left else None
+        if bad is None or not bad.any():
             break
         use = use[~bad]
         if use.size < MIN_PAIRS:
-            return Displacement.none(n)
-    else:
-        x, incs, starts, ends = _unwrapped(use, t_r, t_f, phase_r, phase_f, velocity, moments, rad_per_m)
+            return none
     sig = phase_sigma(np.stack([snr_r[use], snr_f[use]]))
     sig_pair = 0.5 * np.sqrt(sig[0] ** 2 + sig[1] ** 2) / rad_per_m       # one pair's phase noise (m)
     # the directions' disagreement from step to step, less its mean of three (a
@@ -143,17 +141,16 @@ def displacement(t_r: np.ndarray, t_f: np.ndarray, phasor_r: np.ndarray, phasor_
     if scintillating:       # a stretch too short to judge is refused where others scintillate
         kept = [(a, b) for a, b in kept if b - a > 2 * SCINT_PAIRS]
     if not kept:
-        return replace(Displacement.none(n), scintillating=scintillating)
+        return replace(none, scintillating=scintillating)
     sig_pair = np.fmax(np.fmax(sig_pair, seen), _rough(x, starts, ends))
     d = distance[use]
     ref_offset, ref_u = None, 0.0
-    s_id = 0
     sd = np.zeros(use.size) if distance_u is None else np.nan_to_num(distance_u[use]) / COVERAGE
     a0 = kept[0][0]
     zero = slice(a0, a0 + ZERO_PAIRS)
     x[a0:kept[0][1]] -= np.mean(x[zero])
     zero_sig = float(np.sqrt(np.mean(sig_pair[zero] ** 2) / sig_pair[zero].size))
-    for a, b in kept:
+    for s_id, (a, b) in enumerate(kept):
         rest = d[a:b] - d[a0] - x[a:b]
         offset, off_u = _reference(rest)
         off_u = max(off_u, median(sd[a:b]))
@@ -168,7 +165,6 @@ def displacement(t_r: np.ndarray, t_f: np.ndarray, phasor_r: np.ndarray, phasor_
         valid[idx] = good
         stretch[idx] = np.where(good, s_id, -1)
         u[idx] = COVERAGE * np.sqrt(sig_pair[a:b] ** 2 + shift_u ** 2)
-        s_id += 1
     metres[~valid] = np.nan
     u[~valid] = np.nan
     return Displacement(metres, valid, u, stretch, scintillating)
