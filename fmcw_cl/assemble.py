@@ -36,8 +36,8 @@ def _spectrum(parts: list[ChunkMeasurements]) -> tuple[np.ndarray, int] | None:
 
 
 def _displacement(res: dict, with_gaps, times: tuple, dist: np.ndarray, vel: np.ndarray, ok: np.ndarray,
-                  rad_per_m: float, dist_u: np.ndarray, moments: tuple[float, float]
-                  ) -> displacement.Displacement:
+                  rad_per_m: float, dist_u: np.ndarray, moments: tuple[float, float], bias_mps: float,
+                  curved: bool) -> displacement.Displacement:
     """The displacement from the half-sweeps' phases (none measured: not valid)."""
     if res.get("phasor_rise") is None:
         return displacement.Displacement.none(dist.size)
@@ -46,7 +46,7 @@ def _displacement(res: dict, with_gaps, times: tuple, dist: np.ndarray, vel: np.
                                      with_gaps(res["phasor_fall"], np.nan),
                                      with_gaps(res["dechirped_snr_rise"], np.nan),
                                      with_gaps(res["dechirped_snr_fall"], np.nan), dist, vel, ok, rad_per_m,
-                                     dist_u, moments)
+                                     dist_u, moments, bias_mps, curved)
 
 
 def assemble(plan: Plan, parts: list[ChunkMeasurements], processor: ChunkProcessor, seconds: float,
@@ -89,7 +89,8 @@ def assemble(plan: Plan, parts: list[ChunkMeasurements], processor: ChunkProcess
     vel = with_gaps(res["velocity"], np.nan)
     dist[~valid] = np.nan
     vel[~valid] = np.nan
-    held = kinematics.held_acceleration(vel, valid, period_s)
+    motion = plan.motion         # the windows the target's motion calls for (fmcw_cl.motion)
+    held = kinematics.held_acceleration(vel, valid, period_s, motion.window)
     bias = np.zeros(dist.size)
     if options.dechirp:         # the paper's method (--no-dechirp) is reported as the paper did
         bias = pairing.acceleration_bias(held, with_gaps(0.5 * (t_f - t_r), 0.0), plan.model)
@@ -105,10 +106,10 @@ def assemble(plan: Plan, parts: list[ChunkMeasurements], processor: ChunkProcess
     weak = uncertainty.weakness(crb, valid)
     noise_m = uncertainty.local_scatter(dist, valid) * weak
     noise_mps = uncertainty.local_scatter(vel, valid) * weak
-    vel_valid = uncertainty.velocity_verified(dist, vel, valid, period_s, noise_m, noise_mps)
-    acc = kinematics.acceleration(vel, vel_valid, period_s)
-    acc_valid = kinematics.centred(vel_valid)
-    u_acc = uncertainty.acceleration_uncertainty(acc, acc_valid, noise_mps, period_s)
+    vel_valid = uncertainty.velocity_verified(dist, vel, valid, period_s, noise_m, noise_mps, motion.slope)
+    acc = kinematics.acceleration(vel, vel_valid, period_s, motion.window)
+    acc_valid = kinematics.centred(vel_valid, motion.window)
+    u_acc = uncertainty.acceleration_uncertainty(acc, acc_valid, noise_mps, period_s, motion.window)
     u = uncertainty.pair_uncertainty(
         dist, vel, valid, vel_valid, noise_m, noise_mps, crb, held, bias, np.maximum(integrated, 1),
         period_s=period_s, scale_ppm=lut.scale_ppm, delay_m=plan.lag_sigma_m, delay_mps=plan.lag_sigma_mps,
@@ -118,8 +119,11 @@ def assemble(plan: Plan, parts: list[ChunkMeasurements], processor: ChunkProcess
 
     # the unverified velocities of valid pairs still predict the phase's steps
     rad_per_m = phase.radians_per_metre(lut.nu_hz, info.refractive_index)
+    # the velocities share the sync delay's bias: as much as its expanded uncertainty allows
     moved = _displacement(res, with_gaps, (t_r, t_f), dist, vel, valid, rad_per_m, u.distance_m,
-                          phase.centre_moments(lut.u_rise, 0.5 * period_s, plan.window))
+                          phase.centre_moments(lut.u_rise, 0.5 * period_s, plan.window),
+                          uncertainty.COVERAGE * uncertainty.finite_or_zero(plan.lag_sigma_mps),
+                          motion.curved)
 
     def interleave(rise, fall):
         return np.stack([res[rise], res[fall]], axis=1).ravel()
@@ -192,8 +196,9 @@ def assemble(plan: Plan, parts: list[ChunkMeasurements], processor: ChunkProcess
         "sync_delay_disagreement_limit": DISAGREE_SIGMAS,
         "chirp": str(Path(options.chirp).resolve()) if options.chirp else "",
         "acceleration_smoothing": f"Savitzky-Golay derivative, order {kinematics.POLYORDER}, "
-                                  f"{kinematics.WINDOW_PAIRS} pairs",
-        "velocity_check": uncertainty.CHECK,
+                                  f"{motion.window} pairs",
+        "velocity_check": uncertainty.check_said(motion.slope),
+        "motion": motion.name,
         "velocity_unverified_pairs": int(np.sum(valid & ~vel_valid)),
         "uncertainty_coverage_factor": uncertainty.COVERAGE,
         **uncertainty.budget_attrs(u),

@@ -16,6 +16,7 @@ import numpy as np
 from .capture import Capture, CaptureInfo
 from .chirp import Chirp, check_chirp, chirp_lut, read_chirp
 from .errors import CaptureError, FmcwError
+from .motion import SMOOTH, Motion
 from .options import Options, said
 from .processor import ChunkProcessor, NumpyProcessor
 from .refine import refine_lag
@@ -58,11 +59,17 @@ class Plan:
     tuning: str = TABLE                      # where the LUT comes from: TABLE, CALIBRATION or OWN_REST
     chirp: Chirp | None = None               # the chirp of CALIBRATION or OWN_REST
     period_ratio: float = 1.0    # the sync's measured period over the attributes' (check_sync_period)
+    motion: Motion = SMOOTH      # the windows the pairs are fitted over (fmcw_cl.motion; `refine` chooses)
 
     def with_band(self, band: tuple[float, float | None]) -> Plan:
         """The plan with the peak search in `band` (m)."""
         options = replace(self.options, min_range=band[0], max_range=band[1])
-        return replace(self, options=options, search=make_search(options, self.lut, self.model))
+        search = replace(make_search(options, self.lut, self.model), reach=self.motion.reach)
+        return replace(self, options=options, search=search)
+
+    def with_motion(self, motion: Motion) -> Plan:
+        """The plan fitting its pairs over `motion`'s windows (the tracker's among them)."""
+        return replace(self, motion=motion, search=replace(self.search, reach=motion.reach))
 
     def with_chirp(self, chirp: Chirp, tuning: str, scale_std: float = float("nan")) -> Plan:
         """The plan resampled on `chirp` (its sync delay kept: a chirp is measured
@@ -70,6 +77,7 @@ class Plan:
         `scale_std` (1 sigma)."""
         parts = tuned(self.info, self.options, chirp)
         parts["lut"] = replace(parts["lut"], scale_std=scale_std)
+        parts["search"] = replace(parts["search"], reach=self.motion.reach)
         return replace(self, **parts, tuning=tuning)
 
 

@@ -30,6 +30,7 @@ import numpy as np
 from . import numeric
 from .capture import Capture
 from .chunks import held_end_to_end
+from .motion import SMOOTH, Motion, choose
 from .processor import Held
 from .stages import kinematics, pairing, resample, sync
 
@@ -47,7 +48,6 @@ FIT_SAMPLES = 5.0         # unsettled trials this near the best are fitted by a 
 TRIAL_ITERATIONS = 3      # de-chirp passes of a trial conversion: on a lab's landings six
                           # moved the delay by 0.02 samples at most, two left it 1-4 samples off
 SETTLED = 0.25            # a mismatch this many of its standard errors from zero is the root
-BIAS_WINDOW = 61          # pairs (3 ms) of the acceleration that corrects trial distances (pairs_of)
 
 
 @dataclass(frozen=True)
@@ -56,12 +56,14 @@ class Mismatch:
     integrated velocity (m/s, mean over stretches; NaN when none could be measured),
     `sigma_mps` its standard error, `distance_m` the stretches' mean distance,
     `distances` every pair's distance of the stretches (NaN where not valid), for the
-    delay's effect on the same pairs."""
+    delay's effect on the same pairs; `motion` the windows their velocities call for
+    (fmcw_cl.motion.choose)."""
 
     mps: float
     sigma_mps: float
     distance_m: float
     distances: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    motion: Motion = SMOOTH
 
 
 def drift(t: np.ndarray, d: np.ndarray, v: np.ndarray) -> tuple[float, float]:
@@ -116,18 +118,20 @@ def mismatches(held: Held, plan, lags: list[float], processor) -> list[Mismatch]
     at = held.at(lags)
     each = by_stretch(at, processor.process_apart(at))
     n = len(each) // len(lags)
-    return [mismatch(each[j * n: (j + 1) * n], plan.model) for j in range(len(lags))]
+    return [mismatch(each[j * n: (j + 1) * n], plan.model, plan.motion.bias) for j in range(len(lags))]
 
 
-def mismatch(stretches: list[list], model) -> Mismatch:
+def mismatch(stretches: list[list], model, window: int = SMOOTH.bias) -> Mismatch:
     """The kinematic inconsistency of converted trial stretches (each a list of
     ChunkMeasurements): their longest bridged runs' mean drift, its standard error and
-    the runs' mean distance."""
+    the runs' mean distance (`pairs_of` over `window`)."""
     slopes, errors, dist, every = [], [], [], []
+    heard = [np.concatenate([q.result.velocity[q.result.heard] for q in parts])
+             for parts in stretches if parts]
     for parts in stretches:
         if not parts:
             continue
-        t, d, v, ok = pairs_of(parts, model)
+        t, d, v, ok = pairs_of(parts, model, window)
         every.append(np.where(ok, d, np.nan))
         run = max(bridged_runs(t, d, v, ok), key=np.size, default=np.zeros(0, np.int64))
         if run.size < MIN_RUN:
@@ -137,15 +141,16 @@ def mismatch(stretches: list[list], model) -> Mismatch:
         errors.append(se)
         dist.append(float(np.mean(d[run])))
     every = np.concatenate(every) if every else np.zeros(0)
+    motion = choose(heard)
     if not slopes:
-        return Mismatch(float("nan"), float("nan"), float("nan"), every)
+        return Mismatch(float("nan"), float("nan"), float("nan"), every, motion)
     # the standard error of the mean: from the runs' residuals, or from the stretches'
     # spread where that is larger (the residuals of d - integral of v are not white)
     n = len(slopes)
     sigma = float(np.sqrt(np.sum(np.square(errors)))) / n
     if n > 1:
         sigma = max(sigma, float(np.std(slopes, ddof=1)) / np.sqrt(n))
-    return Mismatch(float(np.mean(slopes)), sigma, float(np.mean(dist)), every)
+    return Mismatch(float(np.mean(slopes)), sigma, float(np.mean(dist)), every, motion)
 
 
 def bridged_runs(t: np.ndarray, d: np.ndarray, v: np.ndarray, ok: np.ndarray) -> list[np.ndarray]:
@@ -162,11 +167,12 @@ def bridged_runs(t: np.ndarray, d: np.ndarray, v: np.ndarray, ok: np.ndarray) ->
     return np.split(idx, np.flatnonzero((b - a > BRIDGE_PAIRS + 1) | ((b - a > 1) & (jump > BRIDGE_M))) + 1)
 
 
-def pairs_of(parts, model) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def pairs_of(parts, model, window: int = SMOOTH.bias
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Time (s), distance (m), velocity (m/s) and validity of the pairs of converted
     chunks (processor.ChunkMeasurements) of one stretch, the distances of valid runs
-    free of the acceleration's bias (pairing.acceleration_bias, as the track's are;
-    `model`: the plan's DopplerModel)."""
+    free of the acceleration's bias (pairing.acceleration_bias over `window` pairs, as
+    the track's are; `model`: the plan's DopplerModel)."""
     t = np.concatenate([0.5 * (q.t_rise + q.t_fall) for q in parts])
     d = np.concatenate([q.result.distance for q in parts])
     v = np.concatenate([q.result.velocity for q in parts])
@@ -175,8 +181,7 @@ def pairs_of(parts, model) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarr
         # over a wider window than the track's: a trial's velocities may be noise (a
         # chirp far off its table: 17 mm/s a pair), whose acceleration must not move the
         # distances it is integrated against
-        held = kinematics.held_acceleration(np.where(ok, v, np.nan), ok, float(np.median(np.diff(t))),
-                                            BIAS_WINDOW)
+        held = kinematics.held_acceleration(np.where(ok, v, np.nan), ok, float(np.median(np.diff(t))), window)
         half_gap = np.concatenate([0.5 * (q.t_fall - q.t_rise) for q in parts])
         d = d - pairing.acceleration_bias(held, half_gap, model)
     return t, d, v, ok
@@ -185,13 +190,17 @@ def pairs_of(parts, model) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarr
 def refine_lag(cap: Capture, plan, processor):
     """The plan with its lag moved to where the track is kinematically consistent
     (trial stretches converted by `processor`), with the delay's uncertainty (samples)
-    and what it means in velocity (m/s) and distance (m).
+    and what it means in velocity (m/s) and distance (m), and the windows its target's
+    motion calls for (fmcw_cl.motion: chosen on the first trial, made again with them).
 
     Keeps the estimate (lag_refined False) when no stretch can be measured."""
     lag0 = plan.lag
     held = stretches(cap, plan, processor)
     xs = [lag0, lag0 + STEP_SAMPLES]
     ms = mismatches(held, plan, xs, processor)
+    if plan.motion is SMOOTH and ms[0].motion is not SMOOTH:    # a vibration: its windows, the trials again
+        plan = plan.with_motion(ms[0].motion)
+        ms = mismatches(held, plan, xs, processor)
     if not (np.isfinite(ms[0].mps) and np.isfinite(ms[1].mps)) or ms[1].mps == ms[0].mps:
         return plan
     # d(mismatch)/d(lag) and d(distance)/d(lag) from the first step: smooth in the lag

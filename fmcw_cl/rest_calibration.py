@@ -194,7 +194,8 @@ def calibrate(cap: Capture, plan: Plan, track: Track, processor: ChunkProcessor)
         return None, {"rest_calibration": f"its rest cannot be calibrated on: {exc.problem}"}
     # the scale from the motion, on a trial conversion without the survey of hidden echoes
     trial = replace(plan.with_chirp(shape, OWN_REST), survey=False)
-    k, sigma = kinematic_scale(*pairs_of(capture_parts(cap, trial, processor), trial.model))
+    parts = capture_parts(cap, trial, processor)
+    k, sigma = kinematic_scale(*pairs_of(parts, trial.model, trial.motion.bias))
     if not sigma <= SCALE_SIGMA_MAX:
         return None, {"rest_calibration": f"its motion sets the distance scale to +-{sigma * 1e6:.0f} ppm "
                                           f"only (at most {SCALE_SIGMA_MAX * 1e6:.0f})"}

@@ -44,8 +44,14 @@ SLOPE_SIGMAS = 5.0      # a velocity this many standard errors from the slope is
 SLOPE_FLOOR_MPS = 0.01  # ... plus this (the distances' correlated errors: the table's ripple
                         # passed at speed)
 
-CHECK = (f"against the distances' slope (quadratic over {SLOPE_PAIRS} pairs) within {SLOPE_SIGMAS:g} "
-         f"standard errors + {SLOPE_FLOOR_MPS:g} m/s")
+
+
+def check_said(window: int = SLOPE_PAIRS) -> str:
+    """How `velocity_verified` checks a velocity, in words (a track's attribute)."""
+    return (f"against the distances' slope (quadratic over {window} pairs) within {SLOPE_SIGMAS:g} "
+            f"standard errors + {SLOPE_FLOOR_MPS:g} m/s")
+
+
 DISTANCE_SOURCES = ("noise", "scale", "resampling", "sync delay", "model", "integration")
 VELOCITY_SOURCES = ("noise", "sync delay", "time base", "integration")
 
@@ -135,14 +141,14 @@ def distance_slope(distance: np.ndarray, valid: np.ndarray, period_s: float,
 
 
 def velocity_verified(distance: np.ndarray, velocity: np.ndarray, valid: np.ndarray, period_s: float,
-                      noise_m: np.ndarray, noise_mps: np.ndarray) -> np.ndarray:
+                      noise_m: np.ndarray, noise_mps: np.ndarray, window: int = SLOPE_PAIRS) -> np.ndarray:
     """The valid pairs whose velocity (m/s) agrees with the slope of their run's
     distances (m) within SLOPE_SIGMAS standard errors (from the local noises `noise_m`
     and `noise_mps`) plus SLOPE_FLOOR_MPS: the Doppler velocity and the distance's course
     are measured apart (a sync delay error, an echo beside a wall, a crossing move one
     and not the other). Runs shorter than SLOPE_MIN_PAIRS cannot be checked: not
     verified."""
-    slope, gain = distance_slope(distance, valid, period_s)
+    slope, gain = distance_slope(distance, valid, period_s, window)
     tol = SLOPE_SIGMAS * np.hypot(gain * noise_m, noise_mps) + SLOPE_FLOOR_MPS
     with np.errstate(invalid="ignore"):
         return np.asarray(valid, bool) & (np.abs(velocity - slope) <= tol)

@@ -11,6 +11,7 @@ import pytest
 
 from fmcw_cl import refine
 from fmcw_cl.engine import process
+from fmcw_cl.motion import SMOOTH, Motion
 from fmcw_cl.options import Options
 from fmcw_cl.second_look import LOOK_K
 
@@ -196,6 +197,7 @@ def test_a_refinement_that_ends_off_its_root_states_the_miss_as_uncertainty(monk
         lag_sigma_mps: float = np.nan
         lag_sigma_m: float = np.nan
         lag_at_m: float = np.nan
+        motion: Motion = SMOOTH
 
     monkeypatch.setattr(refine, "stretches", lambda cap, plan, processor: [])
     monkeypatch.setattr(refine, "mismatches", mismatches)
@@ -223,6 +225,7 @@ def test_a_trial_without_runs_does_not_end_the_delay_search(monkeypatch):
         lag_sigma_mps: float = float("nan")
         lag_sigma_m: float = float("nan")
         lag_at_m: float = float("nan")
+        motion: Motion = SMOOTH
 
     root, tried = 36.5, []
 

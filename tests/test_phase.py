@@ -132,6 +132,69 @@ def test_never_a_hidden_slip(seed):
     _no_slip(got, truth, lam4)
 
 
+def _vibrating(seed, bias=0.0, pairs=2000, sigma=0.02, outlier=0.0):
+    """A target at 0.3 m vibrating 50 um at 1 kHz (0.31 m/s, 1970 m/s^2): both
+    directions' phases with `sigma` rad of noise, its velocities with 0.5 mm/s of noise,
+    a common `bias` (m/s) and one velocity `outlier` m/s off."""
+    rng = np.random.default_rng(seed)
+    t_mid = 50e-6 * np.arange(pairs)
+    t_r, t_f = t_mid - 12.5e-6, t_mid + 12.5e-6
+    w = 2 * np.pi * 1000.0
+
+    def r(t):
+        return 0.3 + 50e-6 * np.sin(w * t)
+
+    v = 50e-6 * w * np.cos(w * t_mid) + bias + rng.normal(0, 5e-4, pairs)
+    v[pairs // 3] += outlier
+    ph = [1e3 * np.exp(1j * (K * r(t) + c + rng.normal(0, sigma, pairs)))
+          for t, c in ((t_r, 0.4), (t_f, -1.1))]
+    snr = np.full(pairs, 10 * np.log10(1 / (2 * sigma**2)))
+    return t_r, t_f, ph, snr, r(t_mid) + rng.normal(0, 3e-6, pairs), v, r(t_mid)
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_a_fast_vibration_is_followed_by_curved_steps(seed):
+    """Trapezoids of its velocity miss its steps by up to 2 rad: the stretches break,
+    none holds a slip; cubics through four velocities follow it: one stretch, nm."""
+    t_r, t_f, ph, snr, dist, v, truth = _vibrating(seed)
+    ok = np.ones(v.size, bool)
+    straight = displacement.displacement(t_r, t_f, *ph, snr, snr, dist, v, ok, K)
+    assert straight.valid.mean() < 0.5
+    _no_slip(straight, truth, np.pi / K)
+    curved = displacement.displacement(t_r, t_f, *ph, snr, snr, dist, v, ok, K, curved=True)
+    assert curved.valid.all() and curved.stretch.max() == 0
+    err = curved.metres - (truth - _zero(truth, curved))
+    assert np.sqrt(np.mean(err**2)) < 5e-9
+    # a wrong velocity (0.1 m/s: its four steps 20 rad off) breaks the stretch, no slip
+    t_r, t_f, ph, snr, dist, v, truth = _vibrating(seed, outlier=0.1)
+    got = displacement.displacement(t_r, t_f, *ph, snr, snr, dist, v, ok, K, curved=True)
+    assert got.valid.mean() > 0.9
+    _no_slip(got, truth, np.pi / K)
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_a_velocity_bias_is_taken_off_as_far_as_stated(seed):
+    """The velocities' common bias (a sync delay's) moves every step alike: 3 mm/s is
+    1.2 rad a step, and the phase noise breaks the stretch again and again. Where the
+    delay states 2.9 mm/s (k = 2) it is taken off: one stretch; where it
+    states more than 3/8 of a turn a step, nothing is. Biases up to four of the stated
+    standard uncertainties end stretches, never hide a turn."""
+    ok = np.ones(2000, bool)
+    t_r, t_f, ph, snr, dist, v, truth = _vibrating(seed, bias=3e-3, sigma=0.12)
+    for stated in (0.0, 5e-3):
+        alone = displacement.displacement(t_r, t_f, *ph, snr, snr, dist, v, ok, K, curved=True,
+                                          bias_mps=stated)
+        assert alone.stretch.max() >= 10
+        _no_slip(alone, truth, np.pi / K)
+    got = displacement.displacement(t_r, t_f, *ph, snr, snr, dist, v, ok, K, curved=True, bias_mps=2.9e-3)
+    assert got.valid.mean() > 0.99 and got.stretch.max() == 0
+    _no_slip(got, truth, np.pi / K)
+    for bias in (4.5e-3, 5.8e-3, -5.8e-3):
+        t_r, t_f, ph, snr, dist, v, truth = _vibrating(seed, bias=bias)
+        got = displacement.displacement(t_r, t_f, *ph, snr, snr, dist, v, ok, K, curved=True, bias_mps=2.9e-3)
+        _no_slip(got, truth, np.pi / K)
+
+
 def _zero(truth, stretch):
     """The truth at the displacement's zero: the mean of the first stretch's first pairs
     (`stretch`: a Displacement or its stretches)."""
@@ -300,3 +363,21 @@ def test_a_small_fast_vibration(tmp_path):
     f, _, amp = displacement_spectrum(track.time_s[run], track.displacement_m[run])
     line = 1 + np.argmax(amp[1:])
     assert f[line] == pytest.approx(1000, abs=25) and amp[line] == pytest.approx(1e-6, rel=0.05)
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_a_large_fast_vibration(tmp_path, seed):
+    """50 um at 1 kHz (0.31 m/s, 1970 m/s^2), 40 ms at 0.3 m: its velocity reverses
+    within the tracker's leg-sized windows; the capture is converted over a
+    vibration's (fmcw_cl.motion.FAST): every pair valid, the swing's Doppler in the
+    mean spectra taken for no other echo, the displacement to nanometres."""
+    from fmcw_cl.simulator import vibration
+
+    path = tmp_path / "vibration.h5"
+    simulate_capture(path, vibration(0.04, 0.3, 50e-6, 1000.0), 0.04, seed=seed, config=SimulationConfig())
+    track = process(path)
+    assert track.attrs["motion"] == "fast" and track.valid.mean() >= 0.95
+    assert track.attrs["target_choice"] == "one echo: the target"
+    ok, err = _error(path, track)
+    assert ok.mean() >= 0.95 and np.sqrt(np.mean(err[ok] ** 2)) <= 20e-9
+    assert np.mean(np.abs(err[ok]) <= track.displacement_uncertainty_m[ok]) >= 0.9

@@ -74,7 +74,7 @@ def track(rt: Runtime, bufs: Buffers, rows: tuple[DeviceRows, DeviceRows], times
                             d_groups=times.device[3])
     dechirp = [(rows[0], model.beta_rise, None), (rows[1], model.beta_fall, None)]
     again = Packed(bufs, "track_pass", k_spectrum.parts(dechirp, pairs, model.nfft))
-    run = _Passes(rt, bufs, pairs, times, model, out.buffers[len(head):-1])
+    run = _Passes(rt, bufs, pairs, times, model, search.reach, out.buffers[len(head):-1])
     for it in range(iterations):
         got = (out if it == 0 else again).buffers      # each direction's peaks: parts 0, 1 and 6, 7
         run.launch(it, iterations, [got[i] for i in (0, 1, 6, 7)])
@@ -115,7 +115,7 @@ def integrated(rt: Runtime, bufs: Buffers, rows: tuple[DeviceRows, DeviceRows], 
     jobs = [(stores[0], *got[:3]), (stores[1], *got[3:])]
     measured = [got[0], got[1], got[3], got[4]]
     disp = bufs.get("track_disp", 4 * pairs)
-    run = _Passes(rt, bufs, pairs, times, model, out.buffers[:-2],
+    run = _Passes(rt, bufs, pairs, times, model, search.reach, out.buffers[:-2],
                   (got[5], bufs.constant("floors", floors(k), np.float64), disp))
     rt.kernel("track", "track_start")(rt.queue, *rt.items(pairs), np.int32(pairs), run.vd, disp, run.state)
     k_integrate.launch(rt, bufs, jobs, disp, d_bounds, k, search, run.state)
@@ -168,14 +168,15 @@ def _times_here(bufs: Buffers, times: pairing.Times) -> pairing.Times:
 
 
 class _Passes:
-    """kernels/track.cl's passes over `pairs` and their verdict, into the device buffers
-    `state` (`_state_parts`); `counted`, with integration: the measurements' counts of
-    spectra, the floors by count and the displacement (device buffers; None: every peak
-    heard over SNR_MIN_DB, the measurements the pairs listed)."""
+    """kernels/track.cl's passes over `pairs` (their velocity median over `reach`,
+    Search.reach) and their verdict, into the device buffers `state` (`_state_parts`);
+    `counted`, with integration: the measurements' counts of spectra, the floors by
+    count and the displacement (device buffers; None: every peak heard over
+    SNR_MIN_DB, the measurements the pairs listed)."""
 
     def __init__(self, rt: Runtime, bufs: Buffers, pairs: int, times: pairing.Times,
-                 model: pairing.DopplerModel, state: list, counted: tuple | None = None) -> None:
-        self.rt, self.pairs, self.times, self.model = rt, pairs, times, model
+                 model: pairing.DopplerModel, reach: int, state: list, counted: tuple | None = None) -> None:
+        self.rt, self.pairs, self.times, self.model, self.reach = rt, pairs, times, model, reach
         self.d_r, self.s_r, self.d_f, self.s_f, self.vd, self.valid, self.resid = state
         self.state = bufs.get("track_state", 8)   # [pairs listed, passes stopped]: the first pass sets
         self.vel, self.med, self.nxt = (bufs.get(f"track_{n}", 8 * pairs) for n in ("vel", "med", "next"))
@@ -206,7 +207,7 @@ class _Passes:
         self.kernel(self.rt.queue, (lsz,), (lsz,), i32(self.pairs), i32(it == 0), i32(it == iterations),
                     i32(self.every), *measured, self.slot, f64(m.metres_per_bin), d_mid, d_half, d_bounds,
                     f64(m.k_rise), f64(m.k_fall), self.d_r, self.d_f, self.s_r, self.s_f, self.vd,
-                    i32(pairing.NEIGHBOURS), f32(pairing.SNR_MIN_DB), *self.counted,
+                    i32(self.reach), f32(pairing.SNR_MIN_DB), *self.counted,
                     f64(pairing.CONSISTENT_MPS), f64(pairing.PLAIN_SHARE if it == 0 else 0.0),
                     f64(pairing.STOP_MPS), self.vel, self.med,
                     self.nxt, self.trusted, self.prev, *self.listed, self.state, self.disp,

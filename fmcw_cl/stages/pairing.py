@@ -31,7 +31,7 @@ SNR_MIN_DB = 10.0     # a half-sweep's peak must stand this far above the floor
 CONSISTENT_MPS = 0.1  # a velocity this far from its neighbours' median is an outlier
 PLAIN_SHARE = 0.2     # ... plus this share of |median| after the plain pass (its peaks smear)
 CONVERGED_MPS = 0.05  # final velocity correction must be below this (peak not smeared)
-NEIGHBOURS = 8        # half-width (pairs) of the continuity median
+NEIGHBOURS = Search.reach   # half-width (pairs) of the continuity median (a leg's; fmcw_cl.motion)
 STOP_MPS = 1e-3       # a pair is re-measured when its de-chirp velocity moves this much (at
                       # 1e-2 hunted take-offs beside walls got wrong valid pairs)
 JUMP_M = 0.25e-3      # a distance this far from its neighbours' prediction is discontinuous
@@ -616,9 +616,9 @@ def _each(groups: np.ndarray, step, pairs: int, dtype=np.float64) -> np.ndarray:
     return np.concatenate(parts) if parts else np.zeros(0, dtype)
 
 
-def running_median(v: np.ndarray, groups: np.ndarray | None = None) -> np.ndarray:
-    """Median of each pair's 2 NEIGHBOURS + 1 pairs (edges, a group's too: nearest)."""
-    return numeric.running_median(v, 2 * NEIGHBOURS + 1, group_ends(groups, v.size))
+def running_median(v: np.ndarray, groups: np.ndarray | None = None, reach: int = NEIGHBOURS) -> np.ndarray:
+    """Median of each pair's 2 reach + 1 pairs (edges, a group's too: nearest)."""
+    return numeric.running_median(v, 2 * reach + 1, group_ends(groups, v.size))
 
 
 def regularise(v: np.ndarray, trusted: np.ndarray, time: np.ndarray,
@@ -701,7 +701,7 @@ def track_pairs(xr: np.ndarray, xf: np.ndarray, times: Times, model: DopplerMode
     def tracked(k: int, state: Passes | None = None) -> PairResult:
         if state is None:
             state = ops.integrated((xr, xf), times, model, replace(search, echoes=False), iterations, k)
-        return result(first, state, times, model, dechirp)
+        return result(first, state, times, model, dechirp, search.reach)
 
     def chosen() -> PairResult:
         if integrate_k is not None and integrate_k > 1:
@@ -820,7 +820,7 @@ def passes(rows: tuple, times: Times, model: DopplerModel, search: Search, itera
         _, vel, _ = solve_pair(d_r, d_f, vd, half_gap, model)
         heard = (s_r >= snr_min) & (s_f >= snr_min)
         # the plain first pass smears fast targets: allow PLAIN_SHARE there, not later
-        med = running_median(vel, times.groups)
+        med = running_median(vel, times.groups, search.reach)
         tol = CONSISTENT_MPS + (PLAIN_SHARE * np.abs(med) if it == 0 else 0.0)
         v_next = regularise(vel, heard & (np.abs(vel - med) < tol), t_mid, med, times.groups)
         # the plain pass is the de-chirp at 0 m/s: a still pair is not measured again
@@ -837,27 +837,29 @@ def passes(rows: tuple, times: Times, model: DopplerModel, search: Search, itera
     return Passes(d_r, s_r, d_f, s_f, vd, count, k)
 
 
-def verdict(state: Passes, times: Times, model: DopplerModel) -> tuple[np.ndarray, np.ndarray]:
+def verdict(state: Passes, times: Times, model: DopplerModel, reach: int = NEIGHBOURS
+            ) -> tuple[np.ndarray, np.ndarray]:
     """Which pairs of the tracker's `state` are valid (both peaks heard, the last
     velocity correction below CONVERGED_MPS, the velocity within CONSISTENT_MPS of its
-    running median) and their continuity residuals (m) against the valid pairs
+    running median over `reach`) and their continuity residuals (m) against the valid pairs
     (`_residuals`); each group on its own (twin: kernels/track.cl)."""
     dist, vel, dv = solve_pair(state.d_r, state.d_f, state.vd, times.half_gap, model)
-    med = running_median(vel, times.groups)
+    med = running_median(vel, times.groups, reach)
     valid = state.heard & (np.abs(dv) < CONVERGED_MPS) & (np.abs(vel - med) < CONSISTENT_MPS)
     resid, _ = _residuals(times.mid, dist, vel, valid, ends=group_ends(times.groups, valid.size))
     return valid, resid
 
 
-def result(first: tuple, state: Passes, times: Times, model: DopplerModel, dechirp: bool) -> PairResult:
+def result(first: tuple, state: Passes, times: Times, model: DopplerModel, dechirp: bool,
+           reach: int = NEIGHBOURS) -> PairResult:
     """The pairs' distances, velocities and validity from the plain pass `first` and
-    the state after the de-chirp passes."""
+    the state after the de-chirp passes (`verdict` over `reach`)."""
     (d_r, s_r, *e_r), (d_f, s_f, *e_f) = first
     dist, vel, _ = solve_pair(state.d_r, state.d_f, state.vd, times.half_gap, model)
     heard = state.heard
     valid, continuous = heard, np.ones(heard.size, bool)
     if dechirp:
-        valid, resid = state.verdict or verdict(state, times, model)
+        valid, resid = state.verdict or verdict(state, times, model, reach)
         continuous = agreeing(resid, valid, times.groups)
     phases = [None, None] if state.phasors is None else list(state.phasors)
     return PairResult(dist, vel, valid, d_r.copy(), d_f.copy(), s_r.copy(), s_f.copy(), state.d_r, state.d_f,

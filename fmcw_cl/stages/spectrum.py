@@ -28,11 +28,14 @@ class Search:
         peak is the band's strongest.
     echoes : also list every CFAR echo from lo to the spectrum's end (stages.cfar; the
         plain first pass).
+    reach : the half-width (pairs) of the tracker's velocity median, its continuity
+        prior (stages.pairing; fmcw_cl.motion chooses it).
     """
 
     lo: int
     hi: int
     echoes: bool = False
+    reach: int = 8
 
 
 def fft_length(points: int) -> int:
