@@ -6,7 +6,7 @@ Scenes of the issue "Nanometres": a static target at 0.4 m (50 ms), at the defau
 SNR and at a lab's (`--lab`); a creep of 1 mm/s (200 ms), both; the 7 m/s jump
 (300 ms), both; a static target and the jump under speckle decorrelating in 3 ms;
 vibrations at 0.3 m (100 ms): 5 um at 200 Hz, 1 um at 1 kHz, 2 mm at 50 Hz, 50 um
-at 1 kHz. Default options, the
+at 1 kHz (also with `--lab`), 10 um at 1 kHz, 100 um at 700 Hz. Default options, the
 default backend. Per scene and seed: the distance's valid share, the displacement's
 valid share and stretches, its error against the truth (from the displacement's zero):
 rms and largest, the standard deviation of a static target's displacement, a creep's
@@ -41,6 +41,9 @@ SCENES = {
     "1 um at 1 kHz": ("vibration", {"amplitude_um": 1, "frequency_hz": 1000}),
     "2 mm at 50 Hz": ("vibration", {"amplitude_um": 2000, "frequency_hz": 50}),
     "50 um at 1 kHz": ("vibration", {}),
+    "50 um at 1 kHz, lab": ("vibration", {"lab": True}),
+    "10 um at 1 kHz": ("vibration", {"amplitude_um": 10, "frequency_hz": 1000}),
+    "100 um at 700 Hz": ("vibration", {"amplitude_um": 100, "frequency_hz": 700}),
 }
 
 
