@@ -240,12 +240,13 @@ def _cubic_steps(use: np.ndarray, t: np.ndarray, t_mid: np.ndarray, velocity: np
         k = np.arange(a, b - 1)                       # the steps k -> k + 1 of this piece
         first = np.clip(k - (order - 1) // 2, a, b - order)
         idx = first[:, None] + np.arange(order)       # the velocities about each step
-        centre = 0.5 * (t_mid[k] + t_mid[k + 1])
-        x = t_mid[idx] - centre[:, None]
+        # about the step's centre, in steps: the cubic's powers of comparable size
+        centre, h = 0.5 * (t_mid[k] + t_mid[k + 1]), t_mid[k + 1] - t_mid[k]
+        x = (t_mid[idx] - centre[:, None]) / h[:, None]
         coef = np.linalg.solve(x[:, :, None] ** np.arange(order), v[idx][:, :, None])[:, :, 0]   # sum c_j x^j
-        lo, hi = (t[use[k + s]] - centre for s in (0, 1))
+        lo, hi = ((t[use[k + s]] - centre) / h for s in (0, 1))
         powers = np.arange(1, order + 1)
-        out[a:b - 1] = np.sum(coef / powers * (hi[:, None] ** powers - lo[:, None] ** powers), axis=1)
+        out[a:b - 1] = h * np.sum(coef / powers * (hi[:, None] ** powers - lo[:, None] ** powers), axis=1)
     return out
 
 

@@ -118,20 +118,20 @@ def mismatches(held: Held, plan, lags: list[float], processor) -> list[Mismatch]
     at = held.at(lags)
     each = by_stretch(at, processor.process_apart(at))
     n = len(each) // len(lags)
-    return [mismatch(each[j * n: (j + 1) * n], plan.model, plan.motion.bias) for j in range(len(lags))]
+    return [mismatch(each[j * n: (j + 1) * n], plan.model, plan.motion) for j in range(len(lags))]
 
 
-def mismatch(stretches: list[list], model, window: int = SMOOTH.bias) -> Mismatch:
+def mismatch(stretches: list[list], model, motion: Motion = SMOOTH) -> Mismatch:
     """The kinematic inconsistency of converted trial stretches (each a list of
     ChunkMeasurements): their longest bridged runs' mean drift, its standard error and
-    the runs' mean distance (`pairs_of` over `window`)."""
+    the runs' mean distance (`pairs_of` over `motion`'s windows)."""
     slopes, errors, dist, every = [], [], [], []
     heard = [np.concatenate([q.result.velocity[q.result.heard] for q in parts])
              for parts in stretches if parts]
     for parts in stretches:
         if not parts:
             continue
-        t, d, v, ok = pairs_of(parts, model, window)
+        t, d, v, ok = pairs_of(parts, model, motion)
         every.append(np.where(ok, d, np.nan))
         run = max(bridged_runs(t, d, v, ok), key=np.size, default=np.zeros(0, np.int64))
         if run.size < MIN_RUN:
@@ -167,12 +167,11 @@ def bridged_runs(t: np.ndarray, d: np.ndarray, v: np.ndarray, ok: np.ndarray) ->
     return np.split(idx, np.flatnonzero((b - a > BRIDGE_PAIRS + 1) | ((b - a > 1) & (jump > BRIDGE_M))) + 1)
 
 
-def pairs_of(parts, model, window: int = SMOOTH.bias
-             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def pairs_of(parts, model, motion: Motion = SMOOTH) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Time (s), distance (m), velocity (m/s) and validity of the pairs of converted
     chunks (processor.ChunkMeasurements) of one stretch, the distances of valid runs
-    free of the acceleration's bias (pairing.acceleration_bias over `window` pairs, as
-    the track's are; `model`: the plan's DopplerModel)."""
+    free of the acceleration's bias (pairing.acceleration_bias, its acceleration over
+    `motion.bias` pairs, as the track's are; `model`: the plan's DopplerModel)."""
     t = np.concatenate([0.5 * (q.t_rise + q.t_fall) for q in parts])
     d = np.concatenate([q.result.distance for q in parts])
     v = np.concatenate([q.result.velocity for q in parts])
@@ -181,7 +180,8 @@ def pairs_of(parts, model, window: int = SMOOTH.bias
         # over a wider window than the track's: a trial's velocities may be noise (a
         # chirp far off its table: 17 mm/s a pair), whose acceleration must not move the
         # distances it is integrated against
-        held = kinematics.held_acceleration(np.where(ok, v, np.nan), ok, float(np.median(np.diff(t))), window)
+        held = kinematics.held_acceleration(np.where(ok, v, np.nan), ok, float(np.median(np.diff(t))),
+                                            motion.bias)
         half_gap = np.concatenate([0.5 * (q.t_fall - q.t_rise) for q in parts])
         d = d - pairing.acceleration_bias(held, half_gap, model)
     return t, d, v, ok

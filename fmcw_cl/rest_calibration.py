@@ -195,7 +195,7 @@ def calibrate(cap: Capture, plan: Plan, track: Track, processor: ChunkProcessor)
     # the scale from the motion, on a trial conversion without the survey of hidden echoes
     trial = replace(plan.with_chirp(shape, OWN_REST), survey=False)
     parts = capture_parts(cap, trial, processor)
-    k, sigma = kinematic_scale(*pairs_of(parts, trial.model, trial.motion.bias))
+    k, sigma = kinematic_scale(*pairs_of(parts, trial.model, trial.motion))
     if not sigma <= SCALE_SIGMA_MAX:
         return None, {"rest_calibration": f"its motion sets the distance scale to +-{sigma * 1e6:.0f} ppm "
                                           f"only (at most {SCALE_SIGMA_MAX * 1e6:.0f})"}

@@ -58,7 +58,7 @@ def moving_beside(cap: Capture, plan, processor, fixed_m: float) -> list[tuple[f
         for parts in by_stretch(held, processor.process_apart(held)):
             if not parts:
                 continue
-            tt, dd, vv, _ = pairs_of(parts, p.model, p.motion.bias)
+            tt, dd, vv, _ = pairs_of(parts, p.model, p.motion)
             code = faults.verified(tt, dd, vv, np.concatenate([q.reason for q in parts]), processor)
             t.append(tt)
             d.append(dd)

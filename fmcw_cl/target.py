@@ -88,7 +88,8 @@ REST_SIGMAS = 6.0     # a fixed object's pair further than this many robust sigm
 REST_M = 2.5e-4       # ... and than this is a blend with another echo beside it (a foot at rest 5 mm from
                       # a window read the window 3 mm off)
 SPLIT_M = 0.002       # a fixed echo's directions this far apart in the mean spectra: the conversion is off
-SMEAR_M = 0.001       # the tracked peaks swing with their Doppler shift beyond a resolution cell:
+SWING_FIT = 0.9       # the plain peaks' offsets their pairs' Doppler shifts explain (power share) ...
+SMEAR_M = 0.001       # ... and swing beyond a resolution cell with:
                       # the mean spectra's peaks within this beyond it are theirs (a vibration's
                       # half-sweeps' peaks swing +-9 mm at 0.31 m/s, +-1.8 at 0.06)
 HARMONICS = 3         # a fixed echo at 2..HARMONICS times the distance of a far stronger one ...
@@ -450,7 +451,7 @@ def _choose(rule: str, near_m: float | None, time_s, distance_m, velocity_mps, v
     elif fixed.size == 0:
         target = None
     elif fixed.size == 1:
-        reach = doppler_reach(e, time_s, distance_m, valid)
+        reach = doppler_reach(e, time_s, distance_m, velocity_mps, valid)
         swings = reach >= SMEAR_M                     # a target vibrating in place
         centre = float(np.median(distance_m[valid])) if swings else float("nan")
         if swings and abs(fixed[0] - centre) <= reach + SMEAR_M:
@@ -611,19 +612,33 @@ def _besides(e: echoes.Echoes, fixed_m: float, band, unambiguous_m: float, clipp
     return _merged(np.r_[near[np.abs(near - fixed_m) < APART_M], far])
 
 
-def doppler_reach(e: echoes.Echoes, time_s, distance_m, valid) -> float:
-    """How far (m) the tracked peaks of the plain pass (`e.tracked`) lie from their
-    verified pair's distance: their Doppler shift, 99 % of them within (0 without
-    any). A target at rest: noise, micrometres; a vibration of 50 um at 1 kHz: 9 mm,
-    its mean spectra's peaks at the ends of its swing in each direction."""
-    ok = np.flatnonzero(np.asarray(valid, bool) & np.isfinite(distance_m))
+def doppler_reach(e: echoes.Echoes, time_s, distance_m, velocity_mps, valid) -> float:
+    """How far (m) the tracked peaks of the plain pass (`e.tracked`) swing from their
+    verified pair's distance with its velocity: in each direction the peaks' offset is
+    fitted as a multiple of the pair's velocity (their Doppler shift, opposite in the
+    two), and where that explains SWING_FIT of the offsets' power in both, 99 % of the
+    fitted shifts lie within the reach; else 0 (a target at rest: noise; noise at full
+    scale: the tracked peaks anywhere, not with the velocity). A vibration of 50 um at
+    1 kHz: 9 mm, its mean spectra's peaks at the ends of its swing in each direction."""
+    ok = np.flatnonzero(np.asarray(valid, bool) & np.isfinite(distance_m) & np.isfinite(velocity_mps))
     t = e.time_s[e.tracked]
-    if ok.size == 0 or t.size == 0:
+    if ok.size < 2 or t.size == 0:
         return 0.0
     at = ok[nearest(time_s[ok], t)]
-    near = np.abs(time_s[at] - t) <= np.median(np.diff(time_s)) if time_s.size > 1 else np.ones(t.size, bool)
-    dev = np.abs(e.distance_m[e.tracked] - distance_m[at])[near]
-    return float(np.percentile(dev, 99)) if dev.size else 0.0
+    near = np.abs(time_s[at] - t) <= np.median(np.diff(time_s))
+    offset, v = (e.distance_m[e.tracked] - distance_m[at])[near], velocity_mps[at][near]
+    rising = e.rising[e.tracked][near]
+    reach = 0.0
+    for way in (rising, ~rising):
+        o, u = offset[way], v[way]
+        power, weight = float(np.sum(o * o)), float(np.sum(u * u))
+        if o.size < 2 or power == 0.0 or weight == 0.0:
+            return 0.0
+        shift = float(np.sum(o * u)) / weight * u              # the fitted Doppler shifts (m)
+        if 1.0 - float(np.sum((o - shift) ** 2)) / power < SWING_FIT:
+            return 0.0
+        reach = max(reach, float(np.percentile(np.abs(shift), 99)))
+    return reach
 
 
 def _split(e: echoes.Echoes, fixed_m: float, band) -> tuple[float, float] | None:
