@@ -90,7 +90,7 @@ def assemble(plan: Plan, parts: list[ChunkMeasurements], processor: ChunkProcess
     dist[~valid] = np.nan
     vel[~valid] = np.nan
     motion = plan.motion         # the windows the target's motion calls for (fmcw_cl.motion)
-    held = kinematics.held_acceleration(vel, valid, period_s, motion.window)
+    held = kinematics.held_acceleration(vel, valid, period_s, motion.window, motion.hold)
     bias = np.zeros(dist.size)
     if options.dechirp:         # the paper's method (--no-dechirp) is reported as the paper did
         bias = pairing.acceleration_bias(held, with_gaps(0.5 * (t_f - t_r), 0.0), plan.model)

@@ -39,12 +39,13 @@ class Motion:
     slope: int           # the distances' slope the velocity is checked against (uncertainty.SLOPE_PAIRS)
     bias: int            # a trial conversion's acceleration, for its distances' bias (refine.pairs_of:
                          # a leg's over 3 ms, as a trial's velocities may be noise)
+    hold: bool           # that acceleration held near a run's ends (kinematics.held_acceleration)
     curved: bool         # the phase's steps predicted by cubics, not trapezoids (fmcw_cl.displacement)
 
 
 SMOOTH = Motion("smooth", pairing.NEIGHBOURS, kinematics.WINDOW_PAIRS, uncertainty.SLOPE_PAIRS, bias=61,
-                curved=False)
-FAST = Motion("fast", reach=2, window=5, slope=7, bias=5, curved=True)
+                hold=True, curved=False)
+FAST = Motion("fast", reach=2, window=5, slope=7, bias=5, hold=False, curved=True)
 
 
 def reverses(velocities: list[np.ndarray]) -> tuple[float, float]:

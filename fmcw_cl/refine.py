@@ -181,7 +181,7 @@ def pairs_of(parts, model, motion: Motion = SMOOTH) -> tuple[np.ndarray, np.ndar
         # chirp far off its table: 17 mm/s a pair), whose acceleration must not move the
         # distances it is integrated against
         held = kinematics.held_acceleration(np.where(ok, v, np.nan), ok, float(np.median(np.diff(t))),
-                                            motion.bias)
+                                            motion.bias, motion.hold)
         half_gap = np.concatenate([0.5 * (q.t_fall - q.t_rise) for q in parts])
         d = d - pairing.acceleration_bias(held, half_gap, model)
     return t, d, v, ok
