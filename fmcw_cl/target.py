@@ -88,10 +88,10 @@ REST_SIGMAS = 6.0     # a fixed object's pair further than this many robust sigm
 REST_M = 2.5e-4       # ... and than this is a blend with another echo beside it (a foot at rest 5 mm from
                       # a window read the window 3 mm off)
 SPLIT_M = 0.002       # a fixed echo's directions this far apart in the mean spectra: the conversion is off
-SWING_FIT = 0.9       # the plain peaks' offsets their pairs' Doppler shifts explain (power share) ...
-SMEAR_M = 0.001       # ... and swing beyond a resolution cell with:
-                      # the mean spectra's peaks within this beyond it are theirs (a vibration's
-                      # half-sweeps' peaks swing +-9 mm at 0.31 m/s, +-1.8 at 0.06)
+SWING_FIT = 0.9       # a target swings where its pairs' Doppler shifts explain this share of its plain
+                      # peaks' offsets (their power) ...
+SMEAR_M = 0.001       # ... and reach a resolution cell; the mean spectra's peaks within its reach plus
+                      # this are its own (a vibration's peaks swing +-9 mm at 0.31 m/s, +-1.8 at 0.06)
 HARMONICS = 3         # a fixed echo at 2..HARMONICS times the distance of a far stronger one ...
 HARMONIC_M = 0.002    # ... within this (a distortion's tone lies at the multiple of the bin) ...
 HARMONIC_DB = 20.0    # ... and this much weaker is its harmonic (a target at rest 8.6 mm from twice

@@ -43,17 +43,14 @@ SLOPE_MIN_PAIRS = 7     # a run shorter than this cannot check its velocities
 SLOPE_SIGMAS = 5.0      # a velocity this many standard errors from the slope is not verified ...
 SLOPE_FLOOR_MPS = 0.01  # ... plus this (the distances' correlated errors: the table's ripple
                         # passed at speed)
-
+DISTANCE_SOURCES = ("noise", "scale", "resampling", "sync delay", "model", "integration")
+VELOCITY_SOURCES = ("noise", "sync delay", "time base", "integration")
 
 
 def check_said(window: int = SLOPE_PAIRS) -> str:
     """How `velocity_verified` checks a velocity, in words (a track's attribute)."""
     return (f"against the distances' slope (quadratic over {window} pairs) within {SLOPE_SIGMAS:g} "
             f"standard errors + {SLOPE_FLOOR_MPS:g} m/s")
-
-
-DISTANCE_SOURCES = ("noise", "scale", "resampling", "sync delay", "model", "integration")
-VELOCITY_SOURCES = ("noise", "sync delay", "time base", "integration")
 
 
 @dataclass
