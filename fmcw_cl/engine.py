@@ -135,7 +135,8 @@ def with_objects(found: list[objects.SceneObject], pick: int) -> Track:
     others = [o for k, o in enumerate(found) if k != pick]
     chosen_track.attrs.update(
         target_object=int(found[pick].id) if pick >= 0 else 0, objects=len(found),
-        target_others="; ".join(f"{objects.describe(o)}: --target-near {objects.where_m(o):.3f} chooses it"
+        target_others="; ".join(objects.describe(o) + (f": --target-near {objects.where_m(o):.3f} chooses it"
+                                                       if o.track.valid.any() else "")
                                 for o in others))
     chosen_track.objects = found
     return chosen_track

@@ -423,5 +423,7 @@ def where_m(o: SceneObject) -> float:
 def describe(o: SceneObject) -> str:
     """One object in a line's words: "#2 (moving, 0.404-0.436 m)"."""
     lo, hi = o.attrs()["distance_span_m"]
+    if not np.isfinite(lo):
+        return f"#{o.id} ({o.kind}, no verified pair)"
     where = f"{lo:.3f} m" if o.kind == "fixed" or abs(hi - lo) < 1e-3 else f"{lo:.3f}-{hi:.3f} m"
     return f"#{o.id} ({o.kind}, {where})"

@@ -82,6 +82,7 @@ APART_M = 0.02        # fixed echoes closer than this are one (a smeared peak's 
 MIN_TRAVEL_M = 0.01   # a moving echo's verified pairs span at least this (a biased velocity is no motion)
 TOGETHER_S = 2e-3    # pairs this close in time but APART_M apart are two moving echoes
 AWAY_SHARE = 0.5      # a fixed echo seen in this share of the slices where the target is away is an object
+AWAY_SWEEPS = 20      # ... judged by half-sweeps where no slice is away, by at least this many
 OTHERS_SHARE = 0.1    # "one echo" only while fewer half-sweeps than this share hold another echo (false
                       # alarms: 0.1-0.8 % of all; a rail start under noise at full scale beside a wall: 22 %)
 REST_SIGMAS = 6.0     # a fixed object's pair further than this many robust sigmas from its median ...
@@ -328,8 +329,27 @@ def _objects(fixed: np.ndarray, time_s, distance_m, valid, e: echoes.Echoes) -> 
         hits = np.bincount(ke[np.abs(de - f) <= 1.5 * echoes.HIST_M], minlength=nslices)
         peaks = np.bincount(kp[np.abs(dp - f) <= 1.5 * echoes.HIST_M], minlength=nslices)
         seen = away & (((sweeps > 0) & (hits >= echoes.PRESENT * sweeps)) | (peaks > 0))
-        out[n] = not away.any() or seen.sum() >= AWAY_SHARE * away.sum()
+        if away.any():
+            out[n] = seen.sum() >= AWAY_SHARE * away.sum()
+        else:                   # the target never leaves it by a slice: its half-sweeps tell
+            out[n] = bool(peaks.any()) or _beside(f, e)
     return out
+
+
+def _beside(f: float, e: echoes.Echoes) -> bool:
+    """Whether a fixed echo at `f` (m) is seen beside the tracked target in single
+    half-sweeps: of those whose tracked detection lies more than GATE_M from it (a
+    louder echo nearer may hide it from the CFAR), OTHERS_SHARE hold an untracked
+    detection within 1.5 echoes.HIST_M of it. True also where fewer than AWAY_SWEEPS
+    half-sweeps lie away (nothing tells). False: every detection there is the tracked
+    target's own (15 ms of a jump slowing onto its plateau, within a slice of it)."""
+    sweep, at = np.unique(e.time_s, return_inverse=True)     # a half-sweep's detections share its time
+    near = np.abs(e.distance_m - f) <= 1.5 * echoes.HIST_M
+    away = np.zeros(sweep.size, bool)
+    away[at[e.tracked & (np.abs(e.distance_m - f) > GATE_M)]] = True
+    other = np.zeros(sweep.size, bool)
+    other[at[~e.tracked & near]] = True
+    return bool(away.sum() < AWAY_SWEEPS or (other & away).sum() >= OTHERS_SHARE * away.sum())
 
 
 def _gap(span: tuple[float, float], fixed: np.ndarray, band) -> tuple[float, float | None]:

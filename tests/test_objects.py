@@ -281,3 +281,17 @@ def test_one_object_is_the_target(jump_track):
     only = track.objects[0].track
     assert np.array_equal(only.valid, track.valid)
     assert np.array_equal(only.distance_m[only.valid], track.distance_m[track.valid])
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_a_short_capture_slowing_onto_its_plateau_is_one_object(scenes, seed):
+    """15 ms of the jump slowing from 2.6 m/s onto its plateau, nothing else in view:
+    its rest is its own, not a fixed object it cannot be told from (no 10 ms slice
+    leaves it, so the half-sweeps tell: every detection there is the tracked peak's).
+    One moving object, >= 90 % of its periods valid, none wrong."""
+    track, truths = scenes("slow plateau, 15 ms", seed)
+    scores = object_scores(track, truths)
+    assert sum(s["wrong"] for s in scores) == 0, scores
+    assert len(track.objects) == 1 and track.objects[0].kind == "moving"
+    assert _best(scores, 0) >= 0.9 and track.valid.mean() >= 0.9, scores
+    assert track.attrs["target_others"] == ""

@@ -769,3 +769,31 @@ def test_a_weak_target_at_rest_under_noise_at_full_scale_is_never_a_wall(tmp_pat
     with Capture(path) as cap:
         assert wrong(track, cap.truth()) == 0
     assert track.attrs["target_choice"] != "one echo: the target"
+
+
+@pytest.mark.parametrize("wall", [False, True])
+def test_a_fixed_echo_the_target_never_leaves_by_a_slice_is_judged_by_half_sweeps(wall):
+    """15 ms of a target slowing from 0.268 m onto 0.282 m: its slow end clusters into a
+    fixed echo at 0.282 m, and no 10 ms slice's median lies GATE_M from it. Where every
+    detection near it is the tracked peak's, it is the target's own rest (no object);
+    where a third of the half-sweeps whose tracked peak lies away hold another
+    detection there, a wall stands beside the target (an object)."""
+    from fmcw_cl import echoes, target
+
+    sweeps = np.arange(600) * 25e-6 + 12.5e-6
+    rising = np.arange(600) % 2 == 0
+    v = np.clip(2.6 * (1 - sweeps / 0.012), 0, None)                    # slowing to rest at 12 ms
+    d = 0.282 - 0.5 * 2.6 / 0.012 * np.clip(0.012 - sweeps, 0, None) ** 2
+    plain = d + np.where(rising, -1, 1) * 0.0091 * v                    # each direction's Doppler image
+    snr, tracked = np.full(600, 20.0), np.ones(600, bool)
+    if wall:
+        sweeps, rising = np.repeat(sweeps, 2), np.repeat(rising, 2)
+        plain = np.c_[plain, np.where(np.arange(600) % 3 == 0, 0.2825, np.nan)].ravel()
+        snr, tracked = np.repeat(snr, 2), np.c_[tracked, ~tracked].ravel()
+        keep = np.isfinite(plain)
+        sweeps, rising, plain = sweeps[keep], rising[keep], plain[keep]
+        snr, tracked = snr[keep], tracked[keep]
+    e = echoes.Echoes(sweeps, plain, snr, rising, tracked, {})
+    t = np.arange(300) * 50e-6 + 25e-6
+    pair = 0.282 - 0.5 * 2.6 / 0.012 * np.clip(0.012 - t, 0, None) ** 2
+    assert target._objects(np.array([0.282]), t, pair, np.ones(300, bool), e).tolist() == [wall]
