@@ -18,10 +18,12 @@ pairs are verified as the target's are. Then:
   band holds is something passing, or a blend with an echo beside it;
 - where two objects lie within GATE_M of each other at one time (`conflicts`: their
   verified pairs across gaps of up to BRIDGE_S, a fixed one's span all along), or a
-  pair lies on another's harmonic (`harmonics`) or de-chirped image (`images`), their
-  echoes cannot be told apart there: ``ambiguous`` on both, never given to the wrong one;
-- an object last seen where another of its kind is first seen, within RETURN_M, the
-  two never seen at once, is one object that was hidden or faded (`returns`, `joined`);
+  pair lies on another's harmonic (`harmonics`) or de-chirped image (`images`, along
+  a mover's `course`), their echoes cannot be told apart there: ``ambiguous`` on both,
+  never given to the wrong one;
+- an object last seen where another of its kind is first seen, within RETURN_M (as it
+  lay, or moved on at its velocities), the two never seen at once, is one object that
+  was hidden or faded (`returns`, `joined`);
 - the target is the object the rule names (`choose`): `auto` takes a moving one before
   a fixed one, the one that travels furthest (a leg before a swaying cable); where no
   object moves and several hold verified pairs, nothing tells which is the target, and
@@ -47,6 +49,8 @@ SAME_M = 5e-4            # two candidates' verified pairs this close ...
 SAME_SHARE = 0.8         # ... at this share of the pairs both hold: one echo
 RETURN_M = 0.04          # an object seen again within this of where it was last seen is the same one
 BRIDGE_S = 5e-3          # an object's path is interpolated across gaps this short
+COURSE_S = 0.01          # a moving object's images are looked for this far beyond its verified pairs
+                         # (moved on at their velocity: 25 mm at 500 m/s^2, inside an image's reach)
 MAX_OBJECTS = 8          # candidates converted at most (the nearest first)
 KINDS = ("fixed", "moving")
 
@@ -208,6 +212,30 @@ def path(track: Track) -> np.ndarray:
     return out
 
 
+def course(track: Track, reach_s: float = COURSE_S) -> tuple[np.ndarray, np.ndarray]:
+    """An object's distance (m) and velocity (m/s) at each pair as far as its motion
+    tells: its `path` (the velocities interpolated alike), and beyond it, within
+    `reach_s` of the nearest verified pair, that pair's distance moved on at its
+    velocity; NaN further."""
+    where = path(track)
+    ok = np.flatnonzero(track.valid)
+    if ok.size == 0:
+        return where, where.copy()
+    t, d, v = track.time_s, track.distance_m, track.velocity_mps
+    u = np.interp(t, t[ok], v[ok])
+    u[np.isnan(where)] = np.nan
+    gap = np.flatnonzero(np.isnan(where))
+    nxt = np.searchsorted(ok, gap)
+    before, after = ok[np.maximum(nxt - 1, 0)], ok[np.minimum(nxt, ok.size - 1)]
+    near = np.where(np.abs(t[gap] - t[before]) <= np.abs(t[after] - t[gap]), before, after)
+    dt = t[gap] - t[near]
+    reach = np.abs(dt) <= reach_s
+    gap, near, dt = gap[reach], near[reach], dt[reach]
+    where[gap] = d[near] + v[near] * dt
+    u[gap] = v[near]
+    return where, u
+
+
 def conflicts(tracks: list[Track], fixed: list[bool] | None = None) -> list[np.ndarray]:
     """For each track, the pairs where another object's path (`path`) lies within
     GATE_M of its own: the two echoes cannot be told apart there. A `fixed` object is
@@ -278,42 +306,54 @@ def _pair_of_sweeps(t: Track) -> np.ndarray:
     return np.clip(np.searchsorted(t.time_s, mid), 0, t.pairs - 1)
 
 
-def images(tracks: list[Track], moving: list[bool], model, window: np.ndarray) -> list[np.ndarray]:
+def images(tracks: list[Track], model, window: np.ndarray) -> list[np.ndarray]:
     """For each track, the verified pairs whose de-chirped peaks could be the image of
-    another object that moves (`moving`; fmcw_cl.wall_images.confused_moving, at its
-    path, velocity and median level; a fixed one's images are the target choice's
-    `walls_m`): a band left empty of echoes lets a tracker hold another's image (a
-    rail's, de-chirped 10 m/s off, 0.3 m beyond it)."""
+    another object (fmcw_cl.wall_images.confused_moving, along its `course`, at its
+    velocity and median level): a band left empty of echoes lets a tracker hold
+    another's image (a rail's, de-chirped 10 m/s off, 0.3 m beyond it). A fixed one's
+    too, beside the target choice's `walls_m`: a cable swaying +-10 mm at 0.19 m/s,
+    listed at 0.260 m, put its image 15 mm from that of a still tone there."""
     from .wall_images import confused_moving
 
     out = [np.zeros(t.pairs, bool) for t in tracks]
     sources = {}                        # each moving object's path, velocity and level
     for j, b in enumerate(tracks):
-        if moving[j] and b.valid.any():
-            where = path(b)
-            u = np.interp(b.time_s, b.time_s[b.valid], b.velocity_mps[b.valid])
-            u[np.isnan(where)] = np.nan
-            sources[j] = (where, u, level(b))
+        if b.valid.any():
+            sources[j] = (*course(b), path(b), level(b))
     for i, a in enumerate(tracks):
         if not a.valid.any():
             continue
         peaks, snr = per_pair(a, "sweep_distance_dechirped_m"), per_pair(a, "sweep_snr_dechirped_db")
-        for j, (where, u, top) in sources.items():
-            if j != i:
-                out[i] |= a.valid & confused_moving(a.velocity_mps, tuple(peaks), tuple(snr), where, u, top,
-                                                    model, window, a.valid)
+        for j, (where, u, known, top) in sources.items():
+            if j == i:
+                continue
+            out[i] |= a.valid & confused_moving(a.velocity_mps, tuple(peaks), tuple(snr), known, u, top,
+                                                model, window, a.valid)
+            # beyond its verified pairs its level is not known (an integrated track's peaks
+            # stand as high as an image 10 dB under the mover: taken as strong enough); near
+            # its course the other may be this one itself, seen again (`conflicts`, `returns`)
+            beyond = np.where(np.isnan(known) & (np.abs(a.distance_m - where) > GATE_M), where, np.nan)
+            out[i] |= a.valid & confused_moving(a.velocity_mps, tuple(peaks), tuple(snr), beyond, u, np.inf,
+                                                model, window, a.valid)
     return out
 
 
 def returns(a: Track, b: Track) -> bool:
     """Whether `b` is `a` seen again: never verified at one time, and the first of the
-    later one's verified pairs within RETURN_M of the last of the earlier one's."""
+    later one's verified pairs within RETURN_M of the last of the earlier one's, as they
+    lie or moved on by the trapezoid of their two velocities (a rail that crossed a
+    swaying cable 60 mm on)."""
     if not a.valid.any() or not b.valid.any() or np.any(a.valid & b.valid):
         return False
     ia, ib = np.flatnonzero(a.valid), np.flatnonzero(b.valid)
     if ib[-1] < ia[0]:
         a, b, ia, ib = b, a, ib, ia
-    return bool(ia[-1] < ib[0] and abs(b.distance_m[ib[0]] - a.distance_m[ia[-1]]) <= RETURN_M)
+    if ia[-1] >= ib[0]:
+        return False
+    last, first = ia[-1], ib[0]
+    moved = b.distance_m[first] - a.distance_m[last]
+    run = 0.5 * (a.velocity_mps[last] + b.velocity_mps[first]) * (b.time_s[first] - a.time_s[last])
+    return bool(min(abs(moved), abs(moved - run)) <= RETURN_M)
 
 
 def joined(a: Track, b: Track) -> Track:

@@ -220,11 +220,12 @@ def _distinct(done: list[Converted], first: First, seconds, processor) -> list[C
 def _exclusive(done: list[Converted], first: First, seconds, processor) -> list[Converted]:
     """Each conversion assembled again where another object's path comes within
     objects.GATE_M of its own, a harmonic of another's (objects.harmonics) or its
-    de-chirped image (objects.images): those pairs `ambiguous` (target.Choice.taken_s)."""
+    de-chirped image (objects.images): those pairs `ambiguous` (target.Choice.taken_s),
+    and so is a pair verified only once they are taken out (not checked against the others)."""
     tracks, moving = [d.track for d in done], [_moving(d) for d in done]
     clash = objects.conflicts(tracks, [not m for m in moving])
     ghost = objects.harmonics(tracks, first.plan.lut.unambiguous_range_m)
-    image = objects.images(tracks, moving, first.plan.model, first.plan.window)
+    image = objects.images(tracks, first.plan.model, first.plan.window)
     out = []
     for d, c, g, m in zip(done, clash, ghost, image, strict=True):
         c = (c | g | m) & d.track.valid
@@ -234,7 +235,10 @@ def _exclusive(done: list[Converted], first: First, seconds, processor) -> list[
             d = replace(d, track=track)
         elif c.any():
             choice = replace(d.choice, taken_s=np.sort(d.track.time_s[c]))
-            d = replace(d, choice=choice, track=_again(d, choice, processor, seconds))
+            again = _again(d, choice, processor, seconds)
+            # the tests above saw the pairs valid before: one verified only now is unchecked
+            objects.invalidate(again, again.valid & ~d.track.valid)
+            d = replace(d, choice=choice, track=again)
         out.append(d)
     return out
 
