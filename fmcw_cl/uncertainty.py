@@ -19,7 +19,9 @@ velocity
     noise: its local scatter; sync delay: the refined delay's uncertainty as a
     velocity; time base: the sync's measured period against the file's attributes,
     |ratio - 1| (|v| + the median |v|: the delay refined on the target moves with it);
-    integration: a K T / sqrt(12).
+    integration: a K T / sqrt(12) for K > 1 half-sweeps summed (K = 1: none, a pair's
+    velocity is its half-sweeps' mean, the truth at its centre under a steady
+    acceleration).
 """
 
 from __future__ import annotations
@@ -231,7 +233,10 @@ def pair_uncertainty(distance: np.ndarray, velocity: np.ndarray, valid: np.ndarr
         # the target by as much of its mean speed (the refinement balances the distances
         # against the integrated velocity, both on the wrong clock)
         "time base": abs(finite_or_zero(period_ratio) - 1.0) * (np.abs(velocity) + typical),
-        "integration": a * span / np.sqrt(12),
+        # a pair's own two half-sweeps give their mean velocity, the truth at its centre
+        # under a steady acceleration: only K > 1 summed along the tracked velocity smear
+        # (a K T / sqrt(12) at K = 1 made a jump's velocity uncertainty 13x its error)
+        "integration": np.where(np.asarray(integrated) > 1, a * span / np.sqrt(12), 0.0),
     }
     for src, ok in ((d_src, valid), (v_src, np.asarray(velocity_valid, bool))):
         for name in src:
@@ -269,13 +274,16 @@ def budget_from_attrs(attrs: dict, quantity: str) -> list[tuple[str, float, floa
 
 
 def acceleration_uncertainty(acceleration: np.ndarray, acceleration_valid: np.ndarray, noise_mps: np.ndarray,
-                             period_s: float, window: int = kinematics.WINDOW_PAIRS) -> np.ndarray:
+                             period_s: float, window: int = kinematics.WINDOW_PAIRS,
+                             period_ratio: float = 1.0) -> np.ndarray:
     """Expanded uncertainty (k = COVERAGE, m/s^2) of each valid acceleration, a
     Savitzky-Golay derivative (quadratic over `window` pairs) of the velocities: their
-    noise through the derivative's weights, sqrt(sum w_j^2 sigma_j^2); and the smoothing's
+    noise through the derivative's weights, sqrt(sum w_j^2 sigma_j^2); the smoothing's
     bias, which a quadratic leaves where the acceleration bends: the fitted slope is
     v' + v''' T^2 sum k^4 / (6 sum k^2), v''' = a'' taken over half a window either
-    side. NaN where the acceleration is not valid."""
+    side; and the time base, 2 |period_ratio - 1| |a| (a clock off by r scales the
+    time by r and the velocity by about 1 / r: the acceleration by 1 / r^2). NaN where
+    the acceleration is not valid."""
     ok = np.asarray(acceleration_valid, bool)
     half = window // 2
     weights = savgol_rows(window, 2)[half] / period_s
@@ -295,5 +303,6 @@ def acceleration_uncertainty(acceleration: np.ndarray, acceleration_valid: np.nd
     for lo, hi in runs(ok):
         seen = curve[lo:hi][np.isfinite(curve[lo:hi])]
         curve[lo:hi] = np.where(np.isfinite(curve[lo:hi]), curve[lo:hi], seen.max() if seen.size else 0.0)
-    u = np.hypot(np.sqrt(var), bend * curve)
+    clock = 2 * abs(finite_or_zero(period_ratio) - 1.0) * np.abs(np.nan_to_num(a))
+    u = np.sqrt(var + (bend * curve) ** 2 + clock**2)
     return np.where(ok, COVERAGE * u, np.nan)

@@ -191,3 +191,42 @@ def test_the_resampling_bound_grows_with_the_beat_frequency():
     # a noise-free table's static biases (seeds 1-5): within 1 um at 0.1-0.3 m, up to
     # 5.6 um at 0.45 m; the bound (sqrt 3 u) holds the latter
     assert 0.5e-6 < np.sqrt(3) * u[1] < 5e-6 and 5.6e-6 < np.sqrt(3) * u[2] < 15e-6
+
+
+def _uncertainty_of(integrated: np.ndarray, period_ratio: float = 1.0):
+    """pair_uncertainty of 2000 noise-free pairs accelerating at 300 m/s^2."""
+    from fmcw_cl.uncertainty import pair_uncertainty
+
+    t, d, v = motion(2000, 1, sigma_m=0.0, sigma_mps=0.0)
+    n = d.size
+    ok = np.ones(n, bool)
+    zero = np.zeros(n)
+    return pair_uncertainty(d, v, ok, ok, zero, zero, np.full(n, 1e-7), np.full(n, 300.0), zero,
+                            integrated, period_s=T, scale_ppm=0.0, delay_m=0.0, delay_mps=0.0,
+                            period_ratio=period_ratio)
+
+
+def test_a_single_pairs_velocity_carries_no_integration_smear():
+    """A pair's two half-sweeps give their mean velocity, which under a steady
+    acceleration is the truth at the pair's centre: no integration term at K = 1 (it
+    made a clean jump's velocity uncertainty 13x its error); K half-sweeps summed along
+    the tracked velocity keep a K T / sqrt(12)."""
+    single = _uncertainty_of(np.ones(2000))
+    assert np.all(single.velocity_sources["integration"] == 0.0)
+    summed = _uncertainty_of(np.full(2000, 16))
+    assert np.allclose(summed.velocity_sources["integration"], 300.0 * 16 * T / np.sqrt(12))
+    assert np.all(summed.velocity_mps > single.velocity_mps)
+
+
+def test_an_accelerations_uncertainty_holds_a_wrong_clock():
+    """A clock 1 % off scales a 300 m/s^2 acceleration by about 2 %: 6 m/s^2, held in
+    its uncertainty (k = 2: 12 m/s^2), none where the clock is right."""
+    from fmcw_cl.uncertainty import acceleration_uncertainty
+
+    n = 400
+    a = np.full(n, 300.0)
+    ok = np.ones(n, bool)
+    right = acceleration_uncertainty(a, ok, np.zeros(n), T)
+    wrong = acceleration_uncertainty(a, ok, np.zeros(n), T, period_ratio=1.01)
+    assert np.allclose(right[20:-20], 0.0)
+    assert np.allclose(wrong[20:-20], 2 * 2 * 0.01 * 300.0)
