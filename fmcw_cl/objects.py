@@ -49,7 +49,7 @@ SAME_M = 5e-4            # two candidates' verified pairs this close ...
 SAME_SHARE = 0.8         # ... at this share of the pairs both hold: one echo
 RETURN_M = 0.04          # an object seen again within this of where it was last seen is the same one
 BRIDGE_S = 5e-3          # an object's path is interpolated across gaps this short
-COURSE_S = 0.01          # a moving object's images are looked for this far beyond its verified pairs
+COURSE_S = 0.01          # an object's images are looked for this far beyond its verified pairs
                          # (moved on at their velocity: 25 mm at 500 m/s^2, inside an image's reach)
 MAX_OBJECTS = 8          # candidates converted at most (the nearest first)
 KINDS = ("fixed", "moving")
@@ -316,7 +316,7 @@ def images(tracks: list[Track], model, window: np.ndarray) -> list[np.ndarray]:
     from .wall_images import confused_moving
 
     out = [np.zeros(t.pairs, bool) for t in tracks]
-    sources = {}                        # each moving object's path, velocity and level
+    sources = {}                        # each object's course, velocity, verified path and level
     for j, b in enumerate(tracks):
         if b.valid.any():
             sources[j] = (*course(b), path(b), level(b))

@@ -235,7 +235,6 @@ def pair_uncertainty(distance: np.ndarray, velocity: np.ndarray, valid: np.ndarr
         "time base": abs(finite_or_zero(period_ratio) - 1.0) * (np.abs(velocity) + typical),
         # a pair's own two half-sweeps give their mean velocity, the truth at its centre
         # under a steady acceleration: only K > 1 summed along the tracked velocity smear
-        # (a K T / sqrt(12) at K = 1 made a jump's velocity uncertainty 13x its error)
         "integration": np.where(np.asarray(integrated) > 1, a * span / np.sqrt(12), 0.0),
     }
     for src, ok in ((d_src, valid), (v_src, np.asarray(velocity_valid, bool))):
