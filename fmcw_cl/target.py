@@ -303,10 +303,12 @@ def _together(a: np.ndarray, b: np.ndarray) -> bool:
 def _objects(fixed: np.ndarray, time_s, distance_m, valid, e: echoes.Echoes) -> np.ndarray:
     """Whether each fixed echo stays while the tracked target is elsewhere: seen in
     AWAY_SHARE of the slices (of >= 20 valid pairs) whose valid pairs' median lies more
-    than GATE_M from it (so in every slice, when there is none), by the CFAR (in
-    echoes.PRESENT of the slice's half-sweeps) or at a peak of a mean spectrum of the
-    slice (a wall of 150 codes, found by the mean spectra alone, stood at 0.309 m while a
-    take-off went on below it: taken for the target at rest, 374 pairs on it were valid)."""
+    than GATE_M from it, by the CFAR (in echoes.PRESENT of the slice's half-sweeps) or at
+    a peak of a mean spectrum of the slice (a wall of 150 codes, found by the mean
+    spectra alone, stood at 0.309 m while a take-off went on below it: taken for the
+    target at rest, 374 pairs on it were valid); where no slice is away, `_beside`. What
+    the tracked target's own plain peaks make (a tracked detection, `_own_peaks`) is not
+    the echo seen: its Doppler image lies beside it."""
     if fixed.size == 0 or time_s.size == 0:
         return np.zeros(fixed.size, bool)
     t0 = time_s.min()
@@ -320,19 +322,38 @@ def _objects(fixed: np.ndarray, time_s, distance_m, valid, e: echoes.Echoes) -> 
     ke, de = ke[inside], e.distance_m[inside]
     first = np.diff(e.time_s[inside], prepend=np.nan) != 0    # a half-sweep's first echo (none: none)
     sweeps = np.bincount(ke[first], minlength=nslices)
+    own = e.tracked[inside]                 # the target itself, its Doppler image in a plain spectrum
     kp = ((e.means["peak_time_s"] - t0) // echoes.SLICE_S).astype(np.int64)     # the mean spectra's peaks
-    kept = (kp >= 0) & (kp < nslices)
+    kept = (kp >= 0) & (kp < nslices) & ~_own_peaks(e, float(np.median(np.diff(time_s))))
     kp, dp = kp[kept], e.means["peak_distance_m"][kept]
     out = np.zeros(fixed.size, bool)
     for n, f in enumerate(fixed):
         away = full & (np.abs(mid - f) > GATE_M)
-        hits = np.bincount(ke[np.abs(de - f) <= 1.5 * echoes.HIST_M], minlength=nslices)
+        hits = np.bincount(ke[~own & (np.abs(de - f) <= 1.5 * echoes.HIST_M)], minlength=nslices)
         peaks = np.bincount(kp[np.abs(dp - f) <= 1.5 * echoes.HIST_M], minlength=nslices)
         seen = away & (((sweeps > 0) & (hits >= echoes.PRESENT * sweeps)) | (peaks > 0))
         if away.any():
             out[n] = seen.sum() >= AWAY_SHARE * away.sum()
         else:                   # the target never leaves it by a slice: its half-sweeps tell
             out[n] = bool(peaks.any()) or _beside(f, e)
+    return out
+
+
+def _own_peaks(e: echoes.Echoes, period_s: float) -> np.ndarray:
+    """Which peaks of the mean spectra (`e.means`) the tracked target's own plain peaks
+    make: echoes.PRESENT of its direction's tracked detections within half a block of
+    the mean spectrum's time (echoes.MEAN_ROWS surveyed half-sweeps, every
+    echoes.SURVEY_STRIDE-th pair of `period_s`) lie within 1.5 echoes.HIST_M of the
+    peak (a landing turning at 0.4 m/s puts one direction's image 11 mm beside its
+    pairs; a jump slowing onto its plateau, its image's end at its rest)."""
+    m = e.means
+    t, d, rising = m["peak_time_s"], m["peak_distance_m"], m["peak_rising"]
+    half = 0.5 * echoes.MEAN_ROWS * echoes.SURVEY_STRIDE * period_s
+    tt, dt, rt = e.time_s[e.tracked], e.distance_m[e.tracked], e.rising[e.tracked]
+    out = np.zeros(t.size, bool)
+    for i in range(t.size):
+        sel = (rt == rising[i]) & (np.abs(tt - t[i]) <= half)
+        out[i] = bool(sel.any()) and np.mean(np.abs(dt[sel] - d[i]) <= 1.5 * echoes.HIST_M) >= echoes.PRESENT
     return out
 
 
@@ -472,8 +493,10 @@ def _choose(rule: str, near_m: float | None, time_s, distance_m, velocity_mps, v
         target = None
     elif fixed.size == 1:
         reach = doppler_reach(e, time_s, distance_m, velocity_mps, valid)
-        swings = reach >= SMEAR_M                     # a target vibrating in place
+        swings = reach >= SMEAR_M                     # a target vibrating in place, or creeping to rest
         centre = float(np.median(distance_m[valid])) if swings else float("nan")
+        # where its pairs lie (a creep of up to MIN_TRAVEL_M to rest), its Doppler images beside
+        lo, hi = np.percentile(distance_m[valid], [1, 99]) if swings else (np.nan, np.nan)
         if swings and abs(fixed[0] - centre) <= reach + SMEAR_M:
             fixed = np.array([centre])                # the end of its own swing: it is where its pairs are
         seen = _others(e, fixed[0], band, 2 * np.size(time_s))
@@ -483,7 +506,7 @@ def _choose(rule: str, near_m: float | None, time_s, distance_m, velocity_mps, v
                                f"than the fixed echo at {_list(fixed)}: the target cannot be told apart")
         hidden = _besides(e, fixed[0], band, unambiguous_m, clipped)
         if swings:                                    # its own swing fills the mean spectra
-            hidden = [x for x in hidden if abs(x - centre) > reach + SMEAR_M]
+            hidden = [x for x in hidden if not lo - reach - SMEAR_M <= x <= hi + reach + SMEAR_M]
         if hidden:                                    # an echo too weak or too near for the CFAR
             # the tracker may follow either: a wall the target's CFAR echoes outnumber, its
             # pairs 16 mm from the fixed echo (noise at full scale)
@@ -513,6 +536,11 @@ def _choose(rule: str, near_m: float | None, time_s, distance_m, velocity_mps, v
         return Choice(name, fixed, objects, None, False, band, fixed.copy(),
                       ambiguous_spans_m=np.zeros((0, 2)) if away is None else np.asarray([away[1:]]),
                       note=f"no echo moves: the fixed echoes at {_list(fixed)}{held} cannot be told apart")
+    if target is None and _swinging(e, time_s, distance_m, velocity_mps, valid):
+        # no echo stays put, none travels, but the tracked peaks swing with the pairs'
+        # velocities and the distances follow them: one echo (a foot bouncing +-4 mm)
+        return Choice(name, fixed, objects, None, False, band,
+                      note="one echo, swinging with its velocity (no fixed or moving echo): the target")
     if target is None:        # no echo: a moving target seen too briefly stands, one at rest on nothing
         return Choice(name, fixed, objects, None, False, band, unseen_rest=True,
                       note="no echo found, fixed or moving: the verified pairs in motion stand")
@@ -659,6 +687,19 @@ def doppler_reach(e: echoes.Echoes, time_s, distance_m, velocity_mps, valid) -> 
             return 0.0
         reach = max(reach, float(np.percentile(np.abs(shift), 99)))
     return reach
+
+
+def _swinging(e: echoes.Echoes, time_s, distance_m, velocity_mps, valid) -> bool:
+    """Whether the verified pairs are one echo in motion though no echo of the tables
+    stays or travels: their tracked plain peaks swing with their velocities
+    (`doppler_reach` >= SMEAR_M: noise cannot) and their distances follow those
+    velocities (numeric.drift within pairing.DRIFT_MPS: a wall at rest read at 0.35 m/s
+    under a delay 77 samples off has plain peaks offset with its constant velocity, but
+    its distances stand still)."""
+    ok = np.asarray(valid, bool) & np.isfinite(distance_m) & np.isfinite(velocity_mps)
+    if ok.sum() < 3 or doppler_reach(e, time_s, distance_m, velocity_mps, valid) < SMEAR_M:
+        return False
+    return abs(drift(time_s[ok], distance_m[ok], velocity_mps[ok])[0]) <= DRIFT_MPS
 
 
 def _split(e: echoes.Echoes, fixed_m: float, band) -> tuple[float, float] | None:

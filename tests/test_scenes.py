@@ -797,3 +797,52 @@ def test_a_fixed_echo_the_target_never_leaves_by_a_slice_is_judged_by_half_sweep
     t = np.arange(300) * 50e-6 + 25e-6
     pair = 0.282 - 0.5 * 2.6 / 0.012 * np.clip(0.012 - t, 0, None) ** 2
     assert target._objects(np.array([0.282]), t, pair, np.ones(300, bool), e).tolist() == [wall]
+
+
+@pytest.mark.parametrize("wall", [False, True])
+def test_a_targets_own_doppler_image_is_not_an_echo_seen_while_it_is_away(wall):
+    """A landing turning at 0.072 m at +-0.4 m/s: one direction's tracked plain peak lies
+    11 mm beside its pairs, at 0.062 m, in the slice where they lie 11.5 mm from it.
+    Those detections are the target's own image: the fixed echo they make is no object
+    unless something untracked is seen there too (a wall in half the half-sweeps)."""
+    from fmcw_cl import echoes, target
+
+    sweeps = np.arange(1200) * 25e-6 + 12.5e-6                       # 30 ms
+    rising = np.arange(1200) % 2 == 0
+    pair_d = np.where(sweeps < 0.01, 0.085, np.where(sweeps < 0.02, 0.071, 0.0735))
+    plain = pair_d + np.where(rising, -0.011, 0.011) * (sweeps >= 0.01)
+    snr, tracked = np.full(1200, 20.0), np.ones(1200, bool)
+    if wall:
+        extra = np.flatnonzero(np.arange(1200) % 2 == 1)
+        sweeps = np.r_[sweeps, sweeps[extra]]
+        rising = np.r_[rising, rising[extra]]
+        plain = np.r_[plain, np.full(extra.size, 0.062)]
+        snr, tracked = np.r_[snr, snr[extra]], np.r_[tracked, np.zeros(extra.size, bool)]
+        order = np.argsort(sweeps, kind="stable")
+        sweeps, rising, plain, snr, tracked = (x[order] for x in (sweeps, rising, plain, snr, tracked))
+    e = echoes.Echoes(sweeps, plain, snr, rising, tracked, {})
+    t = np.arange(600) * 50e-6 + 25e-6
+    d = np.where(t < 0.01, 0.085, np.where(t < 0.02, 0.071, 0.0735))
+    assert target._objects(np.array([0.062]), t, d, np.ones(600, bool), e).tolist() == [wall]
+
+
+@pytest.mark.parametrize("still", [False, True])
+def test_pairs_swinging_with_their_velocity_are_one_echo_unless_they_stand_still(still):
+    """No echo stays or travels: a foot bouncing +-4 mm at 20 Hz is one echo, its
+    tracked plain peaks offset with its velocities (27 mm per m/s, opposite in the two
+    directions) and its distances following them. A wall at rest read at a constant
+    0.35 m/s (a delay 77 samples off) offsets its peaks as alike, but its distances stand
+    still: not that."""
+    from fmcw_cl import echoes, target
+
+    t = np.arange(800) * 50e-6 + 25e-6                                   # 40 ms of pairs
+    if still:
+        d, v = np.full(t.size, 0.30), np.full(t.size, 0.35)
+    else:
+        d = 0.074 + 0.004 * np.sin(2 * np.pi * 20 * t)
+        v = 0.004 * 2 * np.pi * 20 * np.cos(2 * np.pi * 20 * t)
+    sweeps = np.repeat(t, 2) + np.tile([-12.5e-6, 12.5e-6], t.size)
+    rising = np.tile([True, False], t.size)
+    plain = np.repeat(d, 2) + np.where(rising, -0.027, 0.027) * np.repeat(v, 2)
+    e = echoes.Echoes(sweeps, plain, np.full(sweeps.size, 20.0), rising, np.ones(sweeps.size, bool), {})
+    assert target._swinging(e, t, d, v, np.ones(t.size, bool)) is (not still)
