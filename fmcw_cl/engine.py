@@ -109,7 +109,7 @@ def chosen(cap: Capture, plan: Plan, processor: ChunkProcessor, track: Track
     (fmcw_cl.second_look, by `processor`) beside a lone fixed echo; the fixed echoes of
     its tables and the moving echoes the second look found."""
     fixed = target.fixed_of(track.echoes, plan.lut.unambiguous_range_m, track.time_s, track.distance_m,
-                            track.valid)
+                            track.velocity_mps, track.valid)
     choice = choose_target(plan, track, fixed)
     beside: list[tuple[float, float]] = []
     if choice.lone:

@@ -300,7 +300,7 @@ def _together(a: np.ndarray, b: np.ndarray) -> bool:
     return bool(np.any(np.abs(a[nearest(a, b)] - b) < TOGETHER_S))
 
 
-def _objects(fixed: np.ndarray, time_s, distance_m, valid, e: echoes.Echoes) -> np.ndarray:
+def _objects(fixed: np.ndarray, time_s, distance_m, velocity_mps, valid, e: echoes.Echoes) -> np.ndarray:
     """Whether each fixed echo stays while the tracked target is elsewhere: seen in
     AWAY_SHARE of the slices (of >= 20 valid pairs) whose valid pairs' median lies more
     than GATE_M from it, by the CFAR (in echoes.PRESENT of the slice's half-sweeps) or at
@@ -322,9 +322,10 @@ def _objects(fixed: np.ndarray, time_s, distance_m, valid, e: echoes.Echoes) -> 
     ke, de = ke[inside], e.distance_m[inside]
     first = np.diff(e.time_s[inside], prepend=np.nan) != 0    # a half-sweep's first echo (none: none)
     sweeps = np.bincount(ke[first], minlength=nslices)
-    own = e.tracked[inside]                 # the target itself, its Doppler image in a plain spectrum
+    mine = _images(e, time_s, distance_m, velocity_mps, valid)    # the target's own Doppler images
+    own = mine[inside]
     kp = ((e.means["peak_time_s"] - t0) // echoes.SLICE_S).astype(np.int64)     # the mean spectra's peaks
-    kept = (kp >= 0) & (kp < nslices) & ~_own_peaks(e, float(np.median(np.diff(time_s))))
+    kept = (kp >= 0) & (kp < nslices) & ~_own_peaks(e, mine, float(np.median(np.diff(time_s))))
     kp, dp = kp[kept], e.means["peak_distance_m"][kept]
     out = np.zeros(fixed.size, bool)
     for n, f in enumerate(fixed):
@@ -339,17 +340,40 @@ def _objects(fixed: np.ndarray, time_s, distance_m, valid, e: echoes.Echoes) -> 
     return out
 
 
-def _own_peaks(e: echoes.Echoes, period_s: float) -> np.ndarray:
+def _images(e: echoes.Echoes, time_s, distance_m, velocity_mps, valid) -> np.ndarray:
+    """Which detections of the echo table are the tracked target's own plain peaks where
+    its verified pairs put them: tracked, and within 1.5 echoes.HIST_M of their pair's
+    distance moved by its direction's Doppler shift, k v with k fitted over the
+    capture (`doppler_reach`'s fit). A tracked detection elsewhere is what the plain
+    pass held instead (a wall, while the de-chirped pairs followed the target)."""
+    out = np.zeros(e.time_s.size, bool)
+    ok = np.flatnonzero(np.asarray(valid, bool) & np.isfinite(distance_m) & np.isfinite(velocity_mps))
+    held = np.flatnonzero(e.tracked)
+    if ok.size < 2 or held.size == 0:
+        return out
+    at = ok[nearest(time_s[ok], e.time_s[held])]
+    near = np.abs(time_s[at] - e.time_s[held]) <= np.median(np.diff(time_s))
+    held, at = held[near], at[near]
+    offset, v = e.distance_m[held] - distance_m[at], velocity_mps[at]
+    for way in (True, False):
+        m = e.rising[held] == way
+        weight = float(np.sum(v[m] ** 2))
+        k = float(np.sum(offset[m] * v[m])) / weight if weight > 0 else 0.0
+        out[held[m]] = np.abs(offset[m] - k * v[m]) <= 1.5 * echoes.HIST_M
+    return out
+
+
+def _own_peaks(e: echoes.Echoes, mine: np.ndarray, period_s: float) -> np.ndarray:
     """Which peaks of the mean spectra (`e.means`) the tracked target's own plain peaks
-    make: echoes.PRESENT of its direction's tracked detections within half a block of
-    the mean spectrum's time (echoes.MEAN_ROWS surveyed half-sweeps, every
+    make: echoes.PRESENT of its direction's own images (`mine`, `_images`) within half a
+    block of the mean spectrum's time (echoes.MEAN_ROWS surveyed half-sweeps, every
     echoes.SURVEY_STRIDE-th pair of `period_s`) lie within 1.5 echoes.HIST_M of the
     peak (a landing turning at 0.4 m/s puts one direction's image 11 mm beside its
     pairs; a jump slowing onto its plateau, its image's end at its rest)."""
     m = e.means
     t, d, rising = m["peak_time_s"], m["peak_distance_m"], m["peak_rising"]
     half = 0.5 * echoes.MEAN_ROWS * echoes.SURVEY_STRIDE * period_s
-    tt, dt, rt = e.time_s[e.tracked], e.distance_m[e.tracked], e.rising[e.tracked]
+    tt, dt, rt = e.time_s[mine], e.distance_m[mine], e.rising[mine]
     out = np.zeros(t.size, bool)
     for i in range(t.size):
         sel = (rt == rising[i]) & (np.abs(tt - t[i]) <= half)
@@ -407,12 +431,13 @@ class Fixed:
     objects: np.ndarray
 
 
-def fixed_of(e: echoes.Echoes, unambiguous_m: float, time_s, distance_m, valid) -> Fixed:
+def fixed_of(e: echoes.Echoes, unambiguous_m: float, time_s, distance_m, velocity_mps, valid) -> Fixed:
     """The `Fixed` echoes of a first conversion's echo table `e` and pairs (times s,
-    distances m, valid), for `choose`; `unambiguous_m` is the capture's unambiguous range."""
+    distances m, velocities m/s, valid), for `choose`; `unambiguous_m` is the capture's
+    unambiguous range."""
     listed = _found(e)
     d, level = fixed_echoes(e, unambiguous_m, listed)
-    return Fixed(listed, d, level, _objects(d, time_s, distance_m, valid, e))
+    return Fixed(listed, d, level, _objects(d, time_s, distance_m, velocity_mps, valid, e))
 
 
 def choose(rule: str, near_m: float | None, time_s, distance_m, velocity_mps, valid,
@@ -431,7 +456,7 @@ def choose(rule: str, near_m: float | None, time_s, distance_m, velocity_mps, va
     echo on each side of the fixed objects inside its span (fmcw_cl.scene), so its band
     is never one side of them."""
     if fixed is None:
-        fixed = fixed_of(e, unambiguous_m, time_s, distance_m, valid)
+        fixed = fixed_of(e, unambiguous_m, time_s, distance_m, velocity_mps, valid)
     listed, d, level = fixed.listed, fixed.distance_m, fixed.level_db
     # each fixed echo stands for those within APART_M of it (walls 12.6 mm apart are one)
     members = np.asarray([x for x, _ in listed])
@@ -466,7 +491,7 @@ def _choose(rule: str, near_m: float | None, time_s, distance_m, velocity_mps, v
     if fixed.size == 0 and not spans:   # none at a slice's or a block's level: those the capture's show
         fixed = _whole(e, band)
         extent = np.c_[fixed, fixed]
-        objects = _objects(fixed, time_s, distance_m, valid, e)
+        objects = _objects(fixed, time_s, distance_m, velocity_mps, valid, e)
     name = rule if near_m is None else f"near {near_m:g} m"
     if rule == "strongest" and near_m is None:
         return Choice(name, fixed, objects, None, False, band, note="the strongest echo of the band")

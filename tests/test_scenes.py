@@ -796,7 +796,8 @@ def test_a_fixed_echo_the_target_never_leaves_by_a_slice_is_judged_by_half_sweep
     e = echoes.Echoes(sweeps, plain, snr, rising, tracked, {})
     t = np.arange(300) * 50e-6 + 25e-6
     pair = 0.282 - 0.5 * 2.6 / 0.012 * np.clip(0.012 - t, 0, None) ** 2
-    assert target._objects(np.array([0.282]), t, pair, np.ones(300, bool), e).tolist() == [wall]
+    speed = np.gradient(pair, t)
+    assert target._objects(np.array([0.282]), t, pair, speed, np.ones(300, bool), e).tolist() == [wall]
 
 
 @pytest.mark.parametrize("wall", [False, True])
@@ -823,7 +824,8 @@ def test_a_targets_own_doppler_image_is_not_an_echo_seen_while_it_is_away(wall):
     e = echoes.Echoes(sweeps, plain, snr, rising, tracked, {})
     t = np.arange(600) * 50e-6 + 25e-6
     d = np.where(t < 0.01, 0.085, np.where(t < 0.02, 0.071, 0.0735))
-    assert target._objects(np.array([0.062]), t, d, np.ones(600, bool), e).tolist() == [wall]
+    v = np.where(t < 0.01, 0.0, 0.4)                    # its images: 0.0275 m per m/s, opposite ways
+    assert target._objects(np.array([0.062]), t, d, v, np.ones(600, bool), e).tolist() == [wall]
 
 
 @pytest.mark.parametrize("still", [False, True])
