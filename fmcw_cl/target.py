@@ -347,18 +347,10 @@ def _images(e: echoes.Echoes, time_s, distance_m, velocity_mps, valid) -> np.nda
     capture (`doppler_reach`'s fit). A tracked detection elsewhere is what the plain
     pass held instead (a wall, while the de-chirped pairs followed the target)."""
     out = np.zeros(e.time_s.size, bool)
-    ok = np.flatnonzero(np.asarray(valid, bool) & np.isfinite(distance_m) & np.isfinite(velocity_mps))
-    held = np.flatnonzero(e.tracked)
-    if ok.size < 2 or held.size == 0:
-        return out
-    at = ok[nearest(time_s[ok], e.time_s[held])]
-    near = np.abs(time_s[at] - e.time_s[held]) <= np.median(np.diff(time_s))
-    held, at = held[near], at[near]
-    offset, v = e.distance_m[held] - distance_m[at], velocity_mps[at]
+    held, offset, v = _offsets(e, time_s, distance_m, velocity_mps, valid)
     for way in (True, False):
         m = e.rising[held] == way
-        weight = float(np.sum(v[m] ** 2))
-        k = float(np.sum(offset[m] * v[m])) / weight if weight > 0 else 0.0
+        k = _shift_per_mps(offset[m], v[m])
         out[held[m]] = np.abs(offset[m] - k * v[m]) <= 1.5 * echoes.HIST_M
     return out
 
@@ -693,25 +685,41 @@ def doppler_reach(e: echoes.Echoes, time_s, distance_m, velocity_mps, valid) -> 
     fitted shifts lie within the reach; else 0 (a target at rest: noise; noise at full
     scale: the tracked peaks anywhere, not with the velocity). A vibration of 50 um at
     1 kHz: 9 mm, its mean spectra's peaks at the ends of its swing in each direction."""
-    ok = np.flatnonzero(np.asarray(valid, bool) & np.isfinite(distance_m) & np.isfinite(velocity_mps))
-    t = e.time_s[e.tracked]
-    if ok.size < 2 or t.size == 0:
-        return 0.0
-    at = ok[nearest(time_s[ok], t)]
-    near = np.abs(time_s[at] - t) <= np.median(np.diff(time_s))
-    offset, v = (e.distance_m[e.tracked] - distance_m[at])[near], velocity_mps[at][near]
-    rising = e.rising[e.tracked][near]
+    held, offset, v = _offsets(e, time_s, distance_m, velocity_mps, valid)
+    rising = e.rising[held]
     reach = 0.0
     for way in (rising, ~rising):
         o, u = offset[way], v[way]
         power, weight = float(np.sum(o * o)), float(np.sum(u * u))
         if o.size < 2 or power == 0.0 or weight == 0.0:
             return 0.0
-        shift = float(np.sum(o * u)) / weight * u              # the fitted Doppler shifts (m)
+        shift = _shift_per_mps(o, u) * u                      # the fitted Doppler shifts (m)
         if 1.0 - float(np.sum((o - shift) ** 2)) / power < SWING_FIT:
             return 0.0
         reach = max(reach, float(np.percentile(np.abs(shift), 99)))
     return reach
+
+
+def _offsets(e: echoes.Echoes, time_s, distance_m, velocity_mps, valid
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The tracked detections of the echo table that lie within a period of a verified
+    pair (their indices), their offsets from that pair's distance (m) and its velocity
+    (m/s); all empty with under two verified pairs."""
+    ok = np.flatnonzero(np.asarray(valid, bool) & np.isfinite(distance_m) & np.isfinite(velocity_mps))
+    held = np.flatnonzero(e.tracked)
+    if ok.size < 2 or held.size == 0:
+        return np.zeros(0, np.int64), np.zeros(0), np.zeros(0)
+    at = ok[nearest(time_s[ok], e.time_s[held])]
+    near = np.abs(time_s[at] - e.time_s[held]) <= np.median(np.diff(time_s))
+    held, at = held[near], at[near]
+    return held, e.distance_m[held] - distance_m[at], velocity_mps[at]
+
+
+def _shift_per_mps(offset: np.ndarray, velocity: np.ndarray) -> float:
+    """The least-squares Doppler shift per m/s (m) of one direction's `offset`s (m) at
+    their pairs' `velocity` (m/s); 0 where every velocity is 0."""
+    weight = float(np.sum(velocity**2))
+    return float(np.sum(offset * velocity)) / weight if weight > 0 else 0.0
 
 
 def _swinging(e: echoes.Echoes, time_s, distance_m, velocity_mps, valid) -> bool:
