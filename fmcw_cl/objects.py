@@ -42,6 +42,7 @@ import numpy as np
 
 from . import target
 from .stages import faults
+from .stages.clutter import STILL_S
 from .track import Track
 
 GATE_M = target.GATE_M   # two objects this close at one time cannot be told apart
@@ -51,6 +52,8 @@ RETURN_M = 0.04          # an object seen again within this of where it was last
 BRIDGE_S = 5e-3          # an object's path is interpolated across gaps this short
 COURSE_S = 0.01          # an object's images are looked for this far beyond its verified pairs
                          # (moved on at their velocity: 25 mm at 500 m/s^2, inside an image's reach)
+STILL_M = 5e-4           # an object whose verified distances span at most this is still (`still`)
+STILL_ATTR = "still_echoes_removed_s"   # a track's attribute: its rows' running mean's span (s; 0: none)
 MAX_OBJECTS = 8          # candidates converted at most (the nearest first)
 KINDS = ("fixed", "moving")
 
@@ -236,14 +239,16 @@ def course(track: Track, reach_s: float = COURSE_S) -> tuple[np.ndarray, np.ndar
     return where, u
 
 
-def conflicts(tracks: list[Track], fixed: list[bool] | None = None) -> list[np.ndarray]:
+def conflicts(tracks: list[Track], fixed: list[bool] | None = None,
+              unseen: set[tuple[int, int]] = frozenset()) -> list[np.ndarray]:
     """For each track, the pairs where another object's path (`path`) lies within
     GATE_M of its own: the two echoes cannot be told apart there. A `fixed` object is
     there all along, at the span of its verified distances (1st-99th percentile),
     whether or not its own track holds it then: a pair of another within GATE_M of that
     span is ambiguous on both (a cable swaying +-10 mm, a fixed echo of the tables,
     whose band edge cut its near swing: the rail's tracker held that swing once the
-    rail had left its band)."""
+    rail had left its band). Not where (i, j) is `unseen`: track i's rows hold nothing
+    of object j (a still one, taken out of a mover's rows: fmcw_cl.scene)."""
     fixed = fixed or [False] * len(tracks)
     paths = [path(t) for t in tracks]
     out = [np.zeros(t.pairs, bool) for t in tracks]
@@ -253,8 +258,9 @@ def conflicts(tracks: list[Track], fixed: list[bool] | None = None) -> list[np.n
             for a, b in ((i, j), (j, i)):
                 if fixed[b] and tracks[b].valid.any():
                     close |= _within_span(tracks[b], paths[a])
-            out[i] |= close
-            out[j] |= close
+            for a, b in ((i, j), (j, i)):
+                if (a, b) not in unseen:
+                    out[a] |= close
     return out
 
 
@@ -306,13 +312,15 @@ def _pair_of_sweeps(t: Track) -> np.ndarray:
     return np.clip(np.searchsorted(t.time_s, mid), 0, t.pairs - 1)
 
 
-def images(tracks: list[Track], model, window: np.ndarray) -> list[np.ndarray]:
+def images(tracks: list[Track], model, window: np.ndarray,
+           unseen: set[tuple[int, int]] = frozenset()) -> list[np.ndarray]:
     """For each track, the verified pairs whose de-chirped peaks could be the image of
     another object (fmcw_cl.wall_images.confused_moving, along its `course`, at its
     velocity and median level): a band left empty of echoes lets a tracker hold
     another's image (a rail's, de-chirped 10 m/s off, 0.3 m beyond it). A fixed one's
     too, beside the target choice's `walls_m`: a cable swaying +-10 mm at 0.19 m/s,
-    listed at 0.260 m, put its image 15 mm from that of a still tone there."""
+    listed at 0.260 m, put its image 15 mm from that of a still tone there. Not where
+    (i, j) is `unseen` (`conflicts`): no image of j in track i's rows."""
     from .wall_images import confused_moving
 
     out = [np.zeros(t.pairs, bool) for t in tracks]
@@ -325,7 +333,7 @@ def images(tracks: list[Track], model, window: np.ndarray) -> list[np.ndarray]:
             continue
         peaks, snr = per_pair(a, "sweep_distance_dechirped_m"), per_pair(a, "sweep_snr_dechirped_db")
         for j, (where, u, known, top) in sources.items():
-            if j == i:
+            if j == i or (i, j) in unseen:
                 continue
             out[i] |= a.valid & confused_moving(a.velocity_mps, tuple(peaks), tuple(snr), known, u, top,
                                                 model, window, a.valid)
@@ -336,6 +344,20 @@ def images(tracks: list[Track], model, window: np.ndarray) -> list[np.ndarray]:
             out[i] |= a.valid & confused_moving(a.velocity_mps, tuple(peaks), tuple(snr), beyond, u, np.inf,
                                                 model, window, a.valid)
     return out
+
+
+def still(track: Track, wavelength_m: float) -> bool:
+    """Whether an object is still enough that rows without still echoes
+    (stages.clutter) hold nothing of it: its verified distances span at most STILL_M
+    (1st-99th percentile: no sway), and their trend moves it less than a quarter
+    wavelength over the running mean's span (stages.clutter.STILL_S)."""
+    ok = track.valid
+    if ok.sum() < 20:
+        return False
+    t, d = track.time_s[ok], track.distance_m[ok]
+    lo, hi = np.percentile(d, [1, 99])
+    slope = np.polyfit(t - t.mean(), d, 1)[0] if np.ptp(t) > 0 else np.inf
+    return bool(hi - lo <= STILL_M and abs(slope) * STILL_S < wavelength_m / 4)
 
 
 def returns(a: Track, b: Track) -> bool:
@@ -416,6 +438,12 @@ def _cut_displacement(t: Track, hit: np.ndarray) -> None:
     t.displacement_stretch = np.where(lost, -1, t.displacement_stretch)
     for name in ("displacement_m", "displacement_uncertainty_m"):
         setattr(t, name, np.where(lost, np.nan, getattr(t, name)))
+
+
+def no_displacement(t: Track) -> None:
+    """No pair of `t` has a valid displacement (its phase is not to be followed)."""
+    if t.displacement_valid is not None:
+        _cut_displacement(t, np.ones(t.pairs, bool))
 
 
 def recount(t: Track) -> None:

@@ -60,6 +60,8 @@ class Plan:
     chirp: Chirp | None = None               # the chirp of CALIBRATION or OWN_REST
     period_ratio: float = 1.0    # the sync's measured period over the attributes' (check_sync_period)
     motion: Motion = SMOOTH      # the windows the pairs are fitted over (fmcw_cl.motion; `refine` chooses)
+    still_half: int = 0          # pairs each side of the running mean taken from the rows (stages.clutter;
+                                 # 0: none): an object that moves among fixed ones (fmcw_cl.scene)
 
     def with_band(self, band: tuple[float, float | None]) -> Plan:
         """The plan with the peak search in `band` (m)."""

@@ -24,7 +24,7 @@ import numpy as np
 
 from . import echoes
 from .errors import FmcwError
-from .stages import faults, integrate, lpf, pairing, resample, sync
+from .stages import clutter, faults, integrate, lpf, pairing, resample, sync
 from .stages.spectrum import Search
 
 if TYPE_CHECKING:
@@ -315,7 +315,7 @@ class ChunkProcessor(pairing.SpectrumOps):
         hs, r, f, times = found
         jobs = [(hs.start[r], hs.length[r], plan.lut.u_rise), (hs.start[f], hs.length[f], plan.lut.u_fall)]
         rows, times = self.resample_pairs(chunk.beat, jobs, plan.window, times)
-        return tuple(rows), times
+        return self._moving_only(rows), times
 
     def process_apart(self, held: Held) -> list[list[ChunkMeasurements]]:
         """`[process(chunk, prepared) for each of held]` in one pass, each chunk at its
@@ -355,7 +355,8 @@ class ChunkProcessor(pairing.SpectrumOps):
                  [a.size for a, _ in side])
                 for side, u in zip(sides, (plan.lut.u_rise, plan.lut.u_fall), strict=True)]
         times = pairing.Times(np.concatenate(rise), np.concatenate(fall), np.array(groups))
-        (xr, xf), times = self.resample_pairs(held.beat, jobs, plan.window, times)
+        rows, times = self.resample_pairs(held.beat, jobs, plan.window, times)
+        xr, xf = self._moving_only(rows)
         res = pairing.track_pairs(xr, xf, times, plan.model, plan.search, plan.options.iterations,
                                   plan.options.dechirp, self, k or 1)
         out, slices = [], iter(pairing.group_slices(times.groups, times.rise.size))
@@ -432,6 +433,16 @@ class ChunkProcessor(pairing.SpectrumOps):
         t_r, t_f = chunk.times
         return ChunkMeasurements(t_r[chunk.own], t_f[chunk.own], sel, reason, table, chunk.clipped_codes,
                                  *spectrum)
+
+    def _moving_only(self, rows: list) -> tuple:
+        """A chunk's (rising, falling) rows, their still echoes taken out where the plan
+        says (Plan.still_half)."""
+        half = self.plan.still_half
+        return tuple(self.without_still(x, half) for x in rows) if half else tuple(rows)
+
+    def without_still(self, rows, half: int):
+        """`clutter.without_still` of `rows` (a device: where they are)."""
+        return clutter.without_still(rows, half)
 
     def resample_pairs(self, codes, jobs, win, times: pairing.Times) -> tuple[list, pairing.Times]:
         """`resample_each` of a chunk's pairs (rising, falling) and their `times` for the

@@ -19,11 +19,11 @@ from .chunks import capture_parts
 from .options import RANGE_GAP_M
 from .plan import Plan
 from .processor import ChunkMeasurements, ChunkProcessor
+from .stages import clutter
 from .track import Track
 
-# a moving echo's side bands end this far from a fixed object inside its span (a target
-# through a wall at 0.25 m: 73 and 79 % of its periods valid on two seeds; 15 mm: 72 and
-# 78 %, its path within GATE_M of the wall ambiguous all the same)
+# a mover's side bands end this far from a fixed object inside its span, where rows without
+# still echoes still hold it (`_convert`)
 SIDE_MARGIN_M = target.WALL_MARGIN_M
 
 
@@ -87,7 +87,9 @@ def objects_of(cap: Capture, first: First, choice: target.Choice, own: Converted
             break
         extra = found
     done = _distinct(done, first, seconds, processor)
-    done = _exclusive(done, first, seconds, processor)
+    unseen = {(i, j) for i, d in enumerate(done) for j in _unseen(d, done, first)}
+    done = _unveiled(done, unseen, seconds, processor)
+    done = _exclusive(done, unseen, first, seconds, processor)
     of = {id(d.track): d for d in done}
     scene = _rejoined([objects.SceneObject(0, _moving(d), d.track, d.choice.note) for d in done])
     scene.sort(key=lambda o: (o.attrs()["first_seen_s"] if o.track.valid.any() else np.inf,
@@ -126,12 +128,11 @@ def _convert(cap: Capture, first: First, c: objects.Candidate, spans: list[tuple
     """Candidate `c` converted in its own band (target.choose with `near_m` at its centre,
     its kind before the other at a tie), the measurements of a band already converted
     (`made`) assembled again. A moving echo whose span holds fixed objects is converted
-    in its band and on each side of them (SIDE_MARGIN_M off), the tracks one
-    (objects.joined; where two verify one pair more than objects.SAME_M apart, it is
-    `ambiguous`): a band that holds a wall lets the tracker hold the wall while the
-    target is weaker, a side loses the target near it. `own`: the target's conversion,
-    where it holds this candidate but not alone (one side of the fixed objects inside
-    its span: target.choose), joined the same way."""
+    on rows without still echoes (stages.clutter; none of a still echo's images looked
+    for, no displacement: the running mean bends a slow mover's phase). `own`: the
+    target's conversion, where it holds this candidate but not alone (one side of the
+    fixed objects inside its span: target.choose), the tracks one (objects.joined; where
+    both verify a pair more than objects.SAME_M apart, it is `ambiguous`)."""
     tr = first.track
     beside = list(spans) + ([] if c.fixed or c.moving else [(c.lo, c.hi)])
     choice = target.choose("auto", c.centre_m, tr.time_s, tr.distance_m, tr.velocity_mps, tr.valid, tr.echoes,
@@ -139,39 +140,68 @@ def _convert(cap: Capture, first: First, c: objects.Candidate, spans: list[tuple
                            fixed=first.fixed, moving=c.moving, sides=c.moving)
     if c.fixed:
         choice = replace(choice, at_rest_m=c.centre_m)
-    bands = [choice.band_m]
-    if c.moving and choice.moving and choice.ambiguous_m.size:
-        bands += _sides(choice.band_m, choice.ambiguous_m)
+    # a mover among fixed objects: its rows without still echoes, its band whole
+    still = clutter.half_width(cap.info.modulation.period_s) if (
+        c.moving and choice.moving and choice.ambiguous_m.size) else 0
     # the user's --target-near chooses among the objects, and need not lie in this one's band
     unnamed = replace(first.plan, options=replace(first.plan.options, target_near=None))
-    out = None
-    if own is not None and own.choice.band_m not in bands:
-        bands.append(own.choice.band_m)
-    for band in bands:
-        plan = unnamed.with_band(band)
-        if own is not None and band == own.choice.band_m:
-            side, parts, track = own.choice, own.parts, replace(own.track, attrs=dict(own.track.attrs))
-        else:
-            if band not in made:
-                made[band] = capture_parts(cap, plan, processor, progress=progress)
-            side, parts = replace(choice, band_m=band), made[band]
-            seen = tr.echoes if band == first.plan.options.band_m else None     # the band's own echo table
-            track = assemble(plan, parts, processor, seconds(), side, seen)
-        if out is None:
-            out = Converted(c, side, plan, parts, track)
-        else:                           # a side's pairs where only it holds them; both apart: ambiguous
-            both = out.track.valid & track.valid
-            apart = both & (np.abs(out.track.distance_m - track.distance_m) > objects.SAME_M)
-            objects.invalidate(out.track, apart)
-            objects.invalidate(track, apart | both)
-            joined = objects.joined(out.track, track)
-            pick = track.valid.sum() > out.track.valid.sum()
-            out = Converted(c, side if pick else out.choice, plan if pick else out.plan,
-                            parts if pick else out.parts, joined, True)
-    if len(bands) > 1:
+
+    def one(band: tuple[float, float | None], half: int) -> Converted:
+        plan = replace(unnamed.with_band(band), still_half=half)
+        if own is not None and (band, half) == (own.choice.band_m, 0):
+            return Converted(c, own.choice, plan, own.parts, replace(own.track, attrs=dict(own.track.attrs)))
+        key = (band, half) if half else band
+        if key not in made:
+            made[key] = capture_parts(cap, plan, processor, progress=progress)
+        side = replace(choice, band_m=band)
+        if half:        # no still echo's image in these rows; a trembling one's: `_stays`, `_exclusive`
+            side = replace(side, walls_m=np.zeros(0), walls_db=np.zeros(0))
+        seen = tr.echoes if key == first.plan.options.band_m else None     # the band's own echo table
+        track = _assembled(plan, made[key], processor, seconds, side, seen)
+        return Converted(c, side, plan, made[key], track)
+
+    items = [(choice.band_m, still)]
+    done = [one(*items[0])]
+    if still and _stays(done[0].track, choice.ambiguous_m, first):
+        items += [(b, still) for b in _sides(choice.band_m, choice.ambiguous_m)]
+        done += [one(*item) for item in items[1:]]
+    if own is not None and (own.choice.band_m, 0) not in items:
+        items.append((own.choice.band_m, 0))
+        done.append(one(*items[-1]))
+    out = done[0]
+    for d in done[1:]:                  # the other's pairs where only it holds them; both apart: ambiguous
+        both = out.track.valid & d.track.valid
+        apart = both & (np.abs(out.track.distance_m - d.track.distance_m) > objects.SAME_M)
+        objects.invalidate(out.track, apart)
+        objects.invalidate(d.track, apart | both)
+        joined = objects.joined(out.track, d.track)
+        out = replace(d if d.track.valid.sum() > out.track.valid.sum() else out, track=joined, joined=True)
+    if len(items) > 1:
         out.track.attrs["object_bands_m"] = np.asarray([(a, np.nan if b is None else b)
-                                                         for a, b in bands]).ravel()
+                                                         for (a, b), _ in items]).ravel()
     return out
+
+
+def _stays(track: Track, inner: np.ndarray, first: First) -> bool:
+    """Whether rows without still echoes (`track`'s) still hold a fixed object near one
+    of the fixed echoes `inner` (m): its own echo table lists one within target.APART_M
+    (target.fixed_of: seen while the target is away), something that trembles (a cable,
+    a pane: a micrometre turns its phase through radians)."""
+    left = target.fixed_of(track.echoes, first.plan.lut.unambiguous_range_m, track.time_s, track.distance_m,
+                           track.velocity_mps, track.valid)
+    there = left.distance_m[left.objects]
+    return bool(there.size and np.any(np.abs(there[:, None] - np.asarray(inner)[None, :]) <= target.APART_M))
+
+
+def _sides(band: tuple[float, float | None], inner: np.ndarray) -> list[tuple[float, float | None]]:
+    """`band` cut at the fixed objects `inner` (m), SIDE_MARGIN_M off each, the parts at
+    least options.RANGE_GAP_M wide."""
+    edges = [(band[0], None)]
+    for f in np.sort(np.asarray(inner, float)):
+        edges[-1] = (edges[-1][0], f - SIDE_MARGIN_M)
+        edges.append((f + SIDE_MARGIN_M, None))
+    edges[-1] = (edges[-1][0], band[1])
+    return [(a, b) for a, b in edges if (b is None or b - a >= RANGE_GAP_M)] or [band]
 
 
 def _passing(d: Converted, first: First, processor, seconds) -> list[tuple[float, float]]:
@@ -185,17 +215,6 @@ def _passing(d: Converted, first: First, processor, seconds) -> list[tuple[float
     away = np.abs(loose.distance_m - d.choice.at_rest_m) > target.APART_M
     return target.moving_spans(loose.time_s, loose.distance_m, loose.velocity_mps, loose.valid & away,
                                np.zeros(0))
-
-
-def _sides(band: tuple[float, float | None], inner: np.ndarray) -> list[tuple[float, float | None]]:
-    """`band` cut at the fixed objects `inner` (m), SIDE_MARGIN_M off each, the parts at
-    least options.RANGE_GAP_M wide."""
-    edges = [(band[0], None)]
-    for f in np.sort(np.asarray(inner, float)):
-        edges[-1] = (edges[-1][0], f - SIDE_MARGIN_M)
-        edges.append((f + SIDE_MARGIN_M, None))
-    edges[-1] = (edges[-1][0], band[1])
-    return [(a, b) for a, b in edges if (b is None or b - a >= RANGE_GAP_M)] or [band]
 
 
 def _distinct(done: list[Converted], first: First, seconds, processor) -> list[Converted]:
@@ -217,15 +236,17 @@ def _distinct(done: list[Converted], first: First, seconds, processor) -> list[C
     return out
 
 
-def _exclusive(done: list[Converted], first: First, seconds, processor) -> list[Converted]:
+def _exclusive(done: list[Converted], unseen: set[tuple[int, int]], first: First, seconds, processor
+               ) -> list[Converted]:
     """Each conversion assembled again where another object's path comes within
     objects.GATE_M of its own, a harmonic of another's (objects.harmonics) or its
     de-chirped image (objects.images): those pairs `ambiguous` (target.Choice.taken_s),
-    and so is a pair verified only once they are taken out (not checked against the others)."""
+    and so is a pair verified only once they are taken out (not checked against the others).
+    Not by an object that the conversion's rows hold nothing of (`unseen`: (i, j), `_unseen`)."""
     tracks, moving = [d.track for d in done], [_moving(d) for d in done]
-    clash = objects.conflicts(tracks, [not m for m in moving])
+    clash = objects.conflicts(tracks, [not m for m in moving], unseen)
     ghost = objects.harmonics(tracks, first.plan.lut.unambiguous_range_m)
-    image = objects.images(tracks, first.plan.model, first.plan.window)
+    image = objects.images(tracks, first.plan.model, first.plan.window, unseen)
     out = []
     for d, c, g, m in zip(done, clash, ghost, image, strict=True):
         c = (c | g | m) & d.track.valid
@@ -262,4 +283,48 @@ def _rejoined(scene: list[objects.SceneObject]) -> list[objects.SceneObject]:
 
 def _again(d: Converted, choice: target.Choice, processor: ChunkProcessor, seconds) -> Track:
     """Conversion `d`'s measurements assembled again under `choice` (its echo table kept)."""
-    return assemble(d.plan, d.parts, processor, seconds(), choice, d.track.echoes)
+    return _assembled(d.plan, d.parts, processor, seconds, choice, d.track.echoes)
+
+
+def _assembled(plan: Plan, parts: list[ChunkMeasurements], processor: ChunkProcessor, seconds,
+               choice: target.Choice, seen) -> Track:
+    """`assemble`, its attribute objects.STILL_ATTR set; on rows without still echoes
+    no displacement (the running mean bends a slow mover's phase)."""
+    track = assemble(plan, parts, processor, seconds(), choice, seen)
+    track.attrs[objects.STILL_ATTR] = clutter.STILL_S if plan.still_half else 0.0
+    if plan.still_half:
+        objects.no_displacement(track)
+    return track
+
+
+def _unseen(d: Converted, done: list[Converted], first: First) -> list[int]:
+    """The objects among `done` that conversion `d`'s rows hold nothing of: where its
+    rows are without still echoes (Plan.still_half; not a track joined of several
+    conversions), the still objects (objects.still) near which its own echo table
+    lists no fixed object (target.fixed_of: an echo seen while its target is away;
+    a cable that trembles a micrometre stays in these rows)."""
+    if not d.plan.still_half or d.joined:
+        return []
+    t = d.track
+    left = target.fixed_of(t.echoes, first.plan.lut.unambiguous_range_m, t.time_s, t.distance_m,
+                           t.velocity_mps, t.valid)
+    there = left.distance_m[left.objects]
+    wl = first.plan.lut.wavelength_m
+    return [k for k, o in enumerate(done) if o is not d and not _moving(o) and objects.still(o.track, wl)
+            and np.all(np.abs(there - np.median(o.track.distance_m[o.track.valid])) > target.APART_M)]
+
+
+def _unveiled(done: list[Converted], unseen: set[tuple[int, int]], seconds, processor) -> list[Converted]:
+    """The conversions on rows without still echoes assembled again without the gate
+    about the objects their rows hold nothing of (`unseen`: (i, j), `_unseen`): a foot
+    that moves 2 mm from a window is the foot's."""
+    out = []
+    for i, d in enumerate(done):
+        calm = [float(np.median(done[j].track.distance_m[done[j].track.valid])) for k, j in unseen if k == i]
+        if calm and d.choice.ambiguous_m.size:
+            keep = np.array([all(abs(f - c) > target.APART_M for c in calm) for f in d.choice.ambiguous_m])
+            if not keep.all():
+                choice = replace(d.choice, ambiguous_m=d.choice.ambiguous_m[keep])
+                d = replace(d, choice=choice, track=_again(d, choice, processor, seconds))
+        out.append(d)
+    return out

@@ -14,7 +14,7 @@ from fmcw_cl.options import Options
 from fmcw_cl.simulator import several
 from fmcw_cl.simulator.scene import glide, sway
 from fmcw_cl.simulator.writer import EDGE_S, visibility
-from fmcw_cl.stages import faults
+from fmcw_cl.stages import clutter, faults
 from fmcw_cl.track import Track, read_track, write_track
 
 PERIOD = 50e-6
@@ -293,14 +293,45 @@ def test_occlusion_and_return(scenes, name, seed):
 
 @pytest.mark.parametrize("seed", [1, 2])
 def test_target_through_a_wall(scenes, seed):
-    """A target moving 0.10 -> 0.40 m through a wall at 0.25 m: tracked on both sides
-    of it (each side in its own band), the wall an object of its own; no pair of either
-    on the other."""
+    """A target moving 0.10 -> 0.40 m through a wall at 0.25 m: tracked on rows without
+    still echoes in its whole band (the wall and its images gone; cut bands lost it
+    20-40 mm before each cut: 73-80 %), the wall an object of its own; no pair of
+    either on the other."""
     track, truths = scenes("target through a wall", seed)
     scores = object_scores(track, truths)
     assert sum(s["wrong"] for s in scores) == 0, scores
-    assert _best(scores, 0) >= 0.7 and _best(scores, 1) >= 0.7, scores
+    assert _best(scores, 0) >= 0.85 and _best(scores, 1) >= 0.7, scores
     assert track.attrs["target_object"] == next(s["id"] for s in scores if s["truth"] == 0)
+    mover = next(o for o in track.objects if o.kind == "moving")
+    assert mover.track.attrs["still_echoes_removed_s"] == clutter.STILL_S
+
+
+def test_target_through_a_trembling_wall(scenes):
+    """The wall trembles 1 um at 50 Hz: rows without still echoes keep it (its phase
+    swings +-8 rad), so the mover is converted on each side of it as well (30 mm off),
+    its pairs near the wall `ambiguous`: none wrong, both tracked as before."""
+    track, truths = scenes("target through a trembling wall", 1)
+    scores = object_scores(track, truths)
+    assert sum(s["wrong"] for s in scores) == 0, scores
+    assert _best(scores, 0) >= 0.6 and _best(scores, 1) >= 0.7, scores
+    mover = next(o for o in track.objects if o.kind == "moving")
+    assert mover.track.attrs["still_echoes_removed_s"] == clutter.STILL_S
+    assert np.asarray(mover.track.attrs["object_bands_m"]).size >= 6      # its band and two sides
+
+
+@pytest.mark.parametrize("seed", [1, 3])
+def test_a_foot_landing_at_a_windows_distance(scenes, seed):
+    """The jump whose foot rests at a window's distance (0.05 m, 1200 codes): on rows
+    without the window, the foot is held in flight and where it moves beside the window
+    (cut bands: 22-24 %); the window's pairs there are a blend (`ambiguous`); the foot's
+    conversion follows no phase (its displacement is not valid)."""
+    track, truths = scenes("foot at a window", seed)
+    scores = object_scores(track, truths)
+    assert sum(s["wrong"] for s in scores) == 0, scores
+    assert _best(scores, 0) >= 0.8, scores
+    foot = next(o for o in track.objects if o.kind == "moving")
+    assert foot.track.attrs["still_echoes_removed_s"] == clutter.STILL_S
+    assert foot.track.displacement_valid is None or not foot.track.displacement_valid.any()
 
 
 def test_one_object_is_the_target(jump_track):

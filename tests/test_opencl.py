@@ -18,7 +18,7 @@ from fmcw_cl.opencl import spectrum as k_spectrum
 from fmcw_cl.opencl.context import cl, lanes_width
 from fmcw_cl.opencl.processor import OpenCLProcessor
 from fmcw_cl.options import Options
-from fmcw_cl.stages import faults, lpf, resample, spectrum, sync
+from fmcw_cl.stages import clutter, faults, lpf, resample, spectrum, sync
 from fmcw_cl.stages.spectrum import Search
 
 
@@ -429,6 +429,21 @@ def test_coarse_crossings_of_a_triangle():
     assert (near < f).sum() >= expect.size - 1
     assert np.all(co.direction[1:] != co.direction[:-1]) or np.sum(co.direction[1:] == co.direction[:-1]) <= 1
     assert not np.any((t > 60_000 + f) & (t < 75_000 - f))
+
+
+@pytest.mark.parametrize("rows,points,half", [(0, 1000, 50), (1, 1000, 50), (7, 1000, 3), (2000, 1000, 50),
+                                              (301, 61, 200)])
+def test_clutter_kernel_matches_numpy_bit_for_bit(backend, rows, points, half):
+    """Rows of a still tone, a drifting one and noise, fewer rows than the window, a
+    window wider than the rows: the kernel's running sum is its twin's, in its order."""
+    rng = np.random.default_rng(rows)
+    j = np.arange(points)
+    x = (900 * np.cos(0.3 * j)[None, :] + 200 * np.cos(0.01 * np.arange(rows)[:, None] * j[None, :] / points)
+         + rng.normal(0, 30, (rows, points))).astype(np.float32)
+    got = backend.without_still(k_spectrum.as_device(backend.bufs, x), half)
+    want = clutter.without_still(x, half)
+    np.testing.assert_array_equal(got.get(), want)
+    assert rows < 2 or np.abs(want).mean() < 0.5 * np.abs(x).mean()
 
 
 @pytest.mark.parametrize("n,block", [(100_003, 256), (255, 256), (4097, 16), (1, 256), (0, 256)])

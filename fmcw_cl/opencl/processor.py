@@ -22,6 +22,7 @@ from .. import pool
 from ..processor import ChunkProcessor, Later, Prepared, clipping
 from ..stages import pairing, sync
 from ..stages.spectrum import fft_length
+from . import clutter as k_clutter
 from . import delay as k_delay
 from . import faults as k_faults
 from . import integrate as k_integrate
@@ -51,7 +52,7 @@ class OpenCLProcessor(ChunkProcessor):
     # whatever its size (0.4 s of capture: 160 MB of codes, 65 MB of resampled rows)
     chunk_default = 8192
     programs = ("lpf", "delay", "sync", "resample", "spectrum", "integrate", "survey", "faults", "track",
-                "verify", "copy", "phase")
+                "verify", "copy", "phase", "clutter")
 
     def __init__(self, selector: str | None = None, rt: Runtime | None = None) -> None:
         super().__init__()
@@ -188,6 +189,9 @@ class OpenCLProcessor(ChunkProcessor):
                                                  k_track.times_up(times, passes), f"positions{self._turn}")
         _, times = k_track.times_down(extra, times, passes)
         return self._kept(rows[0], win), times
+
+    def without_still(self, rows, half):
+        return k_clutter.without_still(self.rt, self.bufs, rows, half)
 
     def check_and_survey_later(self, chunk):
         """ChunkProcessor.check_and_survey_later: where the spectra of `chunk`'s range

@@ -27,7 +27,7 @@ from fmcw_cl.opencl import verify as k_verify
 from fmcw_cl.opencl.buffers import DeviceRows
 from fmcw_cl.opencl.context import cl
 from fmcw_cl.opencl.processor import OpenCLProcessor
-from fmcw_cl.stages import faults, integrate, lpf, pairing, resample, sync
+from fmcw_cl.stages import clutter, faults, integrate, lpf, pairing, resample, sync
 from fmcw_cl.stages.spectrum import Search
 
 
@@ -130,6 +130,8 @@ def stream(be, beat, sync_codes, fs, hp, rng) -> None:
         rows = be.resample(beat, starts, lengths, uu, win)
         host = resample.resample(beat, starts, lengths, uu, win)
         close(f"resample, {way}", rows.get(be.rt.queue), host, 1e-5)
+        close(f"still echoes out (without_still), {way}", be.without_still(rows, 2).get(be.rt.queue),
+              clutter.without_still(host, 2), 1e-3)
 
 
 def spectra(be, rng, group: str) -> None:

@@ -62,6 +62,13 @@ def _through_wall() -> Scene:
     return Scene(glide(0.2, 0.10, 0.40, 0.02, 0.18), 0.0, 0.2, wall)
 
 
+def _through_trembling_wall() -> Scene:
+    # the wall trembles 1 um at 50 Hz (a pane, a cable): its phase swings +-8 rad, so
+    # rows without still echoes keep it (fmcw_cl.stages.clutter)
+    wall = replace(LAB_SCENE, movers=(Mover(sway(0.2, 0.25, 1e-6, 50.0), 800.0),))
+    return Scene(glide(0.2, 0.10, 0.40, 0.02, 0.18), 0.0, 0.2, wall)
+
+
 def _foot_at_window() -> Scene:
     return Scene(jump(0.3, ground_m=0.05), 0.0, 0.3, replace(LAB_SCENE, reflectors=((0.05, 1200.0),)))
 
@@ -79,6 +86,7 @@ SCENES = {
     "occlusion, same place": lambda: _occlusion(0.0),
     "occlusion, 30 mm further": lambda: _occlusion(0.03),
     "target through a wall": _through_wall,
+    "target through a trembling wall": _through_trembling_wall,
     "foot at a window": _foot_at_window,
     "slow plateau, 15 ms": _slow_plateau,
     "jump + static": lambda: Scene(jump(0.3), 0.0, 0.3,
