@@ -20,7 +20,7 @@ from .motion import SMOOTH, Motion
 from .options import Options, said
 from .processor import ChunkProcessor, NumpyProcessor
 from .refine import refine_lag
-from .stages import pairing, resample, spectrum, sync
+from .stages import doppler, resample, spectrum, sync
 from .stages.lut import Lut, build_lut
 from .stages.spectrum import Search
 
@@ -41,7 +41,7 @@ class Plan:
     options: Options
     lut: Lut
     window: np.ndarray
-    model: pairing.DopplerModel
+    model: doppler.DopplerModel
     search: Search      # the band and rule of the tracked peak
     lag: float          # samples the sync lags the optics
     lag_periods: int    # periods that voted for it
@@ -157,18 +157,18 @@ def tuned(info: CaptureInfo, options: Options, chirp: Chirp | None) -> dict:
 
 
 @functools.lru_cache(maxsize=16)
-def shaped(lut: Lut, half_sweep_s: float) -> tuple[np.ndarray, pairing.DopplerModel]:
+def shaped(lut: Lut, half_sweep_s: float) -> tuple[np.ndarray, doppler.DopplerModel]:
     """The window and the Doppler model of `lut` (half-sweeps of `half_sweep_s` s), made
     once per LUT object (build_lut caches those): capture after capture the same
     read-only arrays, which a device keeps from its first upload (Buffers.constant)."""
     win = resample.window(lut.points)
-    return win, pairing.doppler_model(lut, half_sweep_s, spectrum.fft_length(lut.points), win)
+    return win, doppler.doppler_model(lut, half_sweep_s, spectrum.fft_length(lut.points), win)
 
 
 MIN_RANGE_SHARE = 0.9   # a band starts below this share of the unambiguous range
 
 
-def make_search(options: Options, lut: Lut, model: pairing.DopplerModel) -> Search:
+def make_search(options: Options, lut: Lut, model: doppler.DopplerModel) -> Search:
     """The band [min_range, max_range) in padded bins (the tracked peak is its
     strongest); the plain pass lists every echo of the band. The band must lie inside
     the unambiguous range of this capture's bandwidth."""

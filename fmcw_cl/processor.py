@@ -22,9 +22,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from . import echoes
+from . import echoes, spectrum_ops
 from .errors import FmcwError
-from .stages import faults, integrate, lpf, pairing, resample, sync
+from .stages import doppler, faults, integrate, lpf, pairing, resample, sync
+from .stages.groups import group_slices
 from .stages.spectrum import Search
 
 if TYPE_CHECKING:
@@ -148,10 +149,10 @@ class Later:
         return self
 
 
-class ChunkProcessor(pairing.SpectrumOps):
+class ChunkProcessor(spectrum_ops.SpectrumOps):
     """The life cycle and the steps of a chunk processor; a subclass supplies the stage
     operations (low-pass, the delay's per-period fits, turning points, resampling,
-    clipping counts, and the spectrum operations of pairing.SpectrumOps) and its sizes.
+    clipping counts, and the spectrum operations of spectrum_ops.SpectrumOps) and its sizes.
 
     Attributes
     ----------
@@ -358,7 +359,7 @@ class ChunkProcessor(pairing.SpectrumOps):
         (xr, xf), times = self.resample_pairs(held.beat, jobs, plan.window, times)
         res = pairing.track_pairs(xr, xf, times, plan.model, plan.search, plan.options.iterations,
                                   plan.options.dechirp, self, k or 1)
-        out, slices = [], iter(pairing.group_slices(times.groups, times.rise.size))
+        out, slices = [], iter(group_slices(times.groups, times.rise.size))
         for (chunk, prepared, lag), got in zip(items, found, strict=True):
             one = None if got is None else res.take(next(slices))
             if one is not None and k is None and one.heard.mean() < integrate.AUTO_SHARE:
@@ -513,7 +514,7 @@ class RangeCheck:
     checked: np.ndarray
     jobs: list
     window: np.ndarray
-    model: pairing.DopplerModel
+    model: doppler.DopplerModel
     search: Search
 
     def beyond(self, got: list, res: pairing.PairResult, lut) -> np.ndarray:
@@ -538,7 +539,7 @@ class Survey:
     idx: np.ndarray
     args: tuple
 
-    def table(self, got: list, times: tuple, model: pairing.DopplerModel) -> dict:
+    def table(self, got: list, times: tuple, model: doppler.DopplerModel) -> dict:
         """The survey's columns (SURVEY_KEYS) from survey_each's results `got`, the pairs'
         rising and falling times (s) `times`: per surveyed half-sweep, and the peaks of
         each direction's mean spectra (echoes.mean_peaks, at their pairs' mean time)."""

@@ -7,7 +7,7 @@ import pytest
 
 from fmcw_cl.physics import C
 from fmcw_cl.simulator import paper_dfb
-from fmcw_cl.stages import kinematics, lpf, pairing, resample, spectrum, sync
+from fmcw_cl.stages import doppler, kinematics, lpf, pairing, resample, spectrum, sync, verification
 from fmcw_cl.stages.lut import build_lut
 from fmcw_cl.stages.spectrum import Search
 
@@ -159,7 +159,7 @@ def test_tracker_resolves_folds_and_the_paper_method_does_not():
     lut = build_lut(cur, laser.frequency(cur), 0.16, 0.48, points=1000)
     half_s = 25e-6
     nfft = spectrum.fft_length(1000)
-    model = pairing.doppler_model(lut, half_s, nfft, resample.window(1000))
+    model = doppler.doppler_model(lut, half_s, nfft, resample.window(1000))
     rng = np.random.default_rng(0)
     # 300 pairs: accelerating from 1 to 7 m/s at 0.12 m, where v K > R (fold) from ~4 m/s
     pairs = 300
@@ -322,17 +322,17 @@ def test_neighbour_residuals_in_blocks_equal_those_of_each_pair():
     against those of subsets of pairs (one block of copied windows), across the
     blocks' seams; NaN distances and untrusted pairs among them."""
     rng = np.random.default_rng(12)
-    n = 3 * pairing.RESIDUAL_BLOCK + 123
+    n = 3 * verification.RESIDUAL_BLOCK + 123
     t = np.cumsum(rng.uniform(4e-5, 6e-5, n))
     dist = 0.3 + np.cumsum(rng.normal(0, 1e-4, n))
     vel = rng.normal(0, 0.01, n)
     dist[rng.integers(0, n, 20)] = np.nan
     trusted = rng.random(n) < 0.9
     trusted[100:140] = False                        # pairs with too few neighbours: inf
-    resid, support = pairing._residuals(t, dist, vel, trusted)
-    seams = np.arange(1, 4) * pairing.RESIDUAL_BLOCK
+    resid, support = verification._residuals(t, dist, vel, trusted)
+    seams = np.arange(1, 4) * verification.RESIDUAL_BLOCK
     for rows in (np.sort(rng.choice(n, n // 5, replace=False)), np.r_[seams - 1, seams, seams + 1]):
-        got = pairing._residuals(t, dist, vel, trusted, rows)
+        got = verification._residuals(t, dist, vel, trusted, rows)
         np.testing.assert_array_equal(got[0], resid[rows])
         np.testing.assert_array_equal(got[1], support[rows])
     assert np.isinf(resid).any() and np.isfinite(resid).mean() > 0.5
