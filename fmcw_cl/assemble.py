@@ -9,9 +9,10 @@ from pathlib import Path
 import numpy as np
 
 from . import __version__, displacement, echoes, target, uncertainty, wall_images
+from .chunk_checks import SURVEY_KEYS
 from .errors import CaptureError
 from .plan import DELAY_BOUND_MPS, PERIOD_WARN, Plan, delay_reliable
-from .processor import SURVEY_KEYS, ChunkMeasurements, ChunkProcessor
+from .processor import ChunkMeasurements, ChunkProcessor
 from .refine import DISAGREE_SIGMAS, disagreement
 from .stages import cfar, doppler, faults, kinematics, pairing, phase
 from .stages.cfar import Detections

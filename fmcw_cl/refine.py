@@ -29,9 +29,9 @@ import numpy as np
 
 from . import numeric
 from .capture import Capture
+from .chunk_state import Held
 from .chunks import held_end_to_end
 from .motion import SMOOTH, Motion, choose
-from .processor import Held
 from .stages import doppler, kinematics, resample, sync
 
 STRETCHES = 3

@@ -19,7 +19,8 @@ from collections.abc import Callable
 import numpy as np
 
 from .. import pool
-from ..processor import ChunkProcessor, Later, Prepared, clipping
+from ..chunk_state import Later, Prepared, clipping
+from ..processor import ChunkProcessor
 from ..spectrum_ops import NUMPY
 from ..stages import sync, verification
 from ..stages.spectrum import fft_length
