@@ -15,7 +15,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .capture import Capture, CaptureInfo, Chunk
+from .capture import Capture, Chunk
+from .capture_format import CaptureInfo
 from .options import Options
 from .stages import sync
 

@@ -13,7 +13,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .capture import Capture, CaptureInfo
+from .capture import Capture
+from .capture_format import CaptureInfo
 from .chirp import Chirp, check_chirp, chirp_lut, read_chirp
 from .errors import CaptureError, FmcwError
 from .motion import SMOOTH, Motion

@@ -6,7 +6,8 @@ import h5py
 import numpy as np
 import pytest
 
-from fmcw_cl.capture import Capture, CaptureWriter
+from fmcw_cl.capture import Capture
+from fmcw_cl.capture_writer import CaptureWriter
 from fmcw_cl.engine import process
 from fmcw_cl.errors import FmcwError
 from fmcw_cl.options import Options
