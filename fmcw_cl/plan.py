@@ -21,7 +21,7 @@ from .motion import SMOOTH, Motion
 from .options import Options, said
 from .processor import ChunkProcessor, NumpyProcessor
 from .refine import refine_lag
-from .stages import doppler, resample, spectrum, sync
+from .stages import delay, doppler, resample, spectrum, sync
 from .stages.lut import Lut, build_lut
 from .stages.spectrum import Search
 
@@ -86,7 +86,7 @@ def estimate_capture_delay(cap: Capture, processor: ChunkProcessor | None = None
                            ) -> tuple[float, int, float, float]:
     """Sync lag (samples) pooled over stretches spread through the capture.
 
-    Returns (lag, periods used, misfit, standard error); see `sync.combine_delays`. `processor` runs the
+    Returns (lag, periods used, misfit, standard error); see `delay.combine_delays`. `processor` runs the
     low-pass and the per-period fit (default numpy).
     """
     processor = processor or NumpyProcessor()
@@ -99,7 +99,7 @@ def estimate_capture_delay(cap: Capture, processor: ChunkProcessor | None = None
     # by one launch a channel
     beat, sy = (x.reshape(starts.size, length) for x in cap.slot(1, starts.size * length))
     cap.read_spans([(a, a + length) for a in starts], list(beat), list(sy))
-    return sync.combine_delays(*processor.period_delays(beat, sy, info.sample_rate_hz, hp))
+    return delay.combine_delays(*processor.period_delays(beat, sy, info.sample_rate_hz, hp))
 
 
 def make_lut(info: CaptureInfo, points: int, chirp=None) -> Lut:
@@ -251,4 +251,4 @@ def delay_reliable(plan: Plan) -> bool:
     intensity triangle."""
     if plan.lag_refined:
         return bool(plan.lag_sigma_mps <= DELAY_BOUND_MPS)
-    return bool(plan.lag_misfit <= sync.CLEAN_MISFIT)
+    return bool(plan.lag_misfit <= delay.CLEAN_MISFIT)

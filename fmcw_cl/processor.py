@@ -26,7 +26,7 @@ from . import echoes, spectrum_ops
 from .chunk_checks import RangeCheck, Survey, no_survey, owned
 from .chunk_state import Ahead, Held, Later, Pending, Prepared, clipping
 from .errors import FmcwError
-from .stages import faults, integrate, lpf, pairing, resample, sync
+from .stages import delay, faults, integrate, lpf, pairing, resample, sync
 from .stages.groups import group_slices
 from .stages.spectrum import Search
 
@@ -126,9 +126,9 @@ class ChunkProcessor(spectrum_ops.SpectrumOps):
         raise NotImplementedError
 
     def period_delays(self, beat, sync_codes, sample_rate_hz, half_period):
-        """`sync.period_delays` of the stretches `beat`, `sync_codes` (rows of codes), by
+        """`delay.period_delays` of the stretches `beat`, `sync_codes` (rows of codes), by
         this processor's low-pass and per-period fit (a device: one download)."""
-        return sync.period_delays(beat, sync_codes, sample_rate_hz, half_period, self.intensity_each,
+        return delay.period_delays(beat, sync_codes, sample_rate_hz, half_period, self.intensity_each,
                                   self.fit_periods)
 
     def turning_points(self, codes, half_period):
@@ -419,7 +419,7 @@ class NumpyProcessor(ChunkProcessor):
         return lpf.intensity_each(channels, sample_rate_hz)
 
     def fit_periods(self, y, z, shift, period, span):
-        return sync.fit_periods(y, z, shift, period, span)
+        return delay.fit_periods(y, z, shift, period, span)
 
     def turning_points(self, codes, half_period):
         return sync.sync_turning_points(codes, half_period)

@@ -18,7 +18,7 @@ from fmcw_cl.opencl import spectrum as k_spectrum
 from fmcw_cl.opencl.context import cl, lanes_width
 from fmcw_cl.opencl.processor import OpenCLProcessor
 from fmcw_cl.options import Options
-from fmcw_cl.stages import faults, lpf, resample, spectrum, sync
+from fmcw_cl.stages import delay, faults, lpf, resample, spectrum, sync
 from fmcw_cl.stages.spectrum import Search
 
 
@@ -678,7 +678,7 @@ def test_delay_fit_kernel_matches_numpy(backend, rows, n, period):
     y, z, coarse, lag = delay_rows(rng, rows, n, period)
     span = 17
     got = backend.fit_periods(y, z, coarse, period, span)
-    want = sync.fit_periods(y, z, coarse, period, span)
+    want = delay.fit_periods(y, z, coarse, period, span)
     assert got[0].shape == want[0].shape == (rows, len(range(span, n - span - period, period)))
     for g, w in zip(got, want, strict=True):
         np.testing.assert_array_equal(np.isnan(g), np.isnan(w))
@@ -716,7 +716,7 @@ def test_delay_estimate_on_the_device_equals_numpy(backend, kernel_variant, n):
                      for k, lag in enumerate(lags)])
     sy, beat = (np.rint(x).astype(np.int16) for x in (sy, beat))
     got = backend.period_delays(beat, sy, 100e6, half)
-    staged = sync.period_delays(beat, sy, 100e6, half, backend.intensity_each, backend.fit_periods)
+    staged = delay.period_delays(beat, sy, 100e6, half, backend.intensity_each, backend.fit_periods)
     want = NumpyProcessor().period_delays(beat, sy, 100e6, half)
     if n < 10_000:                         # too short for a period between the coarse lags' reach
         assert got[0].size == staged[0].size == want[0].size == 0

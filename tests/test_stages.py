@@ -7,7 +7,7 @@ import pytest
 
 from fmcw_cl.physics import C
 from fmcw_cl.simulator import paper_dfb
-from fmcw_cl.stages import doppler, kinematics, lpf, pairing, resample, spectrum, sync, verification
+from fmcw_cl.stages import delay, doppler, kinematics, lpf, pairing, resample, spectrum, sync, verification
 from fmcw_cl.stages.lut import build_lut
 from fmcw_cl.stages.spectrum import Search
 
@@ -66,10 +66,10 @@ def test_delay_from_the_intensity_triangle(lag, sign):
     n = 400_000
     sync_ch = triangle(n, HP, t0=777.0, amp=6000, noise=4, seed=1)
     optical = triangle(n, HP, t0=777.0 - lag, amp=800, noise=25, seed=2)
-    lags, misfit = sync.period_delays(sign * optical, sync_ch, 100e6, HP)
-    est, used, best, _ = sync.combine_delays(lags, misfit)
+    lags, misfit = delay.period_delays(sign * optical, sync_ch, 100e6, HP)
+    est, used, best, _ = delay.combine_delays(lags, misfit)
     assert est == pytest.approx(lag, abs=0.1)
-    assert used > 0.8 * lags.size and best < sync.CLEAN_MISFIT
+    assert used > 0.8 * lags.size and best < delay.CLEAN_MISFIT
 
 
 def test_delay_of_stretches_as_rows():
@@ -79,8 +79,8 @@ def test_delay_of_stretches_as_rows():
     sync_ch = np.stack([triangle(n, HP, t0=100.0 * k, amp=6000, noise=4, seed=k) for k in range(3)])
     optical = np.stack([triangle(n, HP, t0=100.0 * k - 12.5, amp=800, noise=25, seed=9 + k)
                         for k in range(3)])
-    lags, misfit = sync.period_delays(optical, sync_ch, 100e6, HP)
-    alone = [sync.period_delays(o, s, 100e6, HP) for o, s in zip(optical, sync_ch, strict=True)]
+    lags, misfit = delay.period_delays(optical, sync_ch, 100e6, HP)
+    alone = [delay.period_delays(o, s, 100e6, HP) for o, s in zip(optical, sync_ch, strict=True)]
     assert np.array_equal(lags, np.concatenate([a[0] for a in alone]), equal_nan=True)
     assert np.array_equal(misfit, np.concatenate([a[1] for a in alone]), equal_nan=True)
     assert lags.size == 3 * alone[0][0].size > 0 and np.nanmedian(lags) == pytest.approx(12.5, abs=0.2)
@@ -95,7 +95,7 @@ def test_shifted_template_is_interp(shifts):
     windows = np.arange(20, 260, 80)[:3, None] + np.arange(80)
     shift = np.array(shifts)
     want = np.interp(windows + shift[:, None], np.arange(z.size, dtype=float), z)
-    assert np.allclose(sync._shifted(z, windows, shift), want, rtol=0, atol=1e-12)
+    assert np.allclose(delay._shifted(z, windows, shift), want, rtol=0, atol=1e-12)
 
 
 def test_lut_uniform_frequency_and_mirror():

@@ -28,7 +28,7 @@ from fmcw_cl.opencl import verify as k_verify
 from fmcw_cl.opencl.buffers import DeviceRows
 from fmcw_cl.opencl.context import cl
 from fmcw_cl.opencl.processor import OpenCLProcessor
-from fmcw_cl.stages import doppler, faults, integrate, lpf, pairing, resample, sync, verification
+from fmcw_cl.stages import delay, doppler, faults, integrate, lpf, pairing, resample, sync, verification
 from fmcw_cl.stages.spectrum import Search
 
 
@@ -100,14 +100,14 @@ def stream(be, beat, sync_codes, fs, hp, rng) -> None:
     rows = beat[: 3 * (beat.size // 3)].reshape(3, -1)       # the sync delay's stretches, one launch
     close("low-pass of rows", be.intensity(rows, fs)[0], lpf.intensity(rows, fs)[0], 1e-5)
     y, z, shift, _ = delay_rows(rng)
-    got, want = be.fit_periods(y, z, shift, 200, 17), sync.fit_periods(y, z, shift, 200, 17)
+    got, want = be.fit_periods(y, z, shift, 200, 17), delay.fit_periods(y, z, shift, 200, 17)
     if not all(np.array_equal(np.isnan(g), np.isnan(w)) for g, w in zip(got, want, strict=True)):
         raise SystemExit("sync delay fit (delay_fit): kernel and numpy twin differ in their NaNs")
     ok = np.isfinite(want[0])
     close("sync delay fit (delay_fit)", got[0][ok], want[0][ok], 1e-4)
     close("sync delay fit, misfit", got[1][ok], want[1][ok], 1e-3)
     got = be.period_delays(beat[None], sync_codes[None], fs, hp)      # the codes to the lags, one download
-    want = sync.period_delays(beat[None], sync_codes[None], fs, hp)
+    want = delay.period_delays(beat[None], sync_codes[None], fs, hp)
     if want[0].size == 0 or not np.array_equal(np.isnan(got[0]), np.isnan(want[0])):
         raise SystemExit("sync delay (delay_centre, delay_correlate, delay_coarse): kernels and twin differ")
     ok = np.isfinite(want[0])
