@@ -20,7 +20,8 @@ from pathlib import Path
 import h5py
 from scratch import folder
 
-from fmcw_cl.capture import Capture, CaptureWriter
+from fmcw_cl.capture import Capture
+from fmcw_cl.capture_writer import CaptureWriter
 from fmcw_cl.simulator import simulate_capture, static
 
 # Peak memory: VmHWM of the process's own address space. ru_maxrss would not do: Linux

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from fmcw_cl.capture import Modulation
+from fmcw_cl.capture_format import Modulation
 from fmcw_cl.ingest import import_capture
 from fmcw_cl.progress import Progress
 

@@ -12,8 +12,8 @@ from fmcw_cl.errors import FmcwError
 from fmcw_cl.options import Options
 from fmcw_cl.plan import Plan, make_plan
 from fmcw_cl.stages import faults
+from fmcw_cl.stages.delay import CLEAN_MISFIT
 from fmcw_cl.stages.lut import build_lut
-from fmcw_cl.stages.sync import CLEAN_MISFIT
 
 
 def delay_line(plan: Plan) -> str:

@@ -9,11 +9,12 @@ from pathlib import Path
 import numpy as np
 
 from . import __version__, displacement, echoes, target, uncertainty, wall_images
+from .chunk_checks import SURVEY_KEYS
 from .errors import CaptureError
 from .plan import DELAY_BOUND_MPS, PERIOD_WARN, Plan, delay_reliable
-from .processor import SURVEY_KEYS, ChunkMeasurements, ChunkProcessor
+from .processor import ChunkMeasurements, ChunkProcessor
 from .refine import DISAGREE_SIGMAS, disagreement
-from .stages import cfar, faults, kinematics, pairing, phase
+from .stages import cfar, doppler, faults, kinematics, pairing, phase
 from .stages.cfar import Detections
 from .track import Track
 
@@ -93,7 +94,7 @@ def assemble(plan: Plan, parts: list[ChunkMeasurements], processor: ChunkProcess
     held = kinematics.held_acceleration(vel, valid, period_s, motion.window, motion.hold)
     bias = np.zeros(dist.size)
     if options.dechirp:         # the paper's method (--no-dechirp) is reported as the paper did
-        bias = pairing.acceleration_bias(held, with_gaps(0.5 * (t_f - t_r), 0.0), plan.model)
+        bias = doppler.acceleration_bias(held, with_gaps(0.5 * (t_f - t_r), 0.0), plan.model)
         dist -= bias
     integrated = with_gaps(res["integrated"], 0)
     varies = np.unique(integrated[valid]).size > 1

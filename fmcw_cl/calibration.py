@@ -37,7 +37,7 @@ from .errors import CaptureError
 from .options import Options
 from .physics import C
 from .plan import make_plan
-from .stages import pairing, resample, sync
+from .stages import doppler, resample, sync
 from .stages.lut import fit_tuning
 
 GRID = 2048              # points of the s grid over [S_LO, S_HI]
@@ -168,7 +168,7 @@ def table_distance(beat: np.ndarray, hs, plan, sweeps: int = 200) -> float:
         idx = np.flatnonzero(ok)[:sweeps]
         if idx.size:
             x = resample.resample(beat, hs.start[idx], hs.length[idx], plan.lut.u(rising), plan.window)
-            got.append(pairing.measure(x, None, None, plan.model, plan.search)[0])
+            got.append(doppler.measure(x, None, None, plan.model, plan.search)[0])
     return float(np.median(np.concatenate(got))) if got else float("nan")
 
 

@@ -1,4 +1,5 @@
-"""Capture files (contract section 1): open, validate, read in chunks, write.
+"""Capture files (contract section 1): open and read in chunks (the contract and its
+validation: capture_format; the writer: capture_writer).
 
 A capture holds two int16 ADC channels (beat, sync) that may be several GB long, so
 reading is always by sample range; nothing here loads a whole channel.
@@ -7,10 +8,8 @@ reading is always by sample range; nothing here loads a whole channel.
 from __future__ import annotations
 
 import contextlib
-import math
 import mmap
 import os
-import re
 import threading
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -20,64 +19,9 @@ import h5py
 import numpy as np
 
 from . import pool
-from .atomic import atomic_path
+from .capture_format import TRUTH_FIELDS, Truth, _open_problem, validate
 from .errors import CaptureError
 from .extents import ITEM, Extents, read_all, unmap_later
-
-FORMAT = "capture"
-FORMAT_VERSION = 1
-
-
-@dataclass(frozen=True)
-class Modulation:
-    """Injection-current modulation: a symmetric triangle between two currents."""
-
-    frequency_hz: float
-    current_min_a: float
-    current_max_a: float
-    waveform: str = "triangle"
-
-    @property
-    def period_s(self) -> float:
-        return 1.0 / self.frequency_hz
-
-
-@dataclass(frozen=True)
-class CaptureInfo:
-    """Everything about a capture except its samples."""
-
-    path: Path
-    samples: int
-    sample_rate_hz: float
-    bits: int
-    modulation: Modulation
-    tuning_current_a: np.ndarray
-    tuning_frequency_hz: np.ndarray
-    refractive_index: float = 1.0
-    has_truth: bool = False
-
-    @property
-    def duration_s(self) -> float:
-        return self.samples / self.sample_rate_hz
-
-    @property
-    def samples_per_period(self) -> float:
-        """Nominal modulation period in samples (not necessarily an integer)."""
-        return self.sample_rate_hz / self.modulation.frequency_hz
-
-    @property
-    def periods(self) -> float:
-        return self.samples / self.samples_per_period
-
-    def core_samples(self, periods: int) -> int:
-        """Samples in the core of a chunk of `periods` modulation periods (chunks start at
-        multiples of this)."""
-        return max(1, round(periods * self.samples_per_period))
-
-    @property
-    def full_scale(self) -> int:
-        """Largest positive ADC code, 2**(bits-1) - 1."""
-        return 2 ** (self.bits - 1) - 1
 
 
 @dataclass(frozen=True)
@@ -99,150 +43,10 @@ class Chunk:
         return self.start + self.beat.size
 
 
-@dataclass(frozen=True)
-class Truth:
-    """The true trajectory written by simulators (SI units)."""
-
-    time_s: np.ndarray
-    distance_m: np.ndarray
-    velocity_mps: np.ndarray
-    acceleration_mps2: np.ndarray
-    visible: np.ndarray | None = None   # where the echo can be seen (None: always)
-    kind: str = "moving"                # "moving", or "fixed" for a static reflector
-
-
-TRUTH_FIELDS = ("time_s", "distance_m", "velocity_mps", "acceleration_mps2")
-
-
 def _read_truth(g: h5py.Group) -> Truth:
     visible = np.asarray(g["visible"][()], bool) if "visible" in g else None
     return Truth(*(np.asarray(g[k][()], dtype=np.float64) for k in TRUTH_FIELDS), visible,
                  str(g.attrs.get("kind", "moving")))
-
-
-def _attr(obj: h5py.HLObject, name: str, path: Path, where: str):
-    if name not in obj.attrs:
-        raise CaptureError(path, f"missing attribute {where} {name!r}")
-    value = obj.attrs[name]
-    if isinstance(value, bytes):
-        value = value.decode()
-    if isinstance(value, np.ndarray) and value.size == 1:
-        value = value.reshape(()).item()
-    return value
-
-
-def _number(obj, name: str, path: Path, where: str, lo: float, hi: float) -> float:
-    value = _attr(obj, name, path, where)
-    try:
-        x = float(value)
-    except (TypeError, ValueError):
-        raise CaptureError(path, f"attribute {where} {name!r} is not a number: {value!r}") from None
-    if not (math.isfinite(x) and lo <= x <= hi):
-        raise CaptureError(path, f"attribute {where} {name!r} = {x:g} is outside [{lo:g}, {hi:g}]")
-    return x
-
-
-def _dataset(f: h5py.File, name: str, path: Path) -> h5py.Dataset:
-    obj = f.get(name)
-    if not isinstance(obj, h5py.Dataset):
-        raise CaptureError(path, f"missing dataset {name}")
-    return obj
-
-
-# the contract's ranges of the ADC's and the modulation's attributes (validate; the
-# import checks them before it reads a sample); the modulation's upper bound is fs / 20
-LIMITS = {"sample_rate_hz": (1e3, 1e12), "bits": (2, 16), "frequency_hz": (1e-3, None),
-          "current_a": (0.0, 100.0)}
-
-
-def validate(f: h5py.File, path: Path) -> CaptureInfo:
-    """Check an open HDF5 file against the capture contract and describe it.
-
-    Raises
-    ------
-    CaptureError
-        naming the file and the first problem found.
-    """
-    kind = f.attrs.get("fmcw_format")
-    if isinstance(kind, bytes):
-        kind = kind.decode()
-    if kind != FORMAT:
-        got = "missing" if kind is None else repr(kind)
-        raise CaptureError(path, f"not a capture file (attribute fmcw_format is {got})")
-    version = _attr(f, "format_version", path, "/")
-    if int(version) != FORMAT_VERSION:
-        raise CaptureError(path, f"unsupported capture format_version {version}")
-
-    beat = _dataset(f, "adc/beat", path)
-    sync = _dataset(f, "adc/sync", path)
-    for ds in (beat, sync):
-        if ds.ndim != 1 or ds.dtype.kind not in "iu":
-            raise CaptureError(path, f"{ds.name} must be a 1-D integer array, got {ds.dtype}{ds.shape}")
-    if beat.shape != sync.shape:
-        raise CaptureError(path, f"/adc/beat has {beat.shape[0]} samples but /adc/sync has {sync.shape[0]}")
-    adc = f["adc"]
-    fs = _number(adc, "sample_rate_hz", path, "/adc", *LIMITS["sample_rate_hz"])
-    bits = int(_number(adc, "bits", path, "/adc", *LIMITS["bits"]))
-
-    mod = f.get("modulation")
-    if mod is None:
-        raise CaptureError(path, "missing group /modulation")
-    waveform = str(_attr(mod, "waveform", path, "/modulation"))
-    if waveform != "triangle":
-        raise CaptureError(path, f"modulation waveform {waveform!r} is not supported (only 'triangle')")
-    fmod = _number(mod, "frequency_hz", path, "/modulation", LIMITS["frequency_hz"][0], fs / 20)
-    imin = _number(mod, "current_min_a", path, "/modulation", *LIMITS["current_a"])
-    imax = _number(mod, "current_max_a", path, "/modulation", *LIMITS["current_a"])
-    if not imin < imax:
-        raise CaptureError(path, f"current_min_a ({imin:g} A) is not below current_max_a ({imax:g} A)")
-
-    cur = np.asarray(_dataset(f, "laser/tuning_current_a", path)[()], dtype=np.float64)
-    freq = np.asarray(_dataset(f, "laser/tuning_frequency_hz", path)[()], dtype=np.float64)
-    if cur.ndim != 1 or cur.shape != freq.shape or cur.size < 4:
-        raise CaptureError(path, "the G(I) table needs two 1-D arrays of the same length, at least 4 points")
-    if not (np.all(np.isfinite(cur)) and np.all(np.isfinite(freq))):
-        raise CaptureError(path, "the G(I) table holds NaN or infinite values")
-    if np.any(np.diff(cur) <= 0):
-        raise CaptureError(path, "the G(I) table currents are not strictly increasing")
-    if cur[0] > imin or cur[-1] < imax:
-        raise CaptureError(
-            path,
-            f"the G(I) table ({cur[0] * 1e3:g}-{cur[-1] * 1e3:g} mA) does not cover the "
-            f"modulation range ({imin * 1e3:g}-{imax * 1e3:g} mA)",
-        )
-    if np.any(freq <= 0):
-        raise CaptureError(path, "the G(I) table frequencies must be absolute optical frequencies (Hz > 0)")
-
-    n = 1.0
-    optics = f.get("optics")
-    if optics is not None and "refractive_index" in optics.attrs:
-        n = _number(optics, "refractive_index", path, "/optics", 1.0, 5.0)
-
-    info = CaptureInfo(
-        path=path,
-        samples=int(beat.shape[0]),
-        sample_rate_hz=fs,
-        bits=bits,
-        modulation=Modulation(fmod, imin, imax, waveform),
-        tuning_current_a=cur,
-        tuning_frequency_hz=freq,
-        refractive_index=n,
-        has_truth="truth/distance_m" in f,
-    )
-    if info.samples < 2 * info.samples_per_period:
-        raise CaptureError(
-            path, f"capture is too short: {info.samples} samples, fewer than two modulation periods"
-        )
-    return info
-
-
-def _open_problem(message: str) -> str:
-    """h5py's open error in a user's words."""
-    m = re.search(r"truncated file: eof = (\d+).*stored_eof = (\d+)", message)
-    if m:
-        return (f"truncated HDF5 file ({int(m.group(1))} of {int(m.group(2))} bytes: an interrupted "
-                "copy or write?)")
-    return f"not a readable HDF5 file ({message.split('(')[0].strip() or 'unreadable'})"
 
 
 class Capture:
@@ -475,98 +279,3 @@ class Capture:
         g = self._file["truth"]
         others = g.get("objects", {})
         return [_read_truth(g), *(_read_truth(others[k]) for k in sorted(others, key=int))]
-
-
-class CaptureWriter:
-    """Write a capture chunk by chunk; the file appears under its name only when closed.
-
-    Parameters
-    ----------
-    path : path-like
-        Destination file.
-    samples : int
-        Total samples per channel (the datasets are created at full size).
-    sample_rate_hz, bits, modulation :
-        ADC and modulation description (contract section 1).
-    tuning_current_a, tuning_frequency_hz : array_like
-        The offline G(I) table (A, absolute Hz).
-    refractive_index : float, optional
-        Written to /optics when not None.
-    compression : str, optional
-        HDF5 filter for the ADC channels ("gzip" for small sample files, in chunks of
-        1 Mi samples). None stores each channel in one run of the file, which a CPU's
-        processor reads in place (`Capture` `in_place`).
-    """
-
-    def __init__(self, path, samples: int, sample_rate_hz: float, bits: int, modulation: Modulation,
-                 tuning_current_a, tuning_frequency_hz, refractive_index: float | None = None,
-                 compression: str | None = None, attrs: dict | None = None) -> None:
-        self.path = Path(path)
-        self._atomic = atomic_path(self.path)
-        tmp = self._atomic.__enter__()
-        try:
-            self._file = h5py.File(tmp, "w")
-            f = self._file
-            f.attrs["fmcw_format"] = FORMAT
-            f.attrs["format_version"] = FORMAT_VERSION
-            for k, v in (attrs or {}).items():
-                f.attrs[k] = v
-            adc = f.create_group("adc")
-            adc.attrs["sample_rate_hz"] = float(sample_rate_hz)
-            adc.attrs["bits"] = int(bits)
-            opts = {"compression": compression, "shuffle": True, "chunks": (min(samples, 1 << 20),)} \
-                if compression else {}
-            self.beat = adc.create_dataset("beat", (samples,), np.int16, **opts)
-            self.sync = adc.create_dataset("sync", (samples,), np.int16, **opts)
-            mod = f.create_group("modulation")
-            mod.attrs["waveform"] = modulation.waveform
-            mod.attrs["frequency_hz"] = float(modulation.frequency_hz)
-            mod.attrs["current_min_a"] = float(modulation.current_min_a)
-            mod.attrs["current_max_a"] = float(modulation.current_max_a)
-            laser = f.create_group("laser")
-            laser.create_dataset("tuning_current_a", data=np.asarray(tuning_current_a, np.float64))
-            laser.create_dataset("tuning_frequency_hz", data=np.asarray(tuning_frequency_hz, np.float64))
-            if refractive_index is not None:
-                f.create_group("optics").attrs["refractive_index"] = float(refractive_index)
-        except BaseException as exc:
-            self._abort(exc)
-            raise
-
-    def set_bits(self, bits: int) -> None:
-        """The ADC's resolution, where it is known only once the codes are written."""
-        self._file["adc"].attrs["bits"] = int(bits)
-
-    def write(self, start: int, beat: np.ndarray, sync: np.ndarray) -> None:
-        """Store samples [start, start + len) of both channels."""
-        self.beat[start:start + beat.size] = beat
-        self.sync[start:start + sync.size] = sync
-
-    def write_truth(self, truth: Truth, others: tuple[Truth, ...] = ()) -> None:
-        """The target's `truth` in /truth, the scene's other echoes' in /truth/objects/<k>."""
-        g = self._file.require_group("truth")
-        for t, where in [(truth, g)] + [(o, g.create_group(f"objects/{k}")) for k, o in enumerate(others, 1)]:
-            for name in TRUTH_FIELDS:
-                where.create_dataset(name, data=np.asarray(getattr(t, name), np.float64))
-            if t.visible is not None:
-                where.create_dataset("visible", data=np.asarray(t.visible, bool))
-            if where is not g:
-                where.attrs["kind"] = t.kind
-
-    def _abort(self, exc: BaseException) -> None:
-        f = getattr(self, "_file", None)
-        if f is not None:
-            f.close()
-        self._atomic.__exit__(type(exc), exc, exc.__traceback__)
-
-    def close(self) -> None:
-        self._file.close()
-        self._atomic.__exit__(None, None, None)
-
-    def __enter__(self) -> CaptureWriter:
-        return self
-
-    def __exit__(self, exc_type, exc, tb) -> None:
-        if exc is None:
-            self.close()
-        else:
-            self._abort(exc)

@@ -15,9 +15,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .capture import Capture, CaptureInfo, Chunk
+from .capture import Capture, Chunk
+from .capture_format import CaptureInfo
 from .options import Options
-from .stages import sync
+from .stages import delay
 
 if TYPE_CHECKING:
     from .plan import Plan
@@ -72,7 +73,7 @@ def split_ranges(info: CaptureInfo, options: Options, seconds: float) -> list[tu
 def margin_samples(info: CaptureInfo, options: Options) -> int:
     """Samples read on each side of a chunk's core: the context periods, one more for
     the half-sweep that starts in the core, and the largest sync delay."""
-    return int((options.context_periods + 1) * info.samples_per_period + sync.MAX_DELAY_SAMPLES + 8)
+    return int((options.context_periods + 1) * info.samples_per_period + delay.MAX_DELAY_SAMPLES + 8)
 
 
 READ_SLOTS = 3    # a chunk's codes are read by its range check while the next one is

@@ -19,6 +19,7 @@ import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
+from . import spectrum_ops
 from .assemble import assemble
 from .backend import make_processor
 from .capture import Capture
@@ -29,7 +30,6 @@ from .objects import SceneObject
 from .options import Options
 from .plan import make_plan
 from .processor import NumpyProcessor
-from .stages import pairing
 from .track import track_path, write_track
 
 TASK_SECONDS = 1.0      # capture seconds per range task of a long capture
@@ -106,7 +106,7 @@ def _range(capture: str, plan, start: int, stop: int, backend: str, device: str 
         return capture_parts(cap, plan, stages, start, stop), stages.name, stages.device
 
 
-class _Made(pairing.SpectrumOps):
+class _Made(spectrum_ops.SpectrumOps):
     """What assemble() records of the backend that made the pairs; the verification's
     tests run in numpy here."""
 

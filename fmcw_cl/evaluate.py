@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.interpolate import CubicSpline
 
-from .capture import Truth
+from .capture_format import Truth
 from .stages import faults
 from .track import Track
 from .uncertainty import crb_m, peak_eta

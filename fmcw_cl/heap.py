@@ -5,7 +5,7 @@ A conversion's host steps are numpy operations on arrays of a chunk's pairs (8 0
 made and freed by the thousand. glibc's malloc serves those over 128 kB by mmap, or
 gives the top of its heap back to the system once more than twice that is free, and
 takes page faults for the memory again at the next allocation: the validity's test of
-pairs 2 ms apart (`pairing._kinematic`, 48 shifts of 40 000 pairs) took 94-97 ms so and
+pairs 2 ms apart (`verification._kinematic`, 48 shifts of 40 000 pairs) took 94-97 ms so and
 19-20 ms with freed memory kept (2-core EPYC, two runs). `keep_freed` keeps it, once a
 process, where malloc is glibc's: arrays up to MMAP_BYTES from the heap, and up to
 TRIM_BYTES of it free before any goes back.

@@ -34,7 +34,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .capture import LIMITS, Capture, CaptureWriter, Modulation
+from .capture import Capture
+from .capture_format import LIMITS, Modulation
+from .capture_writer import CaptureWriter
 from .errors import CaptureError
 from .physics import C
 
@@ -253,7 +255,7 @@ def import_capture(dump: str | os.PathLike, table: str | os.PathLike, output: st
 def check_settings(dump, samples: int, sample_rate_hz: float | None, modulation: Modulation,
                    bits: int | None) -> None:
     """Refuse, before any sample is read, settings the capture layout does not allow
-    (capture.validate's limits), naming the input and the setting."""
+    (capture_format.validate's limits), naming the input and the setting."""
     where = Path(dump)
     fs = sample_rate_hz
     if not fs:

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import numeric, uncertainty
-from .stages import kinematics, pairing
+from .stages import groups, kinematics
 
 FAST_MPS = 0.02      # a velocity this far from the running median: not followed (4 % of a de-chirp off)
 FAST_SHARE = 0.25    # SMOOTH's median misses this share of the velocities ...
@@ -34,7 +34,7 @@ class Motion:
     """The windows (pairs) a conversion fits its pairs over."""
 
     name: str
-    reach: int           # the tracker's velocity median: half-width (stages.pairing.NEIGHBOURS)
+    reach: int           # the tracker's velocity median: half-width (stages.groups.NEIGHBOURS)
     window: int          # the acceleration's Savitzky-Golay fit (stages.kinematics.WINDOW_PAIRS)
     slope: int           # the distances' slope the velocity is checked against (uncertainty.SLOPE_PAIRS)
     bias: int            # a trial conversion's acceleration, for its distances' bias (refine.pairs_of:
@@ -43,7 +43,7 @@ class Motion:
     curved: bool         # the phase's steps predicted by cubics, not trapezoids (fmcw_cl.displacement)
 
 
-SMOOTH = Motion("smooth", pairing.NEIGHBOURS, kinematics.WINDOW_PAIRS, uncertainty.SLOPE_PAIRS, bias=61,
+SMOOTH = Motion("smooth", groups.NEIGHBOURS, kinematics.WINDOW_PAIRS, uncertainty.SLOPE_PAIRS, bias=61,
                 hold=True, curved=False)
 FAST = Motion("fast", reach=2, window=5, slope=7, bias=5, hold=False, curved=True)
 

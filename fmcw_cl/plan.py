@@ -13,14 +13,15 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .capture import Capture, CaptureInfo
+from .capture import Capture
+from .capture_format import CaptureInfo
 from .chirp import Chirp, check_chirp, chirp_lut, read_chirp
 from .errors import CaptureError, FmcwError
 from .motion import SMOOTH, Motion
 from .options import Options, said
 from .processor import ChunkProcessor, NumpyProcessor
 from .refine import refine_lag
-from .stages import pairing, resample, spectrum, sync
+from .stages import delay, doppler, resample, spectrum, sync
 from .stages.lut import Lut, build_lut
 from .stages.spectrum import Search
 
@@ -41,7 +42,7 @@ class Plan:
     options: Options
     lut: Lut
     window: np.ndarray
-    model: pairing.DopplerModel
+    model: doppler.DopplerModel
     search: Search      # the band and rule of the tracked peak
     lag: float          # samples the sync lags the optics
     lag_periods: int    # periods that voted for it
@@ -87,7 +88,7 @@ def estimate_capture_delay(cap: Capture, processor: ChunkProcessor | None = None
                            ) -> tuple[float, int, float, float]:
     """Sync lag (samples) pooled over stretches spread through the capture.
 
-    Returns (lag, periods used, misfit, standard error); see `sync.combine_delays`. `processor` runs the
+    Returns (lag, periods used, misfit, standard error); see `delay.combine_delays`. `processor` runs the
     low-pass and the per-period fit (default numpy).
     """
     processor = processor or NumpyProcessor()
@@ -100,7 +101,7 @@ def estimate_capture_delay(cap: Capture, processor: ChunkProcessor | None = None
     # by one launch a channel
     beat, sy = (x.reshape(starts.size, length) for x in cap.slot(1, starts.size * length))
     cap.read_spans([(a, a + length) for a in starts], list(beat), list(sy))
-    return sync.combine_delays(*processor.period_delays(beat, sy, info.sample_rate_hz, hp))
+    return delay.combine_delays(*processor.period_delays(beat, sy, info.sample_rate_hz, hp))
 
 
 def make_lut(info: CaptureInfo, points: int, chirp=None) -> Lut:
@@ -159,18 +160,18 @@ def tuned(info: CaptureInfo, options: Options, chirp: Chirp | None) -> dict:
 
 
 @functools.lru_cache(maxsize=16)
-def shaped(lut: Lut, half_sweep_s: float) -> tuple[np.ndarray, pairing.DopplerModel]:
+def shaped(lut: Lut, half_sweep_s: float) -> tuple[np.ndarray, doppler.DopplerModel]:
     """The window and the Doppler model of `lut` (half-sweeps of `half_sweep_s` s), made
     once per LUT object (build_lut caches those): capture after capture the same
     read-only arrays, which a device keeps from its first upload (Buffers.constant)."""
     win = resample.window(lut.points)
-    return win, pairing.doppler_model(lut, half_sweep_s, spectrum.fft_length(lut.points), win)
+    return win, doppler.doppler_model(lut, half_sweep_s, spectrum.fft_length(lut.points), win)
 
 
 MIN_RANGE_SHARE = 0.9   # a band starts below this share of the unambiguous range
 
 
-def make_search(options: Options, lut: Lut, model: pairing.DopplerModel) -> Search:
+def make_search(options: Options, lut: Lut, model: doppler.DopplerModel) -> Search:
     """The band [min_range, max_range) in padded bins (the tracked peak is its
     strongest); the plain pass lists every echo of the band. The band must lie inside
     the unambiguous range of this capture's bandwidth."""
@@ -252,4 +253,4 @@ def delay_reliable(plan: Plan) -> bool:
     intensity triangle."""
     if plan.lag_refined:
         return bool(plan.lag_sigma_mps <= DELAY_BOUND_MPS)
-    return bool(plan.lag_misfit <= sync.CLEAN_MISFIT)
+    return bool(plan.lag_misfit <= delay.CLEAN_MISFIT)

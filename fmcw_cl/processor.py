@@ -22,9 +22,12 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from . import echoes
+from . import echoes, spectrum_ops
+from .chunk_checks import RangeCheck, Survey, no_survey, owned
+from .chunk_state import Ahead, Held, Later, Pending, Prepared, clipping
 from .errors import FmcwError
-from .stages import clutter, faults, integrate, lpf, pairing, resample, sync
+from .stages import clutter, delay, faults, integrate, lpf, pairing, resample, sync
+from .stages.groups import group_slices
 from .stages.spectrum import Search
 
 if TYPE_CHECKING:
@@ -34,7 +37,6 @@ if TYPE_CHECKING:
 CHECK_STRIDE = 4             # the 2N-point range check runs on every 4th pair near the limit,
 CHECK_STRIDE_FAR = 16        # ... every 16th where every distance of the chunk is below
 CHECK_NEAR = 0.75            # this share of the unambiguous range
-SURVEY_KEYS = ("time_s", "rising", "ratio", "distance_m", "found", *echoes.MEAN_KEYS)
 
 
 @dataclass
@@ -54,104 +56,10 @@ class ChunkMeasurements:
     spectrum_rows: int = 0               # per direction (rising, falling), over this many of each
 
 
-def clipping(chunk: Chunk, info) -> tuple:
-    """`clip_counts`' arguments for a chunk's beat (`info`: its CaptureInfo): blocks of
-    faults.CLIP_BLOCK codes, full scale 2^(bits - 1)."""
-    return chunk.beat, faults.CLIP_BLOCK, info.full_scale + 1
-
-
-@dataclass(frozen=True)
-class Prepared:
-    """What a chunk's codes say whatever the delay: its sync's turning points and how
-    many beat codes of each faults.CLIP_BLOCK are at full scale."""
-
-    turns: sync.TurningPoints
-    clip_counts: np.ndarray
-
-
-@dataclass(frozen=True)
-class Held:
-    """Chunks read once to be converted again and again (the delay's trial stretches):
-    their beat codes end to end in `beat`, chunk k's from `offsets[k]` (its arrays are
-    views into it), what `prepare` found in each, the stretch each belongs to, and the
-    delay (samples) each is converted at (None: the open plan's)."""
-
-    beat: np.ndarray
-    chunks: list
-    offsets: list[int]
-    prepared: list[Prepared]
-    stretch: list[int]
-    lags: list[float] | None = None
-
-    def at(self, lags: list[float]) -> Held:
-        """These chunks once at each delay of `lags`, converted in one pass: the stretches
-        of the j-th delay numbered after those of the ones before it."""
-        n = max(self.stretch, default=-1) + 1
-        return Held(self.beat, self.chunks * len(lags), self.offsets * len(lags), self.prepared * len(lags),
-                    [k + j * n for j in range(len(lags)) for k in self.stretch],
-                    [lag for lag in lags for _ in self.chunks])
-
-
-@dataclass
-class Pending:
-    """A chunk measured but for its range check and survey: its beat codes, the times
-    (s) of its pairs' rising and falling half-sweeps, which pairs it owns, the owned
-    pairs' tracker results (`result`) and clipping, its clipped codes, and the range
-    check and survey to run."""
-
-    beat: np.ndarray
-    times: tuple[np.ndarray, np.ndarray]
-    own: slice | np.ndarray
-    result: pairing.PairResult
-    clip: np.ndarray
-    clipped_codes: int
-    check: RangeCheck | None
-    survey: Survey | None
-
-
-@dataclass
-class Ahead:
-    """The chunk processed next, as the one before left it: what `prepare` found in it,
-    its pairs (`_pairs`, None: none) and their resampling, launched (None: not yet)."""
-
-    chunk: Chunk
-    prepared: Prepared
-    found: tuple | None
-    resampled: tuple | None
-
-
-@dataclass
-class Later:
-    """A step's results: known now (`value`), or once a later download of a device
-    brings them (`rider`, a buffers.Rider that download carries; `land(raw)` makes the
-    results from its bytes, `fetch()` by a copy of their own where no download took it,
-    `begin()` queues that copy and returns the function that finishes it: `start`)."""
-
-    value: object = None
-    rider: object = None
-    land: Callable | None = None
-    fetch: Callable | None = None
-    begin: Callable | None = None
-
-    def get(self):
-        """The results (waits for the device where they are still there)."""
-        if self.rider is not None:
-            raw, self.rider = self.rider.value, None
-            self.value = self.fetch() if raw is None else self.land(raw)
-        return self.value
-
-    def start(self) -> Later:
-        """Queue the copy of its own now (where a device has one to begin), for `get`
-        to wait for; itself. Not to ride on another download after."""
-        if self.rider is not None and self.begin is not None:
-            self.fetch, self.begin = self.begin(), None
-        return self
-
-
-class ChunkProcessor(pairing.SpectrumOps):
+class ChunkProcessor(spectrum_ops.SpectrumOps):
     """The life cycle and the steps of a chunk processor; a subclass supplies the stage
     operations (low-pass, the delay's per-period fits, turning points, resampling,
-    clipping counts, and the spectrum operations of pairing.SpectrumOps) and its sizes.
+    clipping counts, and the spectrum operations of spectrum_ops.SpectrumOps) and its sizes.
 
     Attributes
     ----------
@@ -218,9 +126,9 @@ class ChunkProcessor(pairing.SpectrumOps):
         raise NotImplementedError
 
     def period_delays(self, beat, sync_codes, sample_rate_hz, half_period):
-        """`sync.period_delays` of the stretches `beat`, `sync_codes` (rows of codes), by
+        """`delay.period_delays` of the stretches `beat`, `sync_codes` (rows of codes), by
         this processor's low-pass and per-period fit (a device: one download)."""
-        return sync.period_delays(beat, sync_codes, sample_rate_hz, half_period, self.intensity_each,
+        return delay.period_delays(beat, sync_codes, sample_rate_hz, half_period, self.intensity_each,
                                   self.fit_periods)
 
     def turning_points(self, codes, half_period):
@@ -359,7 +267,7 @@ class ChunkProcessor(pairing.SpectrumOps):
         xr, xf = self._moving_only(rows)
         res = pairing.track_pairs(xr, xf, times, plan.model, plan.search, plan.options.iterations,
                                   plan.options.dechirp, self, k or 1)
-        out, slices = [], iter(pairing.group_slices(times.groups, times.rise.size))
+        out, slices = [], iter(group_slices(times.groups, times.rise.size))
         for (chunk, prepared, lag), got in zip(items, found, strict=True):
             one = None if got is None else res.take(next(slices))
             if one is not None and k is None and one.heard.mean() < integrate.AUTO_SHARE:
@@ -505,79 +413,6 @@ class ChunkProcessor(pairing.SpectrumOps):
                           Search(plan.search.lo, model2.nfft // 2))
 
 
-def owned(first: np.ndarray, start: int, stop: int) -> slice | np.ndarray:
-    """The pairs a chunk owns, those whose first turn (`first`, sync samples) lies in
-    its core [start, stop): a slice where they are one run, as they are where `first`
-    increases, so that taking them makes views, not copies; else their indices."""
-    idx = np.flatnonzero((first >= start) & (first < stop))
-    if idx.size and idx[-1] - idx[0] + 1 == idx.size:
-        return slice(int(idx[0]), int(idx[-1]) + 1)
-    return idx
-
-
-@dataclass(frozen=True)
-class RangeCheck:
-    """The 2N-point range check of a chunk's owned pairs: the pairs `checked`, the
-    resampling jobs of their rising and falling half-sweeps at 2N points, its window,
-    model and search."""
-
-    checked: np.ndarray
-    jobs: list
-    window: np.ndarray
-    model: pairing.DopplerModel
-    search: Search
-
-    def beyond(self, got: list, res: pairing.PairResult, lut) -> np.ndarray:
-        """Which of the pairs of `res` lie beyond the unambiguous range of `lut`, from the
-        checked pairs' 2N-point peaks `got`: a pair is flagged when a checked pair on
-        either side of it is (a target crosses the range limit within a few pairs, where
-        the N-point distance is ambiguous anyway)."""
-        checked, n = self.checked, res.distance.size
-        beyond = np.zeros(checked.size, bool)
-        for (d2, s2), dn in zip(got, (res.dist_rise[checked], res.dist_fall[checked]), strict=True):
-            beyond |= faults.beyond_range(d2, s2, lut.unambiguous_range_m, pairing.SNR_MIN_DB, dn)
-        right = np.searchsorted(checked, np.arange(n))          # first checked pair >= i
-        left = np.searchsorted(checked, np.arange(n), side="right") - 1
-        return beyond[right] | beyond[np.maximum(left, 0)]
-
-
-@dataclass(frozen=True)
-class Survey:
-    """The survey of a chunk's hidden echoes: the surveyed pairs `idx` and `survey_each`'s
-    arguments for them."""
-
-    idx: np.ndarray
-    args: tuple
-
-    def table(self, got: list, times: tuple, model: pairing.DopplerModel) -> dict:
-        """The survey's columns (SURVEY_KEYS) from survey_each's results `got`, the pairs'
-        rising and falling times (s) `times`: per surveyed half-sweep, and the peaks of
-        each direction's mean spectra (echoes.mean_peaks, at their pairs' mean time)."""
-        counts = echoes.block_rows(self.idx.size)
-        t_mean = echoes.block_sums(0.5 * (times[0][self.idx, None] + times[1][self.idx, None]))[:, 0] / counts
-        means = []
-        for rising, g in zip((True, False), got, strict=True):
-            block, b, snr = echoes.mean_peaks(g[3], counts, self.args[5])
-            means.append((t_mean, np.full(t_mean.size, rising), t_mean[block], np.full(block.size, rising),
-                          b * model.metres_per_bin, snr))
-        return {"time_s": np.concatenate([t[self.idx] for t in times]),
-                "rising": np.repeat([True, False], self.idx.size),
-                "ratio": np.concatenate([g[0] for g in got]),
-                "distance_m": np.concatenate([g[1] * model.metres_per_bin for g in got]),
-                "found": np.concatenate([g[2] for g in got]),
-                **dict(zip(echoes.MEAN_KEYS, map(np.concatenate, zip(*means, strict=True)), strict=True))}
-
-    def spectrum(self, got: list) -> tuple[np.ndarray, int]:
-        """The surveyed half-sweeps' plain power spectra summed per direction (rising,
-        falling), from survey_each's results `got`, and how many of a direction."""
-        return np.stack([g[3].sum(axis=0, dtype=np.float64) for g in got]), int(self.idx.size)
-
-
-def no_survey() -> dict:
-    """The survey of a chunk that surveyed nothing."""
-    return {k: np.zeros(0, bool if k == "found" or k.endswith("rising") else float) for k in SURVEY_KEYS}
-
-
 class NumpyProcessor(ChunkProcessor):
     """The reference processor: every stage in numpy/scipy (`stages/`)."""
 
@@ -595,7 +430,7 @@ class NumpyProcessor(ChunkProcessor):
         return lpf.intensity_each(channels, sample_rate_hz)
 
     def fit_periods(self, y, z, shift, period, span):
-        return sync.fit_periods(y, z, shift, period, span)
+        return delay.fit_periods(y, z, shift, period, span)
 
     def turning_points(self, codes, half_period):
         return sync.sync_turning_points(codes, half_period)

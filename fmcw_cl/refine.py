@@ -29,10 +29,10 @@ import numpy as np
 
 from . import numeric
 from .capture import Capture
+from .chunk_state import Held
 from .chunks import held_end_to_end
 from .motion import SMOOTH, Motion, choose
-from .processor import Held
-from .stages import kinematics, pairing, resample, sync
+from .stages import doppler, kinematics, resample, sync
 
 STRETCHES = 3
 STRETCH_PERIODS = 240
@@ -170,7 +170,7 @@ def bridged_runs(t: np.ndarray, d: np.ndarray, v: np.ndarray, ok: np.ndarray) ->
 def pairs_of(parts, model, motion: Motion = SMOOTH) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Time (s), distance (m), velocity (m/s) and validity of the pairs of converted
     chunks (processor.ChunkMeasurements) of one stretch, the distances of valid runs
-    free of the acceleration's bias (pairing.acceleration_bias, its acceleration over
+    free of the acceleration's bias (doppler.acceleration_bias, its acceleration over
     `motion.bias` pairs, as the track's are; `model`: the plan's DopplerModel)."""
     t = np.concatenate([0.5 * (q.t_rise + q.t_fall) for q in parts])
     d = np.concatenate([q.result.distance for q in parts])
@@ -183,7 +183,7 @@ def pairs_of(parts, model, motion: Motion = SMOOTH) -> tuple[np.ndarray, np.ndar
         held = kinematics.held_acceleration(np.where(ok, v, np.nan), ok, float(np.median(np.diff(t))),
                                             motion.bias, motion.hold)
         half_gap = np.concatenate([0.5 * (q.t_fall - q.t_rise) for q in parts])
-        d = d - pairing.acceleration_bias(held, half_gap, model)
+        d = d - doppler.acceleration_bias(held, half_gap, model)
     return t, d, v, ok
 
 

@@ -69,7 +69,7 @@ from . import echoes
 from .numeric import drift, group_median, nearest
 from .options import RANGE_GAP_M, said
 from .stages import faults
-from .stages.pairing import DRIFT_MPS
+from .stages.verification import DRIFT_MPS
 
 RULES = ("auto", "moving", "nearest", "strongest")
 FIXED_SHARE = 0.5     # of the slices a fixed echo is seen in

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .stages.pairing import DopplerModel
+from .stages.doppler import DopplerModel
 
 IMAGE_MARGIN_DB = 3.0   # a peak this far above an image at its place may still be the image: the
                         # levels are measured apart (CFAR tables, peak over the band's mean); on

@@ -1,9 +1,9 @@
 // Stage 3: the sync-to-optics delay, fitted period by period. The low-passed beat y of
 // one period is regressed on the low-passed sync z moved by a lag, its derivative and a
 // constant (Gauss-Newton, three steps from the row's coarse lag); one work-item per
-// period of every row (the sync delay's stretches). Twin: fmcw_cl.stages.sync.fit_periods.
+// period of every row (the sync delay's stretches). Twin: fmcw_cl.stages.delay.fit_periods.
 // Before it, from the low-pass's rows on the device: each row trimmed and its mean
-// removed, and its coarse lag, the largest |cross-correlation| (twin: sync.period_delays).
+// removed, and its coarse lag, the largest |cross-correlation| (twin: delay.period_delays).
 
 // Each row of the low-passed beat (channel 0) and sync (channel 1), `edge` samples left
 // out at each end, less its mean: a work-group a row of a channel, its work-items

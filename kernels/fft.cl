@@ -7,7 +7,7 @@
 // device, and the power of bins 0 .. nfft/2 - 1 when `keep_power` asks for it (in the
 // rows of `index` when `scatter`: integrate.cl's store of spectra kept between passes).
 // De-chirp: x_j * exp(-2 pi i v beta_j), the phase reduced modulo one cycle first so
-// that float32 keeps its precision. Twins: fmcw_cl.stages.pairing.measure and
+// that float32 keeps its precision. Twins: fmcw_cl.stages.doppler.measure and
 // fmcw_cl.stages.spectrum.power_spectra.
 
 // The two device functions of the transform, written once for a scalar type T: float

@@ -7,7 +7,7 @@
 // every twiddle is one value for all lanes (PoCL, 2-core EPYC: a 2048-point transform
 // 2.5 us a row against 11-14 us). One work-item a group, its transforms in local memory.
 // LANES: lanes.cl (PoCL, 2-core Skylake-SP: 16 lanes 15-20 % faster than 8).
-// Twins: fmcw_cl.stages.pairing.measure, stages.spectrum.power_spectra and find_peaks,
+// Twins: fmcw_cl.stages.doppler.measure, stages.spectrum.power_spectra and find_peaks,
 // stages.cfar.detect.
 
 SINCOS_CYCLES(sincos_lanes, floatL)

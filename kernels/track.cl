@@ -16,7 +16,7 @@
 #if defined(cl_khr_fp64)
 #pragma OPENCL EXTENSION cl_khr_fp64 : enable
 
-#define REACH_MAX 16        // the median's half-width, at most (pairing.NEIGHBOURS: 8)
+#define REACH_MAX 16        // the median's half-width, at most (groups.NEIGHBOURS: 8)
 
 // numpy's order: NaN above every number, equal to itself
 int before(const double a, const double b) { return !isnan(a) && (isnan(b) || a < b); }
@@ -153,7 +153,7 @@ __kernel void track_pass(const int pairs, const int first, const int last, const
     const int per = (pairs + lsz - 1) / lsz;
     const int a = min(lid * per, pairs), b = min(a + per, pairs);
     if (first || !state[1]) {                         // uniform in the group: barriers are safe
-        // the new measurements (pairing.solve_pair)
+        // the new measurements (doppler.solve_pair)
         for (int i = a; i < b; ++i) {
             const int g = first || every ? i : slot[i];
             if (first) vd[i] = 0.0;
@@ -195,7 +195,7 @@ __kernel void track_pass(const int pairs, const int first, const int last, const
         ends[3 * lid] = l;
         ends[3 * lid + 1] = f;
         barrier(CLK_LOCAL_MEM_FENCE | CLK_GLOBAL_MEM_FENCE);
-        // the next velocity of each pair (pairing.regularise) and whether it moved
+        // the next velocity of each pair (groups.regularise) and whether it moved
         int p = -1, n = -1;
         for (int k = 0; k < lsz; ++k) {
             const int lk = ends[3 * k], fk = ends[3 * k + 1];
@@ -272,7 +272,7 @@ __kernel void track_valid(const int pairs,
                && fabs(vel[i] - med[i]) < consistent;
 }
 
-// Each pair's continuity residual (m; twin: pairing._residuals): |its distance - the
+// Each pair's continuity residual (m; twin: verification._residuals): |its distance - the
 // median of what its valid neighbours within `reach` in its group predict|, infinite
 // with fewer than `support` of them, and how many there are (`vouched`).
 __kernel void track_residual(const int pairs, const int reach, const int support,

@@ -3,12 +3,12 @@
 // pair (its neighbours up to `reach` pairs away on either side). Each neighbour pair is
 // judged in time order, as numpy's twin judges it. The continuity residuals of the same
 // fixed point are track.cl's `track_residual`, over one group. Twin:
-// fmcw_cl.stages.pairing.disagreed, in double precision as numpy's.
+// fmcw_cl.stages.verification.disagreed, in double precision as numpy's.
 #pragma OPENCL FP_CONTRACT OFF
 #if defined(cl_khr_fp64)
 #pragma OPENCL EXTENSION cl_khr_fp64 : enable
 
-// pairing._agrees of pair a (earlier) and pair b
+// verification._agrees of pair a (earlier) and pair b
 int agrees(const double ta, const double da, const double va, const double tb, const double db,
            const double vb, const double jump_max, const double accel_max, const double consistent)
 {

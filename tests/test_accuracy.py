@@ -62,7 +62,7 @@ def test_jump_and_the_gain_over_the_paper_method(jump_capture, jump_track):
 def test_no_distance_bias_from_the_acceleration(jump_capture, jump_track):
     """A pair's two half-sweeps are de-chirped at its one velocity while the target
     accelerates: uncorrected, the distance moved by 0.31 um per m/s^2 (0.11 mm at the
-    jump's 360 m/s^2; pairing.acceleration_bias). Corrected, the error no longer follows
+    jump's 360 m/s^2; doppler.acceleration_bias). Corrected, the error no longer follows
     the acceleration, and the jump's p95 falls from 0.10 to about 0.03 mm."""
     import numpy as np
 

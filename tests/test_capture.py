@@ -6,7 +6,9 @@ import h5py
 import numpy as np
 import pytest
 
-from fmcw_cl.capture import Capture, CaptureWriter, Modulation
+from fmcw_cl.capture import Capture
+from fmcw_cl.capture_format import Modulation
+from fmcw_cl.capture_writer import CaptureWriter
 from fmcw_cl.errors import CaptureError
 
 MOD = Modulation(20e3, 0.16, 0.48)

@@ -357,9 +357,9 @@ def test_where_the_refined_delay_and_the_triangles_disagree_the_rule_is_said(tmp
 
 
 def test_the_intensity_estimates_error_is_the_medians():
-    from fmcw_cl.stages import sync
+    from fmcw_cl.stages import delay
 
     rng = np.random.default_rng(4)
-    sigmas = [sync.combine_delays(rng.normal(5.0, 2.0, 400), np.full(400, 0.1))[3] for _ in range(3)]
+    sigmas = [delay.combine_delays(rng.normal(5.0, 2.0, 400), np.full(400, 0.1))[3] for _ in range(3)]
     assert all(0.1 < s < 0.15 for s in sigmas)         # 1.25 x 2 / sqrt(400) = 0.125
-    assert np.isnan(sync.combine_delays(np.array([1.0, 2.0]), np.array([0.1, 0.1]))[3])
+    assert np.isnan(delay.combine_delays(np.array([1.0, 2.0]), np.array([0.1, 0.1]))[3])

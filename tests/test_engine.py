@@ -6,7 +6,8 @@ import h5py
 import numpy as np
 import pytest
 
-from fmcw_cl.capture import Capture, CaptureWriter
+from fmcw_cl.capture import Capture
+from fmcw_cl.capture_writer import CaptureWriter
 from fmcw_cl.engine import process
 from fmcw_cl.errors import FmcwError
 from fmcw_cl.options import Options
@@ -269,7 +270,7 @@ def test_a_choice_beside_walls_keeps_the_first_assemblys_echo_table(tmp_path, mo
 def test_owned_pairs_are_a_slice_where_they_are_one_run():
     """A chunk's owned pairs (first turn in its core) are taken as views where they are
     one run, as with increasing turns; otherwise by index, the same pairs."""
-    from fmcw_cl.processor import owned
+    from fmcw_cl.chunk_checks import owned
 
     first = np.arange(10) * 5000.0 + 100.0
     got = owned(first, 10_000, 30_000)

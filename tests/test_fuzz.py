@@ -15,7 +15,7 @@ from fmcw_cl.engine import process
 from fmcw_cl.errors import FmcwError
 from fmcw_cl.options import Options
 from fmcw_cl.simulator.laser import paper_dfb
-from fmcw_cl.stages import faults, pairing, resample, spectrum, sync
+from fmcw_cl.stages import doppler, faults, pairing, resample, spectrum, sync
 from fmcw_cl.stages.lut import build_lut
 from fmcw_cl.stages.spectrum import Search
 
@@ -134,7 +134,7 @@ def test_segmentation(n_periods, phase, stretch, amplitude, noise, cuts, spikes,
 
 LUT = build_lut(TABLE_I, TABLE_F, 0.16, 0.48, 64)
 WIN = resample.window(64)
-MODEL = pairing.doppler_model(LUT, 25e-6, spectrum.fft_length(64), WIN)
+MODEL = doppler.doppler_model(LUT, 25e-6, spectrum.fft_length(64), WIN)
 
 
 @FUZZ

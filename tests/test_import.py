@@ -8,7 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from fmcw_cl.capture import Capture, Modulation
+from fmcw_cl.capture import Capture
+from fmcw_cl.capture_format import Modulation
 from fmcw_cl.engine import process
 from fmcw_cl.errors import CaptureError
 from fmcw_cl.ingest import import_capture, read_dump, read_osa_table

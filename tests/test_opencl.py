@@ -18,7 +18,7 @@ from fmcw_cl.opencl import spectrum as k_spectrum
 from fmcw_cl.opencl.context import cl, lanes_width
 from fmcw_cl.opencl.processor import OpenCLProcessor
 from fmcw_cl.options import Options
-from fmcw_cl.stages import clutter, faults, lpf, resample, spectrum, sync
+from fmcw_cl.stages import clutter, delay, faults, lpf, resample, spectrum, sync
 from fmcw_cl.stages.spectrum import Search
 
 
@@ -128,7 +128,7 @@ def test_both_directions_in_one_trip_equal_each_alone(backend, kernel_variant, s
     """resample_each and measure_each (a pair's rising and falling half-sweeps, their
     positions up in one copy, all results down in one): bit for bit each direction
     alone, plain (every echo listed) and de-chirped at picked rows."""
-    from fmcw_cl.stages import pairing
+    from fmcw_cl.stages import doppler
     from fmcw_cl.stages.lut import build_lut
 
     rng = np.random.default_rng(sweeps)
@@ -141,7 +141,7 @@ def test_both_directions_in_one_trip_equal_each_alone(backend, kernel_variant, s
     both = backend.resample_each(codes, jobs, win)
     for x, job in zip(both, jobs, strict=True):
         np.testing.assert_array_equal(x.get(), backend.resample(codes, *job, win).get())
-    model = pairing.doppler_model(lut, 25e-6, 1024, win)
+    model = doppler.doppler_model(lut, 25e-6, 1024, win)
     betas = (model.beta_rise, model.beta_fall)
     search = Search(3, 400, echoes=picked is None)
     rows = None if picked is None else np.sort(rng.choice(sweeps, picked, replace=False))
@@ -693,7 +693,7 @@ def test_delay_fit_kernel_matches_numpy(backend, rows, n, period):
     y, z, coarse, lag = delay_rows(rng, rows, n, period)
     span = 17
     got = backend.fit_periods(y, z, coarse, period, span)
-    want = sync.fit_periods(y, z, coarse, period, span)
+    want = delay.fit_periods(y, z, coarse, period, span)
     assert got[0].shape == want[0].shape == (rows, len(range(span, n - span - period, period)))
     for g, w in zip(got, want, strict=True):
         np.testing.assert_array_equal(np.isnan(g), np.isnan(w))
@@ -731,7 +731,7 @@ def test_delay_estimate_on_the_device_equals_numpy(backend, kernel_variant, n):
                      for k, lag in enumerate(lags)])
     sy, beat = (np.rint(x).astype(np.int16) for x in (sy, beat))
     got = backend.period_delays(beat, sy, 100e6, half)
-    staged = sync.period_delays(beat, sy, 100e6, half, backend.intensity_each, backend.fit_periods)
+    staged = delay.period_delays(beat, sy, 100e6, half, backend.intensity_each, backend.fit_periods)
     want = NumpyProcessor().period_delays(beat, sy, 100e6, half)
     if n < 10_000:                         # too short for a period between the coarse lags' reach
         assert got[0].size == staged[0].size == want[0].size == 0
@@ -1008,7 +1008,8 @@ def test_survey_kernel_matches_numpy(backend, kernel_variant, rows, nfft, lo):
     """The echo survey (kernels/survey.cl against echoes.hidden): a target, sometimes a
     smeared rival the other echoes explain or not, sometimes a sharp one no echo
     explains, noise; medians of odd and even band sizes."""
-    from fmcw_cl.stages import pairing
+    from fmcw_cl import spectrum_ops
+    from fmcw_cl.stages import doppler
 
     rng = np.random.default_rng(rows + nfft)
     points = nfft // 2 - 7
@@ -1028,14 +1029,14 @@ def test_survey_kernel_matches_numpy(backend, kernel_variant, rows, nfft, lo):
     others[::3] = rival + np.array([-20, 0, 20])    # explained in every third row
     args = (beta, v, nfft, pick, lo, np.full(rows, target), np.full(rows, target), others)
     got = backend.survey(x.astype(np.float32), *args)
-    want = pairing.NUMPY.survey(x, *args)
+    want = spectrum_ops.NUMPY.survey(x, *args)
     np.testing.assert_array_equal(got[2], want[2])
     np.testing.assert_allclose(got[0], want[0], rtol=1e-3, atol=1e-4)
     np.testing.assert_allclose(got[1], want[1], rtol=1e-4)
     # the plain spectra's sums in blocks of MEAN_ROWS rows (the last one shorter)
     assert got[3].shape == want[3].shape == (-(-rows // echoes.MEAN_ROWS), nfft // 2)
     np.testing.assert_allclose(got[3], want[3], rtol=2e-4, atol=1e-5 * want[3].max())
-    picked = pairing.power(x, None, None, nfft, pick)
+    picked = doppler.power(x, None, None, nfft, pick)
     np.testing.assert_allclose(want[3][-1], picked[(want[3].shape[0] - 1) * echoes.MEAN_ROWS:].sum(axis=0))
     if rows >= 9:
         assert want[2].any() and not want[2].all()  # the rival is found where nothing explains it
@@ -1062,7 +1063,7 @@ def _tracker_scene(backend, scene: str, pairs: int, iterations: int, groups, amp
     ("fold"), a still one ("still"), noise alone ("noise") or silence ("silent"), with a
     fade; its times (in `groups` tracked apart), Doppler model and search band."""
     from fmcw_cl.physics import C
-    from fmcw_cl.stages import pairing
+    from fmcw_cl.stages import doppler, pairing
     from fmcw_cl.stages.lut import build_lut
 
     rng = np.random.default_rng(pairs + iterations)
@@ -1070,7 +1071,7 @@ def _tracker_scene(backend, scene: str, pairs: int, iterations: int, groups, amp
     lut = build_lut(cur, 190e12 + 160e9 * ((cur - 0.16) / 0.32) ** 1.3, 0.16, 0.48, 500, 1.0)
     win = resample.window(500)
     half_s = 25e-6
-    model = pairing.doppler_model(lut, half_s, 1024, win)
+    model = doppler.doppler_model(lut, half_s, 1024, win)
     t_mid = 0.01 + np.arange(pairs) * 50e-6
     v = np.linspace(1.0, 7.0, pairs) if scene == "fold" else np.zeros(pairs)
     r = 0.12 + np.cumsum(v) * 50e-6
@@ -1102,15 +1103,15 @@ def test_tracker_passes_on_the_device_equal_the_host_passes(backend, kernel_vari
     pairs than the median's window; pairs in groups tracked apart (one of a single
     pair, one of 11 inside the fade with no trusted pair, groups that split the
     kernel's runs of pairs)."""
+    from fmcw_cl import spectrum_ops
     from fmcw_cl.opencl import track as k_track
-    from fmcw_cl.stages import pairing
 
     rows, times, model, search = _tracker_scene(backend, scene, pairs, iterations, groups)
     assert k_track.supported(backend.rt)
     launched = monkeypatch_count(monkeypatch, k_track, "track")
     first, state = backend.track(rows, times, model, search, iterations, True)
     assert launched == [1]
-    want_first, want = pairing.SpectrumOps.track(backend, rows, times, model, search, iterations, True)
+    want_first, want = spectrum_ops.SpectrumOps.track(backend, rows, times, model, search, iterations, True)
     for a, b in zip(first, want_first, strict=True):
         np.testing.assert_array_equal(a[0], b[0])
         np.testing.assert_array_equal(a[1], b[1])
@@ -1121,7 +1122,7 @@ def test_tracker_passes_on_the_device_equal_the_host_passes(backend, kernel_vari
         assert np.ptp(state.vd) > 3.0            # the passes moved the de-chirp velocities
         assert 0 < valid.sum() < pairs and np.isinf(resid).any() and np.ptp(resid[np.isfinite(resid)]) > 0
     if groups is not None and scene == "fold":   # the groups changed what the passes decided
-        _, one = pairing.SpectrumOps.track(backend, rows, replace(times, groups=None), model, search,
+        _, one = spectrum_ops.SpectrumOps.track(backend, rows, replace(times, groups=None), model, search,
                                            iterations, True)
         assert not np.array_equal(one.vd, state.vd)
 
@@ -1153,20 +1154,20 @@ def test_integrated_passes_on_the_device_equal_the_host_passes(backend, kernel_v
     are cut at their ends (counts under K: lower floors) and that split the kernel's runs
     of pairs (the displacement carried across work-items); a still weak target, noise
     alone, silence; fewer pairs than the window."""
+    from fmcw_cl import spectrum_ops
     from fmcw_cl.opencl import track as k_track
-    from fmcw_cl.stages import pairing
 
     rows, times, model, search = _tracker_scene(backend, scene, pairs, iterations, groups, amplitude)
     search = replace(search, echoes=False)
     launched = monkeypatch_count(monkeypatch, k_track, "integrated")
     state = backend.integrated(rows, times, model, search, iterations, k)
     assert launched == [1]
-    want = pairing.SpectrumOps.integrated(backend, rows, times, model, search, iterations, k)
+    want = spectrum_ops.SpectrumOps.integrated(backend, rows, times, model, search, iterations, k)
     _assert_same_passes(state, want, times, model)
     assert state.k == k and state.count.max() == min(k, pairs)
     if scene == "fold" and pairs > 100:
         assert np.ptp(state.vd) > 2.0            # the passes moved the de-chirp velocities
-        single = pairing.SpectrumOps.track(backend, rows, times, model, search, iterations, True)[1]
+        single = spectrum_ops.SpectrumOps.track(backend, rows, times, model, search, iterations, True)[1]
         assert state.heard.mean() > single.heard.mean() + 0.3       # integration heard what one did not
         assert 0 < state.verdict[0].sum() < pairs
 
@@ -1174,14 +1175,15 @@ def test_integrated_passes_on_the_device_equal_the_host_passes(backend, kernel_v
 @pytest.mark.parametrize("pairs", [0, 1, 2, 49, 5001])
 def test_verification_tests_on_the_device_equal_numpys(backend, monkeypatch, pairs):
     """kernels/verify.cl (`kinematic_drop`) and track.cl's `track_residual` over one
-    group against pairing.disagreed and the numpy residuals, and pairing.verify with the
+    group against verification.disagreed and the numpy residuals, and verification.verify with the
     processor's tests (on the device from PAIRS_MIN pairs) against its numpy run: a
     take-off at 300 m/s^2 with wrong pairs (an echo 3 mm off for 30 pairs, single noise
     peaks), gaps in time of 1 and 6 ms (beyond KINEMATIC_S), a fade (few valid pairs:
     too few neighbours), NaN distances on invalid pairs; fewer pairs than the kinematic
     and the continuity windows."""
+    from fmcw_cl import spectrum_ops
     from fmcw_cl.opencl import verify as k_verify
-    from fmcw_cl.stages import pairing
+    from fmcw_cl.stages import verification
 
     rng = np.random.default_rng(pairs)
     t = 0.01 + np.arange(pairs) * 50e-6
@@ -1195,19 +1197,19 @@ def test_verification_tests_on_the_device_equal_numpys(backend, monkeypatch, pai
     fade = slice(pairs // 4, pairs // 4 + 60)
     ok[fade] &= rng.random(ok[fade].size) < 0.1
     d[~ok & (rng.random(pairs) < 0.5)] = np.nan
-    want = pairing.disagreed(t, d, v, ok)
+    want = verification.disagreed(t, d, v, ok)
     np.testing.assert_array_equal(k_verify.disagreed(backend.rt, backend.bufs, t, d, v, ok), want)
-    resid, support = pairing.NUMPY.residuals(t, d, v, ok)
+    resid, support = spectrum_ops.NUMPY.residuals(t, d, v, ok)
     got = k_verify.residuals(backend.rt, backend.bufs, t, d, v, ok)
     np.testing.assert_array_equal(got[0], resid)
     np.testing.assert_array_equal(got[1], support)
     launched = monkeypatch_count(monkeypatch, k_verify, "residuals")
     for rows in (np.flatnonzero(ok), np.flatnonzero(ok)[::9]):     # every pair's on the device, a few here
-        want_rows = pairing.NUMPY.residuals(t, d, v, ok, rows)
+        want_rows = spectrum_ops.NUMPY.residuals(t, d, v, ok, rows)
         for a, b in zip(backend.residuals(t, d, v, ok, rows), want_rows, strict=True):
             np.testing.assert_array_equal(a, b)
     assert launched == [int(pairs >= k_verify.PAIRS_MIN)]
-    for a, b in zip(pairing.verify(t, d, v, ok, backend), pairing.verify(t, d, v, ok), strict=True):
+    for a, b in zip(verification.verify(t, d, v, ok, backend), verification.verify(t, d, v, ok), strict=True):
         np.testing.assert_array_equal(a, b)
     if pairs > 1000:      # the scene exercises both tests
         assert 30 <= want.sum() < 0.2 * pairs

@@ -11,10 +11,10 @@ import numpy as np
 import pytest
 from scipy.interpolate import CubicSpline
 
-from fmcw_cl import displacement
+from fmcw_cl import displacement, spectrum_ops
 from fmcw_cl.engine import process
 from fmcw_cl.simulator import LAB, SimulationConfig, creep, simulate_capture, static
-from fmcw_cl.stages import pairing, phase
+from fmcw_cl.stages import phase
 from fmcw_cl.stages.resample import window
 from fmcw_cl.track import read_track, write_track
 
@@ -68,7 +68,7 @@ def test_kernel_matches_numpy(backend, rows):
     xf = _rows(rng, rows, bins + 3, v, -beta, rng.uniform(-3, 3, rows))
     for vel in (v, None):
         got = backend.phasors_each((xr, xf), (beta, -beta), vel, (bins, bins + 3), NFFT)
-        want = pairing.NUMPY.phasors_each((xr, xf), (beta, -beta), vel, (bins, bins + 3), NFFT)
+        want = spectrum_ops.NUMPY.phasors_each((xr, xf), (beta, -beta), vel, (bins, bins + 3), NFFT)
         for g, w, x in zip(got, want, (xr, xf), strict=True):
             scale = np.sum(np.abs(x), axis=1)         # float32 sums of these terms
             assert np.all(np.abs(g - w) <= 1e-5 * scale)

@@ -426,11 +426,11 @@ def test_verification_drops_runs_whose_velocity_is_not_their_motion():
     """A run of 100 pairs (5 ms) on another echo's Doppler image: each 0.4 ms
     neighbourhood agrees within the noise, but the velocities (+2.2 m/s) are not the
     distances' course (-2.2 m/s): over 2 ms they part by 9 mm."""
-    from fmcw_cl.stages import pairing
+    from fmcw_cl.stages import verification
 
     t, d, v, ok, w = with_a_wrong_run(1000, 0.25, 0.2e-3, np.arange(600, 700), 3,
                                       lambda t: 0.2608 - 2.2 * (t - t[0]), lambda t: np.full(t.size, 2.2))
-    got, _ = pairing.verify(t, d, v, ok)
+    got, _ = verification.verify(t, d, v, ok)
     assert not got[w].any()
     right = ok.copy()
     right[w] = False
@@ -438,7 +438,7 @@ def test_verification_drops_runs_whose_velocity_is_not_their_motion():
 
 
 def test_verification_drops_isolated_pairs_and_short_wrong_runs():
-    from fmcw_cl.stages import pairing
+    from fmcw_cl.stages import verification
 
     rng = np.random.default_rng(1)
     t = np.arange(600) * 50e-6
@@ -453,7 +453,7 @@ def test_verification_drops_isolated_pairs_and_short_wrong_runs():
     ok[400:540] = False
     ok[470:476] = True                   # six more, over 3 ms from any other pair
     d[470:476] += 0.044
-    got, unsupported = pairing.verify(t, d, v, ok)
+    got, unsupported = verification.verify(t, d, v, ok)
     assert not got[120] and unsupported[120]
     # the pairs within 2 ms disagree with the first six; no anchor within 5 ms predicts the others
     assert not got[310:316].any() and not unsupported[310:316].any()
@@ -464,7 +464,7 @@ def test_verification_drops_isolated_pairs_and_short_wrong_runs():
     d[470:476] -= 0.044
     ok[310:316] = False
     ok[318:324] = True
-    got2, _ = pairing.verify(t, d, v, ok)
+    got2, _ = verification.verify(t, d, v, ok)
     assert got2[318:324].all() and got2[470:476].all()
 
 
@@ -472,7 +472,7 @@ def test_verification_drops_runs_whose_distance_leaves_their_velocity(monkeypatc
     """A rail's start beside a strong wall: a wrong echo held at one distance for 25 ms
     with a velocity of 0.94 m/s. Within 2 ms most pairs agree (0.94 m/s moves the
     prediction by less than the tolerance up to 1.1 ms); over the run it drifts 23 mm."""
-    from fmcw_cl.stages import pairing
+    from fmcw_cl.stages import verification
 
     rng = np.random.default_rng(6)
     t, d, v, ok, w = with_a_wrong_run(1200, 0.06, 50e-6, np.arange(400, 900), 5,
@@ -480,10 +480,10 @@ def test_verification_drops_runs_whose_distance_leaves_their_velocity(monkeypatc
                                       lambda t: 0.94 + rng.normal(0, 0.005, t.size))
     right = ok.copy()
     right[w] = False
-    got, _ = pairing.verify(t, d, v, ok)
+    got, _ = verification.verify(t, d, v, ok)
     assert not got[w].any() and got[right].mean() >= 0.98
-    monkeypatch.setattr(pairing, "_drifting", lambda *a: False)
-    assert pairing.verify(t, d, v, ok)[0][w].mean() > 0.5       # the 2 ms test alone keeps most
+    monkeypatch.setattr(verification, "_drifting", lambda *a: False)
+    assert verification.verify(t, d, v, ok)[0][w].mean() > 0.5       # the 2 ms test alone keeps most
 
 
 def test_verification_drops_a_short_run_that_drifts(monkeypatch):
@@ -493,7 +493,7 @@ def test_verification_drops_a_short_run_that_drifts(monkeypatch):
     stays on the wrong echo while the target moves on by 3.5 mm: shorter than DRIFT_S,
     but its drift is 20 standard errors. A run of 28 pairs that drifts is dropped too.
     Right short runs under noise, their velocity 0.1 m/s off (a sync delay's error), stay."""
-    from fmcw_cl.stages import pairing
+    from fmcw_cl.stages import verification
 
     rng = np.random.default_rng(46)
     t = np.arange(1000) * 50e-6
@@ -510,13 +510,13 @@ def test_verification_drops_a_short_run_that_drifts(monkeypatch):
     d[ghost] = 0.0797 + rng.normal(0, 40e-6, ghost.size)
     v[ghost] = 0.90 + rng.normal(0, 0.005, ghost.size)
     assert true_d[ghost[-1]] - 0.0797 > 3e-3
-    got, _ = pairing.verify(t, d, v, ok)
+    got, _ = verification.verify(t, d, v, ok)
     assert not got[ghost].any()
     right = ok.copy()
     right[meet] = False
     assert got[right].mean() >= 0.98
-    monkeypatch.setattr(pairing, "DRIFT_PAIRS", 10**9)
-    assert pairing.verify(t, d, v, ok)[0][ghost].mean() > 0.5        # runs of DRIFT_S alone keep it
+    monkeypatch.setattr(verification, "DRIFT_PAIRS", 10**9)
+    assert verification.verify(t, d, v, ok)[0][ghost].mean() > 0.5        # runs of DRIFT_S alone keep it
 
     # a run of 28 pairs (1.35 ms) held 49 mm short of a take-off under noise at full scale
     # (hunt seed 24, capture 50): its distance leaves its velocity at 0.44 m/s
@@ -525,19 +525,19 @@ def test_verification_drops_a_short_run_that_drifts(monkeypatch):
     v = 1.57 + rng.normal(0, 0.02, short.size)
     d = 0.2101 + (1.57 + 0.44) * short + rng.normal(0, 40e-6, short.size)
     ok = np.ones(short.size, bool)
-    assert pairing._drifting(short, d, v, ok) and not ok.any()
+    assert verification._drifting(short, d, v, ok) and not ok.any()
 
     # right runs of 0.85-5 ms, 0.2 mm of noise, velocities 0.1 m/s off: none dropped for a drift
     for seed in range(5):
         rng = np.random.default_rng(seed)
         d = true_d + rng.normal(0, 0.2e-3, t.size)
         v = true_v + 0.1 + rng.normal(0, 0.02, t.size)
-        for run in (60, pairing.DRIFT_PAIRS, 30):
+        for run in (60, verification.DRIFT_PAIRS, 30):
             ok = np.ones(t.size, bool)
             for gap in range(0, t.size, run + 20):
                 ok[gap:gap + 20] = False
             dropped = ok.copy()
-            pairing._drifting(t, d, v, dropped)
+            verification._drifting(t, d, v, dropped)
             assert dropped.sum() == ok.sum()
 
 
@@ -546,7 +546,7 @@ def test_verification_drops_a_run_at_rest_that_the_motion_passes_by(monkeypatch)
     of 400 codes that no table finds, and the tracker holds the wall for 5 ms at a time:
     runs at rest, self-consistent, between runs in motion that join across them. A
     target that stops where it is and goes on is kept."""
-    from fmcw_cl.stages import pairing
+    from fmcw_cl.stages import verification
 
     rng = np.random.default_rng(15)
     t = np.arange(1000) * 50e-6
@@ -558,13 +558,13 @@ def test_verification_drops_a_run_at_rest_that_the_motion_passes_by(monkeypatch)
     d[wall] = true_d[520] - 3e-3 + rng.normal(0, 40e-6, wall.size)
     v[wall] = rng.normal(0, 0.005, wall.size)
     ok[500:520] = ok[620:630] = False               # the handovers
-    got, _ = pairing.verify(t, d, v, ok)
+    got, _ = verification.verify(t, d, v, ok)
     assert not got[wall].any()
     right = ok.copy()
     right[wall] = False
     assert got[right].mean() >= 0.98
-    monkeypatch.setattr(pairing, "REST_MPS", 0.0)   # the test off: the wall's runs stand
-    assert pairing.verify(t, d, v, ok)[0][wall].mean() > 0.9
+    monkeypatch.setattr(verification, "REST_MPS", 0.0)   # the test off: the wall's runs stand
+    assert verification.verify(t, d, v, ok)[0][wall].mean() > 0.9
     monkeypatch.undo()
 
     # hunt seed 18, capture 8: the run after the wall comes to rest (a landing): its median
@@ -575,8 +575,8 @@ def test_verification_drops_a_run_at_rest_that_the_motion_passes_by(monkeypatch)
     v = true_v + rng.normal(0, 0.005, t.size)
     d[wall] = true_d[520] - 3e-3 + rng.normal(0, 40e-6, wall.size)
     v[wall] = rng.normal(0, 0.005, wall.size)
-    assert np.median(np.abs(v[630:])) < pairing.REST_MPS
-    got, _ = pairing.verify(t, d, v, ok)
+    assert np.median(np.abs(v[630:])) < verification.REST_MPS
+    got, _ = verification.verify(t, d, v, ok)
     assert not got[wall].any() and got[right].mean() >= 0.98
 
     # three walls passed, a run too short to have ends beside one: each run at rest is
@@ -592,14 +592,14 @@ def test_verification_drops_a_run_at_rest_that_the_motion_passes_by(monkeypatch)
         v[w] = rng.normal(0, 0.005, w.size)
         ok[w[0] - 20:w[0]] = ok[w[-1] + 1:w[-1] + 11] = False
     ok[1285:1290] = True                                # 5 pairs in the second handover
-    got, _ = pairing.verify(t, d, v, ok)
+    got, _ = verification.verify(t, d, v, ok)
     right = ok.copy()
     for w in walls:
         right[w] = False
         assert not got[w].any()
     assert got[right].mean() >= 0.98
-    monkeypatch.setattr(pairing, "REST_MPS", 0.0)
-    got, _ = pairing.verify(t, d, v, ok)
+    monkeypatch.setattr(verification, "REST_MPS", 0.0)
+    got, _ = verification.verify(t, d, v, ok)
     assert all(got[w].mean() > 0.9 for w in walls)
 
     # a target that stops for 5 ms and goes on (braking and starting at 400 m/s^2) is kept
@@ -609,7 +609,7 @@ def test_verification_drops_a_run_at_rest_that_the_motion_passes_by(monkeypatch)
     v = true_v + rng.normal(0, 0.005, t.size)
     ok = np.ones(t.size, bool)
     ok[490:500] = ok[600:610] = False
-    assert pairing.verify(t, d, v, ok)[0][ok].mean() >= 0.98
+    assert verification.verify(t, d, v, ok)[0][ok].mean() >= 0.98
 
 
 @pytest.mark.parametrize("kind, walls, speckle, seed, unlike", [
@@ -696,14 +696,14 @@ def test_close_range_fold_keeps_the_landing(tmp_path):
 
 
 def test_continuity_flags_a_common_mode_jump():
-    from fmcw_cl.stages import pairing
+    from fmcw_cl.stages import verification
 
     rng = np.random.default_rng(0)
     t = np.arange(400) * 50e-6
     v = 3.0 + 200 * t                                        # accelerating
     d = 0.1 + 3.0 * t + 100 * t**2 + rng.normal(0, 30e-6, t.size)
     d[[50, 51, 300]] += 1.7e-3                                # both sweeps on a wrong peak
-    ok = pairing.continuity(t, d, v, np.ones(t.size, bool))
+    ok = verification.continuity(t, d, v, np.ones(t.size, bool))
     assert not ok[[50, 51, 300]].any()
     assert ok.sum() == t.size - 3
     code = faults.reasons(np.ones(t.size, bool), np.ones(t.size, bool), np.zeros(t.size, bool),

@@ -7,7 +7,7 @@ import pytest
 
 from fmcw_cl.physics import C
 from fmcw_cl.simulator import paper_dfb
-from fmcw_cl.stages import kinematics, lpf, pairing, resample, spectrum, sync
+from fmcw_cl.stages import delay, doppler, kinematics, lpf, pairing, resample, spectrum, sync, verification
 from fmcw_cl.stages.lut import build_lut
 from fmcw_cl.stages.spectrum import Search
 
@@ -66,10 +66,10 @@ def test_delay_from_the_intensity_triangle(lag, sign):
     n = 400_000
     sync_ch = triangle(n, HP, t0=777.0, amp=6000, noise=4, seed=1)
     optical = triangle(n, HP, t0=777.0 - lag, amp=800, noise=25, seed=2)
-    lags, misfit = sync.period_delays(sign * optical, sync_ch, 100e6, HP)
-    est, used, best, _ = sync.combine_delays(lags, misfit)
+    lags, misfit = delay.period_delays(sign * optical, sync_ch, 100e6, HP)
+    est, used, best, _ = delay.combine_delays(lags, misfit)
     assert est == pytest.approx(lag, abs=0.1)
-    assert used > 0.8 * lags.size and best < sync.CLEAN_MISFIT
+    assert used > 0.8 * lags.size and best < delay.CLEAN_MISFIT
 
 
 def test_delay_of_stretches_as_rows():
@@ -79,8 +79,8 @@ def test_delay_of_stretches_as_rows():
     sync_ch = np.stack([triangle(n, HP, t0=100.0 * k, amp=6000, noise=4, seed=k) for k in range(3)])
     optical = np.stack([triangle(n, HP, t0=100.0 * k - 12.5, amp=800, noise=25, seed=9 + k)
                         for k in range(3)])
-    lags, misfit = sync.period_delays(optical, sync_ch, 100e6, HP)
-    alone = [sync.period_delays(o, s, 100e6, HP) for o, s in zip(optical, sync_ch, strict=True)]
+    lags, misfit = delay.period_delays(optical, sync_ch, 100e6, HP)
+    alone = [delay.period_delays(o, s, 100e6, HP) for o, s in zip(optical, sync_ch, strict=True)]
     assert np.array_equal(lags, np.concatenate([a[0] for a in alone]), equal_nan=True)
     assert np.array_equal(misfit, np.concatenate([a[1] for a in alone]), equal_nan=True)
     assert lags.size == 3 * alone[0][0].size > 0 and np.nanmedian(lags) == pytest.approx(12.5, abs=0.2)
@@ -95,7 +95,7 @@ def test_shifted_template_is_interp(shifts):
     windows = np.arange(20, 260, 80)[:3, None] + np.arange(80)
     shift = np.array(shifts)
     want = np.interp(windows + shift[:, None], np.arange(z.size, dtype=float), z)
-    assert np.allclose(sync._shifted(z, windows, shift), want, rtol=0, atol=1e-12)
+    assert np.allclose(delay._shifted(z, windows, shift), want, rtol=0, atol=1e-12)
 
 
 def test_lut_uniform_frequency_and_mirror():
@@ -159,7 +159,7 @@ def test_tracker_resolves_folds_and_the_paper_method_does_not():
     lut = build_lut(cur, laser.frequency(cur), 0.16, 0.48, points=1000)
     half_s = 25e-6
     nfft = spectrum.fft_length(1000)
-    model = pairing.doppler_model(lut, half_s, nfft, resample.window(1000))
+    model = doppler.doppler_model(lut, half_s, nfft, resample.window(1000))
     rng = np.random.default_rng(0)
     # 300 pairs: accelerating from 1 to 7 m/s at 0.12 m, where v K > R (fold) from ~4 m/s
     pairs = 300
@@ -322,17 +322,17 @@ def test_neighbour_residuals_in_blocks_equal_those_of_each_pair():
     against those of subsets of pairs (one block of copied windows), across the
     blocks' seams; NaN distances and untrusted pairs among them."""
     rng = np.random.default_rng(12)
-    n = 3 * pairing.RESIDUAL_BLOCK + 123
+    n = 3 * verification.RESIDUAL_BLOCK + 123
     t = np.cumsum(rng.uniform(4e-5, 6e-5, n))
     dist = 0.3 + np.cumsum(rng.normal(0, 1e-4, n))
     vel = rng.normal(0, 0.01, n)
     dist[rng.integers(0, n, 20)] = np.nan
     trusted = rng.random(n) < 0.9
     trusted[100:140] = False                        # pairs with too few neighbours: inf
-    resid, support = pairing._residuals(t, dist, vel, trusted)
-    seams = np.arange(1, 4) * pairing.RESIDUAL_BLOCK
+    resid, support = verification._residuals(t, dist, vel, trusted)
+    seams = np.arange(1, 4) * verification.RESIDUAL_BLOCK
     for rows in (np.sort(rng.choice(n, n // 5, replace=False)), np.r_[seams - 1, seams, seams + 1]):
-        got = pairing._residuals(t, dist, vel, trusted, rows)
+        got = verification._residuals(t, dist, vel, trusted, rows)
         np.testing.assert_array_equal(got[0], resid[rows])
         np.testing.assert_array_equal(got[1], support[rows])
     assert np.isinf(resid).any() and np.isfinite(resid).mean() > 0.5

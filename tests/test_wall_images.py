@@ -10,7 +10,7 @@ import pytest
 from fmcw_cl import wall_images
 from fmcw_cl.physics import C
 from fmcw_cl.simulator import paper_dfb
-from fmcw_cl.stages import pairing, resample, spectrum
+from fmcw_cl.stages import doppler, resample, spectrum
 from fmcw_cl.stages.lut import build_lut
 
 WALL_M = 0.09
@@ -21,7 +21,7 @@ def shaped():
     cur = np.linspace(0.02, 0.5, 25)
     lut = build_lut(cur, paper_dfb().frequency(cur), 0.16, 0.48, points=1000)
     win = resample.window(1000)
-    return lut, win, pairing.doppler_model(lut, 25e-6, spectrum.fft_length(1000), win)
+    return lut, win, doppler.doppler_model(lut, 25e-6, spectrum.fft_length(1000), win)
 
 
 @pytest.mark.parametrize("v", [-6.0, -3.3, -1.0, 0.4, 2.5, 5.0])
@@ -35,7 +35,7 @@ def test_the_image_is_where_and_as_strong_as_the_de_chirped_spectrum_shows(shape
     own = spectrum.power_spectra(x[None], model.nfft).max()        # the plain peak
     seen = 0
     for beta in (model.beta_rise, model.beta_fall):
-        power = pairing.power(x[None], beta, np.array([v]), model.nfft)[0]
+        power = doppler.power(x[None], beta, np.array([v]), model.nfft)[0]
         peak = spectrum.find_peaks(power[None], 1).bin[0] * model.metres_per_bin
         offsets = np.array([peak - WALL_M, peak + WALL_M])          # from the tone, from its mirror
         gains, top = wall_images.image_gain_db(beta, np.full(2, v), offsets, win, model)

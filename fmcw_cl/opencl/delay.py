@@ -1,10 +1,10 @@
-"""Launcher of kernels/delay.cl (twins: fmcw_cl.stages.sync.period_delays, fit_periods)."""
+"""Launcher of kernels/delay.cl (twins: fmcw_cl.stages.delay.period_delays, fit_periods)."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from ..stages import lpf, sync
+from ..stages import delay, lpf
 from . import lpf as k_lpf
 from .buffers import Buffers, Packed
 from .context import Runtime, cl
@@ -14,13 +14,13 @@ CENTRE_LOCAL = 256   # work-items a row of delay_centre on GPUs
 
 def period_delays(rt: Runtime, bufs: Buffers, beat: np.ndarray, sy: np.ndarray, sample_rate_hz: float,
                   half_period: float) -> tuple[np.ndarray, np.ndarray]:
-    """sync.period_delays on the device, from the codes to the per-period lags and
+    """delay.period_delays on the device, from the codes to the per-period lags and
     misfits: the low-pass (kernels/lpf.cl), each row trimmed and centred, its coarse lag,
     the fits; nothing goes up (the codes: once, none on a CPU device), one copy comes down."""
     low, shapes = k_lpf.launch(rt, bufs, [beat, sy], sample_rate_hz)
     rows, m = shapes[0][0] if len(shapes[0]) == 2 else 1, shapes[0][-1]
     step = float(lpf.DECIMATION)
-    got = sync.delay_windows((rows, m), step, half_period)
+    got = delay.delay_windows((rows, m), step, half_period)
     if got is None:
         return np.zeros(0), np.zeros(0)
     edge, span, period = got
@@ -59,7 +59,7 @@ def fit_periods(rt: Runtime, bufs: Buffers, y: np.ndarray, z: np.ndarray, shift:
 def _fit(rt: Runtime, bufs: Buffers, d_yz, n: int, rows: int, d_coarse, period: int, span: int) -> np.ndarray:
     """delay_fit of the centred rows `d_yz` (2, rows, n) from their coarse lags, its lags
     and misfits (2, rows, periods) by one copy."""
-    periods = sync.period_starts(n, period, span).size      # the kernel's w = span + p period
+    periods = delay.period_starts(n, period, span).size      # the kernel's w = span + p period
     out = np.empty((2, rows, periods), np.float32)
     if out.size:
         d_out = bufs.get("delay_out", out.nbytes)

@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..stages.groups import group_bounds
 from ..stages.integrate import window
-from ..stages.pairing import group_bounds
 from ..stages.spectrum import GUARD_BINS, Search
 from .buffers import Buffers, DeviceRows, Packed
 from .context import Runtime, cl

@@ -19,8 +19,10 @@ from collections.abc import Callable
 import numpy as np
 
 from .. import pool
-from ..processor import ChunkProcessor, Later, Prepared, clipping
-from ..stages import pairing, sync
+from ..chunk_state import Later, Prepared, clipping
+from ..processor import ChunkProcessor
+from ..spectrum_ops import NUMPY
+from ..stages import sync, verification
 from ..stages.spectrum import fft_length
 from . import clutter as k_clutter
 from . import delay as k_delay
@@ -215,11 +217,11 @@ class OpenCLProcessor(ChunkProcessor):
 
     def measure_each(self, xs, betas, v, model, search, rows=None, riders: tuple = (), times=None,
                      meanwhile=None):
-        """Twin: pairing.SpectrumOps.measure_each; one upload of the rows and velocities,
+        """Twin: spectrum_ops.SpectrumOps.measure_each; one upload of the rows and velocities,
         one download of every result (and of `riders`); plain rows paired within the groups
         of `times` (pairing.Times, their copy on the device where it went up)."""
         if not self._fits(model.nfft):
-            return pairing.NUMPY.measure_each(xs, betas, v, model, search, rows)
+            return NUMPY.measure_each(xs, betas, v, model, search, rows)
         jobs = [(x, b, None) for x, b in zip(xs, betas, strict=True)]
         groups, device = (None, None) if times is None else (times.groups, times.device)
         got = k_spectrum.measure_each(self.rt, self.bufs, jobs, v, model.nfft, search.lo, search.hi,
@@ -228,7 +230,7 @@ class OpenCLProcessor(ChunkProcessor):
         return _measured(got, model, search)
 
     def track(self, rows, times, model, search, iterations, single):
-        """Twin: pairing.SpectrumOps.track; the passes on the device (`_passes_here`),
+        """Twin: spectrum_ops.SpectrumOps.track; the passes on the device (`_passes_here`),
         their state read by one copy, which carries the riders of `ride`."""
         if not (single and iterations > 0 and self._passes_here(model.nfft)):
             return super().track(rows, times, model, search, iterations, single)
@@ -237,7 +239,7 @@ class OpenCLProcessor(ChunkProcessor):
         return tuple(_measured(first, model, search)), state
 
     def integrated(self, rows, times, model, search, iterations, k):
-        """Twin: pairing.SpectrumOps.integrated; the passes on the device (`_passes_here`),
+        """Twin: spectrum_ops.SpectrumOps.integrated; the passes on the device (`_passes_here`),
         their state read by one copy."""
         if not (iterations > 0 and self._passes_here(model.nfft)):
             return super().integrated(rows, times, model, search, iterations, k)
@@ -245,7 +247,7 @@ class OpenCLProcessor(ChunkProcessor):
                                   self._landing())
 
     def plain_pass(self, rows, model, search, times=None):
-        """Twin: pairing.SpectrumOps.plain_pass; its download carries the riders of `ride`,
+        """Twin: spectrum_ops.SpectrumOps.plain_pass; its download carries the riders of `ride`,
         and `meanwhile`'s work runs before it."""
         return self.measure_each(rows, (model.beta_rise, model.beta_fall), None, model, search,
                                  riders=self._landing(), times=times, meanwhile=self.meanwhile)
@@ -256,30 +258,30 @@ class OpenCLProcessor(ChunkProcessor):
         return k_track.supported(self.rt) and pairs >= k_verify.PAIRS_MIN
 
     def residuals(self, t, dist, vel, trusted, rows=None):
-        """Twin: pairing.SpectrumOps.residuals; every pair's on the device (`_verifies`),
-        where the host would take them for every pair too (pairing.every_row)."""
-        if not (self._verifies(t.size) and pairing.every_row(rows, t.size)):
+        """Twin: spectrum_ops.SpectrumOps.residuals; every pair's on the device (`_verifies`),
+        where the host would take them for every pair too (verification.every_row)."""
+        if not (self._verifies(t.size) and verification.every_row(rows, t.size)):
             return super().residuals(t, dist, vel, trusted, rows)
         resid, support = k_verify.residuals(self.rt, self.bufs, t, dist, vel, trusted)
         return (resid, support) if rows is None else (resid[rows], support[rows])
 
     def disagreed(self, t, dist, vel, ok):
-        """Twin: pairing.SpectrumOps.disagreed; on the device (`_verifies`)."""
+        """Twin: spectrum_ops.SpectrumOps.disagreed; on the device (`_verifies`)."""
         if not self._verifies(t.size):
             return super().disagreed(t, dist, vel, ok)
         return k_verify.disagreed(self.rt, self.bufs, t, dist, vel, ok)
 
     def power(self, x, beta, v, nfft, rows=None):
-        """Power spectra of rows of x (plain, or de-chirped at v); twin: pairing.power."""
+        """Power spectra of rows of x (plain, or de-chirped at v); twin: doppler.power."""
         if not self._fits(nfft):
-            return pairing.NUMPY.power(x, beta, v, nfft, rows)
+            return NUMPY.power(x, beta, v, nfft, rows)
         _, spec, _ = k_spectrum.measure(self.rt, self.bufs, x, beta, v, nfft, 1, keep_power=True, index=rows)
         return spec
 
     def power_each(self, jobs, nfft):
-        """Twin: pairing.SpectrumOps.power_each; every spectrum comes back by one copy."""
+        """Twin: spectrum_ops.SpectrumOps.power_each; every spectrum comes back by one copy."""
         if not self._fits(nfft):
-            return pairing.NUMPY.power_each(jobs, nfft)
+            return NUMPY.power_each(jobs, nfft)
         each = [([(x, beta, None)], np.shape(x)[0], v) for x, beta, v in jobs]
         parts = [k_spectrum.parts(one, rows, nfft, keep_power=True) for one, rows, _ in each]
         out = Packed(self.bufs, "power", [p for part in parts for p in part])
@@ -293,28 +295,28 @@ class OpenCLProcessor(ChunkProcessor):
 
     def spectra(self, x, beta, v, nfft, rows=None, store=None):
         """`store` (DeviceRows of power spectra, new when None) with the rows `rows`
-        replaced by their power spectra; twin: pairing.SpectrumOps.spectra."""
+        replaced by their power spectra; twin: spectrum_ops.SpectrumOps.spectra."""
         if not self._fits(nfft):
-            return pairing.NUMPY.spectra(x, beta, v, nfft, rows, store)
+            return NUMPY.spectra(x, beta, v, nfft, rows, store)
         if store is None:
             store = DeviceRows(self.bufs, x.shape[0], nfft // 2)
         k_spectrum.measure(self.rt, self.bufs, x, beta, v, nfft, 1, index=rows, store=store)
         return store
 
     def phasors_each(self, xs, betas, v, bins, nfft):
-        """Twin: pairing.SpectrumOps.phasors_each; on the device where the rows are."""
+        """Twin: spectrum_ops.SpectrumOps.phasors_each; on the device where the rows are."""
         if not self._fits(nfft):
-            return pairing.NUMPY.phasors_each(xs, betas, v, bins, nfft)
+            return NUMPY.phasors_each(xs, betas, v, bins, nfft)
         return k_phase.phasors_each(self.rt, self.bufs, xs, betas, v, bins, nfft)
 
     def survey(self, x, beta, v, nfft, rows, lo, tracked_bin, plain_bin, others):
         return self.survey_each([x], [beta], v, nfft, rows, lo, [tracked_bin], [plain_bin], [others])[0]
 
     def survey_each(self, xs, betas, v, nfft, rows, lo, tracked_bins, plain_bins, others):
-        """Twin: pairing.SpectrumOps.survey_each; the spectra stay on the device, the rows,
+        """Twin: spectrum_ops.SpectrumOps.survey_each; the spectra stay on the device, the rows,
         velocities and bins go up in one copy, the results come back in one."""
         if not self._fits(nfft):
-            return pairing.NUMPY.survey_each(xs, betas, v, nfft, rows, lo, tracked_bins, plain_bins, others)
+            return NUMPY.survey_each(xs, betas, v, nfft, rows, lo, tracked_bins, plain_bins, others)
         bins = list(zip(tracked_bins, plain_bins, others, strict=True))
         d_in = k_survey.upload(self.bufs, bins, _picked(rows, v))
         return self._surveyed(xs, betas, v, nfft, rows, lo, bins, d_in)
@@ -378,7 +380,7 @@ class OpenCLProcessor(ChunkProcessor):
 
     def integrated_peaks(self, store, disp, k, search, bounds=None):
         if not self._fits(2 * store.shape[1]):       # (pairs, nfft / 2) power spectra
-            return pairing.NUMPY.integrated_peaks(store, disp, k, search, bounds)
+            return NUMPY.integrated_peaks(store, disp, k, search, bounds)
         return k_integrate.peaks(self.rt, self.bufs, store, disp, k, search, bounds)
 
 
@@ -410,7 +412,7 @@ def _picked(rows, v) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _measured(got: list, model, search) -> list[tuple]:
-    """pairing.measure's results from k_spectrum.measure_each's: distance (m), SNR (dB),
+    """doppler.measure's results from k_spectrum.measure_each's: distance (m), SNR (dB),
     and the echoes with `search.echoes`."""
     return [(pk.bin * model.metres_per_bin, pk.snr_db, *([det] if search.echoes else []))
             for pk, _, det in got]

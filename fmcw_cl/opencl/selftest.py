@@ -22,12 +22,24 @@ from pathlib import Path
 
 import numpy as np
 
+from fmcw_cl import spectrum_ops
 from fmcw_cl.opencl import track as k_track
 from fmcw_cl.opencl import verify as k_verify
 from fmcw_cl.opencl.buffers import DeviceRows
 from fmcw_cl.opencl.context import cl
 from fmcw_cl.opencl.processor import OpenCLProcessor
-from fmcw_cl.stages import clutter, faults, integrate, lpf, pairing, resample, sync
+from fmcw_cl.stages import (
+    clutter,
+    delay,
+    doppler,
+    faults,
+    integrate,
+    lpf,
+    pairing,
+    resample,
+    sync,
+    verification,
+)
 from fmcw_cl.stages.spectrum import Search
 
 
@@ -99,14 +111,14 @@ def stream(be, beat, sync_codes, fs, hp, rng) -> None:
     rows = beat[: 3 * (beat.size // 3)].reshape(3, -1)       # the sync delay's stretches, one launch
     close("low-pass of rows", be.intensity(rows, fs)[0], lpf.intensity(rows, fs)[0], 1e-5)
     y, z, shift, _ = delay_rows(rng)
-    got, want = be.fit_periods(y, z, shift, 200, 17), sync.fit_periods(y, z, shift, 200, 17)
+    got, want = be.fit_periods(y, z, shift, 200, 17), delay.fit_periods(y, z, shift, 200, 17)
     if not all(np.array_equal(np.isnan(g), np.isnan(w)) for g, w in zip(got, want, strict=True)):
         raise SystemExit("sync delay fit (delay_fit): kernel and numpy twin differ in their NaNs")
     ok = np.isfinite(want[0])
     close("sync delay fit (delay_fit)", got[0][ok], want[0][ok], 1e-4)
     close("sync delay fit, misfit", got[1][ok], want[1][ok], 1e-3)
     got = be.period_delays(beat[None], sync_codes[None], fs, hp)      # the codes to the lags, one download
-    want = sync.period_delays(beat[None], sync_codes[None], fs, hp)
+    want = delay.period_delays(beat[None], sync_codes[None], fs, hp)
     if want[0].size == 0 or not np.array_equal(np.isnan(got[0]), np.isnan(want[0])):
         raise SystemExit("sync delay (delay_centre, delay_correlate, delay_coarse): kernels and twin differ")
     ok = np.isfinite(want[0])
@@ -146,7 +158,7 @@ def spectra(be, rng, group: str) -> None:
     beta = rng.uniform(-3, 3, points)
     v = rng.uniform(-2, 2, sweeps)
     pick = np.array([4, 1, 2])
-    model = pairing.DopplerModel(beta, beta, 0.0, 0.0, 1.0, nfft)
+    model = doppler.DopplerModel(beta, beta, 0.0, 0.0, 1.0, nfft)
     # the falling rows' tone 0.2 + 0.01 s cycles a point higher: pair s moves
     y = x + 400 * np.cos(2 * np.pi * (0.2 + 0.01 * np.arange(sweeps))[:, None] * np.arange(points))
     d_y = DeviceRows(be.bufs, sweeps, points)
@@ -155,8 +167,8 @@ def spectra(be, rng, group: str) -> None:
     if group == "integrate":
         store = be.spectra(d_x, None, None, nfft)
         store = be.spectra(d_x, beta, v[pick], nfft, pick, store)
-        want = pairing.NUMPY.spectra(x, None, None, nfft)
-        want = pairing.NUMPY.spectra(x, beta, v[pick], nfft, pick, want)
+        want = spectrum_ops.NUMPY.spectra(x, None, None, nfft)
+        want = spectrum_ops.NUMPY.spectra(x, beta, v[pick], nfft, pick, want)
         close("kept spectra (scattered rows)", store.get(be.rt.queue), want, 1e-4)
         disp = np.array([0.0, 1.3, -2.7, 70.0, 3.1])
         got = be.integrated_peaks(store, disp, 3, Search(3, nfft // 2))
@@ -167,7 +179,8 @@ def spectra(be, rng, group: str) -> None:
             # over between work-items, restarted at a group's start)
             grouped = replace(times, groups=np.array([0, 2]))
             got = be.integrated((d_x, d_y), grouped, model, Search(3, nfft // 2), 3, 3)
-            want = pairing.SpectrumOps.integrated(be, (d_x, d_y), grouped, model, Search(3, nfft // 2), 3, 3)
+            want = spectrum_ops.SpectrumOps.integrated(be, (d_x, d_y), grouped, model, Search(3, nfft // 2),
+                                                       3, 3)
             close("integrated passes (track_start, track_pass: displace)", got.vd, want.vd, 1e-9)
             close("integrated passes, distances", got.d_r, want.d_r, 1e-9)
             close("integrated passes, counts", got.count, want.count, 0)
@@ -179,7 +192,7 @@ def spectra(be, rng, group: str) -> None:
         others[0, 0] = 40.0
         tracked, plain_bin = np.array([25.7, 26.1, 30.0]), np.array([25.2, 27.0, 29.0])
         args = (beta, v[pick], nfft, pick, 3, tracked, plain_bin, others)
-        got, want = be.survey(d_x, *args), pairing.NUMPY.survey(x, *args)
+        got, want = be.survey(d_x, *args), spectrum_ops.NUMPY.survey(x, *args)
         close("survey (hidden): found", got[2], want[2], 0)
         close("survey (hidden): centroid", got[1], want[1], 1e-4)
         # the ratio divides by the target's energy, a difference of float32 sums: 1e-2
@@ -187,24 +200,24 @@ def spectra(be, rng, group: str) -> None:
         return
     search = Search(3, nfft // 2 - 5, echoes=True)
     got = be.measure(d_x, beta, None, model, search)
-    want = pairing.measure(x, beta, None, model, search)
+    want = doppler.measure(x, beta, None, model, search)
     close("FFT + peak + echoes, bins", got[0], want[0], 1e-4)
     close("FFT + peak + echoes, echo counts", got[2].count, want[2].count, 0)
     got = be.measure(d_x, beta, v[pick], model, Search(3, nfft // 2), pick)
-    want = pairing.measure(x, beta, v[pick], model, Search(3, nfft // 2), pick)
+    want = doppler.measure(x, beta, v[pick], model, Search(3, nfft // 2), pick)
     close("de-chirp + FFT + peak, picked rows", got[0], want[0], 1e-4)
     # the phase at a fractional peak (phase.cl), de-chirped and plain, both directions
     bins = [rng.uniform(20, 40, sweeps), rng.uniform(20, 40, sweeps)]
     for vel in (v, None):
         got = be.phasors_each((d_x, d_y), (beta, -beta), vel, bins, nfft)
-        want = pairing.NUMPY.phasors_each((x, y), (beta, -beta), vel, bins, nfft)
+        want = spectrum_ops.NUMPY.phasors_each((x, y), (beta, -beta), vel, bins, nfft)
         for g, w in zip(got, want, strict=True):
             close(f"peak phasor{'' if vel is None else ', de-chirped'} (peak_phasor)",
                   np.stack([g.real, g.imag]), np.stack([w.real, w.imag]), 1e-4)
     if k_track.supported(be.rt):
         # the passes' decisions on the device against the host's, on the same peaks
         got = be.track((d_x, d_y), times, model, search, 3, True)[1]
-        want = pairing.SpectrumOps.track(be, (d_x, d_y), times, model, search, 3, True)[1]
+        want = spectrum_ops.SpectrumOps.track(be, (d_x, d_y), times, model, search, 3, True)[1]
         close("tracker passes (track_pass)", got.vd, want.vd, 1e-9)
         close("tracker passes, distances", got.d_r, want.d_r, 1e-9)
         valid, resid = pairing.verdict(want, times, model)
@@ -214,10 +227,10 @@ def spectra(be, rng, group: str) -> None:
                                                               for r in (got.verdict[1], resid)), 1e-9)
         # the phasors at the passes' final peaks and velocities, made on the device (this
         # state's velocities reach 1e6 m/s: the device's float32 basis, as the spectra's)
-        _, vel, _ = pairing.solve_pair(got.d_r, got.d_f, got.vd, times.half_gap, model)
+        _, vel, _ = doppler.solve_pair(got.d_r, got.d_f, got.vd, times.half_gap, model)
         bins = [np.nan_to_num(d / model.metres_per_bin) for d in (got.d_r, got.d_f)]
         b32 = beta.astype(np.float32).astype(np.float64)
-        want = pairing.NUMPY.phasors_each((x, y), (b32, b32), np.nan_to_num(vel), bins, nfft)
+        want = spectrum_ops.NUMPY.phasors_each((x, y), (b32, b32), np.nan_to_num(vel), bins, nfft)
         for g, w in zip(got.phasors, want, strict=True):
             close("peak phasor at the passes' state (peak_phasor_state)", np.stack([g.real, g.imag]),
                   np.stack([w.real, w.imag]), 1e-4)
@@ -226,10 +239,10 @@ def spectra(be, rng, group: str) -> None:
         track += [0.1 + 0.5 * track[0] + np.where((track[0] > 1e-3) & (track[0] < 1.6e-3), 3e-3, 0.0),
                   np.full(60, 0.5), np.arange(60) % 7 != 3]
         close("verification (kinematic_drop)", k_verify.disagreed(be.rt, be.bufs, *track),
-              pairing.disagreed(*track), 0)
+              verification.disagreed(*track), 0)
         close("verification, residuals (track_residual)", k_verify.residuals(be.rt, be.bufs, *track)[0],
-              pairing.NUMPY.residuals(*track)[0], 1e-9)
-    close("power spectra", be.power(d_x, None, None, nfft), pairing.power(x, None, None, nfft), 1e-5)
+              spectrum_ops.NUMPY.residuals(*track)[0], 1e-9)
+    close("power spectra", be.power(d_x, None, None, nfft), doppler.power(x, None, None, nfft), 1e-5)
 
 
 def timed(selector: str, capture: str) -> None:

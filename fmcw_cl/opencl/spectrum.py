@@ -1,6 +1,6 @@
 """Launcher of kernels/fft.cl + peak.cl + cfar.cl, or of fft_lanes.cl on CPU devices (twins:
 fmcw_cl.stages.spectrum.power_spectra, find_peaks, fmcw_cl.stages.cfar.detect and
-fmcw_cl.stages.pairing.measure)."""
+fmcw_cl.stages.doppler.measure)."""
 
 from __future__ import annotations
 

@@ -1,6 +1,6 @@
 """Launcher of kernels/track.cl: the tracker's plain pass and de-chirp passes with the
 regularisation between them on the device, and the pairs' verdict after them (twin:
-fmcw_cl.stages.pairing.SpectrumOps.track, its `passes` without integration, and
+fmcw_cl.spectrum_ops.SpectrumOps.track, its `passes` without integration, and
 pairing.verdict)."""
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..stages import integrate, pairing
+from ..stages import doppler, groups, integrate, pairing, verification
 from ..stages.spectrum import Search
 from . import integrate as k_integrate
 from . import phase as k_phase
@@ -24,7 +24,7 @@ REACH_MAX = 16      # the running median's half-width the kernel holds (kernels/
 
 def supported(rt: Runtime) -> bool:
     """Whether the device runs the passes: they decide in double precision, as numpy."""
-    return rt.fp64 and pairing.NEIGHBOURS <= REACH_MAX
+    return rt.fp64 and groups.NEIGHBOURS <= REACH_MAX
 
 
 def times_up(times: pairing.Times, passes: bool = True) -> tuple:
@@ -48,7 +48,7 @@ def times_down(buffers: list, times: pairing.Times, passes: bool = True) -> tupl
 
 
 def track(rt: Runtime, bufs: Buffers, rows: tuple[DeviceRows, DeviceRows], times: pairing.Times,
-          model: pairing.DopplerModel, search: Search, iterations: int, riders: tuple = (),
+          model: doppler.DopplerModel, search: Search, iterations: int, riders: tuple = (),
           meanwhile: Callable[[], None] | None = None) -> tuple[list, pairing.Passes]:
     """The plain pass of both directions (every echo with `search.echoes`) and up to
     `iterations` de-chirp passes, each regularising the velocities and re-measuring the
@@ -89,7 +89,7 @@ def track(rt: Runtime, bufs: Buffers, rows: tuple[DeviceRows, DeviceRows], times
 
 
 def integrated(rt: Runtime, bufs: Buffers, rows: tuple[DeviceRows, DeviceRows], times: pairing.Times,
-               model: pairing.DopplerModel, search: Search, iterations: int, k: int, riders: tuple = ()
+               model: doppler.DopplerModel, search: Search, iterations: int, k: int, riders: tuple = ()
                ) -> pairing.Passes:
     """The tracker's passes on K-window integrated spectra (twin: pairing.passes with
     k > 1): the power spectra of both directions kept on the device, each pass the
@@ -175,7 +175,7 @@ class _Passes:
     SNR_MIN_DB, the measurements the pairs listed)."""
 
     def __init__(self, rt: Runtime, bufs: Buffers, pairs: int, times: pairing.Times,
-                 model: pairing.DopplerModel, reach: int, state: list, counted: tuple | None = None) -> None:
+                 model: doppler.DopplerModel, reach: int, state: list, counted: tuple | None = None) -> None:
         self.rt, self.pairs, self.times, self.model, self.reach = rt, pairs, times, model, reach
         self.d_r, self.s_r, self.d_f, self.s_f, self.vd, self.valid, self.resid = state
         self.state = bufs.get("track_state", 8)   # [pairs listed, passes stopped]: the first pass sets
@@ -208,7 +208,7 @@ class _Passes:
                     i32(self.every), *measured, self.slot, f64(m.metres_per_bin), d_mid, d_half, d_bounds,
                     f64(m.k_rise), f64(m.k_fall), self.d_r, self.d_f, self.s_r, self.s_f, self.vd,
                     i32(self.reach), f32(pairing.SNR_MIN_DB), *self.counted,
-                    f64(pairing.CONSISTENT_MPS), f64(pairing.PLAIN_SHARE if it == 0 else 0.0),
+                    f64(verification.CONSISTENT_MPS), f64(pairing.PLAIN_SHARE if it == 0 else 0.0),
                     f64(pairing.STOP_MPS), self.vel, self.med,
                     self.nxt, self.trusted, self.prev, *self.listed, self.state, self.disp,
                     cl.LocalMemory(16 * lsz), cl.LocalMemory(8 * lsz))
@@ -222,15 +222,16 @@ class _Passes:
         self.rt.kernel("track", "track_valid")(
             self.rt.queue, *self.rt.items(pairs), i32(pairs), self.d_r, self.d_f, self.s_r, self.s_f, self.vd,
             d_half, self.vel, self.med, f64(m.k_rise), f64(m.k_fall), f32(pairing.SNR_MIN_DB), *self.counted,
-            f64(pairing.CONVERGED_MPS), f64(pairing.CONSISTENT_MPS), dist, self.valid)
+            f64(pairing.CONVERGED_MPS), f64(verification.CONSISTENT_MPS), dist, self.valid)
         residuals(self.rt, pairs, d_mid, d_bounds, dist, self.vel, self.valid, self.resid, self.vouched)
 
 
 def residuals(rt: Runtime, pairs: int, t, bounds, dist, vel, valid, resid, vouched) -> None:
-    """Launch kernels/track.cl's `track_residual` (twin: pairing._residuals): each pair's
+    """Launch kernels/track.cl's `track_residual` (twin: verification._residuals): each pair's
     continuity residual (m, into `resid`) against the `valid` pairs of its group
     (`bounds`, group_bounds) and how many vouch for it (into `vouched`); `t`, `dist`,
     `vel`: the pairs' centres (s), distances (m), velocities (m/s). Device buffers."""
     i32 = np.int32
-    rt.kernel("track", "track_residual")(rt.queue, *rt.items(pairs), i32(pairs), i32(pairing.NEIGHBOURS),
-                                         i32(pairing.SUPPORT), t, bounds, dist, vel, valid, resid, vouched)
+    rt.kernel("track", "track_residual")(rt.queue, *rt.items(pairs), i32(pairs), i32(groups.NEIGHBOURS),
+                                         i32(verification.SUPPORT), t, bounds, dist, vel, valid, resid,
+                                         vouched)

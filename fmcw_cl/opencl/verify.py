@@ -1,4 +1,4 @@
-"""Launcher of the verification's tests on the device (twins: fmcw_cl.stages.pairing's
+"""Launcher of the verification's tests on the device (twins: fmcw_cl.stages.verification's
 `disagreed`, kernels/verify.cl, and `_residuals` over one group, kernels/track.cl):
 the pairs of a whole track go up by one copy and each test's verdicts come down by one."""
 
@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..stages import pairing
+from ..stages import groups, verification
 from . import track as k_track
 from .buffers import Buffers, Packed
 from .context import Runtime
@@ -28,24 +28,24 @@ def _up(bufs: Buffers, t: np.ndarray, dist: np.ndarray, vel: np.ndarray, ok: np.
 
 def disagreed(rt: Runtime, bufs: Buffers, t: np.ndarray, dist: np.ndarray, vel: np.ndarray,
               ok: np.ndarray) -> np.ndarray:
-    """Twin: pairing.disagreed."""
+    """Twin: verification.disagreed."""
     n = t.size
     d_t, d_dist, d_vel, d_ok = _up(bufs, t, dist, vel, ok)
     out = Packed(bufs, "verify_drop", [(np.int32, n)])
     if n:
         f64 = np.float64
         rt.kernel("verify", "kinematic_drop")(
-            rt.queue, *rt.items(n), np.int32(n), np.int32(pairing.KINEMATIC_PAIRS), f64(pairing.KINEMATIC_S),
-            f64(pairing.JUMP_MAX_M), f64(pairing.ACCEL_MAX), f64(pairing.CONSISTENT_MPS), d_t, d_dist, d_vel,
-            d_ok, out.buffers[0])
+            rt.queue, *rt.items(n), np.int32(n), np.int32(verification.KINEMATIC_PAIRS),
+            f64(verification.KINEMATIC_S), f64(verification.JUMP_MAX_M), f64(verification.ACCEL_MAX),
+            f64(verification.CONSISTENT_MPS), d_t, d_dist, d_vel, d_ok, out.buffers[0])
     return out.download()[0].astype(bool)
 
 
 def residuals(rt: Runtime, bufs: Buffers, t: np.ndarray, dist: np.ndarray, vel: np.ndarray,
               trusted: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Twin: pairing._residuals of every pair, in one group."""
+    """Twin: verification._residuals of every pair, in one group."""
     n = t.size
-    d_t, d_dist, d_vel, d_ok, d_bounds = _up(bufs, t, dist, vel, trusted, pairing.group_bounds(None, n))
+    d_t, d_dist, d_vel, d_ok, d_bounds = _up(bufs, t, dist, vel, trusted, groups.group_bounds(None, n))
     out = Packed(bufs, "verify_resid", [(np.float64, n), (np.int32, n)])
     if n:
         k_track.residuals(rt, n, d_t, d_bounds, d_dist, d_vel, d_ok, *out.buffers)

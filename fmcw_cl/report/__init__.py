@@ -16,7 +16,8 @@ from pathlib import Path
 import numpy as np
 
 from ..atomic import atomic_path, output_folder
-from ..capture import Capture, Truth
+from ..capture import Capture
+from ..capture_format import Truth
 from ..errors import CaptureError
 from ..evaluate import truth_at
 from ..track import Track, read_track

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..capture import Truth
+from ..capture_format import Truth
 from ..evaluate import truth_at
 from ..track import Track
 from ..uncertainty import budget_from_attrs

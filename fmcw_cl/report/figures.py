@@ -11,7 +11,7 @@ matplotlib.use("Agg")  # files only; never needs a display
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from ..capture import Truth  # noqa: E402
+from ..capture_format import Truth  # noqa: E402
 from ..evaluate import crb_pair_m, eta_from_peak_snr, truth_at  # noqa: E402
 from ..track import Track  # noqa: E402
 from .events import Event  # noqa: E402

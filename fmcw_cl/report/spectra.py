@@ -18,7 +18,7 @@ from ..chirp import Chirp
 from ..options import Options
 from ..physics import C
 from ..plan import CALIBRATION, make_plan
-from ..stages import resample, spectrum, sync
+from ..stages import delay, resample, spectrum, sync
 
 
 @dataclass(frozen=True)
@@ -73,7 +73,7 @@ def stretch_spectra(path, t0_s: float, t1_s: float, points: int = 1000,
             plan = plan.with_chirp(chirp, CALIBRATION)
         fs = info.sample_rate_hz
         hp = info.samples_per_period / 2
-        margin = int(2 * info.samples_per_period + sync.MAX_DELAY_SAMPLES)
+        margin = int(2 * info.samples_per_period + delay.MAX_DELAY_SAMPLES)
         a = max(0, int(t0_s * fs) - margin)
         b = min(info.samples, int(t1_s * fs) + margin)
         beat, sy = cap.read(a, b)

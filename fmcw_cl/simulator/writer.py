@@ -19,7 +19,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
-from ..capture import CaptureWriter, Modulation, Truth
+from ..capture_format import Modulation, Truth
+from ..capture_writer import CaptureWriter
 from ..physics import C
 from .laser import DfbLaser, paper_dfb
 from .scene import Trajectory

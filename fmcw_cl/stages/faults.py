@@ -7,14 +7,15 @@ unsettled tracker beats a discontinuous distance (with no echo, the range check 
 sees noise); an ambiguous target and an unverified pair come last.
 
 Validity is positive: a pair is valid only when every check passed *and* at least
-pairing.SUPPORT valid neighbours vouch for its distance (`verified`).
+verification.SUPPORT valid neighbours vouch for its distance (`verified`).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from .pairing import NUMPY, SpectrumOps, verify
+from ..spectrum_ops import NUMPY, SpectrumOps
+from .verification import verify
 
 OK = 0
 SYNC_GAP = 1       # no pair measured here: dropped samples or a broken sync stretch
@@ -125,7 +126,7 @@ def reasons(valid: np.ndarray, heard: np.ndarray, clip: np.ndarray, alias: np.nd
 def verified(t: np.ndarray, distance: np.ndarray, velocity: np.ndarray, code: np.ndarray,
              ops: SpectrumOps = NUMPY) -> np.ndarray:
     """The codes `code` of pairs at times t with the pairs that are OK but not vouched
-    for by enough OK neighbours (pairing.verify, its tests by `ops`: a processor's)
+    for by enough OK neighbours (verification.verify, its tests by `ops`: a processor's)
     set to UNVERIFIED, or DISCONTINUOUS where their neighbours disagree with them."""
     ok, unsupported = verify(t, distance, velocity, code == OK, ops)
     out = code.copy()

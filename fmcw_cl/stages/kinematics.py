@@ -76,7 +76,7 @@ def held_acceleration(velocity: np.ndarray, valid: np.ndarray, period_s: float,
                       window: int = WINDOW_PAIRS, hold: bool = True) -> np.ndarray:
     """The acceleration of `velocity`'s valid runs over `window` pairs at every valid
     pair (0 elsewhere): what the acceleration's bias correction of a distance needs
-    (pairing.acceleration_bias). Near a run's ends `held` (a leg's, smooth over the
+    (doppler.acceleration_bias). Near a run's ends `held` (a leg's, smooth over the
     window), or without `hold` the fit's own (a vibration's turns within its window:
     held over 2 pairs, a 1 kHz swing's acceleration moves by 60 % and its end pairs'
     distances by 0.3 mm)."""

@@ -34,7 +34,7 @@ def phasors(x: np.ndarray, beta: np.ndarray, v: np.ndarray | None, bins: np.ndar
     x : (P, N) float
         Resampled, windowed half-sweeps of one direction.
     beta : (N,) float
-        Doppler phase of that direction (cycles per m/s, pairing.DopplerModel).
+        Doppler phase of that direction (cycles per m/s, doppler.DopplerModel).
     v : (P,) float or None
         Each row's de-chirp velocity (m/s); None: plain (no de-chirp).
     bins : (P,) float
