@@ -18,7 +18,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from . import heap, objects, rest_calibration, scene, target
+from . import fixed_echoes, heap, objects, rest_calibration, scene, target
 from .assemble import assemble
 from .band import echo_outside
 from .capture import Capture
@@ -104,12 +104,12 @@ def with_choice(plan: Plan, parts: list[ChunkMeasurements], processor: ChunkProc
 
 
 def chosen(cap: Capture, plan: Plan, processor: ChunkProcessor, track: Track
-           ) -> tuple[target.Choice, target.Fixed, list[tuple[float, float]]]:
+           ) -> tuple[target.Choice, fixed_echoes.Fixed, list[tuple[float, float]]]:
     """The target of a first conversion `track` (choose_target), with a second look
     (fmcw_cl.second_look, by `processor`) beside a lone fixed echo; the fixed echoes of
     its tables and the moving echoes the second look found."""
-    fixed = target.fixed_of(track.echoes, plan.lut.unambiguous_range_m, track.time_s, track.distance_m,
-                            track.velocity_mps, track.valid)
+    fixed = fixed_echoes.fixed_of(track.echoes, plan.lut.unambiguous_range_m, track.time_s, track.distance_m,
+                                  track.velocity_mps, track.valid)
     choice = choose_target(plan, track, fixed)
     beside: list[tuple[float, float]] = []
     if choice.lone:
@@ -142,9 +142,10 @@ def with_objects(found: list[objects.SceneObject], pick: int) -> Track:
     return chosen_track
 
 
-def choose_target(plan: Plan, track: Track, fixed: target.Fixed, beside: list | None = None) -> target.Choice:
+def choose_target(plan: Plan, track: Track, fixed: fixed_echoes.Fixed, beside: list | None = None
+                  ) -> target.Choice:
     """The target of a first conversion (fmcw_cl.target.choose) from its `fixed` echoes
-    (target.fixed_of), with the moving echoes a second look found beside a lone fixed
+    (fixed_echoes.fixed_of), with the moving echoes a second look found beside a lone fixed
     echo (`beside`, fmcw_cl.second_look)."""
     clipped = track.reason is not None and bool(np.any(track.reason == faults.CLIPPED))
     try:

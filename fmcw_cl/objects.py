@@ -8,19 +8,17 @@ echoes its mean spectra hold and the verified pairs found elsewhere. Each is a
 pairs are verified as the target's are. Then:
 
 - a tracker that still holds two echoes (a scene whose first conversion saw one of
-  them only) is split (`parts_of`): its verified pairs part where target.APART_M of
-  range holds none and it passes between the parts faster than a body moves; each part
+  them only) is split (`parts_of`): its verified pairs part where fixed_echoes.APART_M
+  of range holds none and it passes between the parts faster than a body moves; each part
   is a candidate of its own (once);
 - two candidates whose verified pairs agree (within SAME_M at SAME_SHARE of the pairs
   both hold) are one echo (a target slowing onto its plateau is also a fixed echo);
-- a fixed object's pairs are its own only at rest (under target.MOVING_MPS), within
+- a fixed object's pairs are its own only at rest (under fixed_echoes.MOVING_MPS), within
   GATE_M of its distance and close to its median (target.ambiguous): anything else its
   band holds is something passing, or a blend with an echo beside it;
-- where two objects lie within GATE_M of each other at one time (`conflicts`: their
-  verified pairs across gaps of up to BRIDGE_S, a fixed one's span all along), or a
-  pair lies on another's harmonic (`harmonics`) or de-chirped image (`images`, along
-  a mover's `course`), their echoes cannot be told apart there: ``ambiguous`` on both,
-  never given to the wrong one;
+- where two objects lie within GATE_M of each other at one time, or a pair lies on
+  another's harmonic or de-chirped image (fmcw_cl.crossings), their echoes cannot be
+  told apart there: ``ambiguous`` on both, never given to the wrong one;
 - an object last seen where another of its kind is first seen, within RETURN_M (as it
   lay, or moved on at its velocities), the two never seen at once, is one object that
   was hidden or faded (`returns`, `joined`);
@@ -40,19 +38,14 @@ from dataclasses import dataclass, fields, replace
 
 import numpy as np
 
-from . import target
+from . import fixed_echoes, target
 from .stages import faults
-from .stages.clutter import STILL_S
 from .track import Track
 
-GATE_M = target.GATE_M   # two objects this close at one time cannot be told apart
+GATE_M = fixed_echoes.GATE_M   # two objects this close at one time cannot be told apart
 SAME_M = 5e-4            # two candidates' verified pairs this close ...
 SAME_SHARE = 0.8         # ... at this share of the pairs both hold: one echo
 RETURN_M = 0.04          # an object seen again within this of where it was last seen is the same one
-BRIDGE_S = 5e-3          # an object's path is interpolated across gaps this short
-COURSE_S = 0.01          # an object's images are looked for this far beyond its verified pairs
-                         # (moved on at their velocity: 25 mm at 500 m/s^2, inside an image's reach)
-STILL_M = 5e-4           # an object whose verified distances span at most this is still (`still`)
 STILL_ATTR = "still_echoes_removed_s"   # a track's attribute: its rows' running mean's span (s; 0: none)
 MAX_OBJECTS = 8          # candidates converted at most (the nearest first)
 KINDS = ("fixed", "moving")
@@ -111,7 +104,7 @@ def level(t: Track) -> float:
         else float("nan")
 
 
-def candidates(fixed: target.Fixed, spans: list[tuple[float, float]], choice: target.Choice,
+def candidates(fixed: fixed_echoes.Fixed, spans: list[tuple[float, float]], choice: target.Choice,
                band: tuple[float, float | None]) -> list[Candidate]:
     """The scene's echoes in the user's `band`: the `fixed` echoes (less those inside a
     moving span that fade when the target leaves them: the target at rest), the moving
@@ -120,23 +113,23 @@ def candidates(fixed: target.Fixed, spans: list[tuple[float, float]], choice: ta
     lo, hi = band[0], band[1] or np.inf
     out = [Candidate(a, b, True) for a, b in spans]
     for f, own in zip(fixed.distance_m, fixed.objects, strict=True):
-        inside = any(a - target.APART_M <= f <= b + target.APART_M for a, b in spans)
+        inside = any(a - fixed_echoes.APART_M <= f <= b + fixed_echoes.APART_M for a, b in spans)
         if lo <= f < hi and (own or not inside):
             out.append(Candidate(float(f), float(f), False, True))
     for f in choice.ambiguous_m:
-        if lo <= f < hi and all(abs(f - c.centre_m) >= target.APART_M for c in out if c.fixed):
+        if lo <= f < hi and all(abs(f - c.centre_m) >= fixed_echoes.APART_M for c in out if c.fixed):
             out.append(Candidate(float(f), float(f), False))
     for a, b in np.asarray(choice.ambiguous_spans_m).reshape(-1, 2):
-        if not any(c.lo - target.APART_M <= 0.5 * (a + b) <= c.hi + target.APART_M for c in out):
+        if not any(c.lo - fixed_echoes.APART_M <= 0.5 * (a + b) <= c.hi + fixed_echoes.APART_M for c in out):
             out.append(Candidate(float(a), float(b), True))
     return sorted(out, key=lambda c: (c.lo, c.hi))[:MAX_OBJECTS]
 
 
 def moves(track: Track) -> bool:
-    """Whether a track's verified pairs move: some faster than target.MOVING_MPS, and
-    travelling target.MIN_TRAVEL_M (1st-99th percentile)."""
-    fast = track.valid & (np.abs(track.velocity_mps) >= target.MOVING_MPS)
-    return bool(fast.sum() >= 3 and _travel(track) >= target.MIN_TRAVEL_M)
+    """Whether a track's verified pairs move: some faster than fixed_echoes.MOVING_MPS, and
+    travelling fixed_echoes.MIN_TRAVEL_M (1st-99th percentile)."""
+    fast = track.valid & (np.abs(track.velocity_mps) >= fixed_echoes.MOVING_MPS)
+    return bool(fast.sum() >= 3 and _travel(track) >= fixed_echoes.MIN_TRAVEL_M)
 
 
 def holds(track: Track, c: Candidate) -> float:
@@ -159,7 +152,7 @@ def parts_of(track: Track) -> list[tuple[float, float]]:
         return []
     d = track.distance_m[ok]
     order = np.argsort(d, kind="stable")
-    cuts = np.flatnonzero(np.diff(d[order]) > target.APART_M)
+    cuts = np.flatnonzero(np.diff(d[order]) > fixed_echoes.APART_M)
     if not cuts.size:
         return []
     label = np.empty(ok.size, np.int64)
@@ -195,105 +188,6 @@ def same(a: Track, b: Track) -> bool:
     return bool(np.mean(np.abs(a.distance_m[both] - b.distance_m[both]) <= SAME_M) >= SAME_SHARE)
 
 
-def path(track: Track) -> np.ndarray:
-    """The object's distance at each pair (m): its verified pairs, linearly
-    interpolated across gaps of at most BRIDGE_S, NaN elsewhere."""
-    ok = np.flatnonzero(track.valid)
-    out = np.full(track.pairs, np.nan)
-    if ok.size == 0:
-        return out
-    t = track.time_s
-    out[ok] = track.distance_m[ok]
-    nxt = np.searchsorted(ok, np.arange(track.pairs))       # the next verified pair
-    inner = (nxt > 0) & (nxt < ok.size)
-    i = np.flatnonzero(inner & ~track.valid)
-    a, b = ok[nxt[i] - 1], ok[nxt[i]]
-    short = t[b] - t[a] <= BRIDGE_S
-    i, a, b = i[short], a[short], b[short]
-    w = (t[i] - t[a]) / (t[b] - t[a])
-    out[i] = (1 - w) * track.distance_m[a] + w * track.distance_m[b]
-    return out
-
-
-def course(track: Track, reach_s: float = COURSE_S) -> tuple[np.ndarray, np.ndarray]:
-    """An object's distance (m) and velocity (m/s) at each pair as far as its motion
-    tells: its `path` (the velocities interpolated alike), and beyond it, within
-    `reach_s` of the nearest verified pair, that pair's distance moved on at its
-    velocity; NaN further."""
-    where = path(track)
-    ok = np.flatnonzero(track.valid)
-    if ok.size == 0:
-        return where, where.copy()
-    t, d, v = track.time_s, track.distance_m, track.velocity_mps
-    u = np.interp(t, t[ok], v[ok])
-    u[np.isnan(where)] = np.nan
-    gap = np.flatnonzero(np.isnan(where))
-    nxt = np.searchsorted(ok, gap)
-    before, after = ok[np.maximum(nxt - 1, 0)], ok[np.minimum(nxt, ok.size - 1)]
-    near = np.where(np.abs(t[gap] - t[before]) <= np.abs(t[after] - t[gap]), before, after)
-    dt = t[gap] - t[near]
-    reach = np.abs(dt) <= reach_s
-    gap, near, dt = gap[reach], near[reach], dt[reach]
-    where[gap] = d[near] + v[near] * dt
-    u[gap] = v[near]
-    return where, u
-
-
-def conflicts(tracks: list[Track], fixed: list[bool] | None = None,
-              unseen: set[tuple[int, int]] = frozenset()) -> list[np.ndarray]:
-    """For each track, the pairs where another object's path (`path`) lies within
-    GATE_M of its own: the two echoes cannot be told apart there. A `fixed` object is
-    there all along, at the span of its verified distances (1st-99th percentile),
-    whether or not its own track holds it then: a pair of another within GATE_M of that
-    span is ambiguous on both (a cable swaying +-10 mm, a fixed echo of the tables,
-    whose band edge cut its near swing: the rail's tracker held that swing once the
-    rail had left its band). Not where (i, j) is `unseen`: track i's rows hold nothing
-    of object j (a still one, taken out of a mover's rows: fmcw_cl.scene)."""
-    fixed = fixed or [False] * len(tracks)
-    paths = [path(t) for t in tracks]
-    out = [np.zeros(t.pairs, bool) for t in tracks]
-    for i in range(len(tracks)):
-        for j in range(i + 1, len(tracks)):
-            close = np.abs(paths[i] - paths[j]) <= GATE_M      # NaN: False
-            for a, b in ((i, j), (j, i)):
-                if fixed[b] and tracks[b].valid.any():
-                    close |= _within_span(tracks[b], paths[a])
-            for a, b in ((i, j), (j, i)):
-                if (a, b) not in unseen:
-                    out[a] |= close
-    return out
-
-
-def _within_span(fixed: Track, d: np.ndarray) -> np.ndarray:
-    """Where distances `d` (m, per pair) lie within GATE_M of a fixed object's span of
-    verified distances."""
-    lo, hi = np.percentile(fixed.distance_m[fixed.valid], [1, 99])
-    return (d >= lo - GATE_M) & (d <= hi + GATE_M)
-
-
-def harmonics(tracks: list[Track], unambiguous_m: float) -> list[np.ndarray]:
-    """For each track, the verified pairs that lie where a harmonic of another object
-    would (2..target.HARMONICS times its distance, folded at the unambiguous range,
-    within target.HARMONIC_M per multiple, moving k times as fast within
-    target.MOVING_MPS per multiple), target.HARMONIC_DB or more under its median level:
-    a distortion's ghost of a strong echo, which a band of its own lets a tracker hold."""
-    out = [np.zeros(t.pairs, bool) for t in tracks]
-    for i, a in enumerate(tracks):
-        weakest = np.nanmin(per_pair(a, "sweep_snr_dechirped_db"), axis=0)
-        for j, b in enumerate(tracks):
-            if i == j or not b.valid.any():
-                continue
-            weak = weakest <= level(b) - target.HARMONIC_DB
-            for k in range(2, target.HARMONICS + 1):
-                at = np.mod(k * b.distance_m, 2 * unambiguous_m)
-                fold = at > unambiguous_m
-                at = np.where(fold, 2 * unambiguous_m - at, at)
-                v = np.where(fold, -k, k) * b.velocity_mps
-                out[i] |= (a.valid & weak & (np.abs(a.distance_m - at) <= k * target.HARMONIC_M)
-                           & (np.abs(a.velocity_mps - v) <= k * target.MOVING_MPS))
-    return out
-
-
 def per_pair(t: Track, name: str) -> np.ndarray:
     """A per-half-sweep array of `t` (`name`) as (rising, falling) per pair (NaN where
     the pair has no half-sweeps: a gap)."""
@@ -310,54 +204,6 @@ def _pair_of_sweeps(t: Track) -> np.ndarray:
     """The pair index of each owned pair of half-sweeps (by the pair's centre time)."""
     mid = 0.5 * (t.sweep_time_s[::2] + t.sweep_time_s[1::2])
     return np.clip(np.searchsorted(t.time_s, mid), 0, t.pairs - 1)
-
-
-def images(tracks: list[Track], model, window: np.ndarray,
-           unseen: set[tuple[int, int]] = frozenset()) -> list[np.ndarray]:
-    """For each track, the verified pairs whose de-chirped peaks could be the image of
-    another object (fmcw_cl.wall_images.confused_moving, along its `course`, at its
-    velocity and median level): a band left empty of echoes lets a tracker hold
-    another's image (a rail's, de-chirped 10 m/s off, 0.3 m beyond it). A fixed one's
-    too, beside the target choice's `walls_m`: a cable swaying +-10 mm at 0.19 m/s,
-    listed at 0.260 m, put its image 15 mm from that of a still tone there. Not where
-    (i, j) is `unseen` (`conflicts`): no image of j in track i's rows."""
-    from .wall_images import confused_moving
-
-    out = [np.zeros(t.pairs, bool) for t in tracks]
-    sources = {}                        # each object's course, velocity, verified path and level
-    for j, b in enumerate(tracks):
-        if b.valid.any():
-            sources[j] = (*course(b), path(b), level(b))
-    for i, a in enumerate(tracks):
-        if not a.valid.any():
-            continue
-        peaks, snr = per_pair(a, "sweep_distance_dechirped_m"), per_pair(a, "sweep_snr_dechirped_db")
-        for j, (where, u, known, top) in sources.items():
-            if j == i or (i, j) in unseen:
-                continue
-            out[i] |= a.valid & confused_moving(a.velocity_mps, tuple(peaks), tuple(snr), known, u, top,
-                                                model, window, a.valid)
-            # beyond its verified pairs its level is not known (an integrated track's peaks
-            # stand as high as an image 10 dB under the mover: taken as strong enough); near
-            # its course the other may be this one itself, seen again (`conflicts`, `returns`)
-            beyond = np.where(np.isnan(known) & (np.abs(a.distance_m - where) > GATE_M), where, np.nan)
-            out[i] |= a.valid & confused_moving(a.velocity_mps, tuple(peaks), tuple(snr), beyond, u, np.inf,
-                                                model, window, a.valid)
-    return out
-
-
-def still(track: Track, wavelength_m: float) -> bool:
-    """Whether an object is still enough that rows without still echoes
-    (stages.clutter) hold nothing of it: its verified distances span at most STILL_M
-    (1st-99th percentile: no sway), and their trend moves it less than a quarter
-    wavelength over the running mean's span (stages.clutter.STILL_S)."""
-    ok = track.valid
-    if ok.sum() < 20:
-        return False
-    t, d = track.time_s[ok], track.distance_m[ok]
-    lo, hi = np.percentile(d, [1, 99])
-    slope = np.polyfit(t - t.mean(), d, 1)[0] if np.ptp(t) > 0 else np.inf
-    return bool(hi - lo <= STILL_M and abs(slope) * STILL_S < wavelength_m / 4)
 
 
 def returns(a: Track, b: Track) -> bool:

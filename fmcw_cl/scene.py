@@ -12,7 +12,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from . import objects, target
+from . import crossings, fixed_echoes, objects, target
 from .assemble import assemble
 from .capture import Capture
 from .chunks import capture_parts
@@ -48,7 +48,7 @@ class First:
     plan: Plan
     parts: list[ChunkMeasurements]
     track: Track
-    fixed: target.Fixed
+    fixed: fixed_echoes.Fixed
     beside: list[tuple[float, float]]
 
 
@@ -62,8 +62,8 @@ def objects_of(cap: Capture, first: First, choice: target.Choice, own: Converted
     options = first.plan.options
     tr = first.track
     band = options.band_m
-    spans = sorted(target.moving_spans(tr.time_s, tr.distance_m, tr.velocity_mps, tr.valid,
-                                       target.smeared(tr.echoes, band)) + list(first.beside))
+    spans = sorted(fixed_echoes.moving_spans(tr.time_s, tr.distance_m, tr.velocity_mps, tr.valid,
+                                             fixed_echoes.smeared(tr.echoes, band)) + list(first.beside))
     made: dict[tuple, list[ChunkMeasurements]] = {first.plan.options.band_m: first.parts,
                                                  own.plan.options.band_m: own.parts}
     extra: list[tuple[float, float]] = []
@@ -81,7 +81,7 @@ def objects_of(cap: Capture, first: First, choice: target.Choice, own: Converted
                                                progress, own if i == held else None)
                 for i, c in enumerate(cands)]
         found = [s for d in done for s in objects.parts_of(d.track) + _passing(d, first, processor, seconds)
-                 if not any(c.lo - target.APART_M <= 0.5 * (s[0] + s[1]) <= c.hi + target.APART_M
+                 if not any(c.lo - fixed_echoes.APART_M <= 0.5 * (s[0] + s[1]) <= c.hi + fixed_echoes.APART_M
                             and c.moving for c in cands)]
         if not found or extra:
             break
@@ -184,13 +184,14 @@ def _convert(cap: Capture, first: First, c: objects.Candidate, spans: list[tuple
 
 def _stays(track: Track, inner: np.ndarray, first: First) -> bool:
     """Whether rows without still echoes (`track`'s) still hold a fixed object near one
-    of the fixed echoes `inner` (m): its own echo table lists one within target.APART_M
-    (target.fixed_of: seen while the target is away), something that trembles (a cable,
+    of the fixed echoes `inner` (m): its own echo table lists one within fixed_echoes.APART_M
+    (fixed_echoes.fixed_of: seen while the target is away), something that trembles (a cable,
     a pane: a micrometre turns its phase through radians)."""
-    left = target.fixed_of(track.echoes, first.plan.lut.unambiguous_range_m, track.time_s, track.distance_m,
-                           track.velocity_mps, track.valid)
+    left = fixed_echoes.fixed_of(track.echoes, first.plan.lut.unambiguous_range_m, track.time_s,
+                                 track.distance_m, track.velocity_mps, track.valid)
     there = left.distance_m[left.objects]
-    return bool(there.size and np.any(np.abs(there[:, None] - np.asarray(inner)[None, :]) <= target.APART_M))
+    near = np.abs(there[:, None] - np.asarray(inner)[None, :]) <= fixed_echoes.APART_M
+    return bool(there.size and np.any(near))
 
 
 def _sides(band: tuple[float, float | None], inner: np.ndarray) -> list[tuple[float, float | None]]:
@@ -212,9 +213,9 @@ def _passing(d: Converted, first: First, processor, seconds) -> list[tuple[float
     if d.choice.at_rest_m is None:
         return []
     loose = _again(d, replace(d.choice, at_rest_m=None), processor, seconds)
-    away = np.abs(loose.distance_m - d.choice.at_rest_m) > target.APART_M
-    return target.moving_spans(loose.time_s, loose.distance_m, loose.velocity_mps, loose.valid & away,
-                               np.zeros(0))
+    away = np.abs(loose.distance_m - d.choice.at_rest_m) > fixed_echoes.APART_M
+    return fixed_echoes.moving_spans(loose.time_s, loose.distance_m, loose.velocity_mps, loose.valid & away,
+                                     np.zeros(0))
 
 
 def _distinct(done: list[Converted], first: First, seconds, processor) -> list[Converted]:
@@ -230,7 +231,7 @@ def _distinct(done: list[Converted], first: First, seconds, processor) -> list[C
             continue
         o = out[twin]
         if d.candidate.fixed and o.choice.ambiguous_m.size and not o.joined:
-            keep = np.abs(o.choice.ambiguous_m - d.candidate.centre_m) > target.APART_M
+            keep = np.abs(o.choice.ambiguous_m - d.candidate.centre_m) > fixed_echoes.APART_M
             choice = replace(o.choice, ambiguous_m=o.choice.ambiguous_m[keep])
             out[twin] = replace(o, choice=choice, track=_again(o, choice, processor, seconds))
     return out
@@ -239,14 +240,14 @@ def _distinct(done: list[Converted], first: First, seconds, processor) -> list[C
 def _exclusive(done: list[Converted], unseen: set[tuple[int, int]], first: First, seconds, processor
                ) -> list[Converted]:
     """Each conversion assembled again where another object's path comes within
-    objects.GATE_M of its own, a harmonic of another's (objects.harmonics) or its
-    de-chirped image (objects.images): those pairs `ambiguous` (target.Choice.taken_s),
+    objects.GATE_M of its own, a harmonic of another's (crossings.harmonics) or its
+    de-chirped image (crossings.images): those pairs `ambiguous` (target.Choice.taken_s),
     and so is a pair verified only once they are taken out (not checked against the others).
     Not by an object that the conversion's rows hold nothing of (`unseen`: (i, j), `_unseen`)."""
     tracks, moving = [d.track for d in done], [_moving(d) for d in done]
-    clash = objects.conflicts(tracks, [not m for m in moving], unseen)
-    ghost = objects.harmonics(tracks, first.plan.lut.unambiguous_range_m)
-    image = objects.images(tracks, first.plan.model, first.plan.window, unseen)
+    clash = crossings.conflicts(tracks, [not m for m in moving], unseen)
+    ghost = crossings.harmonics(tracks, first.plan.lut.unambiguous_range_m)
+    image = crossings.images(tracks, first.plan.model, first.plan.window, unseen)
     out = []
     for d, c, g, m in zip(done, clash, ghost, image, strict=True):
         c = (c | g | m) & d.track.valid
@@ -300,18 +301,18 @@ def _assembled(plan: Plan, parts: list[ChunkMeasurements], processor: ChunkProce
 def _unseen(d: Converted, done: list[Converted], first: First) -> list[int]:
     """The objects among `done` that conversion `d`'s rows hold nothing of: where its
     rows are without still echoes (Plan.still_half; not a track joined of several
-    conversions), the still objects (objects.still) near which its own echo table
-    lists no fixed object (target.fixed_of: an echo seen while its target is away;
-    a cable that trembles a micrometre stays in these rows)."""
+    conversions), the still objects (crossings.still) near which its own echo table
+    lists no fixed object (fixed_echoes.fixed_of: an echo seen while its target is away;
+                           a cable that trembles a micrometre stays in these rows)."""
     if not d.plan.still_half or d.joined:
         return []
     t = d.track
-    left = target.fixed_of(t.echoes, first.plan.lut.unambiguous_range_m, t.time_s, t.distance_m,
-                           t.velocity_mps, t.valid)
+    left = fixed_echoes.fixed_of(t.echoes, first.plan.lut.unambiguous_range_m, t.time_s, t.distance_m,
+                                 t.velocity_mps, t.valid)
     there = left.distance_m[left.objects]
     wl = first.plan.lut.wavelength_m
-    return [k for k, o in enumerate(done) if o is not d and not _moving(o) and objects.still(o.track, wl)
-            and np.all(np.abs(there - np.median(o.track.distance_m[o.track.valid])) > target.APART_M)]
+    return [k for k, o in enumerate(done) if o is not d and not _moving(o) and crossings.still(o.track, wl)
+            and np.all(np.abs(there - np.median(o.track.distance_m[o.track.valid])) > fixed_echoes.APART_M)]
 
 
 def _unveiled(done: list[Converted], unseen: set[tuple[int, int]], seconds, processor) -> list[Converted]:
@@ -322,7 +323,8 @@ def _unveiled(done: list[Converted], unseen: set[tuple[int, int]], seconds, proc
     for i, d in enumerate(done):
         calm = [float(np.median(done[j].track.distance_m[done[j].track.valid])) for k, j in unseen if k == i]
         if calm and d.choice.ambiguous_m.size:
-            keep = np.array([all(abs(f - c) > target.APART_M for c in calm) for f in d.choice.ambiguous_m])
+            keep = np.array([all(abs(f - c) > fixed_echoes.APART_M for c in calm)
+                             for f in d.choice.ambiguous_m])
             if not keep.all():
                 choice = replace(d.choice, ambiguous_m=d.choice.ambiguous_m[keep])
                 d = replace(d, choice=choice, track=_again(d, choice, processor, seconds))

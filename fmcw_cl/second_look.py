@@ -2,14 +2,14 @@
 
 The tracker follows the strongest peak of its band. A moving target weaker in its
 plain spectra than a wall (smeared by its Doppler term, under noise at full scale) is
-then never tracked, its echoes too rare to count (target.OTHERS_SHARE), and the wall is
+then never tracked, its echoes too rare to count (fixed_echoes.OTHERS_SHARE), and the wall is
 "one echo: the target": a take-off beside a wall of 800 codes put 979 valid pairs on the
 wall, up to 138 mm off. With the wall out of the band, the same capture tracks the
 target. So before a lone fixed echo is taken for the target, the delay's trial stretches
 (`refine.stretches`) are converted in the user's band on each side of it, the echo and
 target.WALL_MARGIN_M about it left out, each measurement integrating LOOK_K half-sweeps,
 their pairs verified as a track's are, and the moving echoes they show
-(`target.moving_spans`) join the choice.
+(`fixed_echoes.moving_spans`) join the choice.
 
 The stretches are three of 12 ms, spread through the capture (most of a lab's 50 ms
 capture): a target that moves only between them is not seen.
@@ -21,7 +21,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from . import target
+from . import fixed_echoes, target
 from .capture import Capture
 from .plan import MIN_RANGE_SHARE
 from .refine import by_stretch, pairs_of, stretches
@@ -67,4 +67,4 @@ def moving_beside(cap: Capture, plan, processor, fixed_m: float) -> list[tuple[f
     processor.open(plan)
     if not t:
         return []
-    return target.moving_spans(*map(np.concatenate, (t, d, v, ok)), np.zeros(0))
+    return fixed_echoes.moving_spans(*map(np.concatenate, (t, d, v, ok)), np.zeros(0))

@@ -14,7 +14,7 @@ velocities 1.7 m/s off and consistent with them.
 A half-sweep's peak cannot be told from an image whose core (its half-power part) it
 lies in, where the image comes within IMAGE_MARGIN_DB of the peak's own level: the
 image's level there is the wall's level
-(target.fixed_echoes) plus the power of the de-chirped window at that offset, relative
+(fixed_echoes.fixed_echoes) plus the power of the de-chirped window at that offset, relative
 to an unsmeared tone's peak (`image_gain_db`).
 """
 

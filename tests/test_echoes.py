@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fmcw_cl import echoes
+from fmcw_cl import echoes, rivals
 from fmcw_cl.numeric import group_median, ragged
 from fmcw_cl.stages import cfar
 
@@ -216,7 +216,6 @@ def test_the_capture_mean_spectra_tests_of_one_echo():
     another echo (`_besides`), in one direction only too, but not where some pairs are
     clipped (a clipped stretch's distortion, 7 dB over the noise), and at twice the
     distance 25 dB under (a harmonic) none."""
-    from fmcw_cl import target
 
     rng = np.random.default_rng(5)
     half, rows, mpb = 1024, 200, 0.47e-3
@@ -231,14 +230,14 @@ def test_the_capture_mean_spectra_tests_of_one_echo():
     echo = 1e3 * hann_tone(half, 400.0)
     fixed_m = 400 * mpb
     moved = 1e3 * hann_tone(half, 406.0)
-    r, f = target._split(table(echo, moved), fixed_m, band)
+    r, f = rivals.directions_apart(table(echo, moved), fixed_m, band)
     assert abs(r - fixed_m) < 1e-4 and abs(f - 406 * mpb) < 1e-4
-    assert target._split(table(echo, 1e3 * hann_tone(half, 401.0)), fixed_m, band) is None
+    assert rivals.directions_apart(table(echo, 1e3 * hann_tone(half, 401.0)), fixed_m, band) is None
     weak = 4.0 * hann_tone(half, 700.0)                             # 7 dB over the noise's mean
-    got = target._besides(table(echo + weak, echo + weak), fixed_m, band, 0.47)
+    got = rivals.besides(table(echo + weak, echo + weak), fixed_m, band, 0.47)
     assert len(got) == 1 and abs(got[0] - 700 * mpb) < 2e-4
     one = table(echo + weak, echo)                                  # in one direction only
-    assert len(target._besides(one, fixed_m, band, 0.47)) == 1
-    assert target._besides(one, fixed_m, band, 0.47, clipped=True) == []
+    assert len(rivals.besides(one, fixed_m, band, 0.47)) == 1
+    assert rivals.besides(one, fixed_m, band, 0.47, clipped=True) == []
     harmonic = 10 ** -2.5 * 1e3 * hann_tone(half, 800.0)
-    assert target._besides(table(echo + harmonic, echo + harmonic), fixed_m, band, 0.47) == []
+    assert rivals.besides(table(echo + harmonic, echo + harmonic), fixed_m, band, 0.47) == []

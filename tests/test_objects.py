@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fmcw_cl import objects
+from fmcw_cl import crossings, objects
 from fmcw_cl.capture import Capture
 from fmcw_cl.engine import process
 from fmcw_cl.evaluate import object_scores, on_objects, truth_at
@@ -91,15 +91,15 @@ def test_conflicts_mark_both_objects():
     a = _track(np.full(n, 0.30))
     close = np.linspace(0.26, 0.34, n)
     b = _track(close, np.full(n, 0.08 / (n * PERIOD)))
-    hit_a, hit_b = objects.conflicts([a, b])
+    hit_a, hit_b = crossings.conflicts([a, b])
     expect = np.abs(close - 0.30) <= objects.GATE_M
     assert np.array_equal(hit_a, expect) and np.array_equal(hit_b, expect)
     gap = np.ones(n, bool)
     gap[190:210] = False                    # b not verified as it passes a: its path bridges the gap
-    hit_a, _ = objects.conflicts([a, _track(close, valid=gap)])
+    hit_a, _ = crossings.conflicts([a, _track(close, valid=gap)])
     assert hit_a[190:210].all()
     far = _track(np.full(n, 0.45))
-    assert not any(h.any() for h in objects.conflicts([a, far]))
+    assert not any(h.any() for h in crossings.conflicts([a, far]))
 
 
 def test_returns_and_joined():
@@ -147,13 +147,13 @@ def test_a_movers_course_goes_on_at_its_velocity():
     n = 1000
     t = PERIOD * (np.arange(n) + 0.5)
     d = np.where((t > 0.015) & (t < 0.02), 0.2 + 2.0 * (t - 0.015), np.nan)
-    where, u = objects.course(_track(d, np.full(n, 2.0)))
-    ahead = (t > 0.02) & (t < 0.02 + objects.COURSE_S - PERIOD)
+    where, u = crossings.course(_track(d, np.full(n, 2.0)))
+    ahead = (t > 0.02) & (t < 0.02 + crossings.COURSE_S - PERIOD)
     assert np.allclose(where[ahead], 0.2 + 2.0 * (t[ahead] - 0.015)) and np.allclose(u[ahead], 2.0)
-    behind = (t < 0.015) & (t > 0.015 - objects.COURSE_S + PERIOD)
+    behind = (t < 0.015) & (t > 0.015 - crossings.COURSE_S + PERIOD)
     assert np.allclose(where[behind], 0.2 + 2.0 * (t[behind] - 0.015))
-    assert np.isnan(where[t > 0.02 + objects.COURSE_S + PERIOD]).all()
-    assert np.isnan(u[t < 0.015 - objects.COURSE_S - PERIOD]).all()
+    assert np.isnan(where[t > 0.02 + crossings.COURSE_S + PERIOD]).all()
+    assert np.isnan(u[t < 0.015 - crossings.COURSE_S - PERIOD]).all()
 
 
 def test_same_echo_and_invalidate():
@@ -177,9 +177,9 @@ def test_harmonics_need_a_far_stronger_source():
         t.sweep_time_s = np.repeat(t.time_s, 2) + np.tile([-PERIOD / 4, PERIOD / 4], n)
         t.sweep_snr_dechirped_db = np.full(2 * n, level)
         t.sweep_reason = np.repeat(t.reason, 2)
-    assert objects.harmonics([strong, ghost], 0.47)[1].all()
+    assert crossings.harmonics([strong, ghost], 0.47)[1].all()
     ghost.sweep_snr_dechirped_db[:] = 35.0
-    assert not objects.harmonics([strong, ghost], 0.47)[1].any()
+    assert not crossings.harmonics([strong, ghost], 0.47)[1].any()
 
 
 def test_choose_rules():

@@ -27,7 +27,7 @@ def test_static_precision_near_the_bound(tmp_path, snr_db, seed):
 def test_a_lone_target_at_minus_20_db_is_the_target(tmp_path, seed):
     """At -20 dB per sample a single half-sweep rarely holds a CFAR echo (10 of 796):
     a false alarm among those few is no 'other echo' filling a tenth of the capture
-    (target.OTHERS_SHARE counts all half-sweeps), and the integrated pairs are valid."""
+    (fixed_echoes.OTHERS_SHARE counts all half-sweeps), and the integrated pairs are valid."""
     r = precision.measure(tmp_path, -20.0, 0.01, 0.3, seed)
     assert r["integrated"] > 1
     assert r["valid_share"] >= 0.9                         # measured 0.93 and 0.96

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from conftest import realistic
 
-from fmcw_cl import objects
+from fmcw_cl import fixed_echoes, objects, swing
 from fmcw_cl.capture import Capture
 from fmcw_cl.engine import process
 from fmcw_cl.evaluate import accuracy, object_scores, truth_at, valid_errors
@@ -296,17 +296,17 @@ def test_the_second_look_converts_the_band_on_each_side_of_the_echo():
 
 
 def test_harmonics_of_a_far_stronger_echo_are_no_objects():
-    from fmcw_cl import target
 
     # 0.201 and 0.299: 2 and 3 x 0.10, 25 and 28 dB under it; 0.43 is none
     d = np.array([0.10, 0.201, 0.299, 0.43])
     level = np.array([40.0, 15.0, 12.0, 1.0])
-    assert target.harmonic(d, level, 0.47).tolist() == [False, True, True, False]
+    assert fixed_echoes.harmonic(d, level, 0.47).tolist() == [False, True, True, False]
     # folded: 3 x 0.20 = 0.60 lies at 0.94 - 0.60 = 0.34
-    assert target.harmonic(np.array([0.20, 0.341]), np.array([30.0, 5.0]), 0.47).tolist() == [False, True]
+    folded = fixed_echoes.harmonic(np.array([0.20, 0.341]), np.array([30.0, 5.0]), 0.47)
+    assert folded.tolist() == [False, True]
     # 8.6 mm from twice a wall's distance, or only 10 dB under it: an object
-    assert not target.harmonic(np.array([0.1756, 0.3599]), np.array([20.0, 0.0]), 0.47).any()
-    assert not target.harmonic(np.array([0.10, 0.20]), np.array([20.0, 10.0]), 0.47).any()
+    assert not fixed_echoes.harmonic(np.array([0.1756, 0.3599]), np.array([20.0, 0.0]), 0.47).any()
+    assert not fixed_echoes.harmonic(np.array([0.10, 0.20]), np.array([20.0, 10.0]), 0.47).any()
 
 
 def test_an_ambiguous_fixed_echo_covers_the_echoes_it_stands_for():
@@ -369,7 +369,7 @@ def test_a_wall_that_held_the_first_conversion_is_left_out_of_a_smeared_span():
     on_wall = lambda m: (t, np.full(t.size, m), np.zeros(t.size), np.ones(t.size, bool))  # noqa: E731
     start = target.choose("auto", None, *on_wall(0.0923), wall_table(0.0923, [0.110, 0.184, 0.217, 0.266]),
                           0.468, (0.03, None))
-    assert start.band_m[0] >= 0.0923 + target.GATE_M - 1e-9 and start.ambiguous_m.size == 0, start.note
+    assert start.band_m[0] >= 0.0923 + fixed_echoes.GATE_M - 1e-9 and start.ambiguous_m.size == 0, start.note
     through = target.choose("auto", None, *on_wall(0.187), wall_table(0.187, [0.0915, 0.192, 0.225, 0.308]),
                             0.468, (0.03, None))
     assert 0.187 + 0.009 < through.band_m[0] < 0.25 and through.ambiguous_m.size == 0, through.note
@@ -377,7 +377,7 @@ def test_a_wall_that_held_the_first_conversion_is_left_out_of_a_smeared_span():
     # a span of one slice 15 mm beyond the wall: the band's edge 10 mm from it; one slice
     # on each side: no side is tracked alone
     near = target.choose("auto", None, *on_wall(0.2), wall_table(0.2, [0.2153]), 0.468, (0.03, None))
-    assert near.band_m[0] >= 0.2 + target.GATE_M - 1e-9, near.note
+    assert near.band_m[0] >= 0.2 + fixed_echoes.GATE_M - 1e-9, near.note
     both = target.choose("auto", None, *on_wall(0.2), wall_table(0.2, [0.185, 0.2153]), 0.468, (0.03, None))
     assert both.band_m[0] < 0.185 and np.isclose(both.ambiguous_m, 0.2).any(), both.note
     # walls 17.7 mm apart are one fixed echo, at the stronger; the weaker, inside the span,
@@ -785,7 +785,7 @@ def test_a_fixed_echo_the_target_never_leaves_by_a_slice_is_judged_by_half_sweep
     detection near it is the tracked peak's, it is the target's own rest (no object);
     where a third of the half-sweeps whose tracked peak lies away hold another
     detection there, a wall stands beside the target (an object)."""
-    from fmcw_cl import echoes, target
+    from fmcw_cl import echoes
 
     sweeps = np.arange(600) * 25e-6 + 12.5e-6
     rising = np.arange(600) % 2 == 0
@@ -804,7 +804,8 @@ def test_a_fixed_echo_the_target_never_leaves_by_a_slice_is_judged_by_half_sweep
     t = np.arange(300) * 50e-6 + 25e-6
     pair = 0.282 - 0.5 * 2.6 / 0.012 * np.clip(0.012 - t, 0, None) ** 2
     speed = np.gradient(pair, t)
-    assert target._objects(np.array([0.282]), t, pair, speed, np.ones(300, bool), e).tolist() == [wall]
+    got = fixed_echoes.are_objects(np.array([0.282]), t, pair, speed, np.ones(300, bool), e)
+    assert got.tolist() == [wall]
 
 
 @pytest.mark.parametrize("wall", [False, True])
@@ -813,7 +814,7 @@ def test_a_targets_own_doppler_image_is_not_an_echo_seen_while_it_is_away(wall):
     11 mm beside its pairs, at 0.062 m, in the slice where they lie 11.5 mm from it.
     Those detections are the target's own image: the fixed echo they make is no object
     unless something untracked is seen there too (a wall in half the half-sweeps)."""
-    from fmcw_cl import echoes, target
+    from fmcw_cl import echoes
 
     sweeps = np.arange(1200) * 25e-6 + 12.5e-6                       # 30 ms
     rising = np.arange(1200) % 2 == 0
@@ -832,7 +833,7 @@ def test_a_targets_own_doppler_image_is_not_an_echo_seen_while_it_is_away(wall):
     t = np.arange(600) * 50e-6 + 25e-6
     d = np.where(t < 0.01, 0.085, np.where(t < 0.02, 0.071, 0.0735))
     v = np.where(t < 0.01, 0.0, 0.4)                    # its images: 0.0275 m per m/s, opposite ways
-    assert target._objects(np.array([0.062]), t, d, v, np.ones(600, bool), e).tolist() == [wall]
+    assert fixed_echoes.are_objects(np.array([0.062]), t, d, v, np.ones(600, bool), e).tolist() == [wall]
 
 
 @pytest.mark.parametrize("still", [False, True])
@@ -842,7 +843,7 @@ def test_pairs_swinging_with_their_velocity_are_one_echo_unless_they_stand_still
     directions) and its distances following them. A wall at rest read at a constant
     0.35 m/s (a delay 77 samples off) offsets its peaks as alike, but its distances stand
     still: not that."""
-    from fmcw_cl import echoes, target
+    from fmcw_cl import echoes
 
     t = np.arange(800) * 50e-6 + 25e-6                                   # 40 ms of pairs
     if still:
@@ -854,4 +855,4 @@ def test_pairs_swinging_with_their_velocity_are_one_echo_unless_they_stand_still
     rising = np.tile([True, False], t.size)
     plain = np.repeat(d, 2) + np.where(rising, -0.027, 0.027) * np.repeat(v, 2)
     e = echoes.Echoes(sweeps, plain, np.full(sweeps.size, 20.0), rising, np.ones(sweeps.size, bool), {})
-    assert target._swinging(e, t, d, v, np.ones(t.size, bool)) is (not still)
+    assert swing.swinging(e, t, d, v, np.ones(t.size, bool)) is (not still)

@@ -1,0 +1,169 @@
+"""Where two objects' echoes cannot be told apart (fmcw_cl.objects' rules, fmcw_cl.scene).
+
+An object's `path` (its verified pairs, bridged across short gaps) and `course` (moved
+on at its velocity beyond them); where another's comes within GATE_M of an object's
+pair (`conflicts`), where a pair lies on another's harmonic (`harmonics`) or de-chirped
+image (`images`), the pair is ``ambiguous``. A `still` object leaves rows without still
+echoes (stages.clutter): a conversion on them need not fear it.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import fixed_echoes
+from .objects import GATE_M, level, per_pair
+from .stages.clutter import STILL_S
+from .track import Track
+
+BRIDGE_S = 5e-3          # an object's path is interpolated across gaps this short
+COURSE_S = 0.01          # an object's images are looked for this far beyond its verified pairs
+                         # (moved on at their velocity: 25 mm at 500 m/s^2, inside an image's reach)
+STILL_M = 5e-4           # an object whose verified distances span at most this is still (`still`)
+
+
+def path(track: Track) -> np.ndarray:
+    """The object's distance at each pair (m): its verified pairs, linearly
+    interpolated across gaps of at most BRIDGE_S, NaN elsewhere."""
+    ok = np.flatnonzero(track.valid)
+    out = np.full(track.pairs, np.nan)
+    if ok.size == 0:
+        return out
+    t = track.time_s
+    out[ok] = track.distance_m[ok]
+    nxt = np.searchsorted(ok, np.arange(track.pairs))       # the next verified pair
+    inner = (nxt > 0) & (nxt < ok.size)
+    i = np.flatnonzero(inner & ~track.valid)
+    a, b = ok[nxt[i] - 1], ok[nxt[i]]
+    short = t[b] - t[a] <= BRIDGE_S
+    i, a, b = i[short], a[short], b[short]
+    w = (t[i] - t[a]) / (t[b] - t[a])
+    out[i] = (1 - w) * track.distance_m[a] + w * track.distance_m[b]
+    return out
+
+
+def course(track: Track, reach_s: float = COURSE_S) -> tuple[np.ndarray, np.ndarray]:
+    """An object's distance (m) and velocity (m/s) at each pair as far as its motion
+    tells: its `path` (the velocities interpolated alike), and beyond it, within
+    `reach_s` of the nearest verified pair, that pair's distance moved on at its
+    velocity; NaN further."""
+    where = path(track)
+    ok = np.flatnonzero(track.valid)
+    if ok.size == 0:
+        return where, where.copy()
+    t, d, v = track.time_s, track.distance_m, track.velocity_mps
+    u = np.interp(t, t[ok], v[ok])
+    u[np.isnan(where)] = np.nan
+    gap = np.flatnonzero(np.isnan(where))
+    nxt = np.searchsorted(ok, gap)
+    before, after = ok[np.maximum(nxt - 1, 0)], ok[np.minimum(nxt, ok.size - 1)]
+    near = np.where(np.abs(t[gap] - t[before]) <= np.abs(t[after] - t[gap]), before, after)
+    dt = t[gap] - t[near]
+    reach = np.abs(dt) <= reach_s
+    gap, near, dt = gap[reach], near[reach], dt[reach]
+    where[gap] = d[near] + v[near] * dt
+    u[gap] = v[near]
+    return where, u
+
+
+def conflicts(tracks: list[Track], fixed: list[bool] | None = None,
+              unseen: set[tuple[int, int]] = frozenset()) -> list[np.ndarray]:
+    """For each track, the pairs where another object's path (`path`) lies within
+    GATE_M of its own: the two echoes cannot be told apart there. A `fixed` object is
+    there all along, at the span of its verified distances (1st-99th percentile),
+    whether or not its own track holds it then: a pair of another within GATE_M of that
+    span is ambiguous on both (a cable swaying +-10 mm, a fixed echo of the tables,
+    whose band edge cut its near swing: the rail's tracker held that swing once the
+    rail had left its band). Not where (i, j) is `unseen`: track i's rows hold nothing
+    of object j (a still one, taken out of a mover's rows: fmcw_cl.scene)."""
+    fixed = fixed or [False] * len(tracks)
+    paths = [path(t) for t in tracks]
+    out = [np.zeros(t.pairs, bool) for t in tracks]
+    for i in range(len(tracks)):
+        for j in range(i + 1, len(tracks)):
+            close = np.abs(paths[i] - paths[j]) <= GATE_M      # NaN: False
+            for a, b in ((i, j), (j, i)):
+                if fixed[b] and tracks[b].valid.any():
+                    close |= _within_span(tracks[b], paths[a])
+            for a, b in ((i, j), (j, i)):
+                if (a, b) not in unseen:
+                    out[a] |= close
+    return out
+
+
+def _within_span(fixed: Track, d: np.ndarray) -> np.ndarray:
+    """Where distances `d` (m, per pair) lie within GATE_M of a fixed object's span of
+    verified distances."""
+    lo, hi = np.percentile(fixed.distance_m[fixed.valid], [1, 99])
+    return (d >= lo - GATE_M) & (d <= hi + GATE_M)
+
+
+def harmonics(tracks: list[Track], unambiguous_m: float) -> list[np.ndarray]:
+    """For each track, the verified pairs that lie where a harmonic of another object
+    would (2..fixed_echoes.HARMONICS times its distance, folded at the unambiguous range,
+    within fixed_echoes.HARMONIC_M per multiple, moving k times as fast within
+    fixed_echoes.MOVING_MPS per multiple), fixed_echoes.HARMONIC_DB or more under its median level:
+    a distortion's ghost of a strong echo, which a band of its own lets a tracker hold."""
+    out = [np.zeros(t.pairs, bool) for t in tracks]
+    for i, a in enumerate(tracks):
+        weakest = np.nanmin(per_pair(a, "sweep_snr_dechirped_db"), axis=0)
+        for j, b in enumerate(tracks):
+            if i == j or not b.valid.any():
+                continue
+            weak = weakest <= level(b) - fixed_echoes.HARMONIC_DB
+            for k in range(2, fixed_echoes.HARMONICS + 1):
+                at = np.mod(k * b.distance_m, 2 * unambiguous_m)
+                fold = at > unambiguous_m
+                at = np.where(fold, 2 * unambiguous_m - at, at)
+                v = np.where(fold, -k, k) * b.velocity_mps
+                out[i] |= (a.valid & weak & (np.abs(a.distance_m - at) <= k * fixed_echoes.HARMONIC_M)
+                           & (np.abs(a.velocity_mps - v) <= k * fixed_echoes.MOVING_MPS))
+    return out
+
+
+def images(tracks: list[Track], model, window: np.ndarray,
+           unseen: set[tuple[int, int]] = frozenset()) -> list[np.ndarray]:
+    """For each track, the verified pairs whose de-chirped peaks could be the image of
+    another object (fmcw_cl.wall_images.confused_moving, along its `course`, at its
+    velocity and median level): a band left empty of echoes lets a tracker hold
+    another's image (a rail's, de-chirped 10 m/s off, 0.3 m beyond it). A fixed one's
+    too, beside the target choice's `walls_m`: a cable swaying +-10 mm at 0.19 m/s,
+    listed at 0.260 m, put its image 15 mm from that of a still tone there. Not where
+    (i, j) is `unseen` (`conflicts`): no image of j in track i's rows."""
+    from .wall_images import confused_moving
+
+    out = [np.zeros(t.pairs, bool) for t in tracks]
+    sources = {}                        # each object's course, velocity, verified path and level
+    for j, b in enumerate(tracks):
+        if b.valid.any():
+            sources[j] = (*course(b), path(b), level(b))
+    for i, a in enumerate(tracks):
+        if not a.valid.any():
+            continue
+        peaks, snr = per_pair(a, "sweep_distance_dechirped_m"), per_pair(a, "sweep_snr_dechirped_db")
+        for j, (where, u, known, top) in sources.items():
+            if j == i or (i, j) in unseen:
+                continue
+            out[i] |= a.valid & confused_moving(a.velocity_mps, tuple(peaks), tuple(snr), known, u, top,
+                                                model, window, a.valid)
+            # beyond its verified pairs its level is not known (an integrated track's peaks
+            # stand as high as an image 10 dB under the mover: taken as strong enough); near
+            # its course the other may be this one itself, seen again (`conflicts`, `returns`)
+            beyond = np.where(np.isnan(known) & (np.abs(a.distance_m - where) > GATE_M), where, np.nan)
+            out[i] |= a.valid & confused_moving(a.velocity_mps, tuple(peaks), tuple(snr), beyond, u, np.inf,
+                                                model, window, a.valid)
+    return out
+
+
+def still(track: Track, wavelength_m: float) -> bool:
+    """Whether an object is still enough that rows without still echoes
+    (stages.clutter) hold nothing of it: its verified distances span at most STILL_M
+    (1st-99th percentile: no sway), and their trend moves it less than a quarter
+    wavelength over the running mean's span (stages.clutter.STILL_S)."""
+    ok = track.valid
+    if ok.sum() < 20:
+        return False
+    t, d = track.time_s[ok], track.distance_m[ok]
+    lo, hi = np.percentile(d, [1, 99])
+    slope = np.polyfit(t - t.mean(), d, 1)[0] if np.ptp(t) > 0 else np.inf
+    return bool(hi - lo <= STILL_M and abs(slope) * STILL_S < wavelength_m / 4)
