@@ -18,6 +18,10 @@ SWING_FIT = 0.9       # a target swings where its pairs' Doppler shifts explain 
                       # peaks' offsets (their power) ...
 SMEAR_M = 0.001       # ... and reach a resolution cell; the mean spectra's peaks within its reach plus
                       # this are its own (a vibration's peaks swing +-9 mm at 0.31 m/s, +-1.8 at 0.06)
+REST_MPS = 0.02       # verified pairs this slow ...
+REST_PAIRS = 40       # ... this many in a row (2 ms at 50 us) rest: an echo, no swing's image
+REST_APART_M = 0.002  # a rest this far from the fixed echo, where the mean spectra hold another echo:
+                      # that echo (a pane's back surface 6 mm behind the window the tracker held)
 
 
 def doppler_reach(e: echoes.Echoes, time_s, distance_m, velocity_mps, valid) -> float:
@@ -76,3 +80,14 @@ def swinging(e: echoes.Echoes, time_s, distance_m, velocity_mps, valid) -> bool:
     if ok.sum() < 3 or doppler_reach(e, time_s, distance_m, velocity_mps, valid) < SMEAR_M:
         return False
     return abs(drift(time_s[ok], distance_m[ok], velocity_mps[ok])[0]) <= DRIFT_MPS
+
+
+def rests(time_s, distance_m, velocity_mps, valid) -> np.ndarray:
+    """The distances (m) where the verified pairs rest: each run of at least REST_PAIRS
+    consecutive verified pairs slower than REST_MPS, at its median. A Doppler image of
+    a swing is never at rest (it exists by the velocity); a run at rest is an echo."""
+    ok = np.asarray(valid, bool) & np.isfinite(distance_m) & (np.abs(np.nan_to_num(velocity_mps, nan=np.inf))
+                                                              < REST_MPS)
+    edges = np.flatnonzero(np.diff(np.r_[0, ok.astype(np.int8), 0]))
+    return np.array([float(np.median(distance_m[a:b])) for a, b in zip(edges[::2], edges[1::2], strict=True)
+                     if b - a >= REST_PAIRS])

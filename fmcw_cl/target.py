@@ -83,7 +83,7 @@ from .options import RANGE_GAP_M, said
 from .rivals import besides, directions_apart, elsewhere, others_share
 from .stages import faults
 from .stages.verification import DRIFT_MPS
-from .swing import SMEAR_M, doppler_reach, swinging
+from .swing import REST_APART_M, SMEAR_M, doppler_reach, rests, swinging
 
 RULES = ("auto", "moving", "nearest", "strongest")
 WALL_MARGIN_M = 0.03  # a band edge lies this far inside a left-out fixed echo where the gap allows
@@ -261,8 +261,12 @@ def _choose(rule: str, near_m: float | None, time_s, distance_m, velocity_mps, v
                           note=f"no echo moves, but {100 * seen:.0f} % of the half-sweeps hold other echoes "
                                f"than the fixed echo at {_list(fixed)}: the target cannot be told apart")
         hidden = besides(e, fixed[0], band, unambiguous_m, clipped)
-        if swings:                                    # its own swing fills the mean spectra
-            hidden = [x for x in hidden if not lo - reach - SMEAR_M <= x <= hi + reach + SMEAR_M]
+        if swings:                                    # its own swing fills the mean spectra ...
+            rest = rests(time_s, distance_m, velocity_mps, valid)
+            rest = rest[np.abs(rest - fixed[0]) > REST_APART_M]
+            # ... but not where its pairs rest away from the fixed echo: another echo the tracker held
+            hidden = [x for x in hidden if not lo - reach - SMEAR_M <= x <= hi + reach + SMEAR_M
+                      or np.any(np.abs(rest - x) <= REST_APART_M)]
         if hidden:                                    # an echo too weak or too near for the CFAR
             # the tracker may follow either: a wall the target's CFAR echoes outnumber, its
             # pairs 16 mm from the fixed echo (noise at full scale)

@@ -856,3 +856,41 @@ def test_pairs_swinging_with_their_velocity_are_one_echo_unless_they_stand_still
     plain = np.repeat(d, 2) + np.where(rising, -0.027, 0.027) * np.repeat(v, 2)
     e = echoes.Echoes(sweeps, plain, np.full(sweeps.size, 20.0), rising, np.ones(sweeps.size, bool), {})
     assert swing.swinging(e, t, d, v, np.ones(t.size, bool)) is (not still)
+
+
+def test_a_foot_resting_on_a_panes_front_surface_puts_no_pair_on_the_back(tmp_path):
+    """A pane's two surfaces 6 mm apart (0.050 m, 1200 codes; 0.056 m, 800) and a foot
+    resting on the front one, jumping: the tables list one fixed echo, the back surface
+    is hidden beside it in the mean spectra, and the tracker held it at rest for 7 ms.
+    That rest lies inside the span of the target's own pairs, and was taken for its
+    swing: "one echo", 338 valid pairs more than 2 mm from the window (the back surface,
+    the foot's small bounces). A run of pairs at rest is no swing's image: the hidden
+    echo where they rest is another echo, and nothing is valid that cannot be told."""
+    from dataclasses import replace
+
+    from fmcw_cl.simulator import jump
+    from fmcw_cl.simulator.several import LAB_SCENE
+
+    path = tmp_path / "pane.h5"
+    pane = replace(LAB_SCENE, reflectors=((0.05, 1200.0), (0.056, 800.0)))
+    simulate_capture(path, jump(0.3, ground_m=0.05), 0.3, seed=1, config=pane)
+    track = process(path)
+    scene_of(track, path)
+    assert "cannot be told apart" in track.attrs["target_choice"]
+
+
+def test_runs_at_rest_are_found_and_nothing_else():
+    """swing.rests: runs of 40 verified pairs under 0.02 m/s, at their median; a
+    shorter run, a faster one or one cut by an invalid pair is none."""
+    from fmcw_cl import swing
+
+    t = np.arange(300) * 50e-6
+    d = np.r_[np.full(100, 0.05), np.linspace(0.05, 0.056, 100), np.full(100, 0.056)]
+    v = np.r_[np.zeros(100), np.full(100, 1.2), np.full(100, 0.01)]
+    ok = np.ones(300, bool)
+    np.testing.assert_allclose(swing.rests(t, d, v, ok), [0.05, 0.056])
+    ok[[30, 230]] = False            # each rest cut into runs of 30 and 69: one of 40 each
+    np.testing.assert_allclose(swing.rests(t, d, v, ok), [0.05, 0.056])
+    ok[:] = True
+    ok[20::25] = False               # no run of 40
+    assert swing.rests(t, d, v, ok).size == 0
