@@ -18,6 +18,7 @@ from .stages import cfar, doppler, faults, kinematics, pairing, phase
 from .stages.cfar import Detections
 from .track import Track
 
+EDGE_BINS = 1.0               # a half-sweep's peak this close (padded bins) to a band's edge: its slope
 NEAR_LIMIT = 0.95             # distances beyond this share of the unambiguous range may be aliased
 
 
@@ -80,6 +81,7 @@ def assemble(plan: Plan, parts: list[ChunkMeasurements], processor: ChunkProcess
         imaged = wall_images.confused(dechirped_at, (res["dechirped_rise"], res["dechirped_fall"]),
                                       (res["dechirped_snr_rise"], res["dechirped_snr_fall"]), choice.walls_m,
                                       choice.walls_db, plan.model, plan.window, reason_owned == faults.OK)
+        imaged |= at_band_edge((res["dechirped_rise"], res["dechirped_fall"]), plan)
         reason_owned = target.ambiguous(reason_owned, t_mid, res["distance"], res["velocity"], choice, imaged)
     if options.dechirp:         # the paper's method (--no-dechirp) is reported as the paper did
         reason_owned = faults.verified(t_mid, res["distance"], res["velocity"], reason_owned, processor)
@@ -229,3 +231,18 @@ def assemble(plan: Plan, parts: list[ChunkMeasurements], processor: ChunkProcess
         displacement_uncertainty_m=moved.uncertainty_m, displacement_stretch=moved.stretch,
         attrs=attrs, reason=reason, sweep_reason=np.repeat(reason_owned, 2),
         integrated=integrated if varies else None, period_s=period_s, chirp=plan.chirp)
+
+
+def at_band_edge(peaks_m: tuple, plan: Plan) -> np.ndarray:
+    """Which pairs have a half-sweep whose de-chirped peak (`peaks_m`: rising, falling;
+    m) lies within EDGE_BINS of an edge of the plan's band (not the spectrum's end):
+    the band's strongest bin there may be the slope of an echo beyond the edge (a
+    band cut beside a window held the slope of a pane's two surfaces at its first bin
+    for 2.5 ms, the pairs 10-13 mm off the foot beneath it)."""
+    mpb, search = plan.model.metres_per_bin, plan.search
+    lo = (search.lo + EDGE_BINS) * mpb
+    hi = (search.hi - 1 - EDGE_BINS) * mpb if search.hi < plan.model.nfft // 2 else np.inf
+    out = np.zeros(np.size(peaks_m[0]), bool)
+    for p in peaks_m:
+        out |= (p < lo) | (p > hi)          # NaN: False
+    return out

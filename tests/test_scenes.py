@@ -894,3 +894,20 @@ def test_runs_at_rest_are_found_and_nothing_else():
     ok[:] = True
     ok[20::25] = False               # no run of 40
     assert swing.rests(t, d, v, ok).size == 0
+
+
+def test_a_peak_at_a_bands_edge_is_no_peak():
+    """assemble.at_band_edge: a half-sweep's de-chirped peak within a bin of either edge
+    of the band (not the spectrum's end) flags its pair; NaN (no peak) does not."""
+    from types import SimpleNamespace
+
+    from fmcw_cl.assemble import at_band_edge
+    from fmcw_cl.stages.spectrum import Search
+
+    model = SimpleNamespace(metres_per_bin=0.5e-3, nfft=2048)
+    plan = SimpleNamespace(model=model, search=Search(130, 212))        # 0.065-0.106 m
+    rise = np.array([0.0652, 0.0656, 0.080, 0.1048, 0.1052, np.nan])
+    fall = np.array([0.080, 0.080, 0.0651, 0.080, 0.080, 0.080])
+    assert at_band_edge((rise, fall), plan).tolist() == [True, False, True, False, True, False]
+    open_top = SimpleNamespace(model=model, search=Search(130, 1024))
+    assert not at_band_edge((np.array([0.511]), np.array([0.511])), open_top).any()
