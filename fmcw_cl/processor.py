@@ -239,7 +239,8 @@ class ChunkProcessor(spectrum_ops.SpectrumOps):
             raise FmcwError("a chunk processor must be opened with a plan before it processes")
         lags = held.lags or [plan.lag] * len(held.chunks)
         items = list(zip(held.chunks, held.prepared, lags, strict=True))
-        if plan.check is not None or plan.survey:
+        if plan.check is not None or plan.survey or plan.still_half:
+            # (rows without still echoes: a running mean must not reach across chunks)
             return [self._alone(*item) for item in items]
         k = plan.options.integrate
         found = [self._pairs(*item) for item in items]

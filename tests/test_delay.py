@@ -363,3 +363,25 @@ def test_the_intensity_estimates_error_is_the_medians():
     sigmas = [delay.combine_delays(rng.normal(5.0, 2.0, 400), np.full(400, 0.1))[3] for _ in range(3)]
     assert all(0.1 < s < 0.15 for s in sigmas)         # 1.25 x 2 / sqrt(400) = 0.125
     assert np.isnan(delay.combine_delays(np.array([1.0, 2.0]), np.array([0.1, 0.1]))[3])
+
+
+def test_trial_stretches_without_still_echoes_are_each_converted_alone(tmp_path):
+    """A plan whose rows lose their still echoes (Plan.still_half: a running mean along
+    each chunk's rows) converts held chunks each alone: a mean must not reach across
+    chunks, which process_apart would put side by side."""
+    from fmcw_cl.backend import make_processor
+    from fmcw_cl.capture import Capture
+    from fmcw_cl.plan import make_plan
+
+    path = tmp_path / "landing.h5"
+    simulate_capture(path, jump(0.3), 0.03, start_s=0.18, seed=4, config=replace(LAB, headroom=None))
+    be = make_processor("numpy")
+    with Capture(path) as cap:
+        plan = make_plan(cap, Options(chunk_periods=27), processor=be)
+        held = refine.stretches(cap, plan, be)
+        still = replace(plan, check=None, survey=False, still_half=5)
+        be.open(still)
+        apart = [be.process(c, p) for c, p in zip(held.chunks, held.prepared, strict=True)]
+        be.open(still)
+        together = be.process_apart(held)
+    _assert_same(together, apart)
