@@ -127,7 +127,7 @@ def with_objects(found: list[objects.SceneObject], pick: int) -> Track:
         base = max(found, key=lambda o: int(o.track.valid.sum()))
         chosen_track = replace(base.track, attrs=dict(base.track.attrs))
         objects.invalidate(chosen_track, chosen_track.valid.copy())
-        seen = ", ".join(f"{objects.where_m(o):.3f}" for o in found if o.track.valid.any())
+        seen = ", ".join(f"{objects.where_m(o.track):.3f}" for o in found if o.track.valid.any())
         chosen_track.attrs["target_choice"] = (f"no object moves: the fixed objects at {seen} m cannot be "
                                                "told apart as the target")
     else:
@@ -135,9 +135,9 @@ def with_objects(found: list[objects.SceneObject], pick: int) -> Track:
     others = [o for k, o in enumerate(found) if k != pick]
     chosen_track.attrs.update(
         target_object=int(found[pick].id) if pick >= 0 else 0, objects=len(found),
-        target_others="; ".join(objects.describe(o) + (f": --target-near {objects.where_m(o):.3f} chooses it"
-                                                       if o.track.valid.any() else "")
-                                for o in others))
+        target_others="; ".join(objects.describe(o) + (
+            f": --target-near {objects.where_m(o.track):.3f} chooses it" if o.track.valid.any() else "")
+            for o in others))
     chosen_track.objects = found
     return chosen_track
 

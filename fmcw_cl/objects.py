@@ -328,9 +328,9 @@ def _travel(t: Track) -> float:
     return float(np.ptp(np.percentile(d, [1, 99]))) if d.size else 0.0
 
 
-def where_m(o: SceneObject) -> float:
-    """The median of an object's verified distances (m; NaN with none)."""
-    d = o.track.distance_m[o.track.valid]
+def where_m(t: Track) -> float:
+    """The median of a track's verified distances (m; NaN with none)."""
+    d = t.distance_m[t.valid]
     return float(np.median(d)) if d.size else float("nan")
 
 

@@ -182,14 +182,19 @@ def _convert(cap: Capture, first: First, c: objects.Candidate, spans: list[tuple
     return out
 
 
-def _stays(track: Track, inner: np.ndarray, first: First) -> bool:
-    """Whether rows without still echoes (`track`'s) still hold a fixed object near one
-    of the fixed echoes `inner` (m): its own echo table lists one within fixed_echoes.APART_M
-    (fixed_echoes.fixed_of: seen while the target is away), something that trembles (a cable,
-    a pane: a micrometre turns its phase through radians)."""
+def _held(track: Track, first: First) -> np.ndarray:
+    """The distances (m) of the fixed objects `track`'s own echo table lists
+    (fixed_echoes.fixed_of: echoes seen while its target is away)."""
     left = fixed_echoes.fixed_of(track.echoes, first.plan.lut.unambiguous_range_m, track.time_s,
                                  track.distance_m, track.velocity_mps, track.valid)
-    there = left.distance_m[left.objects]
+    return left.distance_m[left.objects]
+
+
+def _stays(track: Track, inner: np.ndarray, first: First) -> bool:
+    """Whether rows without still echoes (`track`'s) still hold a fixed object within
+    fixed_echoes.APART_M of one of the fixed echoes `inner` (m) (`_held`): something
+    that trembles (a cable, a pane: a micrometre turns its phase through radians)."""
+    there = _held(track, first)
     near = np.abs(there[:, None] - np.asarray(inner)[None, :]) <= fixed_echoes.APART_M
     return bool(there.size and np.any(near))
 
@@ -302,17 +307,14 @@ def _unseen(d: Converted, done: list[Converted], first: First) -> list[int]:
     """The objects among `done` that conversion `d`'s rows hold nothing of: where its
     rows are without still echoes (Plan.still_half; not a track joined of several
     conversions), the still objects (crossings.still) near which its own echo table
-    lists no fixed object (fixed_echoes.fixed_of: an echo seen while its target is away;
-                           a cable that trembles a micrometre stays in these rows)."""
+    lists no fixed object (`_held`: a cable that trembles a micrometre stays in these
+    rows)."""
     if not d.plan.still_half or d.joined:
         return []
-    t = d.track
-    left = fixed_echoes.fixed_of(t.echoes, first.plan.lut.unambiguous_range_m, t.time_s, t.distance_m,
-                                 t.velocity_mps, t.valid)
-    there = left.distance_m[left.objects]
+    there = _held(d.track, first)
     wl = first.plan.lut.wavelength_m
     return [k for k, o in enumerate(done) if o is not d and not _moving(o) and crossings.still(o.track, wl)
-            and np.all(np.abs(there - np.median(o.track.distance_m[o.track.valid])) > fixed_echoes.APART_M)]
+            and np.all(np.abs(there - objects.where_m(o.track)) > fixed_echoes.APART_M)]
 
 
 def _unveiled(done: list[Converted], unseen: set[tuple[int, int]], seconds, processor) -> list[Converted]:
@@ -321,7 +323,7 @@ def _unveiled(done: list[Converted], unseen: set[tuple[int, int]], seconds, proc
     that moves 2 mm from a window is the foot's."""
     out = []
     for i, d in enumerate(done):
-        calm = [float(np.median(done[j].track.distance_m[done[j].track.valid])) for k, j in unseen if k == i]
+        calm = [objects.where_m(done[j].track) for k, j in unseen if k == i]
         if calm and d.choice.ambiguous_m.size:
             keep = np.array([all(abs(f - c) > fixed_echoes.APART_M for c in calm)
                              for f in d.choice.ambiguous_m])
