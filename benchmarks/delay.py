@@ -13,11 +13,9 @@ stated velocity uncertainty + 1 mm/s. Reproducible: the draws follow --seed.
 
 from __future__ import annotations
 
-import argparse
 from dataclasses import replace
 
-import numpy as np
-from scratch import folder
+from scratch import draws
 
 from fmcw_cl.capture import Capture
 from fmcw_cl.options import Options
@@ -26,14 +24,8 @@ from fmcw_cl.processor import NumpyProcessor
 from fmcw_cl.refine import disagreement
 from fmcw_cl.simulator import LAB, SimulationConfig, jump, rail, simulate_capture
 
-parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-parser.add_argument("--seed", type=int, default=1, help="seed of the draws")
-parser.add_argument("--count", type=int, default=10, help="captures")
-parser.add_argument("--lab-share", type=float, default=0.5, help="share of captures with a lab's instrument")
-parser.add_argument("--out", default=None, help="folder for the captures, kept (default: a removed temp dir)")
-args = parser.parse_args()
-out = folder(args.out, "fmcw-delay-")
-rng = np.random.default_rng(args.seed)
+args, out, rng = draws(__doc__, "fmcw-delay-", 1, 10, ("--lab-share", {
+    "type": float, "default": 0.5, "help": "share of captures with a lab's instrument"}))
 SPANS = {"take-off": (jump(0.3), 0.045, 0.09), "landing": (jump(0.3), 0.17, 0.22),
          "rail": (rail(0.4), 0.04, 0.08)}
 print("| capture | instrument | seed | ms | true | stated | error | sigmas | covered | velocity bias mm/s | "

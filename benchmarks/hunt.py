@@ -10,11 +10,10 @@ headroom) on a third, each on its own seed. Default options, the default backend
 "<<<<". Reproducible: the draws follow --seed.
 """
 
-import argparse
 from dataclasses import replace
 
 import numpy as np
-from scratch import folder
+from scratch import draws
 
 from fmcw_cl.backend import make_processor
 from fmcw_cl.capture import Capture
@@ -22,13 +21,7 @@ from fmcw_cl.engine import process
 from fmcw_cl.evaluate import valid_errors
 from fmcw_cl.simulator import LAB, jump, rail, simulate_capture, static
 
-parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-parser.add_argument("--seed", type=int, default=1, help="seed of the draws")
-parser.add_argument("--count", type=int, default=40, help="captures")
-parser.add_argument("--out", default=None, help="folder for the captures, kept (default: a removed temp dir)")
-args = parser.parse_args()
-out = folder(args.out, "fmcw-hunt-")
-rng = np.random.default_rng(args.seed)
+args, out, rng = draws(__doc__, "fmcw-hunt-", 1, 40)
 be = make_processor("auto")
 total = 0
 for i in range(args.count):

@@ -13,10 +13,8 @@ be 0), the objects found and the target's choice. Reproducible: the draws follow
 
 from __future__ import annotations
 
-import argparse
-
 import numpy as np
-from scratch import folder
+from scratch import draws
 
 from fmcw_cl.backend import make_processor
 from fmcw_cl.capture import Capture
@@ -24,13 +22,7 @@ from fmcw_cl.engine import process
 from fmcw_cl.evaluate import WRONG_M, truth_at
 from fmcw_cl.simulator import LAB, SimulationConfig, jump, rail, simulate_capture
 
-parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-parser.add_argument("--seed", type=int, default=11, help="seed of the draws")
-parser.add_argument("--count", type=int, default=20, help="captures")
-parser.add_argument("--out", default=None, help="folder for the captures, kept (default: a removed temp dir)")
-args = parser.parse_args()
-out = folder(args.out, "fmcw-short-")
-rng = np.random.default_rng(args.seed)
+args, out, rng = draws(__doc__, "fmcw-short-", 11, 20)
 be = make_processor("auto")
 KINDS = {"jump": (jump(0.3), 0.28), "rail": (rail(0.4), 0.38)}
 print("| capture | instrument | seed | truth m | largest speed m/s | valid % | wrong | objects | choice |")
