@@ -1,6 +1,6 @@
 """Per-pair uncertainty against /truth: coverage and sharpness (markdown rows on stdout).
 
-    python benchmarks/uncertainty.py [--seeds 1-6] [--out DIR]
+    python benchmarks/uncertainty.py [--seeds 1-6] [--kinds static] [--out DIR]
 
 For each kind of capture, over several seeds: the share of valid pairs whose distance
 (of verified velocities whose velocity, of valid accelerations whose acceleration) lies
@@ -26,6 +26,7 @@ from fmcw_cl.simulator import LAB, SimulationConfig, jump, rail, simulate_captur
 
 parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
 parser.add_argument("--seeds", default="1-6", help="seeds a-b (default 1-6)")
+parser.add_argument("--kinds", default="", help="only the kinds whose name starts with this (no faults then)")
 parser.add_argument("--out", default=None, help="folder for the captures, kept (default: a removed temp dir)")
 args = parser.parse_args()
 lo, hi = map(int, args.seeds.split("-"))
@@ -51,7 +52,7 @@ print("| capture | seeds | pairs | valid % | velocity verified % | distance with
       "error | velocity within U % | median U / rms error | acceleration within U % | median U / rms error | "
       "captures with distances outside U |")
 print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
-for name, traj, dur, start, cfg in kinds:
+for name, traj, dur, start, cfg in (k for k in kinds if k[0].startswith(args.kinds)):
     ed, ud, ev, uv, ea, ua, n, nv, nvv, outside = [], [], [], [], [], [], 0, 0, 0, 0
     for seed in range(lo, hi + 1):
         path = out / "c.h5"
@@ -73,6 +74,8 @@ for name, traj, dur, start, cfg in kinds:
           f"{100 * np.mean(ea <= ua):.1f} | {np.median(ua) / np.sqrt(np.mean(ea**2)):.2f} | "
           f"{outside} of {hi - lo + 1} |", flush=True)
 
+if args.kinds:
+    raise SystemExit(0)
 faults = [("jump 60-110 ms, sync 60 samples ahead of the beat", jump(0.3), 0.05, 0.06,
            replace(DEF, sync_delay_samples=-60.0), 1.0),
           ("rail 50-100 ms, sync 60 samples ahead of the beat", rail(0.4), 0.05, 0.05,

@@ -112,8 +112,9 @@ def assemble(plan: Plan, parts: list[ChunkMeasurements], processor: ChunkProcess
     vel_valid = uncertainty.velocity_verified(dist, vel, valid, period_s, noise_m, noise_mps, motion.slope)
     acc = kinematics.acceleration(vel, vel_valid, period_s, motion.window)
     acc_valid = kinematics.centred(vel_valid, motion.window)
-    u_acc = uncertainty.acceleration_uncertainty(acc, acc_valid, noise_mps, period_s, motion.window,
-                                                 plan.period_ratio)
+    u_acc = uncertainty.acceleration_uncertainty(
+        acc, acc_valid, noise_mps, period_s, motion.window, plan.period_ratio,
+        uncertainty.derivative_scatter(vel, vel_valid, period_s, motion.window))
     u = uncertainty.pair_uncertainty(
         dist, vel, valid, vel_valid, noise_m, noise_mps, crb, held, bias, np.maximum(integrated, 1),
         period_s=period_s, scale_ppm=lut.scale_ppm, delay_m=plan.lag_sigma_m, delay_mps=plan.lag_sigma_mps,

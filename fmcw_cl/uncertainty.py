@@ -32,6 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
+from scipy.signal import savgol_coeffs
 
 from .numeric import runs, savgol_rows
 from .stages import kinematics
@@ -45,6 +46,7 @@ SLOPE_MIN_PAIRS = 7     # a run shorter than this cannot check its velocities
 SLOPE_SIGMAS = 5.0      # a velocity this many standard errors from the slope is not verified ...
 SLOPE_FLOOR_MPS = 0.01  # ... plus this (the distances' correlated errors: the table's ripple
                         # passed at speed)
+CHI2_MEDIAN = 0.45494   # median of chi-squared, one degree of freedom: a median of squares over it
 DISTANCE_SOURCES = ("noise", "scale", "resampling", "sync delay", "model", "integration")
 VELOCITY_SOURCES = ("noise", "sync delay", "time base", "integration")
 
@@ -272,9 +274,40 @@ def budget_from_attrs(attrs: dict, quantity: str) -> list[tuple[str, float, floa
     return rows + [("combined", float(np.sqrt(np.nansum(rms**2))), 1.0)]
 
 
+def derivative_scatter(velocity: np.ndarray, valid: np.ndarray, period_s: float,
+                       window: int = kinematics.WINDOW_PAIRS) -> np.ndarray:
+    """Per valid pair, the standard deviation (m/s^2) of what the acceleration's
+    derivative (quadratic over `window` pairs) passes of the velocities' errors,
+    correlated ones included: the velocities less their smooth course (a quadratic over
+    4 `window` + 1 pairs of their run: a shorter course takes in the wander it should
+    leave), differentiated as the acceleration is, robustly (from the median of squares)
+    over SCATTER_PAIRS of the run, and held from the nearest measured pair within half a
+    course of the run's ends. Second differences see only the white part of the
+    velocities' noise; at speed their errors also wander over a few pairs (0.3 mm/s over
+    8 pairs of the jump: 0.5-0.8 m/s^2 where the white part stated 0.07). NaN in runs
+    shorter than the course."""
+    v = np.asarray(velocity, np.float64)
+    long = 4 * window + 1
+    half = long // 2
+    course = savgol_coeffs(long, kinematics.POLYORDER)
+    resid = np.full(v.size, np.nan)
+    spans = [(a, b) for a, b in runs(valid) if b - a >= long]
+    for a, b in spans:
+        resid[a + half:b - half] = v[a + half:b - half] - np.correlate(v[a:b], course, "valid")
+    known = np.asarray(valid, bool) & np.isfinite(resid)
+    slope = kinematics.derivative(np.nan_to_num(resid), known, period_s, window, window)
+    with np.errstate(invalid="ignore"):
+        out = np.sqrt(run_median(slope * slope, known & np.isfinite(slope)) / CHI2_MEDIAN)
+    for a, b in spans:
+        seen = np.flatnonzero(np.isfinite(out[a:b]))
+        if seen.size:
+            out[a:b] = out[a:b][seen[np.clip(np.searchsorted(seen, np.arange(b - a)), 0, seen.size - 1)]]
+    return out
+
+
 def acceleration_uncertainty(acceleration: np.ndarray, acceleration_valid: np.ndarray, noise_mps: np.ndarray,
                              period_s: float, window: int = kinematics.WINDOW_PAIRS,
-                             period_ratio: float = 1.0) -> np.ndarray:
+                             period_ratio: float = 1.0, scatter_mps2: np.ndarray | None = None) -> np.ndarray:
     """Expanded uncertainty (k = COVERAGE, m/s^2) of each valid acceleration, a
     Savitzky-Golay derivative (quadratic over `window` pairs) of the velocities: their
     noise through the derivative's weights, sqrt(sum w_j^2 sigma_j^2); the smoothing's
@@ -290,6 +323,8 @@ def acceleration_uncertainty(acceleration: np.ndarray, acceleration_valid: np.nd
     var = np.zeros(ok.size)
     if ok.size >= window:
         var[half:-half] = np.correlate(np.nan_to_num(noise_mps) ** 2, weights**2, "valid")
+    if scatter_mps2 is not None:
+        var = np.fmax(var, np.nan_to_num(scatter_mps2) ** 2)
     k = np.arange(1, half + 1, dtype=np.float64)
     bend = period_s**2 * float(np.sum(k**4) / np.sum(k**2)) / 6
     a = np.where(ok, acceleration, np.nan)
