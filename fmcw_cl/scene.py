@@ -163,8 +163,14 @@ def _convert(cap: Capture, first: First, c: objects.Candidate, spans: list[tuple
     items = [(choice.band_m, still)]
     done = [one(*items[0])]
     if still and _stays(done[0].track, choice.ambiguous_m, first):
-        items += [(b, still) for b in _sides(choice.band_m, choice.ambiguous_m)]
-        done += [one(*item) for item in items[1:]]
+        # something trembles: a shorter running mean takes it out, a mover keeps its echo
+        # from a few mm/s (stages.clutter); where it still stays, bands cut off each side
+        still = clutter.half_width(cap.info.modulation.period_s, clutter.TREMBLING_S)
+        items = [(choice.band_m, still)]
+        done = [one(*items[0])]
+        if _stays(done[0].track, choice.ambiguous_m, first):
+            items += [(b, still) for b in _sides(choice.band_m, choice.ambiguous_m)]
+            done += [one(*item) for item in items[1:]]
     if own is not None and (own.choice.band_m, 0) not in items:
         items.append((own.choice.band_m, 0))
         done.append(one(*items[-1]))
@@ -297,7 +303,8 @@ def _assembled(plan: Plan, parts: list[ChunkMeasurements], processor: ChunkProce
     """`assemble`, its attribute objects.STILL_ATTR set; on rows without still echoes
     no displacement (the running mean bends a slow mover's phase)."""
     track = assemble(plan, parts, processor, seconds(), choice, seen)
-    track.attrs[objects.STILL_ATTR] = clutter.STILL_S if plan.still_half else 0.0
+    track.attrs[objects.STILL_ATTR] = (2 * plan.still_half * plan.info.modulation.period_s if plan.still_half
+                                       else 0.0)
     if plan.still_half:
         objects.no_displacement(track)
     return track

@@ -63,3 +63,40 @@ def test_a_wall_goes_and_a_mover_stays(speed_mps):
 
 def test_half_width_follows_the_period():
     assert clutter.half_width(50e-6) == 50 and clutter.half_width(1e-3) == 2 and clutter.half_width(1.0) == 1
+
+
+def _kept_db(speed_mps: float, span_s: float, tremble_m: float) -> tuple[float, float]:
+    """On rows less their running mean over `span_s`: what is left of a wall (10x the
+    mover) trembling `tremble_m` at 50 Hz (mean power, dB), and the least the mover keeps
+    of its own (dB)."""
+    points, pairs = 1000, 800
+    win = resample.window(points)
+    j = np.arange(points)
+    t = np.arange(pairs) * PERIOD_S
+    d = 0.2 + speed_mps * t
+    mover = np.cos(2 * np.pi * (d / 0.47 * points / 2)[:, None] * j[None, :] / points
+                   + (4 * np.pi * d / WAVELENGTH_M)[:, None])
+    wall_phase = 4 * np.pi * tremble_m * np.sin(2 * np.pi * 50.0 * t) / WAVELENGTH_M
+    wall = 10 * np.cos(2 * np.pi * 0.05 / 0.47 * points / 2 * j[None, :] / points + 0.3 + wall_phase[:, None])
+    half = clutter.half_width(PERIOD_S, span_s)
+    got = clutter.without_still(((mover + wall) * win).astype(np.float32), half)[half:-half]
+    spec = np.abs(np.fft.rfft(got, 2048, axis=1)) ** 2
+    alone = np.abs(np.fft.rfft((wall * win)[half:-half], 2048, axis=1)) ** 2
+    moving = np.abs(np.fft.rfft((mover * win)[half:-half], 2048, axis=1)) ** 2
+    at_wall = int(np.argmax(alone[0]))
+    mine = np.argmax(moving, axis=1)
+    rows = np.arange(mine.size)
+    wall_left = 10 * np.log10(spec[:, at_wall].mean() / alone[:, at_wall].mean())
+    return float(wall_left), float(np.min(-np.abs(10 * np.log10(spec[rows, mine] / moving[rows, mine]))))
+
+
+def test_a_trembling_wall_goes_on_shorter_rows():
+    """A wall trembling 1 um at 50 Hz turns its phase through +-8 rad: rows less their
+    mean over 5 ms keep most of it, rows less their mean over 0.5 ms (TREMBLING_S) take
+    it down by more than 15 dB; a mover keeps its power within 1 dB there from 3 mm/s."""
+    left_long, _ = _kept_db(3.0, clutter.STILL_S, 1e-6)
+    left_short, kept = _kept_db(3.0, clutter.TREMBLING_S, 1e-6)
+    assert left_long > -6, left_long
+    assert left_short < -15, left_short
+    assert kept > -1.0, kept
+    assert _kept_db(3e-3, clutter.TREMBLING_S, 1e-6)[1] > -1.0

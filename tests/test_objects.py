@@ -303,19 +303,21 @@ def test_target_through_a_wall(scenes, seed):
     assert _best(scores, 0) >= 0.85 and _best(scores, 1) >= 0.7, scores
     assert track.attrs["target_object"] == next(s["id"] for s in scores if s["truth"] == 0)
     mover = next(o for o in track.objects if o.kind == "moving")
-    assert mover.track.attrs["still_echoes_removed_s"] == clutter.STILL_S
+    assert mover.track.attrs["still_echoes_removed_s"] == pytest.approx(clutter.STILL_S)
 
 
 def test_target_through_a_trembling_wall(scenes):
-    """The wall trembles 1 um at 50 Hz: rows without still echoes keep it (its phase
-    swings +-8 rad), so the mover is converted on each side of it as well (30 mm off),
-    its pairs near the wall `ambiguous`: none wrong, both tracked as before."""
+    """The wall trembles 1 um at 50 Hz: rows without still echoes over 5 ms keep it (its
+    phase swings +-8 rad), so the mover is converted on rows whose running mean spans
+    0.5 ms, and where those still hold it (seed 1), on each side of it as well (30 mm
+    off), its pairs near the wall `ambiguous`: none wrong, both tracked (the mover 68 %
+    on the 5 ms rows, 76 % now)."""
     track, truths = scenes("target through a trembling wall", 1)
     scores = object_scores(track, truths)
     assert sum(s["wrong"] for s in scores) == 0, scores
-    assert _best(scores, 0) >= 0.6 and _best(scores, 1) >= 0.7, scores
+    assert _best(scores, 0) >= 0.72 and _best(scores, 1) >= 0.7, scores
     mover = next(o for o in track.objects if o.kind == "moving")
-    assert mover.track.attrs["still_echoes_removed_s"] == clutter.STILL_S
+    assert mover.track.attrs["still_echoes_removed_s"] == pytest.approx(clutter.TREMBLING_S)
     assert np.asarray(mover.track.attrs["object_bands_m"]).size >= 6      # its band and two sides
 
 
@@ -330,7 +332,7 @@ def test_a_foot_landing_at_a_windows_distance(scenes, seed):
     assert sum(s["wrong"] for s in scores) == 0, scores
     assert _best(scores, 0) >= 0.8, scores
     foot = next(o for o in track.objects if o.kind == "moving")
-    assert foot.track.attrs["still_echoes_removed_s"] == clutter.STILL_S
+    assert foot.track.attrs["still_echoes_removed_s"] == pytest.approx(clutter.STILL_S)
     assert foot.track.displacement_valid is None or not foot.track.displacement_valid.any()
 
 

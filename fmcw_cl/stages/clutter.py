@@ -16,6 +16,8 @@ from __future__ import annotations
 import numpy as np
 
 STILL_S = 5e-3   # the running mean's span (s): movers faster than about 0.3 mm/s keep their echo
+TREMBLING_S = 0.5e-3   # ... where a fixed echo trembles (a micrometre turns its phase through
+                       # radians in milliseconds): movers from about 3 mm/s keep theirs
 
 
 def half_width(period_s: float, span_s: float = STILL_S) -> int:
