@@ -32,6 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
+from scipy.ndimage import median_filter
 from scipy.signal import savgol_coeffs
 
 from .numeric import runs, savgol_rows
@@ -281,27 +282,25 @@ def derivative_scatter(velocity: np.ndarray, valid: np.ndarray, period_s: float,
     correlated ones included: the velocities less their smooth course (a quadratic over
     4 `window` + 1 pairs of their run: a shorter course takes in the wander it should
     leave), differentiated as the acceleration is, robustly (from the median of squares)
-    over SCATTER_PAIRS of the run, and held from the nearest measured pair within half a
-    course of the run's ends. Second differences see only the white part of the
-    velocities' noise; at speed their errors also wander over a few pairs (0.3 mm/s over
-    8 pairs of the jump: 0.5-0.8 m/s^2 where the white part stated 0.07). NaN in runs
-    shorter than the course."""
+    over SCATTER_PAIRS, and held from the nearest measured pair within half a course of
+    the run's ends. Second differences see only the white part of the velocities'
+    noise; at speed their errors also wander over a few pairs (0.3 mm/s over 8 pairs of
+    the jump: 0.5-0.8 m/s^2 where the white part stated 0.07). NaN in runs shorter than
+    the course."""
     v = np.asarray(velocity, np.float64)
-    long = 4 * window + 1
+    long = 2 * (2 * window) + 1
     half = long // 2
     course = savgol_coeffs(long, kinematics.POLYORDER)
-    resid = np.full(v.size, np.nan)
-    spans = [(a, b) for a, b in runs(valid) if b - a >= long]
-    for a, b in spans:
-        resid[a + half:b - half] = v[a + half:b - half] - np.correlate(v[a:b], course, "valid")
-    known = np.asarray(valid, bool) & np.isfinite(resid)
-    slope = kinematics.derivative(np.nan_to_num(resid), known, period_s, window, window)
-    with np.errstate(invalid="ignore"):
-        out = np.sqrt(run_median(slope * slope, known & np.isfinite(slope)) / CHI2_MEDIAN)
-    for a, b in spans:
-        seen = np.flatnonzero(np.isfinite(out[a:b]))
-        if seen.size:
-            out[a:b] = out[a:b][seen[np.clip(np.searchsorted(seen, np.arange(b - a)), 0, seen.size - 1)]]
+    slope = savgol_rows(window, kinematics.POLYORDER)[window // 2] / period_s
+    out = np.full(v.size, np.nan)
+    for a, b in runs(valid):
+        if b - a < long:
+            continue
+        resid = v[a + half:b - half] - np.correlate(v[a:b], course, "valid")
+        # the derivative's centre weights over the residuals (their ends: the nearest whole window)
+        d = np.correlate(np.pad(resid, window // 2, mode="reflect", reflect_type="odd"), slope, "valid")
+        inner = np.sqrt(median_filter(d * d, SCATTER_PAIRS, mode="nearest") / CHI2_MEDIAN)
+        out[a:b] = np.concatenate([np.full(half, inner[0]), inner, np.full(half, inner[-1])])
     return out
 
 
