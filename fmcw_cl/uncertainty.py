@@ -32,8 +32,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
-from scipy.ndimage import median_filter
-from scipy.signal import savgol_coeffs
 
 from .numeric import runs, savgol_rows
 from .stages import kinematics
@@ -282,25 +280,31 @@ def derivative_scatter(velocity: np.ndarray, valid: np.ndarray, period_s: float,
     correlated ones included: the velocities less their smooth course (a quadratic over
     4 `window` + 1 pairs of their run: a shorter course takes in the wander it should
     leave), differentiated as the acceleration is, robustly (from the median of squares)
-    over SCATTER_PAIRS, and held from the nearest measured pair within half a course of
-    the run's ends. Second differences see only the white part of the velocities'
+    over SCATTER_PAIRS, and held from the nearest measured pair within half a course and
+    half a window of the run's ends. Second differences see only the white part of the velocities'
     noise; at speed their errors also wander over a few pairs (0.3 mm/s over 8 pairs of
     the jump: 0.5-0.8 m/s^2 where the white part stated 0.07). NaN in runs shorter than
-    the course."""
+    the course and a window."""
     v = np.asarray(velocity, np.float64)
     long = 2 * (2 * window) + 1
     half = long // 2
-    course = savgol_coeffs(long, kinematics.POLYORDER)
+    # the centre value of a window's least-squares quadratic: its constant coefficient
+    offsets = np.arange(long, dtype=np.float64) - half
+    course = np.linalg.pinv(np.vander(offsets, kinematics.POLYORDER + 1, increasing=True))[0]
     slope = savgol_rows(window, kinematics.POLYORDER)[window // 2] / period_s
+    edge = half + window // 2           # pairs at a run's ends with no whole course and window
     out = np.full(v.size, np.nan)
     for a, b in runs(valid):
-        if b - a < long:
+        if b - a < 2 * edge + 1:
             continue
         resid = v[a + half:b - half] - np.correlate(v[a:b], course, "valid")
-        # the derivative's centre weights over the residuals (their ends: the nearest whole window)
-        d = np.correlate(np.pad(resid, window // 2, mode="reflect", reflect_type="odd"), slope, "valid")
-        inner = np.sqrt(median_filter(d * d, SCATTER_PAIRS, mode="nearest") / CHI2_MEDIAN)
-        out[a:b] = np.concatenate([np.full(half, inner[0]), inner, np.full(half, inner[-1])])
+        d = np.correlate(resid, slope, "valid")
+        # numpy, not scipy.ndimage: a conversion imports no scipy (a second in a fresh process)
+        ends = np.pad(d * d, SCATTER_PAIRS // 2, mode="edge")
+        mid = SCATTER_PAIRS // 2           # the median of an odd window: its middle order statistic
+        rank = np.partition(sliding_window_view(ends, SCATTER_PAIRS), mid, axis=1)[:, mid]
+        inner = np.sqrt(rank / CHI2_MEDIAN)
+        out[a:b] = np.concatenate([np.full(edge, inner[0]), inner, np.full(edge, inner[-1])])
     return out
 
 
