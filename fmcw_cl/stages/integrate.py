@@ -133,29 +133,47 @@ def integrate(power: np.ndarray, disp: np.ndarray, k: int, bounds: np.ndarray | 
     """
     rows, bins = power.shape
     before, after = window(k)
-    acc = np.zeros((rows, bins))
+    first, last = (np.zeros(rows, np.int64), np.full(rows, rows - 1)) if bounds is None else \
+        (bounds[:rows], bounds[rows:])
+    # a row read at b + d is its row shifted by floor(d) bins and interpolated by the
+    # rest: the rows padded with their end values need no clipping, and each shifted
+    # row is one contiguous window of its padded row (no per-bin index arithmetic)
+    finite = bool(np.isfinite(disp).all())
+    spread = float(np.max(disp) - np.min(disp)) if finite and rows else float(bins)
+    pad = min(int(np.ceil(spread)) + 1, bins)
+    padded = np.pad(power, ((0, 0), (pad, pad + 1)), mode="edge")
+    shifted = np.lib.stride_tricks.sliding_window_view(padded, bins + 1, axis=1)
+    acc = np.empty((rows, bins))
     count = np.zeros(rows, np.int32)
-    i = np.arange(rows)
-    b = np.arange(bins)
-    flat = power.reshape(-1)
-    first, last = (0, rows - 1) if bounds is None else (bounds[:rows], bounds[rows:])
-    for m in range(-before, after + 1):
-        ok = (i + m >= first) & (i + m <= last)
-        read = i[ok]
-        for a in range(0, read.size, BLOCK_ROWS):
-            ii = read[a: a + BLOCK_ROWS]
-            jj = ii + m
-            y = b[None, :] + (disp[jj] - disp[ii])[:, None]
-            lo = np.floor(y)
-            frac = y - lo
-            lo = lo.astype(np.int64)
-            below, above = lo < 0, lo > bins - 2
-            lo = np.where(below, 0, np.where(above, bins - 2, lo))
-            frac = np.where(below, 0.0, np.where(above, 1.0, frac))
-            lo += (jj * bins)[:, None]              # into the rows read, end to end
-            left, right = flat[lo], flat[lo + 1]
-            acc[ii] += left + frac * (right - left)
-        count[ok] += 1
+    with np.errstate(invalid="ignore"):                    # a displacement not finite
+        for a in range(0, rows, BLOCK_ROWS):
+            ii = np.arange(a, min(a + BLOCK_ROWS, rows))
+            block = np.zeros((ii.size, bins))
+            for m in range(-before, after + 1):
+                jj = ii + m
+                ok = (jj >= first[ii]) & (jj <= last[ii])
+                if not ok.any():
+                    continue
+                i_ok, j_ok = ii[ok], jj[ok]
+                d = np.asarray(disp[j_ok] - disp[i_ok], np.float64)
+                whole = np.floor(d)
+                frac = d - whole
+                if not finite:                          # read as the first bin (pad = bins)
+                    lost = ~np.isfinite(d)
+                    frac[lost], whole[lost] = 0.0, -pad
+                start = np.clip(whole, -pad, pad).astype(np.int64) + pad
+                frac = frac[:, None]
+                rows_read = shifted[j_ok, start]                              # (n, bins + 1)
+                left = rows_read[:, :-1]
+                step = np.subtract(rows_read[:, 1:], left, dtype=np.float64)
+                step *= frac
+                step += left
+                if ok.all():
+                    block += step
+                else:
+                    block[ok] += step
+                count[i_ok] += 1
+            acc[ii] = block
     return acc / count[:, None], count
 
 
