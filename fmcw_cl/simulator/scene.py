@@ -42,18 +42,29 @@ class Trajectory:
 
     def at(self, t) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(distance, velocity, acceleration) at times `t` (s), Hermite-interpolated."""
-        x = (np.asarray(t, dtype=np.float64) - self.t0) / self.dt
-        i = np.clip(np.floor(x).astype(np.int64), 0, self.distance.size - 2)
-        s = x - i
-        h = self.dt
-        s2, s3 = s * s, s * s * s
-        h00, h10, h01, h11 = 2 * s3 - 3 * s2 + 1, s3 - 2 * s2 + s, 3 * s2 - 2 * s3, s3 - s2
-        r, v, a = self.distance, self.velocity, self.acceleration
-        dist = h00 * r[i] + h10 * h * v[i] + h01 * r[i + 1] + h11 * h * v[i + 1]
+        i, s, h00, h10, h01, h11 = self._hermite(t)
+        h, v, a = self.dt, self.velocity, self.acceleration
         # velocity: Hermite with the acceleration as derivative; acceleration: linear
         vel = h00 * v[i] + h10 * h * a[i] + h01 * v[i + 1] + h11 * h * a[i + 1]
         acc = (1 - s) * a[i] + s * a[i + 1]
-        return dist, vel, acc
+        return self._distance(i, h00, h10, h01, h11), vel, acc
+
+    def distance_at(self, t) -> np.ndarray:
+        """The distance (m) of `at`, alone (the simulator's beat needs no more)."""
+        i, _, *basis = self._hermite(t)
+        return self._distance(i, *basis)
+
+    def _hermite(self, t) -> tuple:
+        """The grid index of each time, its fraction s and the cubic Hermite basis at s."""
+        x = (np.asarray(t, dtype=np.float64) - self.t0) / self.dt
+        i = np.clip(np.floor(x).astype(np.int64), 0, self.distance.size - 2)
+        s = x - i
+        s2, s3 = s * s, s * s * s
+        return i, s, 2 * s3 - 3 * s2 + 1, s3 - 2 * s2 + s, 3 * s2 - 2 * s3, s3 - s2
+
+    def _distance(self, i, h00, h10, h01, h11) -> np.ndarray:
+        r, v, h = self.distance, self.velocity, self.dt
+        return h00 * r[i] + h10 * h * v[i] + h01 * r[i + 1] + h11 * h * v[i + 1]
 
 
 def static(duration: float, distance: float = 0.3) -> Trajectory:

@@ -140,13 +140,16 @@ def phase_noise(walk: np.ndarray, tau_s, fs: float, sigma: float, rng: np.random
     """phi(t) - phi(t - tau) of the laser's random-walk phase `walk` (HISTORY samples of
     history, then one per sample), with a Brownian bridge inside a sample."""
     m = walk.size - HISTORY
-    lag = np.broadcast_to(np.asarray(tau_s, np.float64) * fs, (m,))
+    lag = np.asarray(tau_s, np.float64) * fs
     k = np.floor(lag).astype(np.int64)
     frac = lag - k
-    idx = HISTORY + np.arange(m)
-    inc = walk[idx - k] - walk[idx - k - 1]
-    bridge = frac * inc + np.sqrt(frac * (1 - frac)) * sigma * rng.standard_normal(m)
-    return walk[idx] - walk[idx - k] + bridge
+    if k.ndim:                                  # one lag a sample: gathered
+        back = HISTORY + np.arange(m) - k
+        then, before = walk[back], walk[back - 1]
+    else:                                       # a fixed reflector: one slice
+        then, before = walk[HISTORY - k: walk.size - k], walk[HISTORY - k - 1: walk.size - k - 1]
+    bridge = frac * (then - before) + np.sqrt(frac * (1 - frac)) * sigma * rng.standard_normal(m)
+    return walk[HISTORY:] - then + bridge
 
 
 def speckle_field(duration_s: float, corr_s: float, rng: np.random.Generator):
@@ -229,7 +232,7 @@ def simulate_capture(path, trajectory: Trajectory, duration_s: float, seed: int 
             if rin:
                 power = power * (1 + rng.normal(0, rin, m))
 
-            dist, _, _ = trajectory.at(t + start_s)
+            dist = trajectory.distance_at(t + start_s)
             tau = 2 * dist * n_idx / C
             walk = np.concatenate([hist, hist[-1] + np.cumsum(rng.normal(0, sigma_pn, m))])
             hist = walk[-HISTORY:]
@@ -256,7 +259,7 @@ def simulate_capture(path, trajectory: Trajectory, duration_s: float, seed: int 
                 beat += a_w * power * np.cos(echo(tau_w, ph_w))
             for mv, ph_m in movers:
                 seen = visibility(t + start_s, mv.hidden) if mv.hidden else 1.0
-                tau_m = 2 * mv.trajectory.at(t + start_s)[0] * n_idx / C
+                tau_m = 2 * mv.trajectory.distance_at(t + start_s) * n_idx / C
                 beat += mv.amplitude_codes * seen * power * np.cos(echo(tau_m, ph_m))
 
             tri_s, _ = _triangle((t - delay / fs) * mod.frequency_hz + phase0)
