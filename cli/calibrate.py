@@ -27,7 +27,8 @@ def command(capture, distance, output, periods, quiet):
       fmcw-cl calibrate rail_0p300m.h5 --distance 0.300 -o chirp.h5
       fmcw-cl process run7.h5 -o tracks/ --chirp chirp.h5
     """
-    chirp = fmcw_cl.calibrate(capture, distance, output, periods=periods)
+    chirp = fmcw_cl.calibrate(capture, distance, output, periods=periods,
+                              warn=lambda message: click.echo(message, err=True))
     a = chirp.attrs
     table = float(a["table_distance_m"])
     if abs(table / distance - 1) > DISTANCE_WARN:

@@ -181,14 +181,18 @@ def simulate(path: PathLike, scenario: str = "jump", *, duration: float | None =
                             compression="gzip" if compress else None, progress=progress)
 
 
-def calibrate(path: PathLike, distance: float, output: PathLike | None = None, *, periods: int = 2000):
+def calibrate(path: PathLike, distance: float, output: PathLike | None = None, *, periods: int = 2000,
+              backend: str = "auto", device: str | None = None, warn: Callable[[str], None] | None = None):
     """The laser's real (dynamic) chirp from a capture of a static target at `distance`
     metres (`fmcw-cl calibrate`); written to `output` when given (use it as
-    `process(..., chirp=output)`). Returns the Chirp."""
+    `process(..., chirp=output)`). `backend` and `device` choose the processor of the
+    sync delay's trial conversions, as `process`'s do. Returns the Chirp."""
+    from .backend import make_processor
     from .calibration import measure_chirp
     from .chirp import write_chirp
 
-    chirp = measure_chirp(path, distance, periods)
+    processor = make_processor(backend, device, warn=warn or (lambda m: warnings.warn(m, stacklevel=3)))
+    chirp = measure_chirp(path, distance, periods, processor)
     if output is not None:
         write_chirp(output, chirp)
     return chirp

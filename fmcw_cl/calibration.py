@@ -28,6 +28,8 @@ its measured SNR.
 
 from __future__ import annotations
 
+import contextlib
+
 import numpy as np
 
 from . import __version__
@@ -37,6 +39,7 @@ from .errors import CaptureError
 from .options import Options
 from .physics import C
 from .plan import make_plan
+from .processor import ChunkProcessor, NumpyProcessor
 from .stages import doppler, resample, sync
 from .stages.lut import fit_tuning
 
@@ -59,7 +62,8 @@ def _analytic(x: np.ndarray, fs: float, f_lo: float, f_hi: float) -> np.ndarray:
     return scipy.fft.ifft(2 * spec, workers=-1)
 
 
-def measure_chirp(path, distance_m: float, periods: int = 2000) -> Chirp:
+def measure_chirp(path, distance_m: float, periods: int = 2000, processor: ChunkProcessor | None = None
+                  ) -> Chirp:
     """Calibrate the chirp from `periods` periods in the middle of a static capture.
 
     Parameters
@@ -67,10 +71,12 @@ def measure_chirp(path, distance_m: float, periods: int = 2000) -> Chirp:
     path : capture of a static target.
     distance_m : its distance R (m); sets the frequency scale through tau = 2 R n / c.
     periods : modulation periods averaged.
+    processor : runs the sync delay's estimate and trial conversions (`make_plan`;
+        default numpy); closed when done.
     """
-    with Capture(path) as cap:
+    with Capture(path) as cap, contextlib.closing(processor or NumpyProcessor()) as processor:
         info = cap.info
-        plan = make_plan(cap, Options(range_check=False))      # its LUT and delay only
+        plan = make_plan(cap, Options(range_check=False), processor=processor)   # its LUT and delay only
         spp = info.samples_per_period
         n = int(min(info.samples, periods * spp + 4 * spp))
         a = max(0, (info.samples - n) // 2)
