@@ -1,4 +1,5 @@
-"""Shared fixtures: small simulated captures, made once per test session."""
+"""Shared fixtures: simulated captures made once per test session for all its workers;
+the conversion the scene tests use."""
 
 from __future__ import annotations
 
@@ -15,6 +16,17 @@ os.environ.setdefault("POCL_CACHE_DIR", tempfile.mkdtemp(prefix="pocl-cache-"))
 from fmcw_cl.simulator import SimulationConfig, jump, simulate_capture, static  # noqa: E402
 
 
+def process(path, options=None, processor=None):
+    """A conversion as `fmcw-cl process` and `fmcw_cl.process` make it: on the automatic
+    backend (OpenCL where a device is, numpy otherwise) unless a processor is named. The
+    scene tests check what users run; tests/test_opencl.py checks that the OpenCL
+    processor's decisions are the numpy reference's."""
+    from fmcw_cl.backend import make_processor
+    from fmcw_cl.engine import process as convert
+
+    return convert(path, options, processor or make_processor("auto"))
+
+
 def run_cli(*args, check=True) -> subprocess.CompletedProcess:
     """`fmcw-cl ARGS` in a subprocess, as a user runs it; asserts success unless told."""
     proc = subprocess.run([sys.executable, "-m", "fmcw_cl.cli.main", *map(str, args)],
@@ -22,6 +34,11 @@ def run_cli(*args, check=True) -> subprocess.CompletedProcess:
     if check:
         assert proc.returncode == 0, proc.stderr
     return proc
+
+
+def pytest_collection_modifyitems(items):
+    """The long tests first: started last, one would keep a worker busy alone."""
+    items.sort(key=lambda item: item.get_closest_marker("long") is None)
 
 
 @pytest.fixture(params=["groups", "lanes"])
@@ -43,33 +60,47 @@ def fmcw():
 
 
 @pytest.fixture(scope="session")
-def capdir(tmp_path_factory):
-    return tmp_path_factory.mktemp("captures")
+def capdir(tmp_path_factory, request):
+    """The session's shared captures, one folder for all xdist workers: each is made
+    once (`made_once`) and only read by the tests."""
+    root = tmp_path_factory.getbasetemp()
+    path = (root.parent if hasattr(request.config, "workerinput") else root) / "captures"
+    path.mkdir(exist_ok=True)
+    return path
+
+
+def made_once(path, make):
+    """`path`, made by `make(path)` unless a worker has made it (a lock file beside it
+    keeps the others waiting meanwhile)."""
+    import fcntl
+
+    with open(path.with_name(path.name + ".lock"), "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if not path.exists():
+            make(path)
+    return path
 
 
 @pytest.fixture(scope="session")
 def static_capture(capdir):
     """20 ms of a static target at 0.25 m."""
-    path = capdir / "static.h5"
-    simulate_capture(path, static(0.02, 0.25), 0.02, seed=11)
-    return path
+    return made_once(capdir / "static.h5", lambda p: simulate_capture(p, static(0.02, 0.25), 0.02, seed=11))
 
 
 @pytest.fixture(scope="session")
 def jump_capture(capdir):
     """The full 300 ms jump (120 MB)."""
-    path = capdir / "jump.h5"
-    simulate_capture(path, jump(0.3), 0.3, seed=3, config=SimulationConfig())
-    return path
+    return made_once(capdir / "jump.h5",
+                     lambda p: simulate_capture(p, jump(0.3), 0.3, seed=3, config=SimulationConfig()))
 
 
 @pytest.fixture(scope="session")
 def jump_track(capdir, jump_capture):
     """The jump processed by the numpy backend, written as a track file."""
-    from fmcw_cl.engine import process
+    from fmcw_cl.engine import process as convert
     from fmcw_cl.track import track_path, write_track
 
-    return write_track(track_path(capdir, jump_capture), process(jump_capture))
+    return made_once(track_path(capdir, jump_capture), lambda p: write_track(p, convert(jump_capture)))
 
 
 def realistic(path, ground_m=0.07, seed=31, **cfg):
@@ -83,4 +114,5 @@ def realistic(path, ground_m=0.07, seed=31, **cfg):
 def wall_capture(capdir):
     """The jump at 0 dB with a static wall at 0.42 m whose echo is stronger than the
     target's in flight (800 codes against 500 at 0.3 m)."""
-    return realistic(capdir / "wall.h5", reflectors=((0.42, 800.0),))
+    return made_once(capdir / "wall.h5", lambda p: realistic(p, reflectors=((0.42, 800.0),)))
+

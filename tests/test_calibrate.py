@@ -7,11 +7,12 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from conftest import process
 
+import fmcw_cl
 from fmcw_cl.calibration import measure_chirp
 from fmcw_cl.capture import Capture
 from fmcw_cl.chirp import read_chirp, write_chirp
-from fmcw_cl.engine import process
 from fmcw_cl.errors import CaptureError
 from fmcw_cl.evaluate import accuracy
 from fmcw_cl.options import Options
@@ -33,7 +34,7 @@ def setup(request, tmp_path_factory):
     lag = request.param
     d = tmp_path_factory.mktemp(f"lag{lag}")
     cal = lagged(d / "cal.h5", static(0.02, 0.3), 0.02, 101, lag)
-    chirp = write_chirp(d / "chirp.h5", measure_chirp(cal, 0.3))
+    chirp = write_chirp(d / "chirp.h5", fmcw_cl.calibrate(cal, 0.3))
     return lag, d, chirp
 
 
@@ -94,7 +95,7 @@ def test_opencl_with_a_chirp_equals_numpy(tmp_path):
     from fmcw_cl.backend import make_processor
     cap = lagged(tmp_path / "cal.h5", static(0.02, 0.3), 0.02, 7, 2.0)
     chirp = str(write_chirp(tmp_path / "chirp.h5", measure_chirp(cap, 0.3)))
-    a = process(cap, Options(chirp=chirp))
+    a = process(cap, Options(chirp=chirp), make_processor("numpy"))
     b = process(cap, Options(chirp=chirp), make_processor("opencl"))
     # the refinement's trial conversions run on each backend (float32 on the device):
     # its secant steps stop within TOLERANCE_SAMPLES of the root, on either side
@@ -146,7 +147,7 @@ def test_calibration_at_minus_10_db_and_behind_a_stronger_wall(tmp_path):
         cal = tmp_path / f"{name}.h5"
         simulate_capture(cal, static(0.1, 0.3), 0.1, seed=70 + k,
                          config=SimulationConfig(thermal_lag_s=2e-6, **extra))
-        chirp = measure_chirp(cal, 0.3)
+        chirp = fmcw_cl.calibrate(cal, 0.3)
         assert chirp.attrs["other_echo_isolated"] == (name == "wall")
         acc = accuracy(process(target, Options(chirp=str(write_chirp(tmp_path / f"{name}.chirp.h5", chirp)))),
                        truth)
@@ -157,7 +158,7 @@ def test_calibration_at_minus_10_db_and_behind_a_stronger_wall(tmp_path):
     dark = SimulationConfig(thermal_lag_s=2e-6, snr_db=-20.0)
     simulate_capture(cal, static(0.1, 0.3), 0.1, seed=79, config=dark)
     with pytest.raises(CaptureError, match=r"too noisy to calibrate: the target's SNR is -1\d\.\d dB"):
-        measure_chirp(cal, 0.3)
+        fmcw_cl.calibrate(cal, 0.3)
 
 
 def test_a_chirp_far_from_its_table_is_calibrated_on_its_own_rest(tmp_path, fmcw):

@@ -5,10 +5,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import process
 
 from fmcw_cl import crossings, objects
 from fmcw_cl.capture import Capture
-from fmcw_cl.engine import process
 from fmcw_cl.evaluate import object_scores, on_objects, truth_at
 from fmcw_cl.options import Options
 from fmcw_cl.simulator import several

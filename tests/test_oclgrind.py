@@ -14,7 +14,10 @@ import pytest
 
 from fmcw_cl.opencl.choice import describe, devices, is_simulator, select_device
 
-CHECKS = {"OCLGRIND_DATA_RACES": "1", "OCLGRIND_UNINITIALIZED": "1", "OCLGRIND_CHECK_API": "1"}
+# the checks; one thread: beside the other pytest worker more only contend (175 s of CPU
+# against 161 s for the whole pipeline on a 2-core EPYC)
+CHECKS = {"OCLGRIND_DATA_RACES": "1", "OCLGRIND_UNINITIALIZED": "1", "OCLGRIND_CHECK_API": "1",
+          "OCLGRIND_NUM_THREADS": "1"}
 
 
 def test_oclgrind_is_installed_and_never_chosen_automatically():
@@ -42,23 +45,26 @@ def test_kernels_pass_oclgrind_checks(tmp_path, group):
     assert diagnostics == "", diagnostics[:3000]
 
 
-@pytest.mark.parametrize(("scene", "duration", "periods"), [("static", 0.002, 20), ("jump", 0.0012, 12)])
-def test_whole_pipeline_passes_oclgrind_checks(tmp_path, scene, duration, periods):
+@pytest.mark.long
+def test_whole_pipeline_passes_oclgrind_checks(tmp_path):
     """A conversion start to end on the simulator (it copies host arrays, as a GPU) with
-    its race, uninitialised-value and API checks: a still target, and the jump's take-off
-    at 7 m/s (de-chirp passes, folds), the delay's trial conversions, the range check and
-    the survey included, in two chunks: the first chunk's range check and survey
-    come down with the next chunk's tracker, a copy on the device into that download;
-    buffers grow from chunk to chunk. No diagnostic; the track equals numpy's with the
-    same chunks."""
+    its race, uninitialised-value and API checks: a still target (24 periods), the
+    delay's trial conversions, the de-chirp passes, the second look's integration, the
+    range check and the survey included, in two chunks: the first chunk's range check
+    and survey come down with the next chunk's tracker, a copy on the device into that
+    download; buffers grow from chunk to chunk. No diagnostic; the track equals numpy's
+    with the same chunks. It launches every kernel the jump's take-off at 7 m/s
+    launches, and two more (integrate_peak, track_start); the take-off costs 2.5x as
+    much under Oclgrind (220 s on a 2-core EPYC), and its de-chirped spectra are checked
+    on their own (test_kernels_pass_oclgrind_checks)."""
     import fmcw_cl
     from fmcw_cl.engine import process
     from fmcw_cl.options import Options
     from fmcw_cl.processor import NumpyProcessor
 
-    cap, got = tmp_path / f"{scene}.h5", tmp_path / "got.npz"
-    fmcw_cl.simulate(cap, scene, duration=duration, seed=3, **({"start": 0.0755} if scene == "jump" else {}))
-    chunks = {"chunk_periods": periods, "context_periods": 4}      # two chunks
+    cap, got = tmp_path / "static.h5", tmp_path / "got.npz"
+    fmcw_cl.simulate(cap, "static", duration=0.0012, seed=3)
+    chunks = {"chunk_periods": 12, "context_periods": 4}      # two chunks
     code = ("import numpy as np; from fmcw_cl.engine import process; from fmcw_cl.options import Options; "
             "from fmcw_cl.backend import make_processor; be = make_processor('opencl', 'Oclgrind'); "
             f"t = process({str(cap)!r}, Options(**{chunks!r}), be); "
@@ -80,8 +86,6 @@ def test_whole_pipeline_passes_oclgrind_checks(tmp_path, scene, duration, period
     assert ref.valid.mean() > 0.9
     assert np.abs(t["d"] - ref.distance_m)[ref.valid].max() < 1e-5
     assert np.abs(t["v"] - ref.velocity_mps)[ref.valid].max() < 1e-3
-    if scene == "jump":
-        assert np.nanmax(t["v"]) > 5
 
 
 SLOT_REUSE = """

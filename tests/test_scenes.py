@@ -7,11 +7,10 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from conftest import realistic
+from conftest import process, realistic
 
 from fmcw_cl import fixed_echoes, objects, swing
 from fmcw_cl.capture import Capture
-from fmcw_cl.engine import process
 from fmcw_cl.evaluate import accuracy, object_scores, truth_at, valid_errors
 from fmcw_cl.options import Options
 from fmcw_cl.simulator import SimulationConfig, simulate_capture, static

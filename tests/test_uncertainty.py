@@ -8,9 +8,9 @@ from dataclasses import replace
 import h5py
 import numpy as np
 import pytest
+from conftest import process
 
 from fmcw_cl.capture import Capture
-from fmcw_cl.engine import process
 from fmcw_cl.evaluate import truth_at
 from fmcw_cl.report import make_report
 from fmcw_cl.simulator import LAB, SimulationConfig, jump, rail, simulate_capture, static
