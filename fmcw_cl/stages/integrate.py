@@ -113,8 +113,8 @@ def choose(snr: float, snr_min_db: float) -> int:
     return int(k[found[0]]) if found.size else MAX_K
 
 
-def integrate(power: np.ndarray, disp: np.ndarray, k: int, bounds: np.ndarray | None = None
-              ) -> tuple[np.ndarray, np.ndarray]:
+def integrate(power: np.ndarray, disp: np.ndarray, k: int, bounds: np.ndarray | None = None,
+              columns: tuple[int, int] | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Mean of the K-window of power spectra around each row, aligned.
 
     Parameters
@@ -126,12 +126,17 @@ def integrate(power: np.ndarray, disp: np.ndarray, k: int, bounds: np.ndarray | 
     k : half-sweeps per window (`window`); windows are cut at the array's ends.
     bounds : (2 P,) int, optional: the first row of each row's group, then the last of
         each (pairing.Times.bounds); windows are cut at their group's ends too.
+    columns : (first, end), optional: only bins first .. end - 1 of the integrated
+        spectra are made (`peaks`: the band searched and its neighbours).
 
     Returns
     -------
-    (P, B) integrated spectra and (P,) the count of spectra in each.
+    (P, B) integrated spectra (P, end - first with `columns`) and (P,) the count of
+    spectra in each.
     """
     rows, bins = power.shape
+    first_bin, end_bin = (0, bins) if columns is None else columns
+    width = end_bin - first_bin
     before, after = window(k)
     first, last = (np.zeros(rows, np.int64), np.full(rows, rows - 1)) if bounds is None else \
         (bounds[:rows], bounds[rows:])
@@ -142,13 +147,13 @@ def integrate(power: np.ndarray, disp: np.ndarray, k: int, bounds: np.ndarray | 
     spread = float(np.max(disp) - np.min(disp)) if finite and rows else float(bins)
     pad = min(int(np.ceil(spread)) + 1, bins)
     padded = np.pad(power, ((0, 0), (pad, pad + 1)), mode="edge")
-    shifted = np.lib.stride_tricks.sliding_window_view(padded, bins + 1, axis=1)
-    acc = np.empty((rows, bins))
+    shifted = np.lib.stride_tricks.sliding_window_view(padded, width + 1, axis=1)
+    acc = np.empty((rows, width))
     count = np.zeros(rows, np.int32)
     with np.errstate(invalid="ignore"):                    # a displacement not finite
         for a in range(0, rows, BLOCK_ROWS):
             ii = np.arange(a, min(a + BLOCK_ROWS, rows))
-            block = np.zeros((ii.size, bins))
+            block = np.zeros((ii.size, width))
             for m in range(-before, after + 1):
                 jj = ii + m
                 ok = (jj >= first[ii]) & (jj <= last[ii])
@@ -161,9 +166,9 @@ def integrate(power: np.ndarray, disp: np.ndarray, k: int, bounds: np.ndarray | 
                 if not finite:                          # read as the first bin (pad = bins)
                     lost = ~np.isfinite(d)
                     frac[lost], whole[lost] = 0.0, -pad
-                start = np.clip(whole, -pad, pad).astype(np.int64) + pad
+                start = np.clip(whole, -pad, pad).astype(np.int64) + (pad + first_bin)
                 frac = frac[:, None]
-                rows_read = shifted[j_ok, start]                              # (n, bins + 1)
+                rows_read = shifted[j_ok, start]                              # (n, width + 1)
                 left = rows_read[:, :-1]
                 step = np.subtract(rows_read[:, 1:], left, dtype=np.float64)
                 step *= frac
@@ -181,6 +186,8 @@ def peaks(power: np.ndarray, disp: np.ndarray, k: int, search: Search, bounds: n
           ) -> tuple:
     """(bin, SNR dB, count) of the tracked peak of each row's integrated spectrum
     (`integrate`; `bounds`: windows cut at each row's group's ends)."""
-    spec, count = integrate(power, disp, k, bounds)
-    pk = find_peaks(spec, search.lo, search.hi)
-    return pk.bin, pk.snr_db, count
+    # the band and a bin either side (the peak's parabola) are all find_peaks reads
+    first, end = max(search.lo - 1, 0), min(search.hi + 1, power.shape[1])
+    spec, count = integrate(power, disp, k, bounds, (first, end))
+    pk = find_peaks(spec, search.lo - first, search.hi - first)
+    return pk.bin + first, pk.snr_db, count
