@@ -187,11 +187,10 @@ def calibrate(path: PathLike, distance: float, output: PathLike | None = None, *
     metres (`fmcw-cl calibrate`); written to `output` when given (use it as
     `process(..., chirp=output)`). `backend` and `device` choose the processor of the
     sync delay's trial conversions, as `process`'s do. Returns the Chirp."""
-    from .backend import make_processor
     from .calibration import measure_chirp
     from .chirp import write_chirp
 
-    processor = make_processor(backend, device, warn=warn or (lambda m: warnings.warn(m, stacklevel=3)))
+    _, processor = _configured({"backend": backend, "device": device}, warn)
     chirp = measure_chirp(path, distance, periods, processor)
     if output is not None:
         write_chirp(output, chirp)

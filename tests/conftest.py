@@ -115,4 +115,3 @@ def wall_capture(capdir):
     """The jump at 0 dB with a static wall at 0.42 m whose echo is stronger than the
     target's in flight (800 codes against 500 at 0.3 m)."""
     return made_once(capdir / "wall.h5", lambda p: realistic(p, reflectors=((0.42, 800.0),)))
-

@@ -570,19 +570,15 @@ def buffers_made(monkeypatch, counts) -> list[bool]:
 
 def first_part(path, out, share: float):
     """A capture of the first `share` of `path`'s samples (no truth)."""
-    import h5py
-
     from fmcw_cl.capture import Capture
     from fmcw_cl.capture_writer import CaptureWriter
 
     with Capture(path) as cap:
         info = cap.info
         n = int(info.samples * share)
-        beat, sync = cap.read(0, n)
-        with h5py.File(path) as f:
-            table = f["laser/tuning_current_a"][()], f["laser/tuning_frequency_hz"][()]
-        with CaptureWriter(out, n, info.sample_rate_hz, info.bits, info.modulation, *table) as w:
-            w.write(0, beat, sync)
+        with CaptureWriter(out, n, info.sample_rate_hz, info.bits, info.modulation, info.tuning_current_a,
+                           info.tuning_frequency_hz, refractive_index=info.refractive_index) as w:
+            w.write(0, *cap.read(0, n))
     return out
 
 
