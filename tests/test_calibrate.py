@@ -251,6 +251,20 @@ def test_rest_and_scale_estimates():
     i, j, _ = choose_rest(lab_d[:3000], lab_v[:3000])
     assert i == 0 and 200 <= j <= 600
     assert choose_rest(moving[:3000], lab_v[:3000]) is None
+    # sparse pairs (a lab's uncalibrated chirp): up to REST_GAP silent blocks in a row
+    # are part of a rest that resumes after them; more, or a step across them, end it
+    rest = np.full(2000, 0.2) + rng.normal(0, 20e-6, 2000)
+    still_v = rng.normal(0, 5e-3, 2000)
+    sparse = rest.copy()
+    sparse[250:300] = np.nan                     # block 5
+    sparse[550:650] = np.nan                     # blocks 11-12
+    assert rest_stretch(sparse, still_v) == (0, 2000)
+    sparse[1000:1150] = np.nan                   # blocks 20-22: one too many
+    assert rest_stretch(sparse, still_v) == (0, 1000 - 4 * 50)
+    stepped = rest.copy()
+    stepped[1000:1100] = np.nan
+    stepped[1100:] += 2e-3                       # it moved while silent
+    assert rest_stretch(stepped, still_v)[1] <= 1000
     gaps = noisy.copy()
     gaps[2000:2100] = np.nan
     ok = np.isfinite(gaps)
