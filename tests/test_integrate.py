@@ -218,33 +218,6 @@ def test_moving_leg_at_minus_16_db(tmp_path):
     assert track.attrs["integrated_sweeps_max"] >= 2
 
 
-@pytest.mark.parametrize("backend_name", ["numpy", "auto"])
-def test_a_chunk_of_weak_and_strong_pairs_is_integrated(tmp_path, backend_name):
-    """The jump's rest, take-off and flight at -18 dB (0.1 s): the foot is 12 dB
-    stronger at rest than in flight. A device converts it in one chunk, where the median
-    pair's SNR chose K = 1 and kept 67 % of the pairs; K chosen on the pairs' SNR
-    distribution keeps >= 97 % on either backend."""
-    from fmcw_cl.backend import make_processor
-    path = tmp_path / "weak_jump.h5"
-    simulate_capture(path, jump(0.3), 0.1, seed=5, config=SimulationConfig(snr_db=-18.0), start_s=0.02)
-    track = process(path, Options(), make_processor(backend_name))
-    with Capture(path) as cap:
-        acc = accuracy(track, cap.truth())
-    assert track.attrs["integrated_sweeps_max"] >= 2
-    assert acc["valid_share"] >= 0.97 and acc["distance_p95_m"] <= 0.25e-3
-
-
-def test_k_is_chosen_for_a_chunks_weak_pairs_too():
-    """80 % of a chunk's pairs strong, 20 % at -6 dB per sweep: their median asks for no
-    integration, their distribution for what the weak ones need, nearly."""
-    weak = np.full(200, 0.25)
-    mixed = np.concatenate([np.full(800, 50.0), weak])
-    assert integrate.choose(np.median(mixed), 10.0) == 1
-    assert integrate.choose(weak, 10.0) - 2 <= integrate.choose(mixed, 10.0) <= integrate.choose(weak, 10.0)
-    assert integrate.choose(mixed, 10.0) >= 2
-    assert integrate.choose(np.full(5000, 0.25), 10.0) == integrate.choose(0.25, 10.0)
-
-
 def test_the_threshold_table_is_scipys():
     from scipy.special import gammainccinv
 

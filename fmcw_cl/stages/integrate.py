@@ -16,10 +16,9 @@ exp(-10^(SNR_MIN_DB / 10)), and falls from 10 dB at K = 1 to 6.3 dB at K = 4 and
 3.6 dB at K = 16.
 
 With K chosen automatically (`choose`), a chunk is integrated only when fewer than
-AUTO_SHARE of its single pairs are heard; the per-sweep SNR of each pair is then
-measured on a K = PROBE integration (peak over floor of the mean spectrum is 1 + SNR)
-and K is the smallest that detects those peaks with probability PD in each direction,
-on average over the chunk's pairs.
+AUTO_SHARE of its single pairs are heard; the per-sweep SNR is then measured on a
+K = PROBE integration (peak over floor of the mean spectrum is 1 + SNR) and K is the
+smallest that detects such a peak with probability PD in each direction.
 """
 
 from __future__ import annotations
@@ -32,7 +31,6 @@ MAX_K = 32          # half-sweeps of a direction summed at most (1.6 ms at 20 kH
 PROBE = 16          # the integration that measures a weak chunk's SNR
 AUTO_SHARE = 0.95   # auto: a chunk is integrated when fewer of its single pairs are heard
 PD = 0.995          # auto: detection probability of each direction's integrated peak
-SNR_QUANTILES = 50  # auto: a chunk's pairs' SNRs as this many quantiles
 BLOCK_ROWS = 32     # rows `integrate` aligns at once: its temporaries stay in cache (2048 bins:
                     # 512 KB each), 2.4-4x faster than all rows at once (1200 rows)
 
@@ -105,23 +103,14 @@ def chi2_sf(x, n, mu) -> np.ndarray:
     return np.sum(poisson(mu, terms) * np.take_along_axis(under, at, axis=1), axis=1)
 
 
-def choose(snr, snr_min_db: float) -> int:
-    """The smallest K <= MAX_K that detects the per-sweep SNRs `snr` (linear: one, or
-    the pairs' of a chunk) with probability PD on average (MAX_K when none does).
-
-    A chunk's pairs need not share one SNR: the jump's foot is 12 dB stronger at its
-    rest (0.07 m) than at its apex (0.28 m), and a chunk may hold both (a device's
-    chunks hold whole captures). Their median chose K = 1 for a 0.3 s jump at -18 dB in
-    one chunk, which then kept 74 % of its pairs (numpy's chunks of 58 ms: K 2-5, 98 %);
-    the mean detection over their distribution (SNR_QUANTILES of it) sees the weak part.
-    """
-    s = np.atleast_1d(np.asarray(snr, np.float64))
-    if s.size > SNR_QUANTILES:
-        s = np.quantile(s, (np.arange(SNR_QUANTILES) + 0.5) / SNR_QUANTILES)
-    for k in range(1, MAX_K + 1):
-        if np.mean(detection(np.full(s.size, k), s, snr_min_db)) >= PD:
-            return k
-    return MAX_K
+def choose(snr: float, snr_min_db: float) -> int:
+    """The smallest K <= MAX_K that detects a per-sweep SNR `snr` (linear) with
+    probability PD (MAX_K when none does)."""
+    if detection(1, snr, snr_min_db)[0] >= PD:        # strong: no K of the costly mixtures
+        return 1
+    k = np.arange(2, MAX_K + 1)
+    found = np.flatnonzero(detection(k, snr, snr_min_db) >= PD)
+    return int(k[found[0]]) if found.size else MAX_K
 
 
 def integrate(power: np.ndarray, disp: np.ndarray, k: int, bounds: np.ndarray | None = None,

@@ -25,6 +25,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .. import numeric
+from ..numeric import median
 from ..spectrum_ops import NUMPY, SpectrumOps
 from . import cfar, integrate
 from .doppler import DopplerModel, solve_pair
@@ -180,14 +181,14 @@ def with_phases(res: PairResult, rows: tuple, model: DopplerModel, ops: Spectrum
     return replace(res, phasor_rise=z_r, phasor_fall=z_f)
 
 
-def measured_snr(res: PairResult) -> np.ndarray:
-    """Per-sweep SNRs (linear) of the target from an integrated tracking: the mean
-    spectrum's peak over its floor is 1 + SNR; those of the heard pairs' sweeps (one 0
-    when fewer than half are heard)."""
+def measured_snr(res: PairResult) -> float:
+    """Per-sweep SNR (linear) of the target from an integrated tracking: the mean
+    spectrum's peak over its floor is 1 + SNR; the median over the heard pairs' sweeps
+    (0 when fewer than half are heard)."""
     if not res.heard.size or res.heard.mean() < 0.5:
-        return np.zeros(1)
+        return 0.0
     db = np.concatenate([res.dechirped_snr_rise[res.heard], res.dechirped_snr_fall[res.heard]])
-    return 10 ** (db.astype(np.float64) / 10) - 1
+    return median(10 ** (db.astype(np.float64) / 10) - 1)
 
 
 @dataclass(frozen=True)
