@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import echoes
-from .numeric import group_median, nearest, steps
+from .numeric import group_median, nearest
 from .swing import peak_offsets, shift_per_mps
 
 FIXED_SHARE = 0.5     # of the slices a fixed echo is seen in
@@ -24,9 +24,6 @@ GATE_M = 0.01         # pairs this close to an echo the target cannot be told fr
 APART_M = 0.02        # fixed echoes closer than this are one (a smeared peak's lobes); nearer the
                       # target's span than this, a fixed echo is not left out of the band
 MIN_TRAVEL_M = 0.01   # a moving echo's verified pairs span at least this (a biased velocity is no motion)
-FOLLOWS_M = 0.002     # ... or travel this much as their velocities say (`follows`): a hand passing
-FOLLOWS_SHARE = 0.25  # ... within this share (distance noise is ~0.01 mm; a biased velocity moves nothing)
-STEP_S = 1e-3         # consecutive pairs this close in time are one stretch of the path
 TOGETHER_S = 2e-3    # pairs this close in time but APART_M apart are two moving echoes
 AWAY_SHARE = 0.5      # a fixed echo seen in this share of the slices where the target is away is an object
 AWAY_SWEEPS = 20      # ... judged by half-sweeps where no slice is away, by at least this many
@@ -158,18 +155,17 @@ def moving_spans(time_s, distance_m, velocity_mps, valid, diffuse: np.ndarray) -
     the nearest part (alone, they are one echo).
     """
     fast = valid & (np.abs(velocity_mps) >= MOVING_MPS)
-    t, d, v = time_s[fast], distance_m[fast], velocity_mps[fast]
+    t, d = time_s[fast], distance_m[fast]
     order = np.argsort(d, kind="stable")
-    t, d, v = t[order], d[order], v[order]
-    groups: list[np.ndarray] = []      # indices into t, d, v
+    t, d = t[order], d[order]
+    parts: list[tuple[np.ndarray, np.ndarray]] = []
     for g in np.split(np.arange(d.size), np.flatnonzero(np.diff(d) > APART_M) + 1):
-        if g.size and groups and not _together(t[groups[-1]], t[g]):
-            groups[-1] = np.concatenate([groups[-1], g])
+        if g.size and parts and not _together(parts[-1][0], t[g]):
+            parts[-1] = (np.concatenate([parts[-1][0], t[g]]), np.concatenate([parts[-1][1], d[g]]))
         elif g.size:
-            groups.append(g)
+            parts.append((t[g], d[g]))
     # pairs must travel (a biased velocity is no motion)
-    parts = [(t[g], d[g]) for g in groups if g.size >= 3 and (
-        np.ptp(d[g]) >= MIN_TRAVEL_M or follows(t[g], d[g], v[g]))]
+    parts = [(pt, pd) for pt, pd in parts if pd.size >= 3 and np.ptp(pd) >= MIN_TRAVEL_M]
     if not parts:                               # a slice's smeared energy is evidence alone
         parts = [(np.zeros(0), diffuse)] if diffuse.size else []
     else:
@@ -177,20 +173,6 @@ def moving_spans(time_s, distance_m, velocity_mps, valid, diffuse: np.ndarray) -
             k = int(np.argmin([min(abs(x - pd.min()), abs(x - pd.max())) for _, pd in parts]))
             parts[k] = (parts[k][0], np.append(parts[k][1], x))
     return sorted((float(np.percentile(pd, 1)), float(np.percentile(pd, 99))) for _, pd in parts)
-
-
-def follows(time_s: np.ndarray, distance_m: np.ndarray, velocity_mps: np.ndarray) -> bool:
-    """Whether pairs move as their velocities say: over the steps between pairs at most
-    STEP_S apart (in time order), the distance changes by at least FOLLOWS_M in all and
-    by what the velocities integrate to (trapezoids) within FOLLOWS_SHARE. An object
-    that passes the beam in a few ms (2 m/s, 8 mm verified) moves; an echo at rest with
-    a biased velocity does not."""
-    order = np.argsort(time_s, kind="stable")
-    t, d, v = time_s[order], distance_m[order], velocity_mps[order]
-    step = np.diff(t) <= STEP_S
-    moved = float(np.sum(np.diff(d)[step]))
-    said = float(np.sum(steps(t, v)[step]))
-    return abs(said) >= FOLLOWS_M and abs(moved - said) <= FOLLOWS_SHARE * abs(said)
 
 
 def _together(a: np.ndarray, b: np.ndarray) -> bool:

@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 from conftest import process
 
-from fmcw_cl import crossings, fixed_echoes, objects
+from fmcw_cl import crossings, objects
 from fmcw_cl.capture import Capture
-from fmcw_cl.evaluate import object_scores, on_objects, truth_at, truth_visible
+from fmcw_cl.evaluate import object_scores, on_objects, truth_at
 from fmcw_cl.options import Options
 from fmcw_cl.simulator import several
 from fmcw_cl.simulator.scene import glide, sway
@@ -100,23 +100,6 @@ def test_conflicts_mark_both_objects():
     assert hit_a[190:210].all()
     far = _track(np.full(n, 0.45))
     assert not any(h.any() for h in crossings.conflicts([a, far]))
-
-
-def test_a_short_fast_pass_moves_a_biased_velocity_does_not():
-    """Verified pairs of an object passing in 2.4 ms (8 mm at 3.5 m/s, under
-    MIN_TRAVEL_M) are a moving echo, since their distances follow their velocities; an
-    echo at rest with a velocity biased 0.5 m/s, or pairs whose distance runs against
-    their velocity, are not."""
-    t = PERIOD * np.arange(48)
-    v = -3.5 + 0.5 * np.sin(np.pi * t / t[-1])
-    d = 0.154 + np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * PERIOD)])
-    ok = np.ones(t.size, bool)
-    assert np.ptp(d) < fixed_echoes.MIN_TRAVEL_M and fixed_echoes.follows(t, d, v)
-    span = fixed_echoes.moving_spans(t, d, v, ok, np.zeros(0))
-    assert span == [pytest.approx((d.min(), d.max()), abs=2e-4)]
-    assert not fixed_echoes.follows(t, np.full(t.size, 0.154), np.full(t.size, 0.5))
-    assert not fixed_echoes.follows(t, d, -v)
-    assert fixed_echoes.moving_spans(t, np.full(t.size, 0.154), np.full(t.size, 0.5), ok, np.zeros(0)) == []
 
 
 def test_returns_and_joined():
@@ -306,13 +289,6 @@ def test_occlusion_and_return(scenes, name, seed):
     assert len(mine) == 1 and mine[0]["tracked"] >= 0.85, scores
     on = on_objects(track, truths)              # /track: one object (auto: what moves, the occluder)
     assert on.size and np.all(on == on[0])
-    # the occluder passes in 10 ms at up to 4 m/s and 1257 m/s^2: an object of its own,
-    # held wherever it accelerates within the verification's bound (500 m/s^2)
-    passer = next(o.track for o, s in zip(track.objects, scores, strict=True) if s["truth"] == 1)
-    d, _, a = truth_at(truths[1], passer.time_s)
-    calm = truth_visible(truths[1], passer.time_s, 0.0) & (np.abs(a) <= 500.0)
-    held = passer.valid & (np.abs(passer.distance_m - d) <= 2e-3)
-    assert calm.sum() >= 40 and held[calm].mean() >= 0.9, held[calm].mean()
 
 
 @pytest.mark.parametrize("seed", [1, 2])
