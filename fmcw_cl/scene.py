@@ -16,6 +16,7 @@ from . import crossings, fixed_echoes, objects, target
 from .assemble import assemble
 from .capture import Capture
 from .chunks import capture_parts
+from .errors import FmcwError
 from .options import RANGE_GAP_M
 from .plan import Plan
 from .processor import ChunkMeasurements, ChunkProcessor
@@ -140,6 +141,12 @@ def _convert(cap: Capture, first: First, c: objects.Candidate, spans: list[tuple
                            fixed=first.fixed, moving=c.moving, sides=c.moving)
     if c.fixed:
         choice = replace(choice, at_rest_m=c.centre_m)
+    if not _searchable(first.plan, choice.band_m):
+        # no band of its own can be searched (its start past plan.MIN_RANGE_SHARE of the
+        # range, or narrower than a band may be): an object without pairs, not a crash
+        empty = replace(tr, attrs={**tr.attrs, **choice.attrs()})
+        objects.invalidate(empty, np.ones(tr.pairs, bool))
+        return Converted(c, choice, first.plan, first.parts, empty)
     # a mover among fixed objects: its rows without still echoes, its band whole
     still = clutter.half_width(cap.info.modulation.period_s) if (
         c.moving and choice.moving and choice.ambiguous_m.size) else 0
@@ -169,7 +176,8 @@ def _convert(cap: Capture, first: First, c: objects.Candidate, spans: list[tuple
         items = [(choice.band_m, still)]
         done = [one(*items[0])]
         if _stays(done[0].track, choice.ambiguous_m, first):
-            items += [(b, still) for b in _sides(choice.band_m, choice.ambiguous_m)]
+            items += [(b, still) for b in _sides(choice.band_m, choice.ambiguous_m)
+                      if _searchable(first.plan, b)]
             done += [one(*item) for item in items[1:]]
     if own is not None and (own.choice.band_m, 0) not in items:
         items.append((own.choice.band_m, 0))
@@ -186,6 +194,15 @@ def _convert(cap: Capture, first: First, c: objects.Candidate, spans: list[tuple
         out.track.attrs["object_bands_m"] = np.asarray([(a, np.nan if b is None else b)
                                                          for (a, b), _ in items]).ravel()
     return out
+
+
+def _searchable(plan: Plan, band: tuple[float, float | None]) -> bool:
+    """Whether `plan` can search `band` (m): Options' and plan.make_search's limits."""
+    try:
+        plan.with_band(band)
+    except FmcwError:
+        return False
+    return True
 
 
 def _held(track: Track, first: First) -> np.ndarray:

@@ -360,6 +360,25 @@ def test_a_short_capture_slowing_onto_its_plateau_is_one_object(scenes, seed):
     assert track.attrs["target_others"] == ""
 
 
+def test_an_object_past_the_searchable_range_is_listed_not_a_crash(tmp_path):
+    """A target at rest at 0.435 m behind a wall at 0.409 m, noise at full scale (the
+    hunt's seed 30, capture 46): its band of its own would start past 90 % of the 0.47 m
+    range, where no band may; the conversion crashed there. It is an object without
+    verified pairs, and no object holds a pair off its truth."""
+    from dataclasses import replace
+
+    from fmcw_cl.simulator import LAB, simulate_capture, static
+
+    path = tmp_path / "far.h5"
+    cfg = replace(LAB, reflectors=((0.409, 800.0),), noise_codes=3000.0, headroom=None)
+    simulate_capture(path, static(0.05, 0.4347), 0.05, seed=891, config=cfg)
+    track = process(path)
+    with Capture(path) as cap:
+        scores = object_scores(track, cap.truth_objects())
+    assert sum(s["wrong"] for s in scores) == 0, scores
+    assert any(not o.track.valid.any() for o in track.objects)
+
+
 @pytest.mark.parametrize("backend", ["numpy", "auto"])
 def test_a_rail_crossing_a_sway_is_one_object_and_holds_no_image(tmp_path, backend):
     """A rail's start passing an object swaying at 0.25 m (seed 1): beyond the sway, the
