@@ -141,7 +141,9 @@ def _convert(cap: Capture, first: First, c: objects.Candidate, spans: list[tuple
                            fixed=first.fixed, moving=c.moving, sides=c.moving)
     if c.fixed:
         choice = replace(choice, at_rest_m=c.centre_m)
-    if not _searchable(first.plan, choice.band_m):
+    # the user's --target-near chooses among the objects, and need not lie in this one's band
+    unnamed = replace(first.plan, options=replace(first.plan.options, target_near=None))
+    if not _searchable(unnamed, choice.band_m):
         # no band of its own can be searched (its start past plan.MIN_RANGE_SHARE of the
         # range, or narrower than a band may be): an object without pairs, not a crash
         empty = replace(tr, attrs={**tr.attrs, **choice.attrs()})
@@ -150,8 +152,6 @@ def _convert(cap: Capture, first: First, c: objects.Candidate, spans: list[tuple
     # a mover among fixed objects: its rows without still echoes, its band whole
     still = clutter.half_width(cap.info.modulation.period_s) if (
         c.moving and choice.moving and choice.ambiguous_m.size) else 0
-    # the user's --target-near chooses among the objects, and need not lie in this one's band
-    unnamed = replace(first.plan, options=replace(first.plan.options, target_near=None))
 
     def one(band: tuple[float, float | None], half: int) -> Converted:
         plan = replace(unnamed.with_band(band), still_half=half)
@@ -177,7 +177,7 @@ def _convert(cap: Capture, first: First, c: objects.Candidate, spans: list[tuple
         done = [one(*items[0])]
         if _stays(done[0].track, choice.ambiguous_m, first):
             items += [(b, still) for b in _sides(choice.band_m, choice.ambiguous_m)
-                      if _searchable(first.plan, b)]
+                      if _searchable(unnamed, b)]
             done += [one(*item) for item in items[1:]]
     if own is not None and (own.choice.band_m, 0) not in items:
         items.append((own.choice.band_m, 0))

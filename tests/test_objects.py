@@ -255,11 +255,13 @@ def test_two_movers_each_its_own_track(scenes, name, seed):
 @pytest.mark.parametrize("rule, near, truth", [("nearest", None, 0), ("auto", 0.42, 1), ("auto", 0.05, 0)])
 def test_the_choice_is_a_choice(scenes, rule, near, truth):
     """`--target nearest` and `--target-near D` choose an object: /track holds its
-    pairs and none of the other's."""
+    pairs and none of the other's, and the other object keeps its own (a D outside
+    its band does not empty it)."""
     options = {"target": rule} | ({"target_near": near} if near is not None else {})
     track, truths = scenes("jump + sway 6 dB stronger", 1, **options)
     on = on_objects(track, truths)
     assert track.valid.mean() > 0.5 and np.all(on == truth)
+    assert len(track.objects) == 2 and all(o.track.valid.mean() > 0.5 for o in track.objects)
 
 
 @pytest.mark.parametrize("seed", [1, 2])
