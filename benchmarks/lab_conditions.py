@@ -34,7 +34,7 @@ import fmcw_cl
 from fmcw_cl.backend import make_processor
 from fmcw_cl.capture import Capture
 from fmcw_cl.engine import process
-from fmcw_cl.evaluate import accuracy
+from fmcw_cl.evaluate import accuracy, valid_errors
 from fmcw_cl.options import Options
 from fmcw_cl.simulator import LAB, SimulationConfig, simulate_capture, static
 from fmcw_cl.stages import faults
@@ -89,7 +89,7 @@ def part_full_scale() -> None:
         hidden = simulate_capture(path, static(0.05, 0.3), 0.05, seed=seed, config=cfg)
         _, _, er, sr, _, t = delays(path, hidden)
         with Capture(path) as cap:
-            wrong = int(np.sum(np.abs(t.distance_m[t.valid] - cap.truth().distance_m[0]) > 2e-3))
+            wrong = int(np.sum(valid_errors(t, cap.truth()) > 2e-3))
         errs.append(er)
         ratios.append(er / sr)
         print(f"| {seed} | {er:+.2f} | {sr:.2f} | {er / sr:+.2f} | {100 * t.valid.mean():.1f} | {wrong} |",
