@@ -82,7 +82,11 @@ def assemble(plan: Plan, parts: list[ChunkMeasurements], processor: ChunkProcess
                                       (res["dechirped_snr_rise"], res["dechirped_snr_fall"]), choice.walls_m,
                                       choice.walls_db, plan.model, plan.window, reason_owned == faults.OK)
         imaged |= at_band_edge((res["dechirped_rise"], res["dechirped_fall"]), plan)
-        reason_owned = target.ambiguous(reason_owned, t_mid, res["distance"], res["velocity"], choice, imaged)
+        snr = (res["dechirped_snr_rise"], res["dechirped_snr_fall"])
+        sigma_v = uncertainty.velocity_crb(snr, options.points, plan.lut.bandwidth_hz, info.refractive_index,
+                                           t_f - t_r + plan.model.k_fall - plan.model.k_rise)
+        reason_owned = target.ambiguous(reason_owned, t_mid, res["distance"], res["velocity"], choice, imaged,
+                                        sigma_v)
     if options.dechirp:         # the paper's method (--no-dechirp) is reported as the paper did
         reason_owned = faults.verified(t_mid, res["distance"], res["velocity"], reason_owned, processor)
     res["valid"] = reason_owned == faults.OK

@@ -13,6 +13,7 @@ import numpy as np
 
 from . import fixed_echoes
 from .objects import GATE_M, level, per_pair
+from .stages import faults
 from .stages.clutter import STILL_S
 from .track import Track
 
@@ -42,6 +43,18 @@ def path(track: Track) -> np.ndarray:
     return out
 
 
+def heard(track: Track) -> np.ndarray:
+    """The object's `path`, and where it is NaN at an ``ambiguous`` pair (verified, but
+    beside another echo), the mean of that pair's de-chirped half-sweep peaks (m): an
+    echo was measured there, whichever object it was."""
+    out = path(track)
+    if track.reason is None:
+        return out
+    held = np.isnan(out) & (track.reason == faults.AMBIGUOUS)
+    out[held] = np.mean(per_pair(track, "sweep_distance_dechirped_m")[:, held], axis=0)
+    return out
+
+
 def course(track: Track, reach_s: float = COURSE_S) -> tuple[np.ndarray, np.ndarray]:
     """An object's distance (m) and velocity (m/s) at each pair as far as its motion
     tells: its `path` (the velocities interpolated alike), and beyond it, within
@@ -68,8 +81,10 @@ def course(track: Track, reach_s: float = COURSE_S) -> tuple[np.ndarray, np.ndar
 
 def conflicts(tracks: list[Track], fixed: list[bool] | None = None,
               unseen: set[tuple[int, int]] = frozenset()) -> list[np.ndarray]:
-    """For each track, the pairs where another object's path (`path`) lies within
-    GATE_M of its own: the two echoes cannot be told apart there. A `fixed` object is
+    """For each track, the pairs where another object's path lies within GATE_M of its
+    own (`heard`: its ambiguous pairs too): the two echoes cannot be told apart there
+    (a wall of 150 codes 5 mm from a rail creeping off: the rail's pairs ambiguous
+    beside the wall, the wall's read 2 mm off, its peak pulled by the rail's). A `fixed` object is
     there all along, at the span of its verified distances (1st-99th percentile),
     whether or not its own track holds it then: a pair of another within GATE_M of that
     span is ambiguous on both (a cable swaying +-10 mm, a fixed echo of the tables,
@@ -77,7 +92,7 @@ def conflicts(tracks: list[Track], fixed: list[bool] | None = None,
     rail had left its band). Not where (i, j) is `unseen`: track i's rows hold nothing
     of object j (a still one, taken out of a mover's rows: fmcw_cl.scene)."""
     fixed = fixed or [False] * len(tracks)
-    paths = [path(t) for t in tracks]
+    paths = [path(t) if f else heard(t) for t, f in zip(tracks, fixed, strict=True)]
     out = [np.zeros(t.pairs, bool) for t in tracks]
     for i in range(len(tracks)):
         for j in range(i + 1, len(tracks)):

@@ -65,7 +65,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import echoes
+from . import echoes, numeric
 from .fixed_echoes import (
     APART_M,
     GATE_M,
@@ -82,7 +82,7 @@ from .numeric import drift, nearest
 from .options import RANGE_GAP_M, said
 from .rivals import besides, directions_apart, elsewhere, others_share
 from .stages import faults
-from .stages.verification import DRIFT_MPS
+from .stages.verification import DRIFT_BLOCKS, DRIFT_MPS, DRIFT_SIGMAS
 from .swing import REST_APART_M, SMEAR_M, doppler_reach, rests, swinging
 
 RULES = ("auto", "moving", "nearest", "strongest")
@@ -91,6 +91,13 @@ MIN_GAP_M = 0.004     # a band edge lies at least half this inside a left-out fi
 REST_SIGMAS = 6.0     # a fixed object's pair further than this many robust sigmas from its median ...
 REST_M = 2.5e-4       # ... and than this is a blend with another echo beside it (a foot at rest 5 mm from
                       # a window read the window 3 mm off)
+REST_MPS = 0.04       # a fixed object's velocity this far from its neighbours' (and REST_SIGMAS sigmas of
+                      # its peaks' noise), or its distances leaving their velocities' integral this fast
+                      # (and DRIFT_SIGMAS standard errors), is a blend: one half-sweep's peak pulled
+                      # 2.4 mm (`_blended`)
+REST_PAIRS = 100      # ... its pairs tested this many at a time (5 ms of a 4 Hz sway moves 0.03 m/s) ...
+REST_GAP_S = 2e-3     # ... within stretches without gaps this long (a sway's integral is lost across)
+
 
 @dataclass
 class Choice:
@@ -364,14 +371,47 @@ def _list(xs) -> str:
     return ", ".join(f"{x:.3f}" for x in xs) + " m"
 
 
+def _blended(t: np.ndarray, d: np.ndarray, v: np.ndarray, ok: np.ndarray, sigma_v: np.ndarray) -> np.ndarray:
+    """The pairs `ok` of a fixed object whose velocity disagrees with its own motion:
+    further than REST_MPS and REST_SIGMAS x `sigma_v` (m/s) from the median velocity of
+    its REST_PAIRS (its stretch without REST_GAP_S gaps cut into parts that long), or of
+    a part whose distances leave their velocities' integral (numeric.drifts) faster than
+    REST_MPS and DRIFT_SIGMAS standard errors. A weak wall's peak pulled by a stronger
+    echo beside it moves in one direction only: 5 mm from a rail creeping off, read 2-4
+    mm off at a steady 0.06-0.15 m/s; between two walls 13 mm apart, on one in rising
+    and the other in falling half-sweeps, at +-0.24 m/s. A sway's velocities follow its
+    distances."""
+    out = np.zeros(ok.size, bool)
+    idx = np.flatnonzero(ok)
+    if idx.size < 3:
+        return out
+    stretches = np.split(idx, np.flatnonzero(np.diff(t[idx]) > REST_GAP_S) + 1)
+    parts = [p for s in stretches for p in np.array_split(s, -(-s.size // REST_PAIRS)) if p.size >= 3]
+    if not parts:
+        return out
+    sizes = np.array([p.size for p in parts])
+    mine = np.concatenate(parts)
+    label = np.repeat(np.arange(sizes.size), sizes)
+    centre = numeric.group_median(label, v[mine], sizes.size)
+    out[mine] = np.abs(v[mine] - centre[label]) > np.maximum(REST_MPS, REST_SIGMAS * sigma_v[mine])
+    slope, se = numeric.drifts(t[mine], d[mine], v[mine], sizes, DRIFT_BLOCKS)
+    drifts = np.abs(slope) > np.fmax(REST_MPS, DRIFT_SIGMAS * se)
+    out[mine[np.repeat(drifts, sizes)]] = True
+    return out
+
+
 def ambiguous(code: np.ndarray, time_s: np.ndarray, distance_m: np.ndarray, velocity_mps: np.ndarray,
-              choice: Choice, imaged: np.ndarray | None = None) -> np.ndarray:
+              choice: Choice, imaged: np.ndarray | None = None,
+              velocity_sigma_mps: np.ndarray | float = 0.0) -> np.ndarray:
     """`code` with the OK pairs within GATE_M of the choice's ambiguous echoes (fixed
     echoes and moving spans) or `imaged` (a half-sweep's peak may be the image of a
     fixed echo, fmcw_cl.wall_images) set to faults.AMBIGUOUS; with no echo found
     (`Choice.unseen_rest`), those slower than MOVING_MPS, or all where their distances
     do not follow their velocities (numeric.drift beyond pairing.DRIFT_MPS: a wall at
-    rest read at 0.35 m/s under a sync delay 77 samples off)."""
+    rest read at 0.35 m/s under a sync delay 77 samples off). A fixed object's pairs
+    (`Choice.at_rest_m`) beyond GATE_M of it, moving (MOVING_MPS), or faster than
+    `_blended` (`velocity_sigma_mps`: the noise of each pair's velocity from its peaks')
+    are another echo's or blends with one."""
     out = code.copy()
     if choice.unseen_rest:
         ok = out == faults.OK
@@ -387,6 +427,9 @@ def ambiguous(code: np.ndarray, time_s: np.ndarray, distance_m: np.ndarray, velo
         out[(out == faults.OK) & imaged] = faults.AMBIGUOUS
     if choice.at_rest_m is not None:        # a fixed object: what moves, or lies elsewhere, is another
         other = (np.abs(distance_m - choice.at_rest_m) > GATE_M) | (np.abs(velocity_mps) >= MOVING_MPS)
+        ok = (out == faults.OK) & ~other
+        other |= _blended(time_s, distance_m, velocity_mps, ok,
+                          np.broadcast_to(velocity_sigma_mps, np.shape(velocity_mps)))
         out[(out == faults.OK) & other] = faults.AMBIGUOUS
         ok = out == faults.OK
         if ok.sum() >= 20:              # ... and so does a blend with an echo beside it: its peak moves

@@ -121,6 +121,14 @@ def pair_crb(snr_db: tuple[np.ndarray, np.ndarray], points: int, bandwidth_hz: f
     return 0.5 * np.hypot(rise, fall)
 
 
+def velocity_crb(snr_db: tuple[np.ndarray, np.ndarray], points: int, bandwidth_hz: float,
+                 refractive_index: float, shift_s: np.ndarray | float) -> np.ndarray:
+    """Cramer-Rao bound (m/s) of each pair's velocity: its two half-sweeps' peaks'
+    (`pair_crb`) over `shift_s`, how far apart a m/s moves them (s: the time between
+    their centres and the Doppler shifts, stages.doppler.solve_pair)."""
+    return 2 * pair_crb(snr_db, points, bandwidth_hz, refractive_index) / np.abs(shift_s)
+
+
 def distance_slope(distance: np.ndarray, valid: np.ndarray, period_s: float,
                    window: int = SLOPE_PAIRS) -> tuple[np.ndarray, np.ndarray]:
     """The slope (m/s) of the distances at each valid pair, by a quadratic

@@ -102,6 +102,25 @@ def test_conflicts_mark_both_objects():
     assert not any(h.any() for h in crossings.conflicts([a, far]))
 
 
+def test_conflicts_count_another_objects_ambiguous_pairs():
+    """A mover's pairs that its own choice made ambiguous beside a fixed echo were still
+    measured there: a fixed object's pairs within GATE_M of them are ambiguous too (a
+    wall of 150 codes 5 mm from a rail creeping off read 2 mm off). Not a fixed
+    object's own ambiguous pairs (its tracker off it: no echo of its own there), not
+    pairs without a verified measurement."""
+    n = 400
+    wall = _track(np.full(n, 0.058))
+    near = np.linspace(0.062, 0.072, n)
+    for reason, hit in ((faults.AMBIGUOUS, True), (faults.NO_ECHO, False)):
+        mover = _track(near, np.full(n, 0.5), valid=np.zeros(n, bool))
+        mover.reason[:] = reason
+        mover.sweep_time_s = np.repeat(mover.time_s, 2) + np.tile([-PERIOD / 4, PERIOD / 4], n)
+        mover.sweep_distance_dechirped_m = np.repeat(near, 2)
+        got = crossings.conflicts([wall, mover], [True, False])[0]
+        assert np.array_equal(got, np.abs(near - 0.058) <= objects.GATE_M) if hit else not got.any()
+        assert not crossings.conflicts([wall, mover], [True, True])[0].any()
+
+
 def test_returns_and_joined():
     """An object hidden and seen again within RETURN_M is one; its pairs come from the
     conversion that verified them."""
@@ -427,3 +446,36 @@ def test_short_captures_of_a_slowing_foot_are_the_target(tmp_path, start_s, dura
     scores = object_scores(track, truths)
     assert sum(s["wrong"] for s in scores) == 0, scores
     assert len(track.objects) == 1 and track.valid.mean() >= 0.9, track.attrs["target_choice"]
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_a_fixed_objects_blends_are_ambiguous_its_sway_is_not(seed):
+    """A fixed object's pairs whose velocity disagrees with its own motion are blends
+    with an echo beside it (target._blended): read 2 mm off at a steady 0.07 m/s (one
+    half-sweep's peak pulled), or at +-0.24 m/s (between two walls, one per direction).
+    A wall's noise and a sway's velocities (they follow its distances) are not."""
+    from fmcw_cl import target
+
+    rng = np.random.default_rng(seed)
+    n = 1000
+    t = PERIOD * (np.arange(n) + 0.5)
+    sigma = np.full(n, 0.003)                       # m/s: the velocities' noise from their peaks'
+    choice = target.Choice("auto", np.zeros(0), np.zeros(0, bool), None, False, (0.03, None), at_rest_m=0.058)
+
+    def code(d, v):
+        return target.ambiguous(np.zeros(n, np.int8), t, d, v, choice, None, sigma)
+
+    d = 0.058 + rng.normal(0, 5e-5, n)
+    v = rng.normal(0, 0.003, n)
+    assert not np.any(code(d, v) == faults.AMBIGUOUS)
+    steady, swapped = d.copy(), v.copy()
+    steady[300:500] -= np.linspace(0.2e-3, 2e-3, 200)            # pulled further as the echo beside moves
+    swapped[300:500] = 0.07 + rng.normal(0, 0.003, 200)
+    blended = code(steady, swapped) == faults.AMBIGUOUS
+    assert blended[300:500].all() and blended.sum() <= 300         # the blend, and at most its parts
+    alternating = v.copy()
+    alternating[600:700] += np.tile([0.24, -0.24], 50)
+    assert (code(d, alternating) == faults.AMBIGUOUS)[600:700].all()
+    swing = 0.058 + 0.008 * np.sin(2 * np.pi * 4.0 * t) + rng.normal(0, 5e-5, n)
+    speed = 2 * np.pi * 4.0 * 0.008 * np.cos(2 * np.pi * 4.0 * t) + rng.normal(0, 0.003, n)
+    assert not np.any(code(swing, speed) == faults.AMBIGUOUS)
