@@ -85,8 +85,10 @@ def assemble(plan: Plan, parts: list[ChunkMeasurements], processor: ChunkProcess
         snr = (res["dechirped_snr_rise"], res["dechirped_snr_fall"])
         sigma_v = uncertainty.velocity_crb(snr, options.points, plan.lut.bandwidth_hz, info.refractive_index,
                                            t_f - t_r + plan.model.k_fall - plan.model.k_rise)
+        # the velocity bias the sync delay's uncertainty allows (unknown without a refined delay)
+        bias_v = uncertainty.COVERAGE * plan.lag_sigma_mps if np.isfinite(plan.lag_sigma_mps) else np.inf
         reason_owned = target.ambiguous(reason_owned, t_mid, res["distance"], res["velocity"], choice, imaged,
-                                        sigma_v)
+                                        sigma_v, bias_v)
     if options.dechirp:         # the paper's method (--no-dechirp) is reported as the paper did
         reason_owned = faults.verified(t_mid, res["distance"], res["velocity"], reason_owned, processor)
     res["valid"] = reason_owned == faults.OK

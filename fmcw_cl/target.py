@@ -371,12 +371,16 @@ def _list(xs) -> str:
     return ", ".join(f"{x:.3f}" for x in xs) + " m"
 
 
-def _blended(t: np.ndarray, d: np.ndarray, v: np.ndarray, ok: np.ndarray, sigma_v: np.ndarray) -> np.ndarray:
+def _blended(t: np.ndarray, d: np.ndarray, v: np.ndarray, ok: np.ndarray, sigma_v: np.ndarray,
+             bias_v: float = 0.0) -> np.ndarray:
     """The pairs `ok` of a fixed object whose velocity disagrees with its own motion:
     further than REST_MPS and REST_SIGMAS x `sigma_v` (m/s) from the median velocity of
     its REST_PAIRS (its stretch without REST_GAP_S gaps cut into parts that long), or of
     a part whose distances leave their velocities' integral (numeric.drifts) faster than
-    REST_MPS and DRIFT_SIGMAS standard errors. A weak wall's peak pulled by a stronger
+    REST_MPS, DRIFT_SIGMAS standard errors and `bias_v` (m/s: what every velocity may
+    share, a sync delay's error; inf where the delay was not refined: two walls of a
+    capture whose delay came from the intensity alone, +-11 samples, read 0.037 and
+    0.072 m/s, in proportion to their distances). A weak wall's peak pulled by a stronger
     echo beside it moves in one direction only: 5 mm from a rail creeping off, read 2-4
     mm off at a steady 0.06-0.15 m/s; between two walls 13 mm apart, on one in rising
     and the other in falling half-sweeps, at +-0.24 m/s. A sway's velocities follow its
@@ -395,14 +399,14 @@ def _blended(t: np.ndarray, d: np.ndarray, v: np.ndarray, ok: np.ndarray, sigma_
     centre = numeric.group_median(label, v[mine], sizes.size)
     out[mine] = np.abs(v[mine] - centre[label]) > np.maximum(REST_MPS, REST_SIGMAS * sigma_v[mine])
     slope, se = numeric.drifts(t[mine], d[mine], v[mine], sizes, DRIFT_BLOCKS)
-    drifts = np.abs(slope) > np.fmax(REST_MPS, DRIFT_SIGMAS * se)
+    drifts = np.abs(slope) > np.fmax(max(REST_MPS, bias_v), DRIFT_SIGMAS * se)
     out[mine[np.repeat(drifts, sizes)]] = True
     return out
 
 
 def ambiguous(code: np.ndarray, time_s: np.ndarray, distance_m: np.ndarray, velocity_mps: np.ndarray,
               choice: Choice, imaged: np.ndarray | None = None,
-              velocity_sigma_mps: np.ndarray | float = 0.0) -> np.ndarray:
+              velocity_sigma_mps: np.ndarray | float = 0.0, velocity_bias_mps: float = 0.0) -> np.ndarray:
     """`code` with the OK pairs within GATE_M of the choice's ambiguous echoes (fixed
     echoes and moving spans) or `imaged` (a half-sweep's peak may be the image of a
     fixed echo, fmcw_cl.wall_images) set to faults.AMBIGUOUS; with no echo found
@@ -410,8 +414,9 @@ def ambiguous(code: np.ndarray, time_s: np.ndarray, distance_m: np.ndarray, velo
     do not follow their velocities (numeric.drift beyond pairing.DRIFT_MPS: a wall at
     rest read at 0.35 m/s under a sync delay 77 samples off). A fixed object's pairs
     (`Choice.at_rest_m`) beyond GATE_M of it, moving (MOVING_MPS), or faster than
-    `_blended` (`velocity_sigma_mps`: the noise of each pair's velocity from its peaks')
-    are another echo's or blends with one."""
+    `_blended` (`velocity_sigma_mps`: the noise of each pair's velocity from its peaks';
+    `velocity_bias_mps`: the bias all velocities may share, the sync delay's) are another
+    echo's or blends with one."""
     out = code.copy()
     if choice.unseen_rest:
         ok = out == faults.OK
@@ -429,7 +434,7 @@ def ambiguous(code: np.ndarray, time_s: np.ndarray, distance_m: np.ndarray, velo
         other = (np.abs(distance_m - choice.at_rest_m) > GATE_M) | (np.abs(velocity_mps) >= MOVING_MPS)
         ok = (out == faults.OK) & ~other
         other |= _blended(time_s, distance_m, velocity_mps, ok,
-                          np.broadcast_to(velocity_sigma_mps, np.shape(velocity_mps)))
+                          np.broadcast_to(velocity_sigma_mps, np.shape(velocity_mps)), velocity_bias_mps)
         out[(out == faults.OK) & other] = faults.AMBIGUOUS
         ok = out == faults.OK
         if ok.sum() >= 20:              # ... and so does a blend with an echo beside it: its peak moves

@@ -453,7 +453,8 @@ def test_a_fixed_objects_blends_are_ambiguous_its_sway_is_not(seed):
     """A fixed object's pairs whose velocity disagrees with its own motion are blends
     with an echo beside it (target._blended): read 2 mm off at a steady 0.07 m/s (one
     half-sweep's peak pulled), or at +-0.24 m/s (between two walls, one per direction).
-    A wall's noise and a sway's velocities (they follow its distances) are not."""
+    A wall's noise, a sway's velocities (they follow its distances) and a bias the sync
+    delay's uncertainty allows are not."""
     from fmcw_cl import target
 
     rng = np.random.default_rng(seed)
@@ -476,6 +477,12 @@ def test_a_fixed_objects_blends_are_ambiguous_its_sway_is_not(seed):
     alternating = v.copy()
     alternating[600:700] += np.tile([0.24, -0.24], 50)
     assert (code(d, alternating) == faults.AMBIGUOUS)[600:700].all()
+    # a sync delay's error biases every velocity alike, the distances steady: no blend
+    # where the delay is not known (the bias unbounded), one beyond REST_MPS where it is
+    biased = v + 0.072
+    assert not np.any(target.ambiguous(np.zeros(n, np.int8), t, d, biased, choice, None, sigma, np.inf)
+                      == faults.AMBIGUOUS)
+    assert np.all(code(d, biased) == faults.AMBIGUOUS)
     swing = 0.058 + 0.008 * np.sin(2 * np.pi * 4.0 * t) + rng.normal(0, 5e-5, n)
     speed = 2 * np.pi * 4.0 * 0.008 * np.cos(2 * np.pi * 4.0 * t) + rng.normal(0, 0.003, n)
     assert not np.any(code(swing, speed) == faults.AMBIGUOUS)
