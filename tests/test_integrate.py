@@ -223,8 +223,10 @@ def test_the_threshold_table_is_scipys():
 
     n = np.arange(1, integrate.MAX_K + 1, dtype=np.float64)
     want = 10 * np.log10(gammainccinv(n, integrate.false_alarm(integrate.TABLE_SNR_DB)) / n)
-    np.testing.assert_array_equal(integrate.THRESHOLDS_DB, want)
-    np.testing.assert_array_equal(integrate.threshold_db(np.array([1, 4, 32]), 10.0), want[[0, 3, 31]])
+    # scipy's own last bits move between its releases (1.17: 3 of 32 by 1-4 units)
+    np.testing.assert_array_max_ulp(integrate.THRESHOLDS_DB, want, maxulp=8)
+    np.testing.assert_array_equal(integrate.threshold_db(np.array([1, 4, 32]), 10.0),
+                                  integrate.THRESHOLDS_DB[[0, 3, 31]])
     assert integrate.threshold_db(4, 8.0) < want[3]                     # off the table: computed
 
 

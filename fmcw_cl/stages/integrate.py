@@ -45,8 +45,8 @@ def false_alarm(snr_min_db: float) -> float:
     return float(np.exp(-(10 ** (snr_min_db / 10))))
 
 
-# threshold_db of 1 .. MAX_K spectra at the tracker's 10 dB (pairing.SNR_MIN_DB), to the
-# last bit of scipy's: a conversion imports no scipy (tests/test_integrate.py checks it)
+# threshold_db of 1 .. MAX_K spectra at the tracker's 10 dB (pairing.SNR_MIN_DB), scipy's
+# within a few units of the last place: a conversion imports no scipy (tests/test_integrate.py)
 TABLE_SNR_DB = 10.0
 THRESHOLDS_DB = np.array([
     10.0, 7.997150061955899, 6.941756164111155, 6.2497191720464045, 5.74636655437454,
