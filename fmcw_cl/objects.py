@@ -197,10 +197,11 @@ def bodies(track: Track) -> list[np.ndarray]:
     return out
 
 
-def invalidated(track: Track, where: np.ndarray, code: int = faults.AMBIGUOUS) -> Track:
-    """A copy of `track` with its valid pairs `where` invalid with `code` (`invalidate`)."""
+def parted(track: Track, mask: np.ndarray) -> Track:
+    """A copy of `track` holding only the verified pairs `mask` (the others of another
+    body, `bodies`: DISCONTINUOUS)."""
     out = replace(track, attrs=dict(track.attrs))
-    invalidate(out, where, code)
+    invalidate(out, ~mask, faults.DISCONTINUOUS)
     return out
 
 
