@@ -1,6 +1,6 @@
 """Random lab scenes hunted for wrong valid pairs (one line each on stdout).
 
-    python benchmarks/hunt.py [--seed K] [--count N] [--out DIR]
+    python benchmarks/hunt.py [--seed K] [--count N] [--only I ...] [--out DIR]
 
 Each capture is 50 ms of a static target, the jump's take-off or landing, or the rail's
 start, with the lab's instrument (`simulator.LAB`), 0-2 static walls (0.05-0.45 m,
@@ -10,7 +10,8 @@ headroom) on a third, each on its own seed. Default options, the default backend
 (`evaluate.object_scores`; the walls are objects of /truth too); the lines that have any
 end in "<<<<". "off the target" counts `/track`'s valid pairs more than 2 mm from the
 target's truth: a wall taken for a target never detected (`docs/pipeline.md` 6c) is
-right on the wall and off the target. Reproducible: the draws follow --seed.
+right on the wall and off the target. Reproducible: the draws follow --seed, and
+`--only 7 24` converts those captures of the draw alone (kept with `--out`).
 """
 
 from dataclasses import replace
@@ -24,7 +25,8 @@ from fmcw_cl.engine import process
 from fmcw_cl.evaluate import object_scores, valid_errors
 from fmcw_cl.simulator import LAB, jump, rail, simulate_capture, static
 
-args, out, rng = draws(__doc__, "fmcw-hunt-", 1, 40)
+args, out, rng = draws(__doc__, "fmcw-hunt-", 1, 40,
+                       ("--only", dict(type=int, nargs="*", help="convert these captures of the draw alone")))
 be = make_processor("auto")
 total = total_off = 0
 for i in range(args.count):
@@ -39,6 +41,8 @@ for i in range(args.count):
                    "rail": (rail(0.4), 0.05)}.get(kind, (None, 0.0))
     if kind == "static":
         traj = static(0.05, float(rng.uniform(0.05, 0.45)))
+    if args.only and i not in args.only:
+        continue
     path = out / f"h{args.seed}_{i}.h5"
     simulate_capture(path, traj, 0.05, seed=seed, config=cfg, start_s=start)
     t = process(path, processor=be)

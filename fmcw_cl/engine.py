@@ -72,6 +72,7 @@ def process(path, options: Options | None = None, processor: ChunkProcessor | No
                 track = assemble(plan, parts, processor, time.perf_counter() - started, choice)
             else:
                 track = with_choice(plan, parts, processor, time.perf_counter() - started, first, choice)
+            whole = track
             if plan.options.target == "strongest" and plan.options.target_near is None:
                 found, pick = [objects.SceneObject(1, bool(choice.moving), track, "the strongest echo "
                                                    "of the band, pair by pair")], 0
@@ -81,8 +82,13 @@ def process(path, options: Options | None = None, processor: ChunkProcessor | No
                 found, pick, own = scene.objects_of(cap, was, choice, own, processor,
                                                     lambda: time.perf_counter() - started, progress)
                 plan, choice, track = own.plan, own.choice, own.track
-            if check_tuning(cap, plan, track, processor) > UNCALIBRATED_RATIO and plan.options.dechirp:
-                track = calibrated_on_rest(cap, plan, track, processor, choice, started, progress)
+                # a chirp far from its table bends distances apart: its tuning is checked and
+                # its rest sought on the whole conversion, not on one body's part of it
+                whole = track if own.whole is None else own.whole
+            ratio = check_tuning(cap, plan, whole, processor)
+            track.attrs.update({k: whole.attrs[k] for k in TUNING_ATTRS})
+            if ratio > UNCALIBRATED_RATIO and plan.options.dechirp:
+                track = calibrated_on_rest(cap, plan, whole, processor, choice, started, progress)
                 found, pick = [objects.SceneObject(1, bool(choice.moving), track, "the target: objects not "
                                                    "sought on a chirp calibrated on its rest")], 0
             track = with_objects(found, pick)
@@ -156,6 +162,9 @@ def choose_target(plan: Plan, track: Track, fixed: fixed_echoes.Fixed, beside: l
         raise CaptureError(plan.info.path, str(exc)) from None
 
 
+TUNING_ATTRS = ("tuning_peak_width_ratio", "tuning_matches", "uncalibrated_ratio")   # `check_tuning`'s
+
+
 def check_tuning(cap: Capture, plan: Plan, track: Track, processor: ChunkProcessor) -> float:
     """Record how much wider than the window's own the peaks of the stillest stretch
     are (`tuning_peak_width_ratio`, returned; `tuning_matches` is false beyond
@@ -163,9 +172,8 @@ def check_tuning(cap: Capture, plan: Plan, track: Track, processor: ChunkProcess
     calibration."""
     ratio = peak_width_ratio(cap, plan, stillest(track.time_s, track.velocity_mps),
                              track.time_s, track.velocity_mps, processor)
-    track.attrs["tuning_peak_width_ratio"] = ratio
-    track.attrs["tuning_matches"] = bool(not ratio > WIDTH_LIMIT)
-    track.attrs["uncalibrated_ratio"] = UNCALIBRATED_RATIO
+    track.attrs.update(dict(zip(TUNING_ATTRS, (ratio, bool(not ratio > WIDTH_LIMIT), UNCALIBRATED_RATIO),
+                                strict=True)))
     return ratio
 
 

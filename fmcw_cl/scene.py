@@ -39,6 +39,7 @@ class Converted:
     parts: list[ChunkMeasurements]
     track: Track
     joined: bool = False        # the track joins several bands' (`plan`, `parts`: one of them)
+    whole: Track | None = None  # the conversion's track, where `track` is one body's part of it
 
 
 @dataclass
@@ -92,7 +93,9 @@ def objects_of(cap: Capture, first: First, choice: target.Choice, own: Converted
     done = _unveiled(done, unseen, seconds, processor)
     done = _exclusive(done, unseen, first, seconds, processor)
     of = {id(d.track): d for d in done}
-    scene = _rejoined([objects.SceneObject(0, _moving(d), d.track, d.choice.note) for d in done])
+    scene, whole = _parted([objects.SceneObject(0, _moving(d), d.track, d.choice.note) for d in done])
+    of.update({part: of[id(track)] for part, track in whole.items()})
+    scene = _rejoined(scene)
     scene.sort(key=lambda o: (o.attrs()["first_seen_s"] if o.track.valid.any() else np.inf,
                               o.attrs()["distance_span_m"][0]))
     for k, o in enumerate(scene, 1):
@@ -106,7 +109,7 @@ def objects_of(cap: Capture, first: First, choice: target.Choice, own: Converted
     # a target joined of two conversions is re-converted by neither: its first's plan stands
     mine = scene[max(pick, 0)].track
     conv = of.get(id(mine)) or next((d for d in done if d.track.valid.any()), own)
-    return scene, pick, replace(conv, track=mine)
+    return scene, pick, replace(conv, track=mine, whole=whole.get(id(mine)))
 
 
 def _stands_for(own: Converted, c: objects.Candidate) -> bool:
@@ -291,6 +294,25 @@ def _exclusive(done: list[Converted], unseen: set[tuple[int, int]], first: First
             d = replace(d, choice=choice, track=again)
         out.append(d)
     return out
+
+
+def _parted(scene: list[objects.SceneObject]) -> tuple[list[objects.SceneObject], dict[int, Track]]:
+    """Each object whose verified pairs no one body can have made split into objects of
+    one body each (objects.bodies), each part's kind its own (objects.moves); parts
+    that one body can join again are joined by `_rejoined`. With the objects, the track
+    each part was cut from, by the id of the part's track."""
+    out, whole = [], {}
+    for o in scene:
+        parts = objects.bodies(o.track)
+        if len(parts) < 2:
+            out.append(o)
+            continue
+        for k, mask in enumerate(parts, 1):
+            track = objects.parted(o.track, mask)
+            whole[id(track)] = o.track
+            out.append(objects.SceneObject(0, objects.moves(track), track,
+                                           f"{o.note}; part {k} of {len(parts)}: no body moves between them"))
+    return out, whole
 
 
 def _rejoined(scene: list[objects.SceneObject]) -> list[objects.SceneObject]:

@@ -84,6 +84,28 @@ def test_parts_of_splits_two_echoes_held_at_once():
     assert objects.parts_of(_track(0.07 + 3.5 * t, np.full(n, 3.5), faded)) == []
 
 
+def test_bodies_cut_where_no_body_moves_between_runs():
+    """A wall's run at 0.200 m, then 0.15 ms later a foot's at 0.281 m: two bodies,
+    each its own track (the other's pairs DISCONTINUOUS). A body that lands during a
+    fade (5 m/s to rest within 2 ms) and one that keeps moving are one."""
+    n = 1000
+    d = np.where(np.arange(n) < 887, 0.1997, 0.2808)
+    valid = np.ones(n, bool)
+    valid[887:890] = False
+    track = _track(d, valid=valid)
+    parts = objects.bodies(track)
+    assert len(parts) == 2 and parts[0].sum() == 887 and parts[1].sum() == 110
+    wall = objects.parted(track, parts[0])
+    assert wall.valid.sum() == 887 and np.all(wall.reason[890:] == faults.DISCONTINUOUS)
+    assert track.valid.sum() == 997                    # the original is left as it was
+    t = PERIOD * (np.arange(n) + 0.5)
+    v = np.where(t < 0.02, -5.0, 0.0)
+    landing = np.where(t < 0.02, 0.2 - 5.0 * t, 0.1)
+    valid = (t < 0.019) | (t > 0.021)
+    assert len(objects.bodies(_track(landing, v, valid))) == 1
+    assert len(objects.bodies(_track(0.07 + 3.5 * t, np.full(n, 3.5), valid))) == 1
+
+
 def test_conflicts_mark_both_objects():
     """Two objects within GATE_M at one time are ambiguous on both, across short gaps
     of one of them too; further apart, neither."""

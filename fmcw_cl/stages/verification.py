@@ -150,13 +150,19 @@ def verify(t: np.ndarray, dist: np.ndarray, vel: np.ndarray, ok: np.ndarray, ops
 
 def _agrees(ta, da, va, tb, db, vb):
     """Whether pairs (ta, da, va) predict pairs (tb, db, vb) (s, m, m/s) as one body
-    whose acceleration stays within ACCEL_MAX: distance within JUMP_MAX_M + ACCEL_MAX
+    whose acceleration stays within ACCEL_MAX: `reachable`, and the velocity within
+    ACCEL_MAX |dt| + CONSISTENT_MPS. Symmetric in a and b."""
+    steady = np.abs(vb - va) <= ACCEL_MAX * np.abs(tb - ta) + CONSISTENT_MPS
+    return reachable(ta, da, va, tb, db, vb) & steady
+
+
+def reachable(ta, da, va, tb, db, vb):
+    """Whether one body whose acceleration stays within ACCEL_MAX moves from pairs (ta,
+    da, va) to pairs (tb, db, vb) (s, m, m/s): the distance within JUMP_MAX_M + ACCEL_MAX
     dt^2 / 8 of the trapezoid d_a + dt (v_a + v_b) / 2 (its error bound for any such
-    motion), velocity within ACCEL_MAX |dt| + CONSISTENT_MPS. Symmetric in a and b."""
+    motion). Symmetric in a and b."""
     dt = tb - ta
-    pred = da + dt * 0.5 * (va + vb)
-    return ((np.abs(db - pred) <= JUMP_MAX_M + ACCEL_MAX * dt * dt / 8)
-            & (np.abs(vb - va) <= ACCEL_MAX * np.abs(dt) + CONSISTENT_MPS))
+    return np.abs(db - da - dt * 0.5 * (va + vb)) <= JUMP_MAX_M + ACCEL_MAX * dt * dt / 8
 
 
 def _kinematic(t, dist, vel, ok, ops: SpectrumOps) -> bool:
