@@ -14,7 +14,6 @@ from __future__ import annotations
 import contextlib
 import time
 from collections.abc import Callable
-from dataclasses import replace
 
 import numpy as np
 
@@ -131,8 +130,7 @@ def with_objects(found: list[objects.SceneObject], pick: int) -> Track:
     the pairs of the one with the most verified pairs, every one `ambiguous`, id 0."""
     if pick < 0:        # no object moves: several fixed ones, none told to be the target
         base = max(found, key=lambda o: int(o.track.valid.sum()))
-        chosen_track = replace(base.track, attrs=dict(base.track.attrs))
-        objects.invalidate(chosen_track, chosen_track.valid.copy())
+        chosen_track = objects.invalidated(base.track, base.track.valid.copy())
         seen = ", ".join(f"{objects.where_m(o.track):.3f}" for o in found if o.track.valid.any())
         chosen_track.attrs["target_choice"] = (f"no object moves: the fixed objects at {seen} m cannot be "
                                                "told apart as the target")

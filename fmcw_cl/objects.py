@@ -197,11 +197,10 @@ def bodies(track: Track) -> list[np.ndarray]:
     return out
 
 
-def parted(track: Track, mask: np.ndarray) -> Track:
-    """A copy of `track` holding only the verified pairs `mask` (the others of another
-    body, `bodies`: DISCONTINUOUS)."""
+def invalidated(track: Track, where: np.ndarray, code: int = faults.AMBIGUOUS) -> Track:
+    """A copy of `track` with its valid pairs `where` invalid with `code` (`invalidate`)."""
     out = replace(track, attrs=dict(track.attrs))
-    invalidate(out, ~mask, faults.DISCONTINUOUS)
+    invalidate(out, where, code)
     return out
 
 

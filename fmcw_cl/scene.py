@@ -20,7 +20,7 @@ from .errors import FmcwError
 from .options import RANGE_GAP_M
 from .plan import Plan
 from .processor import ChunkMeasurements, ChunkProcessor
-from .stages import clutter
+from .stages import clutter, faults
 from .track import Track
 
 # a mover's side bands end this far from a fixed object inside its span, where rows without
@@ -283,9 +283,7 @@ def _exclusive(done: list[Converted], unseen: set[tuple[int, int]], first: First
     for d, c, g, m in zip(done, clash, ghost, image, strict=True):
         c = (c | g | m) & d.track.valid
         if c.any() and d.joined:            # several bands' track: its pairs taken as they stand
-            track = replace(d.track, attrs=dict(d.track.attrs))
-            objects.invalidate(track, c)
-            d = replace(d, track=track)
+            d = replace(d, track=objects.invalidated(d.track, c))
         elif c.any():
             choice = replace(d.choice, taken_s=np.sort(d.track.time_s[c]))
             again = _again(d, choice, processor, seconds)
@@ -308,7 +306,7 @@ def _parted(scene: list[objects.SceneObject]) -> tuple[list[objects.SceneObject]
             out.append(o)
             continue
         for k, mask in enumerate(parts, 1):
-            track = objects.parted(o.track, mask)
+            track = objects.invalidated(o.track, ~mask, faults.DISCONTINUOUS)    # another body's
             whole[id(track)] = o.track
             out.append(objects.SceneObject(0, objects.moves(track), track,
                                            f"{o.note}; part {k} of {len(parts)}: no body moves between them"))

@@ -95,7 +95,7 @@ def test_bodies_cut_where_no_body_moves_between_runs():
     track = _track(d, valid=valid)
     parts = objects.bodies(track)
     assert len(parts) == 2 and parts[0].sum() == 887 and parts[1].sum() == 110
-    wall = objects.parted(track, parts[0])
+    wall = objects.invalidated(track, ~parts[0], faults.DISCONTINUOUS)
     assert wall.valid.sum() == 887 and np.all(wall.reason[890:] == faults.DISCONTINUOUS)
     assert track.valid.sum() == 997                    # the original is left as it was
     t = PERIOD * (np.arange(n) + 0.5)
