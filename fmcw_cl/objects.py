@@ -78,6 +78,7 @@ class SceneObject:
     moving: bool
     track: Track
     note: str = ""
+    whole: Track | None = None      # the conversion's track, where `track` is one body's part of it
 
     @property
     def kind(self) -> str:

@@ -93,9 +93,7 @@ def objects_of(cap: Capture, first: First, choice: target.Choice, own: Converted
     done = _unveiled(done, unseen, seconds, processor)
     done = _exclusive(done, unseen, first, seconds, processor)
     of = {id(d.track): d for d in done}
-    scene, whole = _parted([objects.SceneObject(0, _moving(d), d.track, d.choice.note) for d in done])
-    of.update({part: of[id(track)] for part, track in whole.items()})
-    scene = _rejoined(scene)
+    scene = _rejoined(_parted([objects.SceneObject(0, _moving(d), d.track, d.choice.note) for d in done]))
     scene.sort(key=lambda o: (o.attrs()["first_seen_s"] if o.track.valid.any() else np.inf,
                               o.attrs()["distance_span_m"][0]))
     for k, o in enumerate(scene, 1):
@@ -107,9 +105,10 @@ def objects_of(cap: Capture, first: First, choice: target.Choice, own: Converted
     if pick < 0 and own.track.valid.any():     # the target's choice told one (6c): that one stands
         pick = max(range(len(scene)), key=lambda k: int(np.sum(scene[k].track.valid & own.track.valid)))
     # a target joined of two conversions is re-converted by neither: its first's plan stands
-    mine = scene[max(pick, 0)].track
-    conv = of.get(id(mine)) or next((d for d in done if d.track.valid.any()), own)
-    return scene, pick, replace(conv, track=mine, whole=whole.get(id(mine)))
+    mine = scene[max(pick, 0)]
+    origin = mine.track if mine.whole is None else mine.whole
+    conv = of.get(id(origin)) or next((d for d in done if d.track.valid.any()), own)
+    return scene, pick, replace(conv, track=mine.track, whole=mine.whole)
 
 
 def _stands_for(own: Converted, c: objects.Candidate) -> bool:
@@ -294,12 +293,12 @@ def _exclusive(done: list[Converted], unseen: set[tuple[int, int]], first: First
     return out
 
 
-def _parted(scene: list[objects.SceneObject]) -> tuple[list[objects.SceneObject], dict[int, Track]]:
+def _parted(scene: list[objects.SceneObject]) -> list[objects.SceneObject]:
     """Each object whose verified pairs no one body can have made split into objects of
-    one body each (objects.bodies), each part's kind its own (objects.moves); parts
-    that one body can join again are joined by `_rejoined`. With the objects, the track
-    each part was cut from, by the id of the part's track."""
-    out, whole = [], {}
+    one body each (objects.bodies), each part's kind its own (objects.moves), each
+    knowing the track it was cut from (`whole`); parts that one body can join again are
+    joined by `_rejoined`."""
+    out = []
     for o in scene:
         parts = objects.bodies(o.track)
         if len(parts) < 2:
@@ -307,16 +306,18 @@ def _parted(scene: list[objects.SceneObject]) -> tuple[list[objects.SceneObject]
             continue
         for k, mask in enumerate(parts, 1):
             track = objects.invalidated(o.track, ~mask, faults.DISCONTINUOUS)    # another body's
-            whole[id(track)] = o.track
             out.append(objects.SceneObject(0, objects.moves(track), track,
-                                           f"{o.note}; part {k} of {len(parts)}: no body moves between them"))
-    return out, whole
+                                           f"{o.note}; part {k} of {len(parts)}: no body moves between them",
+                                           o.track))
+    return out
 
 
 def _rejoined(scene: list[objects.SceneObject]) -> list[objects.SceneObject]:
     """The objects with those seen again joined (objects.returns): one object. Only
     objects of one kind: a fixed object that a mover crossed is not the mover after it
-    (a swaying cable that a rail passed, the rail beyond it)."""
+    (a swaying cable that a rail passed, the rail beyond it). Two parts of one track
+    joined again are still parts of it (`whole`): its tuning and its rest are that
+    conversion's."""
     while True:
         pair = next(((i, j) for i in range(len(scene)) for j in range(i + 1, len(scene))
                      if scene[i].moving == scene[j].moving
@@ -327,7 +328,8 @@ def _rejoined(scene: list[objects.SceneObject]) -> list[objects.SceneObject]:
         moved = a.moving or abs(np.nanmedian(a.track.distance_m)
                                 - np.nanmedian(b.track.distance_m)) > objects.GATE_M
         scene[pair[0]] = objects.SceneObject(0, moved, objects.joined(a.track, b.track),
-                                             f"{a.note}; seen again: {b.note}")
+                                             f"{a.note}; seen again: {b.note}",
+                                             a.whole if a.whole is not None and a.whole is b.whole else None)
 
 
 def _again(d: Converted, choice: target.Choice, processor: ChunkProcessor, seconds) -> Track:
