@@ -49,6 +49,7 @@ GATE_M = fixed_echoes.GATE_M   # two objects this close at one time cannot be to
 SAME_M = 5e-4            # two candidates' verified pairs this close ...
 SAME_SHARE = 0.8         # ... at this share of the pairs both hold: one echo
 RETURN_M = 0.04          # an object seen again within this of where it was last seen is the same one
+RUN_M = 3e-3             # a part of a mover that runs this far as its velocities say moves (`runs`)
 STILL_ATTR = "still_echoes_removed_s"   # a track's attribute: its rows' running mean's span (s; 0: none)
 MAX_OBJECTS = 8          # candidates converted at most (the nearest first)
 KINDS = ("fixed", "moving")
@@ -134,6 +135,20 @@ def moves(track: Track) -> bool:
     travelling fixed_echoes.MIN_TRAVEL_M (1st-99th percentile)."""
     fast = track.valid & (np.abs(track.velocity_mps) >= fixed_echoes.MOVING_MPS)
     return bool(fast.sum() >= 3 and _travel(track) >= fixed_echoes.MIN_TRAVEL_M)
+
+
+def runs(track: Track) -> bool:
+    """Whether a track's verified pairs run as their velocities say, however briefly (a
+    foot's 26 pairs at 4.8 m/s between a wall's run and its apex): some faster than
+    fixed_echoes.MOVING_MPS, and the first and last of them RUN_M or more apart, within
+    1 mm + 25 % of their velocities' integral (trapezoids; a wall's blend at a steady
+    biased velocity stays where it is)."""
+    ok = np.flatnonzero(track.valid)
+    if np.sum(np.abs(track.velocity_mps[ok]) >= fixed_echoes.MOVING_MPS) < 3:
+        return False
+    t, d, v = track.time_s[ok], track.distance_m[ok], track.velocity_mps[ok]
+    ran = float(np.sum(np.diff(t) * 0.5 * (v[1:] + v[:-1])))
+    return bool(abs(ran) >= RUN_M and abs(d[-1] - d[0] - ran) <= 1e-3 + 0.25 * abs(ran))
 
 
 def holds(track: Track, c: Candidate) -> float:

@@ -295,7 +295,8 @@ def _exclusive(done: list[Converted], unseen: set[tuple[int, int]], first: First
 
 def _parted(scene: list[objects.SceneObject]) -> list[objects.SceneObject]:
     """Each object whose verified pairs no one body can have made split into objects of
-    one body each (objects.bodies), each part's kind its own (objects.moves), each
+    one body each (objects.bodies), each part's kind its own (objects.moves; a mover's
+    part that runs as its velocities say, however briefly, moves: objects.runs), each
     knowing the track it was cut from (`whole`); parts that one body can join again are
     joined by `_rejoined`."""
     out = []
@@ -306,7 +307,8 @@ def _parted(scene: list[objects.SceneObject]) -> list[objects.SceneObject]:
             continue
         for k, mask in enumerate(parts, 1):
             track = objects.invalidated(o.track, ~mask, faults.DISCONTINUOUS)    # another body's
-            out.append(objects.SceneObject(0, objects.moves(track), track,
+            moving = objects.moves(track) or (o.moving and objects.runs(track))
+            out.append(objects.SceneObject(0, moving, track,
                                            f"{o.note}; part {k} of {len(parts)}: no body moves between them",
                                            o.track))
     return out
