@@ -249,9 +249,12 @@ def _pair_of_sweeps(t: Track) -> np.ndarray:
 
 def returns(a: Track, b: Track) -> bool:
     """Whether `b` is `a` seen again: never verified at one time, and the first of the
-    later one's verified pairs within RETURN_M of the last of the earlier one's, as they
-    lie or moved on by the trapezoid of their two velocities (a rail that crossed a
-    swaying cable 60 mm on)."""
+    later one's verified pairs within RETURN_M of the last of the earlier one's, moved on
+    by the trapezoid of their two velocities (a rail that crossed a swaying cable 60 mm
+    on) or, where one of the two is at rest (under fixed_echoes.MOVING_MPS: a foot that
+    landed or took off while hidden), as they lie. A mover that runs on at both ends is
+    not seen again behind where it ran (a foot at 7 m/s, then 8 ms later a run at 2.8 m/s
+    8 mm short of it: the foot's rising peak and a wall's image in the falling ones)."""
     if not a.valid.any() or not b.valid.any() or np.any(a.valid & b.valid):
         return False
     ia, ib = np.flatnonzero(a.valid), np.flatnonzero(b.valid)
@@ -261,8 +264,10 @@ def returns(a: Track, b: Track) -> bool:
         return False
     last, first = ia[-1], ib[0]
     moved = b.distance_m[first] - a.distance_m[last]
-    run = 0.5 * (a.velocity_mps[last] + b.velocity_mps[first]) * (b.time_s[first] - a.time_s[last])
-    return bool(min(abs(moved), abs(moved - run)) <= RETURN_M)
+    va, vb = a.velocity_mps[last], b.velocity_mps[first]
+    run = 0.5 * (va + vb) * (b.time_s[first] - a.time_s[last])
+    still = min(abs(va), abs(vb)) < fixed_echoes.MOVING_MPS
+    return bool(abs(moved - run) <= RETURN_M or (still and abs(moved) <= RETURN_M))
 
 
 def joined(a: Track, b: Track) -> Track:
