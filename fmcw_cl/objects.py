@@ -21,9 +21,9 @@ pairs are verified as the target's are. Then:
   told apart there: ``ambiguous`` on both, never given to the wrong one;
 - an object whose verified pairs pass where no body moves (`bodies`: between two
   consecutive ones, verification.reachable's bound) is one object per part;
-- an object last seen where another of its kind is first seen, within RETURN_M (as it
-  lay, or moved on at its velocities), the two never seen at once, is one object that
-  was hidden or faded (`returns`, `joined`);
+- an object last seen where another of its kind is first seen, within RETURN_M (moved
+  on at its velocities, or as it lay where one end is at rest), the two never seen at
+  once, is one object that was hidden or faded (`returns`, `joined`);
 - the target is the object the rule names (`choose`): `auto` takes a moving one before
   a fixed one, the one that travels furthest (a leg before a swaying cable); where no
   object moves and several hold verified pairs, nothing tells which is the target, and
