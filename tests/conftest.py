@@ -96,11 +96,10 @@ def jump_capture(capdir):
 
 @pytest.fixture(scope="session")
 def jump_track(capdir, jump_capture):
-    """The jump processed by the numpy backend, written as a track file."""
-    from fmcw_cl.engine import process as convert
+    """The jump converted as users convert it (`process`), written as a track file."""
     from fmcw_cl.track import track_path, write_track
 
-    return made_once(track_path(capdir, jump_capture), lambda p: write_track(p, convert(jump_capture)))
+    return made_once(track_path(capdir, jump_capture), lambda p: write_track(p, process(jump_capture)))
 
 
 def realistic(path, ground_m=0.07, seed=31, **cfg):

@@ -6,9 +6,9 @@ Seeds and distances are spread on purpose; nothing here is tuned to one draw.
 from __future__ import annotations
 
 import pytest
+from conftest import process
 
 from fmcw_cl.capture import Capture
-from fmcw_cl.engine import process
 from fmcw_cl.evaluate import accuracy
 from fmcw_cl.options import Options
 from fmcw_cl.simulator import rail, simulate_capture, static

@@ -180,13 +180,13 @@ def test_truncated_file(tmp_path, static_capture, fmcw):
 
 
 @pytest.mark.parametrize("backend", ["auto", "numpy"])
-def test_ctrl_c_stops_cleanly(tmp_path, jump_capture, backend):
+def test_ctrl_c_stops_cleanly(tmp_path, static_capture, backend):
     """Ctrl-C in the middle of a batch: exit 130 with one line, the tracks already
     finished are whole, and the interrupted one leaves nothing (not even a .part); also
     where two captures convert at once (numpy: batch.process_each's workers)."""
     from fmcw_cl.track import read_track
 
-    caps = [shutil.copy(jump_capture, tmp_path / f"cap{k}.h5") for k in range(8)]
+    caps = [shutil.copy(static_capture, tmp_path / f"cap{k}.h5") for k in range(8)]
     out = tmp_path / "out"
     proc = subprocess.Popen([sys.executable, "-m", "fmcw_cl.cli.main", "process", *map(str, caps),
                              "-o", str(out), "-q", "--backend", backend], stderr=subprocess.PIPE, text=True)

@@ -9,10 +9,10 @@ from dataclasses import replace
 import h5py
 import numpy as np
 import pytest
+from conftest import process
 from scipy.interpolate import CubicSpline
 
 from fmcw_cl import displacement, spectrum_ops
-from fmcw_cl.engine import process
 from fmcw_cl.simulator import LAB, SimulationConfig, creep, simulate_capture, static
 from fmcw_cl.stages import phase
 from fmcw_cl.stages.resample import window
