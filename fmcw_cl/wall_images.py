@@ -13,9 +13,13 @@ velocities 1.7 m/s off and consistent with them.
 
 A half-sweep's peak cannot be told from an image whose core (its half-power part) it
 lies in, where the image comes within IMAGE_MARGIN_DB of the peak's own level: the
-image's level there is the wall's level
-(fixed_echoes.fixed_echoes) plus the power of the de-chirped window at that offset, relative
-to an unsmeared tone's peak (`image_gain_db`).
+image's level there is the wall's level (fixed_echoes.fixed_echoes) less the power the
+de-chirped window loses at that offset, relative to an unsmeared tone's peak
+(`image_gain_db`). Levels are read as peaks are, over the floor: the tone's power plus the
+noise's, and the window's loss scales the tone's part alone (`image_level_db`). Summed in
+dB, a wall read at 7 dB under noise at full scale put its image 11.7 dB under at -4.7 dB,
+where the K = 32 integrated peak that was the image read 2.7 dB; what the image reads
+there is 1.0 dB.
 """
 
 from __future__ import annotations
@@ -60,6 +64,15 @@ def image_gain_db(beta: np.ndarray, velocity: np.ndarray, offset_m: np.ndarray, 
         return 10 * np.log10(at / own).reshape(offset_m.shape), 10 * np.log10(top / own)
 
 
+def image_level_db(level_db, gain_db):
+    """What an image reads (dB over the floor, as a peak reads: its power plus the
+    noise's) where a tone reads `level_db` and the de-chirped window keeps `gain_db` of
+    its power (`image_gain_db`): the window scales the tone's power, not the noise's."""
+    with np.errstate(invalid="ignore", over="ignore"):
+        tone = np.maximum(np.power(10.0, np.asarray(level_db) / 10) - 1, 0.0)
+        return 10 * np.log10(1 + tone * np.power(10.0, np.asarray(gain_db) / 10))
+
+
 def confused(velocity: np.ndarray, peaks_m: tuple, snr_db: tuple, walls_m: np.ndarray, walls_db: np.ndarray,
              model: DopplerModel, window: np.ndarray, rows: np.ndarray) -> np.ndarray:
     """Which pairs of `rows` (a boolean mask) have a half-sweep whose de-chirped peak
@@ -81,7 +94,7 @@ def confused(velocity: np.ndarray, peaks_m: tuple, snr_db: tuple, walls_m: np.nd
         if idx.size:                                 # one spectrum per velocity for all tones
             at, top = image_gain_db(beta, v[idx], offset[:, idx], window, model)
             core = at >= top - IMAGE_CORE_DB
-            strong = levels[:, None] + at >= snr[idx] - IMAGE_MARGIN_DB
+            strong = image_level_db(levels[:, None], at) >= snr[idx] - IMAGE_MARGIN_DB
             out[idx] |= (near[:, idx] & core & strong).any(axis=0)
     return out
 
@@ -108,6 +121,6 @@ def confused_moving(velocity: np.ndarray, peaks_m: tuple, snr_db: tuple, other_m
             if idx.size:
                 at, top = image_gain_db(beta, rel[idx], offset[None, idx], window, model)
                 core = at[0] >= top - IMAGE_CORE_DB
-                strong = other_db + at[0] >= snr[idx] - IMAGE_MARGIN_DB
+                strong = image_level_db(other_db, at[0]) >= snr[idx] - IMAGE_MARGIN_DB
                 out[idx] |= core & strong
     return out

@@ -97,3 +97,45 @@ def test_a_landing_never_follows_a_walls_image(tmp_path):
         assert np.sum(valid_errors(track, truth) > 2e-3) == 0, backend
         assert track.valid.mean() > 0.08, backend                 # the right pairs stand (10.1 %)
         assert "0.087" in track.attrs["target_choice"]            # the wall was left out
+
+
+def test_a_weak_walls_image_reads_its_power_and_the_noise(shaped):
+    """Levels are peaks read over the floor: a tone's power plus the noise's. A wall
+    read at 7 dB, its image 11.7 dB under, reads 1.0 dB where its top lies (a sum in
+    dB, -4.7 dB, missed the K = 32 integrated peak that was the image, at 2.7 dB:
+    benchmarks/hunt.py seed 24, capture 50); a strong wall's image reads as the sum."""
+    lut, win, model = shaped
+    assert wall_images.image_level_db(7.0, -11.7) == pytest.approx(1.04, abs=0.01)
+    assert wall_images.image_level_db(40.0, -11.7) == pytest.approx(28.3, abs=0.01)
+    assert wall_images.image_level_db(0.0, 0.0) == 0.0              # noise alone: no image
+    v = np.full(2, 3.04)
+    grid = WALL_M - v[0] * model.k_fall + np.arange(-0.05, 0.05, model.metres_per_bin)
+    gain, top = wall_images.image_gain_db(model.beta_fall, np.full(grid.size, v[0]), grid - WALL_M, win,
+                                          model)
+    at = grid[np.argmax(gain)]
+    got = wall_images.confused(v, (np.full(2, 0.3), np.full(2, at)), (np.full(2, 5.0), np.array([2.7, 8.0])),
+                               np.array([WALL_M]), np.array([7.0]), model, win, np.ones(2, bool))
+    assert got.tolist() == [True, False]
+
+
+@pytest.mark.parametrize("seed", [532, 533])
+def test_a_take_off_past_a_weak_wall_under_full_scale_noise_makes_no_phantom(tmp_path, seed):
+    """benchmarks/hunt.py seed 24, capture 50 (and the next seed of the simulator): a
+    take-off at 5 m/s towards a wall of 400 codes at 0.255 m, noise at full scale. Its
+    weak echoes integrated (K = 32), one pair's rising peak was the foot's and its falling
+    one the wall's image: 27 (22) valid pairs at 3.0 (1.6) m/s, 65 (49) mm short of the
+    foot, an object of their own. On OpenCL, the processor it was found on."""
+    from fmcw_cl.backend import make_processor
+    from fmcw_cl.capture import Capture
+    from fmcw_cl.engine import process
+    from fmcw_cl.evaluate import object_scores
+    from fmcw_cl.simulator import LAB, jump, simulate_capture
+
+    path = tmp_path / "take_off.h5"
+    lab = replace(LAB, reflectors=((0.25472898298392943, 400.0),), noise_codes=3000.0, headroom=None)
+    simulate_capture(path, jump(0.3), 0.05, seed=seed, config=lab, start_s=0.06)
+    track = process(path, processor=make_processor("opencl"))
+    with Capture(path) as cap:
+        scores = object_scores(track, cap.truth_objects())
+    assert sum(s["wrong"] for s in scores) == 0
+    assert {s["truth"] for s in scores if s["tracked"] > 0.2} == {0, 1}       # the foot and the wall
