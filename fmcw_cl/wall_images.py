@@ -33,7 +33,7 @@ import numpy as np
 
 from .stages.doppler import DopplerModel
 
-IMAGE_MARGIN_DB = 3.0   # a peak this far above an image at its place may still be the image: the
+IMAGE_MARGIN_DB = 3.0   # an echo this far above an image at its peak's place may still be the image: the
                         # levels are measured apart (CFAR tables, peak over the band's mean); on
                         # pairs that followed an image, its estimate lay 1.7 dB under to 6.2 over
 IMAGE_CORE_DB = 3.0     # ... where it lies in the image's core: in its tails the image is a slope, no
