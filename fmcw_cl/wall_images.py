@@ -78,6 +78,12 @@ def image_level_db(level_db, gain_db):
         return 10 * np.log10(1 + tone * np.power(10.0, np.asarray(gain_db) / 10))
 
 
+def _as_strong(level_db, gain_db, own_db: np.ndarray) -> np.ndarray:
+    """Whether an image (a tone read at `level_db`, the window keeping `gain_db` of its
+    power) comes within IMAGE_MARGIN_DB of the echo's own level `own_db` (dB)."""
+    return image_level_db(level_db, gain_db) >= own_db - IMAGE_MARGIN_DB
+
+
 def confused(velocity: np.ndarray, peaks_m: tuple, snr_db: tuple, walls_m: np.ndarray, walls_db: np.ndarray,
              model: DopplerModel, window: np.ndarray, rows: np.ndarray) -> np.ndarray:
     """Which pairs of `rows` (a boolean mask) have a half-sweep whose de-chirped peak
@@ -100,7 +106,7 @@ def confused(velocity: np.ndarray, peaks_m: tuple, snr_db: tuple, walls_m: np.nd
         if idx.size:                                 # one spectrum per velocity for all tones
             at, top = image_gain_db(beta, v[idx], offset[:, idx], window, model)
             core = at >= top - IMAGE_CORE_DB
-            strong = image_level_db(levels[:, None], at) >= own[idx] - IMAGE_MARGIN_DB
+            strong = _as_strong(levels[:, None], at, own[idx])
             out[idx] |= (near[:, idx] & core & strong).any(axis=0)
     return out
 
@@ -128,6 +134,6 @@ def confused_moving(velocity: np.ndarray, peaks_m: tuple, snr_db: tuple, other_m
             if idx.size:
                 at, top = image_gain_db(beta, rel[idx], offset[None, idx], window, model)
                 core = at[0] >= top - IMAGE_CORE_DB
-                strong = image_level_db(other_db, at[0]) >= own[idx] - IMAGE_MARGIN_DB
+                strong = _as_strong(other_db, at[0], own[idx])
                 out[idx] |= core & strong
     return out

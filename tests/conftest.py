@@ -27,6 +27,18 @@ def process(path, options=None, processor=None):
     return convert(path, options, processor or make_processor("auto"))
 
 
+def scene_of(track, path) -> list[dict]:
+    """evaluate.object_scores of `track`'s objects against every truth of the capture;
+    asserts that no object holds a valid pair off the truth it follows."""
+    from fmcw_cl.capture import Capture
+    from fmcw_cl.evaluate import object_scores
+
+    with Capture(path) as cap:
+        scores = object_scores(track, cap.truth_objects())
+    assert sum(s["wrong"] for s in scores) == 0, scores
+    return scores
+
+
 def run_cli(*args, check=True) -> subprocess.CompletedProcess:
     """`fmcw-cl ARGS` in a subprocess, as a user runs it; asserts success unless told."""
     proc = subprocess.run([sys.executable, "-m", "fmcw_cl.cli.main", *map(str, args)],

@@ -7,11 +7,11 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from conftest import process, realistic
+from conftest import process, realistic, scene_of
 
 from fmcw_cl import fixed_echoes, objects, swing
 from fmcw_cl.capture import Capture
-from fmcw_cl.evaluate import accuracy, object_scores, truth_at, valid_errors
+from fmcw_cl.evaluate import accuracy, truth_at, valid_errors
 from fmcw_cl.options import Options
 from fmcw_cl.simulator import SimulationConfig, simulate_capture, static
 from fmcw_cl.stages import faults
@@ -27,15 +27,6 @@ def scored(path, **opts):
 def wrong(track, truth, limit=2e-3) -> int:
     """Valid pairs more than `limit` m from the truth."""
     return int(np.sum(valid_errors(track, truth) > limit))
-
-
-def scene_of(track, path) -> list[dict]:
-    """evaluate.object_scores of `track`'s objects against every truth of the capture;
-    asserts that no object holds a valid pair off the truth it follows."""
-    with Capture(path) as cap:
-        scores = object_scores(track, cap.truth_objects())
-    assert sum(s["wrong"] for s in scores) == 0, scores
-    return scores
 
 
 def test_the_moving_target_is_tracked_past_a_stronger_wall(wall_capture, tmp_path, fmcw):

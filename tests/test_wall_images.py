@@ -6,6 +6,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from conftest import scene_of
 
 from fmcw_cl import wall_images
 from fmcw_cl.physics import C
@@ -129,18 +130,13 @@ def test_a_take_off_past_a_weak_wall_under_full_scale_noise_makes_no_phantom(tmp
     one the wall's image: 27 (22) valid pairs at 3.0 (1.6) m/s, 65 (49) mm short of the
     foot, an object of their own. On OpenCL, the processor it was found on."""
     from fmcw_cl.backend import make_processor
-    from fmcw_cl.capture import Capture
     from fmcw_cl.engine import process
-    from fmcw_cl.evaluate import object_scores
     from fmcw_cl.simulator import LAB, jump, simulate_capture
 
     path = tmp_path / "take_off.h5"
     lab = replace(LAB, reflectors=((0.25472898298392943, 400.0),), noise_codes=3000.0, headroom=None)
     simulate_capture(path, jump(0.3), 0.05, seed=seed, config=lab, start_s=0.06)
-    track = process(path, processor=make_processor("opencl"))
-    with Capture(path) as cap:
-        scores = object_scores(track, cap.truth_objects())
-    assert sum(s["wrong"] for s in scores) == 0
+    scores = scene_of(process(path, processor=make_processor("opencl")), path)
     assert {s["truth"] for s in scores if s["tracked"] > 0.2} == {0, 1}       # the foot and the wall
 
 
@@ -151,16 +147,11 @@ def test_a_weak_wall_beside_a_rail_holds_no_blend(tmp_path):
     rising peaks the image made, it passed as 3.5-5 dB under them: 34 of the wall's pairs
     stood, 0.6-2.0 mm off at 0.06 m/s. On OpenCL, the processor it was found on."""
     from fmcw_cl.backend import make_processor
-    from fmcw_cl.capture import Capture
     from fmcw_cl.engine import process
-    from fmcw_cl.evaluate import object_scores
     from fmcw_cl.simulator import LAB, rail, simulate_capture
 
     path = tmp_path / "rail.h5"
     lab = replace(LAB, reflectors=((0.05637574048233334, 150.0),))
     simulate_capture(path, rail(0.4), 0.05, seed=658, config=lab, start_s=0.05)
-    track = process(path, processor=make_processor("opencl"))
-    with Capture(path) as cap:
-        scores = object_scores(track, cap.truth_objects())
-    assert sum(s["wrong"] for s in scores) == 0, scores
+    scores = scene_of(process(path, processor=make_processor("opencl")), path)
     assert max(s["tracked"] for s in scores if s["truth"] == 0) > 0.3           # the rail (37 %)
