@@ -27,13 +27,12 @@ velocity
 from __future__ import annotations
 
 import functools
-import warnings
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
-from .numeric import runs, savgol_rows
+from .numeric import row_nanmedian, runs, savgol_rows
 from .stages import kinematics
 from .stages.resample import keys_weights
 
@@ -86,9 +85,7 @@ def run_median(x: np.ndarray, valid: np.ndarray, window: int = SCATTER_PAIRS) ->
     for a, b in runs(valid):
         pad = np.full(b - a + 2 * half, np.nan)
         pad[half:half + b - a] = x[a:b]
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)     # a window of NaN only
-            out[a:b] = np.nanmedian(sliding_window_view(pad, window), axis=1)
+        out[a:b] = row_nanmedian(sliding_window_view(pad, window))
     return out
 
 

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 
@@ -291,6 +293,39 @@ def test_small_array_medians_equal_numpys():
     a[rng.random(a.shape) < 0.4] = np.nan
     a[:, 0] = 1.0                                   # every row holds a number
     np.testing.assert_array_equal(row_nanmedian(a), np.nanmedian(a, axis=1))
+    a[::7] = np.nan                                 # and rows of NaN only: NaN, no warning
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        got = row_nanmedian(a)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        np.testing.assert_array_equal(got, np.nanmedian(a, axis=1))
+
+
+def test_run_medians_equal_numpys_nanmedian_over_each_runs_windows():
+    """uncertainty.run_median: per valid pair, np.nanmedian of the window of its own run
+    (the run's ends padded with NaN), NaN outside the runs and where a window holds no number."""
+    from numpy.lib.stride_tricks import sliding_window_view
+
+    from fmcw_cl.numeric import runs
+    from fmcw_cl.uncertainty import run_median
+
+    rng = np.random.default_rng(9)
+    x = rng.normal(size=3000)
+    x[rng.random(x.size) < 0.2] = np.nan
+    x[1000:1040] = np.nan                           # windows of NaN only
+    valid = rng.random(x.size) < 0.97
+    valid[2000:2300] = True
+    window = 33
+    want = np.full(x.size, np.nan)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        for a, b in runs(valid):
+            pad = np.r_[np.full(window // 2, np.nan), x[a:b], np.full(window // 2, np.nan)]
+            want[a:b] = np.nanmedian(sliding_window_view(pad, window), axis=1)
+    got = run_median(x, valid, window)
+    np.testing.assert_array_equal(got, want)
+    assert np.isnan(got[~valid]).all() and np.isnan(got[1016:1024]).all()
 
 
 def test_running_median_and_savgol_derivative_equal_scipys():
