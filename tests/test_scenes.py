@@ -659,6 +659,27 @@ def test_a_lab_capture_beside_walls_has_no_wrong_pair(tmp_path, kind, walls, spe
             assert track.valid.mean() > 0.1, backend
 
 
+def test_a_target_on_no_object_is_not_taken_for_a_wall(tmp_path):
+    """hunt seed 1, capture 59: a landing from 0.168 m to rest at 0.077 m between walls
+    of 800 codes at 0.220 and 0.280 m, the lab's SNR. The first conversion's choice
+    made both walls ambiguous and left the foot's rest verified; no object holds the
+    foot, and the fallback that picks the object the choice told took the one verified
+    at the most of the same instants: the wall at 0.280 m was /track, 999 valid pairs
+    150-210 mm off the foot. The object must verify the same echo (scene._same_echo):
+    none does, so /track is ambiguous, and each wall keeps its own pairs."""
+    from fmcw_cl.simulator import LAB, jump
+
+    path = tmp_path / "landing.h5"
+    walls = ((0.21978543385283106, 800.0), (0.28028206413563944, 800.0))
+    lab = replace(LAB, reflectors=walls, speckle_s=3e-3)
+    simulate_capture(path, jump(0.3), 0.05, seed=966, config=lab, start_s=0.18)
+    track = process(path)
+    with Capture(path) as cap:
+        assert wrong(track, cap.truth()) == 0, track.attrs["target_choice"]
+    scores = scene_of(track, path)
+    assert sum(s["tracked"] > 0.5 for s in scores) >= 2, scores
+
+
 def test_speckle_fades_are_flagged_never_wrong(tmp_path):
     path = realistic(tmp_path / "speckle.h5", seed=32, speckle_s=3e-3)
     acc, track = scored(path)
