@@ -198,8 +198,8 @@ def calibrated_on_rest(cap: Capture, plan: Plan, track: Track, processor: ChunkP
     if own is None:
         return uncalibrated(track, attrs)
     # the delay refined again on the calibrated chirp: the table's misfit inflates the
-    # uncertainty of the delay found with it (the 0.3 s jump under 5 us of lag: 4.0 ->
-    # 0.17 samples, the delay moved by 0.24)
+    # uncertainty of the delay found with it (the 0.3 s jump under 5 us of lag, seeds 0
+    # and 165: +-20.9 and +-24.1 samples on the table, +-0.05 and +-0.12 on the chirp)
     own = refine_lag(cap, own, processor)
     before = track.attrs["tuning_peak_width_ratio"]
     parts = capture_parts(cap, own, processor, progress=progress)

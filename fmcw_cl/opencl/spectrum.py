@@ -77,7 +77,8 @@ def uses_lanes(rt: Runtime, nfft: int) -> bool:
 
 def fits(rt: Runtime, nfft: int) -> bool:
     """Whether an nfft-point transform fits in the device's local memory (a GPU's 48 KB
-    holds 4096 points, 46 KB; 8192, the range check at --points 2048, needs 88 KB)."""
+    holds 4096 points, 43.5 KiB at 128 work-items; 8192, the range check at --points
+    2048, needs 85.5 KiB: `local_bytes`)."""
     return uses_lanes(rt, nfft) or local_bytes(rt, nfft) <= rt.device.local_mem_size
 
 
