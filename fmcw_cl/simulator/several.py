@@ -41,6 +41,25 @@ def _rail_through_sway() -> Scene:
     return Scene(rail(0.2), 0.0, 0.2, replace(LAB_SCENE, movers=(swaying,)))
 
 
+def _two_sways_crossing() -> Scene:
+    # two objects swaying over overlapping spans (0.15-0.25 and 0.17-0.27 m, 4 and 3 Hz):
+    # their ranges cross a few times a period, within a millimetre at some crossings
+    other = Mover(sway(0.3, 0.22, 0.05, 3.0, 1.0), 400.0)
+    return Scene(sway(0.3, 0.20, 0.05, 4.0), 0.0, 0.3, replace(LAB_SCENE, movers=(other,)))
+
+
+def _hand_through_jump() -> Scene:
+    # a hand moved down from 0.32 to 0.05 m (50-250 ms) through the jumping foot's path
+    hand = Mover(glide(0.3, 0.32, 0.05, 0.05, 0.25), 600.0)
+    return Scene(jump(0.3), 0.0, 0.3, replace(LAB_SCENE, movers=(hand,)))
+
+
+def _rail_against_glide() -> Scene:
+    # the rail's start (0.06 -> 0.38 m) and an object moved the other way (0.36 -> 0.08 m)
+    towards = Mover(glide(0.25, 0.36, 0.08, 0.05, 0.20), 800.0)
+    return Scene(rail(0.25), 0.0, 0.25, replace(LAB_SCENE, movers=(towards,)))
+
+
 def _hand_over_rest() -> Scene:
     # a target at rest at 0.30 m; a hand moves in the beam (0.20 -> 0.17 m) for 30 ms
     hand = Mover(glide(0.1, 0.20, 0.17, 0.03, 0.06), 1000.0, ((0.0, 0.03), (0.06, 0.1)))
@@ -82,6 +101,9 @@ SCENES = {
     "jump + sway 6 dB weaker": lambda: _jump_and_sway(250.0),
     "jump + sway 6 dB stronger": lambda: _jump_and_sway(1000.0),
     "rail crossing a sway": _rail_through_sway,
+    "two sways crossing": _two_sways_crossing,
+    "hand down through a jump": _hand_through_jump,
+    "rail against a glide": _rail_against_glide,
     "hand over a target at rest": _hand_over_rest,
     "occlusion, same place": lambda: _occlusion(0.0),
     "occlusion, 30 mm further": lambda: _occlusion(0.03),
