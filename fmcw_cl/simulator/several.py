@@ -11,6 +11,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
+import numpy as np
+
 from .scene import Trajectory, glide, jump, rail, static, sway
 from .writer import Mover, SimulationConfig, simulate_capture
 
@@ -52,6 +54,18 @@ def _hand_through_jump() -> Scene:
     # a hand moved down from 0.32 to 0.05 m (50-250 ms) through the jumping foot's path
     hand = Mover(glide(0.3, 0.32, 0.05, 0.05, 0.25), 600.0)
     return Scene(jump(0.3), 0.0, 0.3, replace(LAB_SCENE, movers=(hand,)))
+
+
+def _two_legs() -> Scene:
+    # a second leg: the same jump 40 ms ahead, 1 dB stronger; the feet's ranges cross
+    # as one lifts while the other lands
+    ahead = jump(0.34)
+
+    def at(t, k):
+        return ahead.at(np.asarray(t) + 0.04)[k]
+
+    leg = Trajectory.from_velocity(0.0, 0.3, lambda t: at(t, 1), lambda t: at(t, 2), float(ahead.at(0.04)[0]))
+    return Scene(jump(0.3), 0.0, 0.3, replace(LAB_SCENE, movers=(Mover(leg, 560.0),)))
 
 
 def _rail_against_glide() -> Scene:
@@ -104,6 +118,7 @@ SCENES = {
     "two sways crossing": _two_sways_crossing,
     "hand down through a jump": _hand_through_jump,
     "rail against a glide": _rail_against_glide,
+    "two legs, 40 ms apart": _two_legs,
     "hand over a target at rest": _hand_over_rest,
     "occlusion, same place": lambda: _occlusion(0.0),
     "occlusion, 30 mm further": lambda: _occlusion(0.03),
