@@ -75,9 +75,13 @@ def objects_of(cap: Capture, first: First, choice: target.Choice, own: Converted
     for _ in range(2):                   # once more where a tracker still held two echoes
         cands = objects.candidates(first.fixed, sorted(spans + extra), choice, band)
         if len(cands) <= 1 and not extra and not two:
-            track = _one_body(own.track, bool(choice.moving))
-            note = "the target: no other echo" if track is own.track else track.attrs["target_choice"]
-            return [objects.SceneObject(1, bool(choice.moving), track, note)], 0, replace(own, track=track)
+            moving = bool(choice.moving)
+            track = _one_body(own.track, moving)
+            if track is own.track:
+                return [objects.SceneObject(1, moving, track, "the target: no other echo")], 0, own
+            # its tuning and its rest are still the conversion's (engine: `whole`)
+            alone = objects.SceneObject(1, moving, track, track.attrs["target_choice"], own.track)
+            return [alone], 0, replace(own, track=track, whole=own.track)
         # the target's conversion stands for the candidate it holds, unless it held two echoes
         share = [objects.holds(own.track, c) for c in cands]
         held = int(np.argmax(share)) if share and max(share) >= 0.5 and not two else None

@@ -212,6 +212,21 @@ def test_a_lab_jump_far_from_its_table_finds_its_rest_in_sparse_pairs(tmp_path, 
     assert acc["valid_share"] >= 0.99 and acc["distance_max_m"] <= 0.5e-3
 
 
+def test_a_rest_calibration_reads_the_whole_conversion_of_one_candidate(tmp_path):
+    """The jump under 5 us of lag, seed 162: with the static table its bent distances
+    pass from one body to another where no body moves, so the scene's one candidate is
+    two bodies and its pairs `ambiguous` (scene._one_body). The tuning check and the
+    rest calibration still read the whole conversion: calibrated, every pair is valid
+    (read on the ambiguous copy, no rest was found and none was valid)."""
+    path = tmp_path / "lag5_162.h5"
+    fmcw_cl.simulate(path, "jump", duration=0.3, seed=162, thermal_lag_us=5.0)
+    track = process(path)
+    with Capture(path) as cap:
+        acc = accuracy(track, cap.truth())
+    assert track.attrs["rest_calibration"] == "made"
+    assert acc["valid_share"] >= 0.99 and acc["distance_max_m"] <= 0.5e-3
+
+
 def test_a_chirp_far_from_its_table_without_motion_leaves_no_valid_pair(tmp_path, fmcw):
     """A still target under 5 us of lag: a rest to calibrate on, but no motion to set the
     chirp's scale. None of its centimetre-biased distances may be valid: they are marked
