@@ -76,7 +76,9 @@ def objects_of(cap: Capture, first: First, choice: target.Choice, own: Converted
         cands = objects.candidates(first.fixed, sorted(spans + extra), choice, band)
         if len(cands) <= 1 and not extra and not two:
             moving = bool(choice.moving)
-            track = _one_body(own.track, moving)
+            # without the de-chirp (the paper's method) a mover's peaks smear over centimetres
+            # and pass between bodies within one: the test is the de-chirped tracker's
+            track = _one_body(own.track, moving) if options.dechirp else own.track
             if track is own.track:
                 return [objects.SceneObject(1, moving, track, "the target: no other echo")], 0, own
             # its tuning and its rest are still the conversion's (engine: `whole`)
