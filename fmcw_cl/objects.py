@@ -20,10 +20,13 @@ pairs are verified as the target's are. Then:
   another's harmonic or de-chirped image (fmcw_cl.crossings), their echoes cannot be
   told apart there: ``ambiguous`` on both, never given to the wrong one;
 - an object whose verified pairs pass where no body moves (`bodies`: between two
-  consecutive ones, verification.reachable's bound) is one object per part;
+  consecutive ones, verification.reachable's bound) is one object per part; so is a
+  mover lost while another was, where either could have come back as the other (a
+  crossing: fmcw_cl.identities);
 - an object last seen where another of its kind is first seen, within RETURN_M (moved
   on at its velocities, or as it lay where one end is at rest), the two never seen at
-  once, is one object that was hidden or faded (`returns`, `joined`);
+  once, is one object that was hidden or faded (`returns`, `joined`); among several
+  movers, only where their motions tell that join from every other (identities.contested);
 - the target is the object the rule names (`choose`): `auto` takes a moving one before
   a fixed one, the one that travels furthest (a leg before a swaying cable); where no
   object moves and several hold verified pairs, nothing tells which is the target, and

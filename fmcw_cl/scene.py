@@ -12,7 +12,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from . import crossings, fixed_echoes, objects, target
+from . import crossings, fixed_echoes, identities, objects, target
 from .assemble import assemble
 from .capture import Capture
 from .chunks import capture_parts
@@ -20,7 +20,7 @@ from .errors import FmcwError
 from .options import RANGE_GAP_M
 from .plan import Plan
 from .processor import ChunkMeasurements, ChunkProcessor
-from .stages import clutter, faults
+from .stages import clutter
 from .track import Track
 
 # a mover's side bands end this far from a fixed object inside its span, where rows without
@@ -102,7 +102,9 @@ def objects_of(cap: Capture, first: First, choice: target.Choice, own: Converted
     done = _unveiled(done, unseen, seconds, processor)
     done = _exclusive(done, unseen, first, seconds, processor)
     of = {id(d.track): d for d in done}
-    scene = _rejoined(_parted([objects.SceneObject(0, _moving(d), d.track, d.choice.note) for d in done]))
+    found = [objects.SceneObject(0, _moving(d), d.track, d.choice.note) for d in done]
+    several = sum(o.moving and o.track.valid.any() for o in found) >= 2
+    scene = identities.restored(identities.rejoined(identities.parted(found, several), several), found)
     scene.sort(key=lambda o: (o.attrs()["first_seen_s"] if o.track.valid.any() else np.inf,
                               o.attrs()["distance_span_m"][0]))
     for k, o in enumerate(scene, 1):
@@ -123,12 +125,12 @@ def objects_of(cap: Capture, first: First, choice: target.Choice, own: Converted
 
 def _one_body(track: Track, moving: bool) -> Track:
     """`track`, the one object of its scene, where one body can have made its verified
-    pairs; else (they make BODY_PAIRS or more of two bodies or more, `_parted` and
-    `_rejoined`: two movers whose spans overlap in range, the tracker passing from one
+    pairs; else (they make BODY_PAIRS or more of two bodies or more, identities.parted
+    and .rejoined: two movers whose spans overlap in range, the tracker passing from one
     to the other where they come near) a copy with all of them `ambiguous`. Two sways
     crossing in one span, one object: 1167 valid pairs on the other sway; a hand moved
     down through a jump's path: 2109."""
-    parts = _rejoined(_parted([objects.SceneObject(1, moving, track, "")]))
+    parts = identities.rejoined(identities.parted([objects.SceneObject(1, moving, track, "")]))
     if sum(int(p.track.valid.sum()) >= BODY_PAIRS for p in parts) < 2:
         return track
     out = objects.invalidated(track, track.valid.copy())
@@ -326,47 +328,6 @@ def _exclusive(done: list[Converted], unseen: set[tuple[int, int]], first: First
             d = replace(d, choice=choice, track=again)
         out.append(d)
     return out
-
-
-def _parted(scene: list[objects.SceneObject]) -> list[objects.SceneObject]:
-    """Each object whose verified pairs no one body can have made split into objects of
-    one body each (objects.bodies), each part's kind its own (objects.moves; a mover's
-    part that runs as its velocities say, however briefly, moves: objects.runs), each
-    knowing the track it was cut from (`whole`); parts that one body can join again are
-    joined by `_rejoined`."""
-    out = []
-    for o in scene:
-        parts = objects.bodies(o.track)
-        if len(parts) < 2:
-            out.append(o)
-            continue
-        for k, mask in enumerate(parts, 1):
-            track = objects.invalidated(o.track, ~mask, faults.DISCONTINUOUS)    # another body's
-            moving = objects.moves(track) or (o.moving and objects.runs(track))
-            out.append(objects.SceneObject(0, moving, track,
-                                           f"{o.note}; part {k} of {len(parts)}: no body moves between them",
-                                           o.track))
-    return out
-
-
-def _rejoined(scene: list[objects.SceneObject]) -> list[objects.SceneObject]:
-    """The objects with those seen again joined (objects.returns): one object. Only
-    objects of one kind: a fixed object that a mover crossed is not the mover after it
-    (a swaying cable that a rail passed, the rail beyond it). Two parts of one track
-    joined again are still parts of it (`whole`): its tuning and its rest are that
-    conversion's."""
-    while True:
-        pair = next(((i, j) for i in range(len(scene)) for j in range(i + 1, len(scene))
-                     if scene[i].moving == scene[j].moving
-                     and objects.returns(scene[i].track, scene[j].track)), None)
-        if pair is None:
-            return scene
-        a, b = scene[pair[0]], scene.pop(pair[1])
-        moved = a.moving or abs(np.nanmedian(a.track.distance_m)
-                                - np.nanmedian(b.track.distance_m)) > objects.GATE_M
-        scene[pair[0]] = objects.SceneObject(0, moved, objects.joined(a.track, b.track),
-                                             f"{a.note}; seen again: {b.note}",
-                                             a.whole if a.whole is not None and a.whole is b.whole else None)
 
 
 def _again(d: Converted, choice: target.Choice, processor: ChunkProcessor, seconds) -> Track:

@@ -1,0 +1,210 @@
+"""Which body is which: objects cut where no one body can have made their pairs, and
+parts joined again where one body's motion makes them, and no other's does alike.
+
+A conversion's tracker follows the echo of its band; where two movers cross, or pass
+near each other while both are lost, it can come back on the other one (a rail and an
+object moved the other way: each band's tracker held the other mover after the
+crossing, 2016 and 1708 valid pairs on the wrong object). Distances alike, the bodies'
+motions are not: a rail at +1.9 m/s continues at +2.5 m/s, not at -2.9 m/s. So:
+
+- `parted`: each object cut where consecutive verified pairs cannot be one body's
+  (objects.bodies), and, where two movers are both lost at once and either could have
+  come back as the other (`could_join`), at that gap (`crossing_cuts`);
+- `rejoined`: parts seen again joined (objects.returns). Among several movers a join is
+  made only where it is the one the motions tell (`contested`: no part seen between
+  them could join either, and none seen from the first's start to the second's end
+  joins either within RATIO times their `_cost` plus FLOOR), a moving join only where a
+  body can move so (verification.reachable), the cheapest first; else the parts stay
+  objects of their own (fewer periods tracked, none on the wrong object). Parts of one
+  object cut at crossings alone that are all joined again are that object as it was.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import fixed_echoes, objects
+from .objects import SceneObject
+from .stages import faults
+from .stages.verification import reachable
+
+RATIO = 3.0           # a join is the motion's where every other costs this many times its `_cost` ...
+FLOOR = 1.0           # ... plus this (m/s^1.5: 30 m/s^2 over 1 ms); two legs near their apexes: 49 and 38
+VELOCITY_NOISE = 0.05     # m/s and m of a pair's velocity and distance not counted as acceleration
+DISTANCE_NOISE = 5e-4     # (a lab's SNR; de-chirped peaks)
+
+
+def least_acceleration(ta, da, va, tb, db, vb):
+    """The least acceleration (m/s^2) one body needs to be at pairs (ta, da, va) and
+    then (tb, db, vb) (s, m, m/s): its velocity's change over the time between, and the
+    trapezoid's miss (any motion within A misses it by at most A dt^2 / 8), each less
+    VELOCITY_NOISE and DISTANCE_NOISE."""
+    dt = np.maximum(np.abs(tb - ta), 1e-9)
+    dv = np.maximum(np.abs(vb - va) - VELOCITY_NOISE, 0.0)
+    miss = np.maximum(np.abs(db - da - 0.5 * (va + vb) * (tb - ta)) - DISTANCE_NOISE, 0.0)
+    return np.maximum(dv / dt, 8.0 * miss / (dt * dt))
+
+
+def could_join(ta, da, va, tb, db, vb) -> np.ndarray:
+    """Whether a part ending at (ta, da, va) and one starting at (tb, db, vb) could be
+    one body seen again (objects.returns' rule on the two pairs)."""
+    moved = db - da
+    run = 0.5 * (va + vb) * (tb - ta)
+    still = np.minimum(np.abs(va), np.abs(vb)) < fixed_echoes.MOVING_MPS
+    return (np.abs(moved - run) <= objects.RETURN_M) | (still & (np.abs(moved) <= objects.RETURN_M))
+
+
+def _gaps(track) -> tuple[np.ndarray, np.ndarray]:
+    """The indices of the verified pairs before and after each gap of `track` (one
+    pair or more unverified between them)."""
+    ok = np.flatnonzero(track.valid)
+    gap = np.flatnonzero(np.diff(ok) > 1)
+    return ok[gap], ok[gap + 1]
+
+
+def crossing_cuts(scene: list[SceneObject]) -> list[np.ndarray]:
+    """For each object, the times (s) at which to cut it: the middles of its gaps that
+    overlap a gap of another mover (both lost at once) where either could have come
+    back as the other (`could_join` across the two gaps). None for a fixed object."""
+    cuts = [[] for _ in scene]
+    movers = [k for k, o in enumerate(scene) if o.moving and o.track.valid.any()]
+    for x, i in enumerate(movers):
+        for j in movers[x + 1:]:
+            a, b = scene[i].track, scene[j].track
+            a0, a1 = _gaps(a)
+            b0, b1 = _gaps(b)
+            if not a0.size or not b0.size:
+                continue
+            ta0, ta1, tb0, tb1 = a.time_s[a0], a.time_s[a1], b.time_s[b0], b.time_s[b1]
+            lo = np.searchsorted(tb1, ta0, side="right")     # b's first gap ending after a's starts
+            hi = np.searchsorted(tb0, ta1, side="left")      # ... and past the last starting before a's ends
+            ga = np.repeat(np.arange(a0.size), np.maximum(hi - lo, 0))
+            if not ga.size:
+                continue
+            gb = np.concatenate([np.arange(p, q) for p, q in zip(lo, hi, strict=True) if q > p])
+            pa, na, pb, nb = a0[ga], a1[ga], b0[gb], b1[gb]
+            swap = (could_join(a.time_s[pa], a.distance_m[pa], a.velocity_mps[pa],
+                               b.time_s[nb], b.distance_m[nb], b.velocity_mps[nb])
+                    | could_join(b.time_s[pb], b.distance_m[pb], b.velocity_mps[pb],
+                                 a.time_s[na], a.distance_m[na], a.velocity_mps[na]))
+            cuts[i] += list(0.5 * (ta0[ga] + ta1[ga])[swap])
+            cuts[j] += list(0.5 * (tb0[gb] + tb1[gb])[swap])
+    return [np.unique(c) for c in cuts]
+
+
+def parted(scene: list[SceneObject], crossings: bool = False) -> list[SceneObject]:
+    """Each object whose verified pairs no one body can have made split into objects of
+    one body each (objects.bodies), and with `crossings`, at its `crossing_cuts`; each
+    part's kind its own (objects.moves; a mover's part that runs as its velocities say,
+    however briefly, moves: objects.runs), each knowing the track it was cut from
+    (`whole`); parts that one body can join again are joined by `rejoined`."""
+    cuts = crossing_cuts(scene) if crossings else [np.zeros(0)] * len(scene)
+    out = []
+    for o, cut in zip(scene, cuts, strict=True):
+        parts = objects.bodies(o.track)
+        if cut.size:
+            k = np.searchsorted(cut, o.track.time_s)        # the crossing span each pair lies in
+            parts = [p & (k == s) for p in parts for s in np.unique(k[p])]
+        if len(parts) < 2:
+            out.append(o)
+            continue
+        for k, mask in enumerate(parts, 1):
+            track = objects.invalidated(o.track, ~mask, faults.DISCONTINUOUS)    # another body's
+            moving = objects.moves(track) or (o.moving and objects.runs(track))
+            out.append(SceneObject(0, moving, track,
+                                   f"{o.note}; part {k} of {len(parts)}: no body moves between them",
+                                   o.track))
+    return out
+
+
+def rejoined(scene: list[SceneObject], contests: bool = False) -> list[SceneObject]:
+    """The objects with those seen again joined (objects.returns): one object. Only
+    objects of one kind: a fixed object that a mover crossed is not the mover after it
+    (a swaying cable that a rail passed, the rail beyond it). Two parts of one track
+    joined again are still parts of it (`whole`): its tuning and its rest are that
+    conversion's. With `contests` (several movers), the least acceleration's join first,
+    and only where not `contested` and, between two moving ends, reachable."""
+    while True:
+        pairs = [(i, j) for i in range(len(scene)) for j in range(i + 1, len(scene))
+                 if scene[i].moving == scene[j].moving and objects.returns(scene[i].track, scene[j].track)]
+        if contests:
+            cost = {p: _cost(scene[p[0]].track, scene[p[1]].track) for p in pairs}
+            pairs = [p for p in sorted(pairs, key=cost.get) if np.isfinite(cost[p])
+                     and not contested(scene, *p, cost[p])]
+        if not pairs:
+            return scene
+        i, j = pairs[0]
+        a, b = scene[i], scene.pop(j)
+        moved = a.moving or abs(np.nanmedian(a.track.distance_m)
+                                - np.nanmedian(b.track.distance_m)) > objects.GATE_M
+        scene[i] = SceneObject(0, moved, objects.joined(a.track, b.track), f"{a.note}; seen again: {b.note}",
+                               a.whole if a.whole is not None and a.whole is b.whole else None)
+
+
+def contested(scene: list[SceneObject], i: int, j: int, cost: float) -> bool:
+    """Whether another part could be the one seen instead: one seen wholly between
+    parts i and j that could join either (it comes first: a leg lost for 88 ms, seen
+    again 9 ms on, then the other leg's landing 8 mm off its course), or one seen from
+    part i's first verified pair to part j's last that could join either within RATIO *
+    `cost` + FLOOR (`_cost`: its motion tells as much as theirs, two legs near their
+    apexes)."""
+    bar = RATIO * cost + FLOOR
+    span = _span(scene[i].track, scene[j].track)
+    gap = _gap(scene[i].track, scene[j].track)
+    for k, o in enumerate(scene):
+        if k in (i, j) or o.moving != scene[i].moving or not _seen(o.track, *span):
+            continue
+        inside = _within(o.track, *gap)
+        if any(objects.returns(o.track, scene[m].track) and (inside or _cost(o.track, scene[m].track) <= bar)
+               for m in (i, j)):
+            return True
+    return False
+
+
+def _span(a, b) -> tuple[float, float]:
+    """The times (s) from the first of two parts' verified pairs to the last."""
+    t = np.concatenate([a.time_s[a.valid], b.time_s[b.valid]])
+    return float(t.min()), float(t.max())
+
+
+def _seen(track, t0: float, t1: float) -> bool:
+    """Whether `track` holds a verified pair from t0 to t1 (s)."""
+    t = track.time_s[track.valid]
+    return bool(np.any((t >= t0) & (t <= t1)))
+
+
+def _gap(a, b) -> tuple[float, float]:
+    """The times (s) of the earlier part's last verified pair and the later one's first."""
+    ta, tb = a.time_s[a.valid], b.time_s[b.valid]
+    return (float(ta[-1]), float(tb[0])) if ta[0] <= tb[0] else (float(tb[-1]), float(ta[0]))
+
+
+def _within(track, t0: float, t1: float) -> bool:
+    """Whether all of `track`'s verified pairs lie between t0 and t1 (s)."""
+    t = track.time_s[track.valid]
+    return bool(t.size and t[0] > t0 and t[-1] < t1)
+
+
+def _cost(a, b) -> float:
+    """How unlikely one body makes the earlier part's last verified pair and the later
+    one's first: the least acceleration between them times the root of the time between
+    (m/s^1.5; a white-noise acceleration's chi: 0.5 ms of a leg at 100 m/s^2 is likelier
+    than 12.6 ms at 148); inf where both move there and no body moves so (reachable)."""
+    ia, ib = np.flatnonzero(a.valid), np.flatnonzero(b.valid)
+    if ib[-1] < ia[0]:
+        a, b, ia, ib = b, a, ib, ia
+    p, q = ia[-1], ib[0]
+    ends = (a.time_s[p], a.distance_m[p], a.velocity_mps[p], b.time_s[q], b.distance_m[q], b.velocity_mps[q])
+    moving = min(abs(ends[2]), abs(ends[5])) >= fixed_echoes.MOVING_MPS
+    if moving and not reachable(*ends):
+        return float("inf")
+    return float(least_acceleration(*ends) * np.sqrt(abs(ends[3] - ends[0])))
+
+
+def restored(parts: list[SceneObject], scene: list[SceneObject]) -> list[SceneObject]:
+    """`parts` with each object of `scene` that crossings alone cut (objects.bodies keeps
+    it one) and that is whole again (the same verified pairs) as it was: its pairs, its
+    displacement (a joined track keeps one part's) and its note."""
+    was = {id(o.track): o for o in scene if len(objects.bodies(o.track)) == 1}
+    return [was[id(p.whole)] if p.whole is not None and id(p.whole) in was
+            and np.array_equal(p.track.valid, p.whole.valid) else p for p in parts]
