@@ -13,8 +13,8 @@ motions are not: a rail at +1.9 m/s continues at +2.5 m/s, not at -2.9 m/s. So:
 - `rejoined`: parts seen again joined (objects.returns). Among several movers a join is
   made only where it is the one the motions tell (`contested`: no part seen between
   them could join either, and none seen from the first's start to the second's end
-  joins either within RATIO times their `_cost` plus FLOOR), a moving join only where a
-  body can move so (verification.reachable), the cheapest first; else the parts stay
+  joins either within RATIO times their `_cost` plus FLOOR), and only where a body
+  can move so (verification.reachable's bounds), the cheapest first; else the parts stay
   objects of their own (fewer periods tracked, none on the wrong object). Parts of one
   object cut at crossings alone that are all joined again are that object as it was.
 """
@@ -26,7 +26,7 @@ import numpy as np
 from . import fixed_echoes, objects
 from .objects import SceneObject
 from .stages import faults
-from .stages.verification import reachable
+from .stages.verification import ACCEL_MAX, JUMP_MAX_M, reachable
 
 RATIO = 3.0           # a join is the motion's where every other costs this many times its `_cost` ...
 FLOOR = 1.0           # ... plus this (m/s^1.5: 30 m/s^2 over 1 ms); two legs near their apexes: 49 and 38
@@ -189,16 +189,24 @@ def _cost(a, b) -> float:
     """How unlikely one body makes the earlier part's last verified pair and the later
     one's first: the least acceleration between them times the root of the time between
     (m/s^1.5; a white-noise acceleration's chi: 0.5 ms of a leg at 100 m/s^2 is likelier
-    than 12.6 ms at 148); inf where both move there and no body moves so (reachable)."""
+    than 12.6 ms at 148); inf where no body moves so: between two moving ends, beyond
+    verification.reachable's bound; from or to rest (a landing, hidden), further than
+    the faster end's speed and ACCEL_MAX carry it (a leg at rest, then 0.3 ms later the
+    other leg 19 mm away)."""
     ia, ib = np.flatnonzero(a.valid), np.flatnonzero(b.valid)
     if ib[-1] < ia[0]:
         a, b, ia, ib = b, a, ib, ia
     p, q = ia[-1], ib[0]
-    ends = (a.time_s[p], a.distance_m[p], a.velocity_mps[p], b.time_s[q], b.distance_m[q], b.velocity_mps[q])
-    moving = min(abs(ends[2]), abs(ends[5])) >= fixed_echoes.MOVING_MPS
-    if moving and not reachable(*ends):
+    ta, da, va, tb, db, vb = (a.time_s[p], a.distance_m[p], a.velocity_mps[p],
+                              b.time_s[q], b.distance_m[q], b.velocity_mps[q])
+    dt = tb - ta
+    if min(abs(va), abs(vb)) >= fixed_echoes.MOVING_MPS:
+        possible = reachable(ta, da, va, tb, db, vb)
+    else:
+        possible = abs(db - da) <= JUMP_MAX_M + max(abs(va), abs(vb)) * dt + 0.5 * ACCEL_MAX * dt * dt
+    if not possible:
         return float("inf")
-    return float(least_acceleration(*ends) * np.sqrt(abs(ends[3] - ends[0])))
+    return float(least_acceleration(ta, da, va, tb, db, vb) * np.sqrt(dt))
 
 
 def restored(parts: list[SceneObject], scene: list[SceneObject]) -> list[SceneObject]:
