@@ -11,8 +11,8 @@ motions are not: a rail at +1.9 m/s continues at +2.5 m/s, not at -2.9 m/s. So:
   (objects.bodies), and, where two movers are both lost at once and either could have
   come back as the other (`could_join`), at that gap (`crossing_cuts`);
 - `rejoined`: parts seen again joined (objects.returns). Among several movers a join is
-  made only where it is the one the motions tell (`contested`: no part seen between
-  them could join either, and none seen from the first's start to the second's end
+  made only where it is the one the motions tell (`contested`: no mover's part seen
+  between them could join either, and none seen from the first's start to the second's end
   joins either within RATIO times their `_cost` plus FLOOR), and only where a body
   can move so (verification.reachable's bounds), the cheapest first; else the parts stay
   objects of their own (fewer periods tracked, none on the wrong object). Parts of one
@@ -142,9 +142,9 @@ def rejoined(scene: list[SceneObject], contests: bool = False) -> list[SceneObje
 
 
 def contested(scene: list[SceneObject], i: int, j: int, cost: float) -> bool:
-    """Whether another part could be the one seen instead: one seen wholly between
-    parts i and j that could join either (it comes first: a leg lost for 88 ms, seen
-    again 9 ms on, then the other leg's landing 8 mm off its course), or one seen from
+    """Whether another part could be the one seen instead: a mover's part seen wholly
+    between parts i and j that could join either (it comes first: a leg lost for 88 ms,
+    seen again 9 ms on, then the other leg's landing 8 mm off its course), or one seen from
     part i's first verified pair to part j's last that could join either within RATIO *
     `cost` + FLOOR (`_cost`: its motion tells as much as theirs, two legs near their
     apexes)."""
@@ -154,7 +154,7 @@ def contested(scene: list[SceneObject], i: int, j: int, cost: float) -> bool:
     for k, o in enumerate(scene):
         if k in (i, j) or o.moving != scene[i].moving or not _seen(o.track, *span):
             continue
-        inside = _within(o.track, *gap)
+        inside = o.moving and _within(o.track, *gap)
         if any(objects.returns(o.track, scene[m].track) and (inside or _cost(o.track, scene[m].track) <= bar)
                for m in (i, j)):
             return True

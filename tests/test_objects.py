@@ -196,6 +196,19 @@ def test_two_legs_whose_motions_tell_nothing_stay_apart():
     assert len(found) == 4
 
 
+def test_a_join_from_rest_goes_no_further_than_a_body_moves():
+    """A leg at rest, then 0.3 ms later the other leg 19 mm away at 3.6 m/s: no body
+    moves so (identities._cost is inf); 3 ms later, 10 mm on at that speed, it may."""
+    n = 400
+    rest, moving = np.full(n, np.nan), np.full(n, np.nan)
+    rest[:200] = 0.0763
+    moving[206:] = 0.0957
+    assert np.isinf(identities._cost(_track(rest, np.full(n, -0.23)), _track(moving, np.full(n, -3.55))))
+    later = np.full(n, np.nan)
+    later[260:] = 0.0863
+    assert np.isfinite(identities._cost(_track(rest, np.full(n, -0.23)), _track(later, np.full(n, 3.55))))
+
+
 def test_conflicts_mark_both_objects():
     """Two objects within GATE_M at one time are ambiguous on both, across short gaps
     of one of them too; further apart, neither."""
@@ -404,7 +417,7 @@ def test_two_movers_in_one_span_are_ambiguous_not_one_track(scenes, name, seed):
 
 
 @pytest.mark.parametrize("name", ["rail against a glide", "two legs, 40 ms apart"])
-@pytest.mark.parametrize("seed", [1, 2])
+@pytest.mark.parametrize("seed", [1, 2, 3])
 def test_two_movers_crossing_as_two_candidates_hold_no_pair_of_the_other(scenes, name, seed):
     """The rail's start and an object moved the other way, or two legs jumping 40 ms
     apart, each mover found in its own span: where they cross, each band's tracker
