@@ -29,7 +29,7 @@ from .stages import faults
 from .stages.verification import ACCEL_MAX, JUMP_MAX_M, reachable
 
 RATIO = 3.0           # a join is the motion's where every other costs this many times its `_cost` ...
-FLOOR = 1.0           # ... plus this (m/s^1.5: 30 m/s^2 over 1 ms); two legs near their apexes: 49 and 38
+FLOOR = 1.0           # ... plus this (m/s^1.5: 30 m/s^2 over 1 ms); the rail: 3.3 on, 38 as the glide
 VELOCITY_NOISE = 0.05     # m/s and m of a pair's velocity and distance not counted as acceleration
 DISTANCE_NOISE = 5e-4     # (a lab's SNR; de-chirped peaks)
 
@@ -146,8 +146,7 @@ def contested(scene: list[SceneObject], i: int, j: int, cost: float) -> bool:
     between parts i and j that could join either (it comes first: a leg lost for 88 ms,
     seen again 9 ms on, then the other leg's landing 8 mm off its course), or one seen from
     part i's first verified pair to part j's last that could join either within RATIO *
-    `cost` + FLOOR (`_cost`: its motion tells as much as theirs, two legs near their
-    apexes)."""
+    `cost` + FLOOR (`_cost`: its motion tells as much as theirs)."""
     bar = RATIO * cost + FLOOR
     span = _span(scene[i].track, scene[j].track)
     gap = _gap(scene[i].track, scene[j].track)
