@@ -172,6 +172,11 @@ def test_movers_that_crossed_are_told_apart_by_their_motion():
     # the rail alone, or far from the other: the scene's objects as they were
     far = _two_bands(rail, np.full(n, 1.28), glide + 0.5, np.full(n, -1.4), lost)
     assert all(a is b for a, b in zip(_untangled(list(far)), far, strict=True))
+    # 30 mm apart at one speed: cut where both were lost (either could be the other),
+    # joined as they were (the swap misses by 30 mm): the objects themselves again
+    beside = _two_bands(rail, np.full(n, 1.28), rail + 0.03, np.full(n, 1.28), lost)
+    assert all(c.size == 1 for c in identities.crossing_cuts(beside))
+    assert all(a is b for a, b in zip(_untangled(list(beside)), beside, strict=True))
     one = _two_bands(rail, np.full(n, 1.28), glide, np.full(n, -1.4), lost & (t < 0.11))
     assert identities.crossing_cuts(one)[0].size == 1            # still both lost at once, 0.104-0.11 s
     alone = [_two_bands(rail, np.full(n, 1.28), glide + 0.5, np.full(n, -1.4), lost)[0]]
