@@ -101,19 +101,20 @@ def parted(scene: list[SceneObject], crossings: bool = False) -> list[SceneObjec
     cuts = crossing_cuts(scene) if crossings else [np.zeros(0)] * len(scene)
     out = []
     for o, cut in zip(scene, cuts, strict=True):
-        parts = objects.bodies(o.track)
+        bodies = objects.bodies(o.track)
+        parts = bodies
         if cut.size:
             k = np.searchsorted(cut, o.track.time_s)        # the crossing span each pair lies in
-            parts = [p & (k == s) for p in parts for s in np.unique(k[p])]
+            parts = [p & (k == s) for p in bodies for s in np.unique(k[p])]
         if len(parts) < 2:
             out.append(o)
             continue
+        why = " or ".join([w for w, n in (("no body moves between them", len(bodies) > 1),
+                                        ("lost while another mover was", len(parts) > len(bodies))) if n])
         for k, mask in enumerate(parts, 1):
             track = objects.invalidated(o.track, ~mask, faults.DISCONTINUOUS)    # another body's
             moving = objects.moves(track) or (o.moving and objects.runs(track))
-            out.append(SceneObject(0, moving, track,
-                                   f"{o.note}; part {k} of {len(parts)}: no body moves between them",
-                                   o.track))
+            out.append(SceneObject(0, moving, track, f"{o.note}; part {k} of {len(parts)}: {why}", o.track))
     return out
 
 
