@@ -78,7 +78,7 @@ def objects_of(cap: Capture, first: First, choice: target.Choice, own: Converted
             moving = bool(choice.moving)
             # without the de-chirp (the paper's method) a mover's peaks smear over centimetres
             # and pass between bodies within one: the test is the de-chirped tracker's
-            track = _one_body(own.track, moving) if options.dechirp else own.track
+            track = one_body(own.track, moving) if options.dechirp else own.track
             if track is own.track:
                 return [objects.SceneObject(1, moving, track, "the target: no other echo")], 0, own
             # its tuning and its rest are still the conversion's (engine: `whole`)
@@ -123,14 +123,16 @@ def objects_of(cap: Capture, first: First, choice: target.Choice, own: Converted
     return scene, pick, replace(conv, track=mine.track, whole=mine.whole)
 
 
-def _one_body(track: Track, moving: bool) -> Track:
+def one_body(track: Track, moving: bool, strict: bool = False) -> Track:
     """`track`, the one object of its scene, where one body can have made its verified
     pairs; else (they make BODY_PAIRS or more of two bodies or more, identities.parted
     and .rejoined: two movers whose spans overlap in range, the tracker passing from one
     to the other where they come near) a copy with all of them `ambiguous`. Two sways
     crossing in one span, one object: 1167 valid pairs on the other sway; a hand moved
-    down through a jump's path: 2109."""
-    parts = identities.rejoined(identities.parted([objects.SceneObject(1, moving, track, "")]))
+    down through a jump's path: 2109. `strict`: parts joined only where a body moves so
+    (identities.rejoined's contests: not 39 mm in 0.2 ms, which objects.returns' 40 mm
+    allows)."""
+    parts = identities.rejoined(identities.parted([objects.SceneObject(1, moving, track, "")]), strict)
     if sum(int(p.track.valid.sum()) >= BODY_PAIRS for p in parts) < 2:
         return track
     out = objects.invalidated(track, track.valid.copy())

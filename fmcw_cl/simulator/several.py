@@ -74,6 +74,14 @@ def _rail_against_glide() -> Scene:
     return Scene(rail(0.25), 0.0, 0.25, replace(LAB_SCENE, movers=(towards,)))
 
 
+def _glide_through_sway() -> Scene:
+    # an object swaying 0.19 +- 0.04 m at 4.9 Hz and one glided 0.08 -> 0.38 m through it
+    # (an outside hunt's draw, seed 1049): the tracker passes between them, 39 mm in 0.2 ms
+    glided = Mover(glide(0.7, 0.0763, 0.3821, 0.1882, 0.3525), 603.0)
+    swaying = sway(0.7, 0.1939, 0.0374, 4.8885, 4.5844)
+    return Scene(swaying, 0.2258, 0.168, replace(LAB_SCENE, movers=(glided,)))
+
+
 def _hand_over_rest() -> Scene:
     # a target at rest at 0.30 m; a hand moves in the beam (0.20 -> 0.17 m) for 30 ms
     hand = Mover(glide(0.1, 0.20, 0.17, 0.03, 0.06), 1000.0, ((0.0, 0.03), (0.06, 0.1)))
@@ -119,6 +127,7 @@ SCENES = {
     "hand down through a jump": _hand_through_jump,
     "rail against a glide": _rail_against_glide,
     "two legs, 40 ms apart": _two_legs,
+    "glide through a sway": _glide_through_sway,
     "hand over a target at rest": _hand_over_rest,
     "occlusion, same place": lambda: _occlusion(0.0),
     "occlusion, 30 mm further": lambda: _occlusion(0.03),
