@@ -9,7 +9,7 @@ motions are not: a rail at +1.9 m/s continues at +2.5 m/s, not at -2.9 m/s. So:
 
 - `parted`: each object cut where consecutive verified pairs cannot be one body's
   (objects.bodies), and, where two movers are both lost at once and either could have
-  come back as the other (`could_join`), at that gap (`crossing_cuts`);
+  come back as the other (objects.seen_again), at that gap (`crossing_cuts`);
 - `rejoined`: parts seen again joined (objects.returns). Among several movers a join is
   made only where it is the one the motions tell (`contested`: no mover's part seen
   between them could join either, and none seen from the first's start to the second's end
@@ -45,15 +45,6 @@ def least_acceleration(ta, da, va, tb, db, vb):
     return np.maximum(dv / dt, 8.0 * miss / (dt * dt))
 
 
-def could_join(ta, da, va, tb, db, vb) -> np.ndarray:
-    """Whether a part ending at (ta, da, va) and one starting at (tb, db, vb) could be
-    one body seen again (objects.returns' rule on the two pairs)."""
-    moved = db - da
-    run = 0.5 * (va + vb) * (tb - ta)
-    still = np.minimum(np.abs(va), np.abs(vb)) < fixed_echoes.MOVING_MPS
-    return (np.abs(moved - run) <= objects.RETURN_M) | (still & (np.abs(moved) <= objects.RETURN_M))
-
-
 def _gaps(track) -> tuple[np.ndarray, np.ndarray]:
     """The indices of the verified pairs before and after each gap of `track` (one
     pair or more unverified between them)."""
@@ -65,7 +56,7 @@ def _gaps(track) -> tuple[np.ndarray, np.ndarray]:
 def crossing_cuts(scene: list[SceneObject]) -> list[np.ndarray]:
     """For each object, the times (s) at which to cut it: the middles of its gaps that
     overlap a gap of another mover (both lost at once) where either could have come
-    back as the other (`could_join` across the two gaps). None for a fixed object."""
+    back as the other (objects.seen_again across the two gaps). None for a fixed object."""
     cuts = [[] for _ in scene]
     movers = [k for k, o in enumerate(scene) if o.moving and o.track.valid.any()]
     for x, i in enumerate(movers):
@@ -83,10 +74,10 @@ def crossing_cuts(scene: list[SceneObject]) -> list[np.ndarray]:
                 continue
             gb = np.concatenate([np.arange(p, q) for p, q in zip(lo, hi, strict=True) if q > p])
             pa, na, pb, nb = a0[ga], a1[ga], b0[gb], b1[gb]
-            swap = (could_join(a.time_s[pa], a.distance_m[pa], a.velocity_mps[pa],
-                               b.time_s[nb], b.distance_m[nb], b.velocity_mps[nb])
-                    | could_join(b.time_s[pb], b.distance_m[pb], b.velocity_mps[pb],
-                                 a.time_s[na], a.distance_m[na], a.velocity_mps[na]))
+            swap = (objects.seen_again(a.time_s[pa], a.distance_m[pa], a.velocity_mps[pa],
+                                       b.time_s[nb], b.distance_m[nb], b.velocity_mps[nb])
+                    | objects.seen_again(b.time_s[pb], b.distance_m[pb], b.velocity_mps[pb],
+                                         a.time_s[na], a.distance_m[na], a.velocity_mps[na]))
             cuts[i] += list(0.5 * (ta0[ga] + ta1[ga])[swap])
             cuts[j] += list(0.5 * (tb0[gb] + tb1[gb])[swap])
     return [np.unique(c) for c in cuts]
@@ -175,8 +166,8 @@ def _seen(track, t0: float, t1: float) -> bool:
 
 def _gap(a, b) -> tuple[float, float]:
     """The times (s) of the earlier part's last verified pair and the later one's first."""
-    ta, tb = a.time_s[a.valid], b.time_s[b.valid]
-    return (float(ta[-1]), float(tb[0])) if ta[0] <= tb[0] else (float(tb[-1]), float(ta[0]))
+    _, _, (ta, *_, tb, _, _) = objects.ends(a, b)
+    return float(ta), float(tb)
 
 
 def _within(track, t0: float, t1: float) -> bool:
@@ -193,12 +184,7 @@ def _cost(a, b) -> float:
     verification.reachable's bound; from or to rest (a landing, hidden), further than
     the faster end's speed and ACCEL_MAX carry it (a leg at rest, then 0.3 ms later the
     other leg 19 mm away)."""
-    ia, ib = np.flatnonzero(a.valid), np.flatnonzero(b.valid)
-    if ib[-1] < ia[0]:
-        a, b, ia, ib = b, a, ib, ia
-    p, q = ia[-1], ib[0]
-    ta, da, va, tb, db, vb = (a.time_s[p], a.distance_m[p], a.velocity_mps[p],
-                              b.time_s[q], b.distance_m[q], b.velocity_mps[q])
+    ta, da, va, tb, db, vb = objects.ends(a, b)[2]
     dt = tb - ta
     if min(abs(va), abs(vb)) >= fixed_echoes.MOVING_MPS:
         possible = reachable(ta, da, va, tb, db, vb)

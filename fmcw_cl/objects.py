@@ -252,25 +252,39 @@ def _pair_of_sweeps(t: Track) -> np.ndarray:
 
 def returns(a: Track, b: Track) -> bool:
     """Whether `b` is `a` seen again: never verified at one time, and the first of the
-    later one's verified pairs within RETURN_M of the last of the earlier one's, moved on
-    by the trapezoid of their two velocities (a rail that crossed a swaying cable 60 mm
-    on) or, where one of the two is at rest (under fixed_echoes.MOVING_MPS: a foot that
-    landed or took off while hidden), as they lie. A mover that runs on at both ends is
-    not seen again behind where it ran (a foot at 7 m/s, then 8 ms later a run at 2.8 m/s
-    8 mm short of it: the foot's rising peak and a wall's image in the falling ones)."""
-    if not a.valid.any() or not b.valid.any() or np.any(a.valid & b.valid):
-        return False
+    later one's verified pairs `seen_again` after the last of the earlier one's (a rail
+    that crossed a swaying cable 60 mm on; a foot that landed while hidden)."""
+    e = ends(a, b)
+    return e is not None and bool(seen_again(*e[2]))
+
+
+def ends(a: Track, b: Track) -> tuple[Track, Track, tuple] | None:
+    """`a` and `b` in the order they were seen, with the earlier one's last verified pair
+    and the later one's first as (ta, da, va, tb, db, vb) (s, m, m/s); None where either
+    holds none or their verified pairs interleave (seen at one time)."""
     ia, ib = np.flatnonzero(a.valid), np.flatnonzero(b.valid)
+    if not ia.size or not ib.size:
+        return None
     if ib[-1] < ia[0]:
         a, b, ia, ib = b, a, ib, ia
     if ia[-1] >= ib[0]:
-        return False
-    last, first = ia[-1], ib[0]
-    moved = b.distance_m[first] - a.distance_m[last]
-    va, vb = a.velocity_mps[last], b.velocity_mps[first]
-    run = 0.5 * (va + vb) * (b.time_s[first] - a.time_s[last])
-    still = min(abs(va), abs(vb)) < fixed_echoes.MOVING_MPS
-    return bool(abs(moved - run) <= RETURN_M or (still and abs(moved) <= RETURN_M))
+        return None
+    p, q = ia[-1], ib[0]
+    return a, b, (a.time_s[p], a.distance_m[p], a.velocity_mps[p],
+                  b.time_s[q], b.distance_m[q], b.velocity_mps[q])
+
+
+def seen_again(ta, da, va, tb, db, vb) -> np.ndarray:
+    """Whether a body last seen at (ta, da, va) can be the one first seen at (tb, db, vb)
+    (s, m, m/s; arrays): within RETURN_M of where the trapezoid of its two velocities
+    carries it or, where one of the two is at rest (under fixed_echoes.MOVING_MPS), of
+    where it lay. A mover that runs on at both ends is not seen again behind where it ran
+    (a foot at 7 m/s, then 8 ms later a run at 2.8 m/s 8 mm short of it: the foot's
+    rising peak and a wall's image in the falling ones)."""
+    moved = db - da
+    run = 0.5 * (va + vb) * (tb - ta)
+    still = np.minimum(np.abs(va), np.abs(vb)) < fixed_echoes.MOVING_MPS
+    return (np.abs(moved - run) <= RETURN_M) | (still & (np.abs(moved) <= RETURN_M))
 
 
 def joined(a: Track, b: Track) -> Track:
