@@ -122,7 +122,7 @@ def rejoined(scene: list[SceneObject], contests: bool = False) -> list[SceneObje
         if contests:
             cost = {p: _cost(scene[p[0]].track, scene[p[1]].track) for p in pairs}
             pairs = [p for p in sorted(pairs, key=cost.get) if np.isfinite(cost[p])
-                     and not contested(scene, *p, cost[p])]
+                     and not contested(scene, *p, cost)]
         if not pairs:
             return scene
         i, j = pairs[0]
@@ -133,47 +133,26 @@ def rejoined(scene: list[SceneObject], contests: bool = False) -> list[SceneObje
                                a.whole if a.whole is not None and a.whole is b.whole else None)
 
 
-def contested(scene: list[SceneObject], i: int, j: int, cost: float) -> bool:
+def contested(scene: list[SceneObject], i: int, j: int, cost: dict[tuple[int, int], float]) -> bool:
     """Whether another part could be the one seen instead: a mover's part seen wholly
     between parts i and j that could join either (it comes first: a leg lost for 88 ms,
     seen again 9 ms on, then the other leg's landing 8 mm off its course), or one seen from
     part i's first verified pair to part j's last that could join either within RATIO *
-    `cost` + FLOOR (`_cost`: its motion tells as much as theirs)."""
-    bar = RATIO * cost + FLOOR
-    span = _span(scene[i].track, scene[j].track)
-    gap = _gap(scene[i].track, scene[j].track)
+    their `_cost` + FLOOR (its motion tells as much as theirs). `cost`: the `_cost` of
+    every two parts of one kind that objects.returns joins (keys (k, m), k < m)."""
+    bar = RATIO * cost[i, j] + FLOOR
+    a, b, (last, *_, first, _, _) = objects.ends(scene[i].track, scene[j].track)
+    start, end = a.time_s[a.valid][0], b.time_s[b.valid][-1]
     for k, o in enumerate(scene):
-        if k in (i, j) or o.moving != scene[i].moving or not _seen(o.track, *span):
+        t = o.track.time_s[o.track.valid]
+        if k in (i, j) or o.moving != scene[i].moving or not np.any((t >= start) & (t <= end)):
             continue
-        inside = o.moving and _within(o.track, *gap)
-        if any(objects.returns(o.track, scene[m].track) and (inside or _cost(o.track, scene[m].track) <= bar)
-               for m in (i, j)):
-            return True
+        inside = o.moving and t[0] > last and t[-1] < first
+        for m in (i, j):
+            key = (min(k, m), max(k, m))
+            if key in cost and (inside or cost[key] <= bar):
+                return True
     return False
-
-
-def _span(a, b) -> tuple[float, float]:
-    """The times (s) from the first of two parts' verified pairs to the last."""
-    t = np.concatenate([a.time_s[a.valid], b.time_s[b.valid]])
-    return float(t.min()), float(t.max())
-
-
-def _seen(track, t0: float, t1: float) -> bool:
-    """Whether `track` holds a verified pair from t0 to t1 (s)."""
-    t = track.time_s[track.valid]
-    return bool(np.any((t >= t0) & (t <= t1)))
-
-
-def _gap(a, b) -> tuple[float, float]:
-    """The times (s) of the earlier part's last verified pair and the later one's first."""
-    _, _, (ta, *_, tb, _, _) = objects.ends(a, b)
-    return float(ta), float(tb)
-
-
-def _within(track, t0: float, t1: float) -> bool:
-    """Whether all of `track`'s verified pairs lie between t0 and t1 (s)."""
-    t = track.time_s[track.valid]
-    return bool(t.size and t[0] > t0 and t[-1] < t1)
 
 
 def _cost(a, b) -> float:
