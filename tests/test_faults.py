@@ -167,6 +167,21 @@ def test_bad_sync_is_refused(tmp_path, static_capture, mutate, message):
     assert str(err.value).startswith(str(path)) and re.search(message, str(err.value))
 
 
+@pytest.mark.parametrize("ratio", [1.025, 1 / 1.025])
+def test_a_sync_off_its_stated_frequency_within_the_tolerance_is_converted(tmp_path, static_capture, ratio):
+    """A sync 2.5 % off /modulation frequency_hz, which the period check lets through
+    (plan.PERIOD_TOLERANCE: 3 %), is converted, the ratio stated: not "no complete
+    modulation period found" (the turning points' spacing test allowed 2 %)."""
+    path = tmp_path / "off.h5"
+    shutil.copy(static_capture, path)
+    with h5py.File(path, "a") as f:
+        bad_sync(frequency=20e3 * ratio)(f)
+    track = process(path)
+    assert track.attrs["sync_period_ratio"] == pytest.approx(ratio, rel=1e-3)
+    assert track.valid.mean() > 0.95
+    np.testing.assert_allclose(track.distance_m[track.valid], R, atol=1e-4)
+
+
 def test_truncated_file(tmp_path, static_capture, fmcw):
     cut = tmp_path / "cut.h5"
     shutil.copy(static_capture, cut)

@@ -22,7 +22,9 @@ from ..numeric import centred_slope, median
 FIT_FRACTION = 0.10   # half-width of the crossing line fit, as a share of the half-period (a
 # crossing to about 0.1 sample at 4 codes of sync noise; the uniform grid fitted to a segment's
 # turning points averages them: 0.35 gave the same tracks at 3.5x the cost)
-GRID_TOLERANCE = 0.02  # allowed deviation of a half-period from the nominal, share
+SPACING_TOLERANCE = 0.25  # two crossings' spacing off the nominal half-period, share: the period
+# (plan.PERIOD_TOLERANCE: 3 %) and a level off the middle by up to 10 % of the swing (spacings
+# alternating +-20 %: the level's sampled blocks may hold few of a period's phases)
 JUMP_SAMPLES = 0.5     # smallest timing jump (samples) that splits the stream
 SPIKE = 0.05           # a sample this far (share of the swing) off its 5-sample median is a spike
 MAX_BLOCK = 64         # longest block (samples) of the coarse crossing search
@@ -321,9 +323,10 @@ def turning_points(cr: Crossings, half_period: float) -> TurningPoints:
     """Turning points between consecutive opposite crossings, refined on a uniform grid.
 
     A turning point is kept when the crossings around it alternate and lie one
-    half-period apart: within GRID_TOLERANCE of the nominal value, and within a
-    robust bound (JUMP_SAMPLES or 6 sigma of the spacing noise) of the measured one,
-    so that even a few dropped samples split the stream. Each unbroken run of turning
+    half-period apart: within SPACING_TOLERANCE of the nominal value (the period and the
+    level may be off), and within a robust bound (JUMP_SAMPLES or 6 sigma of the
+    spacing noise) of the measured one of their direction, so that even a few dropped
+    samples split the stream. Each unbroken run of turning
     points is a segment; its times are replaced by a least-squares uniform grid.
     """
     t, d = cr.time, cr.direction
@@ -331,7 +334,7 @@ def turning_points(cr: Crossings, half_period: float) -> TurningPoints:
         return TurningPoints(np.zeros(0), np.zeros(0, bool), np.zeros(0, np.int64))
     gap = np.diff(t)
     alternate = d[1:] != d[:-1]
-    near = alternate & (np.abs(gap - half_period) < GRID_TOLERANCE * half_period)
+    near = alternate & (np.abs(gap - half_period) < SPACING_TOLERANCE * half_period)
     if not np.any(near):
         return TurningPoints(np.zeros(0), np.zeros(0, bool), np.zeros(0, np.int64))
     # a level off the middle makes the rising and falling spacings differ: compare
