@@ -77,11 +77,18 @@ class Plan:
     def with_chirp(self, chirp: Chirp, tuning: str, scale_std: float = float("nan")) -> Plan:
         """The plan resampled on `chirp` (its sync delay kept: a chirp is measured
         against half-sweeps at a delay), the distance scale's relative uncertainty
-        `scale_std` (1 sigma)."""
-        parts = tuned(self.info, self.options, chirp)
+        `scale_std` (1 sigma). A band whose top lies beyond the chirp's unambiguous
+        range ends with the range: it was checked against the tuning it had, and a
+        wider bandwidth ends the range sooner (a rest calibration's chirp: 0.335 m
+        against a band to 0.3353 m)."""
+        options = self.options
+        top = options.band_m[1]
+        if top is not None and top > make_lut(self.info, options.points, chirp).unambiguous_range_m:
+            options = replace(options, max_range=None)
+        parts = tuned(self.info, options, chirp)
         parts["lut"] = replace(parts["lut"], scale_std=scale_std)
         parts["search"] = replace(parts["search"], reach=self.motion.reach)
-        return replace(self, **parts, tuning=tuning)
+        return replace(self, **parts, options=options, tuning=tuning)
 
 
 def estimate_capture_delay(cap: Capture, processor: ChunkProcessor | None = None

@@ -12,10 +12,11 @@ from conftest import process
 import fmcw_cl
 from fmcw_cl.calibration import measure_chirp
 from fmcw_cl.capture import Capture
-from fmcw_cl.chirp import read_chirp, write_chirp
+from fmcw_cl.chirp import Chirp, Direction, read_chirp, write_chirp
 from fmcw_cl.errors import CaptureError
 from fmcw_cl.evaluate import accuracy
 from fmcw_cl.options import Options
+from fmcw_cl.plan import make_plan
 from fmcw_cl.simulator import SimulationConfig, jump, simulate_capture, static
 from fmcw_cl.simulator.writer import thermal_offset
 from fmcw_cl.track import read_track
@@ -319,3 +320,25 @@ def test_peak_widths_near_and_far(sigma):
     np.testing.assert_allclose(got, expect, rtol=0.02 if sigma > 1 else 0.15)
     edge = _widths(p[:1], 95)                    # the band from 95: 100.3's left side is outside it
     assert np.isnan(edge[0]) == (sigma > 4)
+
+
+def test_a_calibrated_chirp_of_a_shorter_range_ends_the_band_with_it(static_capture):
+    """A band checked against the G(I) table's unambiguous range, then resampled on a
+    chirp of a wider bandwidth (a rest calibration's), ends where the chirp's range ends
+    instead of refusing the capture (`max_range` 0.335315 m beyond the unambiguous range
+    0.335 m, from a two-mover scene); a band whose top the chirp's range holds is kept."""
+    with Capture(static_capture) as cap:
+        table = make_plan(cap, Options())
+        unamb = table.lut.unambiguous_range_m
+        plan = make_plan(cap, Options(max_range=0.99 * unamb), lag=table.lag)
+        s = np.linspace(0.0, 1.0, 64)
+
+        def chirp(factor):
+            nu = (s - 0.5) * table.lut.bandwidth_hz * factor
+            return Chirp(Direction(s, nu), Direction(s, -nu))
+
+        wide = plan.with_chirp(chirp(1.02), "own rest")
+        assert wide.lut.unambiguous_range_m < 0.99 * unamb
+        assert wide.options.max_range is None and wide.search.hi == wide.model.nfft // 2
+        narrow = plan.with_chirp(chirp(0.98), "own rest")
+        assert narrow.options.max_range == 0.99 * unamb and narrow.search.hi < narrow.model.nfft // 2
