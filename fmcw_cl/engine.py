@@ -90,7 +90,7 @@ def process(path, options: Options | None = None, processor: ChunkProcessor | No
                 track = calibrated_on_rest(cap, plan, whole, processor, choice, started, progress)
                 # its pairs may still be two movers' (a glide through a swaying object, the
                 # tracker passing 39 mm between them in 0.2 ms: 259 valid pairs on the glide)
-                track = scene.one_body(track, bool(choice.moving), strict=True)
+                track = scene.one_body(track, bool(choice.moving))
                 found, pick = [objects.SceneObject(1, bool(choice.moving), track, "the target: objects not "
                                                    "sought on a chirp calibrated on its rest")], 0
             track = with_objects(found, pick)

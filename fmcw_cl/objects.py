@@ -24,8 +24,9 @@ pairs are verified as the target's are. Then:
   mover lost while another was, where either could have come back as the other (a
   crossing: fmcw_cl.identities);
 - an object last seen where another of its kind is first seen, within RETURN_M (moved
-  on at its velocities, or as it lay where one end is at rest), the two never seen at
-  once, is one object that was hidden or faded (`returns`, `joined`); among several
+  on at its velocities, or as it lay where one end is at rest; within KINEMATIC_S, only
+  where one body moves so), the two never seen at once, is one object that was hidden or
+  faded (`returns`, `joined`); among several
   movers, only where their motions tell that join from every other (identities.contested);
 - the target is the object the rule names (`choose`): `auto` takes a moving one before
   a fixed one, the one that travels furthest (a leg before a swaying cable); where no
@@ -45,7 +46,7 @@ import numpy as np
 
 from . import fixed_echoes, target
 from .stages import faults
-from .stages.verification import reachable
+from .stages.verification import KINEMATIC_S, reachable
 from .track import Track
 
 GATE_M = fixed_echoes.GATE_M   # two objects this close at one time cannot be told apart
@@ -278,13 +279,17 @@ def seen_again(ta, da, va, tb, db, vb) -> np.ndarray:
     """Whether a body last seen at (ta, da, va) can be the one first seen at (tb, db, vb)
     (s, m, m/s; arrays): within RETURN_M of where the trapezoid of its two velocities
     carries it or, where one of the two is at rest (under fixed_echoes.MOVING_MPS), of
-    where it lay. A mover that runs on at both ends is not seen again behind where it ran
-    (a foot at 7 m/s, then 8 ms later a run at 2.8 m/s 8 mm short of it: the foot's
-    rising peak and a wall's image in the falling ones)."""
+    where it lay; within verification.KINEMATIC_S, only where one body moves so
+    (`reachable`: a leg at 0.0762 m, +0.2 m/s, is not the other leg 1.9 mm nearer at
+    -0.8 m/s 0.35 ms later). A mover that runs on at both ends is not seen again behind
+    where it ran (a foot at 7 m/s, then 8 ms later a run at 2.8 m/s 8 mm short of it: the
+    foot's rising peak and a wall's image in the falling ones)."""
     moved = db - da
     run = 0.5 * (va + vb) * (tb - ta)
     still = np.minimum(np.abs(va), np.abs(vb)) < fixed_echoes.MOVING_MPS
-    return (np.abs(moved - run) <= RETURN_M) | (still & (np.abs(moved) <= RETURN_M))
+    soon = np.abs(tb - ta) <= KINEMATIC_S       # so soon, one body's motion or none
+    return (((np.abs(moved - run) <= RETURN_M) | (still & (np.abs(moved) <= RETURN_M)))
+            & (~soon | reachable(ta, da, va, tb, db, vb)))
 
 
 def joined(a: Track, b: Track) -> Track:

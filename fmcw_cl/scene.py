@@ -123,16 +123,14 @@ def objects_of(cap: Capture, first: First, choice: target.Choice, own: Converted
     return scene, pick, replace(conv, track=mine.track, whole=mine.whole)
 
 
-def one_body(track: Track, moving: bool, strict: bool = False) -> Track:
+def one_body(track: Track, moving: bool) -> Track:
     """`track`, the one object of its scene, where one body can have made its verified
     pairs; else (they make BODY_PAIRS or more of two bodies or more, identities.parted
     and .rejoined: two movers whose spans overlap in range, the tracker passing from one
     to the other where they come near) a copy with all of them `ambiguous`. Two sways
     crossing in one span, one object: 1167 valid pairs on the other sway; a hand moved
-    down through a jump's path: 2109. `strict`: parts joined only where a body moves so
-    (identities.rejoined's contests: not 39 mm in 0.2 ms, which objects.returns' 40 mm
-    allows)."""
-    parts = identities.rejoined(identities.parted([objects.SceneObject(1, moving, track, "")]), strict)
+    down through a jump's path: 2109."""
+    parts = identities.rejoined(identities.parted([objects.SceneObject(1, moving, track, "")]))
     if sum(int(p.track.valid.sum()) >= BODY_PAIRS for p in parts) < 2:
         return track
     out = objects.invalidated(track, track.valid.copy())
