@@ -26,8 +26,8 @@ pairs are verified as the target's are. Then:
 - an object last seen where another of its kind is first seen, within RETURN_M (moved
   on at its velocities, or as it lay where one end is at rest; within KINEMATIC_S, only
   where one body moves so), the two never seen at once, is one object that was hidden or
-  faded (`returns`, `joined`); among several
-  movers, only where their motions tell that join from every other (identities.contested);
+  faded (`returns`, `joined`); among several movers, only where their motions tell that
+  join from every other (identities.contested);
 - the target is the object the rule names (`choose`): `auto` takes a moving one before
   a fixed one, the one that travels furthest (a leg before a swaying cable); where no
   object moves and several hold verified pairs, nothing tells which is the target, and
