@@ -174,6 +174,13 @@ def _cost(a, b) -> float:
     return float(least_acceleration(ta, da, va, tb, db, vb) * np.sqrt(dt))
 
 
+def untangled(scene: list[SceneObject], several: bool) -> list[SceneObject]:
+    """The scene's objects `parted` and `rejoined`, each cut at crossings and joined by
+    contests where it holds `several` movers, and those cut at crossings alone and
+    joined whole `restored` (a new list; `scene` is left as it was)."""
+    return restored(rejoined(parted(scene, several), several), scene)
+
+
 def restored(parts: list[SceneObject], scene: list[SceneObject]) -> list[SceneObject]:
     """`parts` with each object of `scene` that crossings alone cut (objects.bodies keeps
     it one) and that is whole again (the same verified pairs) as it was: its pairs, its

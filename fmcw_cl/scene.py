@@ -104,7 +104,7 @@ def objects_of(cap: Capture, first: First, choice: target.Choice, own: Converted
     of = {id(d.track): d for d in done}
     found = [objects.SceneObject(0, _moving(d), d.track, d.choice.note) for d in done]
     several = sum(o.moving and o.track.valid.any() for o in found) >= 2
-    scene = identities.restored(identities.rejoined(identities.parted(found, several), several), found)
+    scene = identities.untangled(found, several)
     scene.sort(key=lambda o: (o.attrs()["first_seen_s"] if o.track.valid.any() else np.inf,
                               o.attrs()["distance_span_m"][0]))
     for k, o in enumerate(scene, 1):

@@ -149,10 +149,6 @@ def _two_bands(d1, v1, d2, v2, lost):
     return [objects.SceneObject(0, True, lower, "lower"), objects.SceneObject(0, True, upper, "upper")]
 
 
-def _untangled(scene):
-    return identities.restored(identities.rejoined(identities.parted(scene, True), True), scene)
-
-
 def test_movers_that_crossed_are_told_apart_by_their_motion():
     """A rail (+1.28 m/s) and an object moved the other way (-1.4 m/s) cross while both
     are lost for 16 ms; each band's tracker comes back on the other: the parts are cut
@@ -162,7 +158,7 @@ def test_movers_that_crossed_are_told_apart_by_their_motion():
     t = PERIOD * (np.arange(n) + 0.5)
     rail, glide = 0.06 + 1.28 * t, 0.36 - 1.4 * t
     lost = (t > 0.104) & (t < 0.120)
-    found = _untangled(_two_bands(rail, np.full(n, 1.28), glide, np.full(n, -1.4), lost))
+    found = identities.untangled(_two_bands(rail, np.full(n, 1.28), glide, np.full(n, -1.4), lost), True)
     assert len(found) == 2
     for o in found:
         d = o.track.distance_m[o.track.valid]
@@ -171,16 +167,16 @@ def test_movers_that_crossed_are_told_apart_by_their_motion():
         assert o.track.valid.sum() == np.sum(~lost)
     # the rail alone, or far from the other: the scene's objects as they were
     far = _two_bands(rail, np.full(n, 1.28), glide + 0.5, np.full(n, -1.4), lost)
-    assert all(a is b for a, b in zip(_untangled(list(far)), far, strict=True))
+    assert all(a is b for a, b in zip(identities.untangled(list(far), True), far, strict=True))
     # 30 mm apart at one speed: cut where both were lost (either could be the other),
     # joined as they were (the swap misses by 30 mm): the objects themselves again
     beside = _two_bands(rail, np.full(n, 1.28), rail + 0.03, np.full(n, 1.28), lost)
     assert all(c.size == 1 for c in identities.crossing_cuts(beside))
-    assert all(a is b for a, b in zip(_untangled(list(beside)), beside, strict=True))
+    assert all(a is b for a, b in zip(identities.untangled(list(beside), True), beside, strict=True))
     one = _two_bands(rail, np.full(n, 1.28), glide, np.full(n, -1.4), lost & (t < 0.11))
     assert identities.crossing_cuts(one)[0].size == 1            # still both lost at once, 0.104-0.11 s
     alone = [_two_bands(rail, np.full(n, 1.28), glide + 0.5, np.full(n, -1.4), lost)[0]]
-    assert _untangled(list(alone))[0] is alone[0]
+    assert identities.untangled(list(alone), True)[0] is alone[0]
 
 
 def test_a_return_so_soon_is_one_bodys_motion_or_none():
@@ -208,7 +204,7 @@ def test_two_legs_whose_motions_tell_nothing_stay_apart():
     leg = lambda apex: (0.28 - 120.0 * (t - apex) ** 2, -240.0 * (t - apex))   # noqa: E731
     (d1, v1), (d2, v2) = leg(0.10), leg(0.14)
     lost = (t > 0.11) & (t < 0.13)
-    found = _untangled(_two_bands(d1, v1, d2, v2, lost))
+    found = identities.untangled(_two_bands(d1, v1, d2, v2, lost), True)
     for o in found:
         ok = o.track.valid
         one = np.abs(o.track.distance_m[ok] - d1[ok]) < 1e-9
