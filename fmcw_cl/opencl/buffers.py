@@ -27,7 +27,6 @@ class Buffers:
         self._recent: dict[str, list[str]] = {}     # upload_once's buffers of a name, least recent first
         self._free: list[tuple[int, object]] = []
         self._constants: OrderedDict[tuple[str, int], tuple[np.ndarray, object]] = OrderedDict()
-        self._regions: dict[str, dict[tuple[int, int], object]] = {}
 
     # a chunk's arrays vary by a few percent in size (its count of sync crossings, of
     # half-sweeps): a buffer made for one gets this share more, so that it is made once,
@@ -48,25 +47,7 @@ class Buffers:
             self._sizes[name] = self._roomy(nbytes)
             self._bufs[name] = self._new(cl.mem_flags.READ_WRITE, self._sizes[name])
             self._sources.pop(name, None)
-            self._regions.pop(name, None)          # they hold the buffer replaced
         return self._bufs[name]
-
-    REGIONS = 256       # sub-buffers kept a named buffer (a Packed's layouts of a few chunk sizes)
-
-    def regions(self, name: str, spans: list[tuple[int, int]]) -> list:
-        """Sub-buffers (offset, bytes) of the named buffer (`get` it first), made once:
-        a chunk's Packed has the same layout as the chunk's before, and a sub-buffer costs
-        a few us to make."""
-        parent, known = self._bufs[name], self._regions.setdefault(name, {})
-        if len(known) > self.REGIONS:
-            known.clear()
-        out = []
-        for span in spans:
-            sub = known.get(span)
-            if sub is None:
-                sub = known[span] = parent.get_sub_region(*span)
-            out.append(sub)
-        return out
 
     def upload(self, name: str, array: np.ndarray, wait: bool = True):
         """`array` into buffer `name`; without `wait` the copy runs behind the host
@@ -226,7 +207,10 @@ class Packed:
         self._host = np.empty(size, np.uint8)
         self._parent = bufs.get(name, size)
         views = [self._host[o: o + n].view(d) for o, d, n in spans]
-        buffers = bufs.regions(name, [(o, max(n, 4)) for o, _, n in spans])
+        # sub-buffers of this object's own, not kept from chunk to chunk: kept per layout
+        # (a few us a chunk saved), those of two layouts overlapped, and NVIDIA's OpenCL
+        # (an H200, 2026-12-04) crashed the process releasing them or their buffer
+        buffers = [self._parent.get_sub_region(o, max(n, 4)) for o, _, n in spans]
         self.views, self.buffers = views[: len(parts)], buffers[: len(parts)]
         self._riders = list(zip(riders, views[len(parts):], strict=True))
         for rider, buffer in zip(riders, buffers[len(parts):], strict=True):
