@@ -611,20 +611,26 @@ def test_buffers_are_made_as_often_for_a_long_capture_as_for_a_short_one(tmp_pat
 
 def test_a_packeds_sub_buffers_are_its_own(backend):
     """A Packed's sub-buffers live as long as it (and what it gave them to), none kept
-    by the Buffers for the next chunk's: kept per layout, sub-buffers of two layouts
-    overlapped, and NVIDIA's OpenCL (an H200) crashed the process releasing them or
-    their buffer, at every conversion (2026-12-04)."""
+    by the Buffers for the next chunk's, and no two live Packed share a buffer:
+    sub-buffers of two layouts of one buffer overlapped, and NVIDIA's OpenCL (an H200)
+    crashed the process releasing them or their buffer, at every conversion
+    (2026-12-04). A Packed's buffer is free again once it and its sub-buffers are gone."""
     import sys
 
     from fmcw_cl.opencl.buffers import Buffers, Packed
 
     bufs = Buffers(backend.rt)
     packed = Packed(bufs, "packed", [(np.float32, 10), (np.int32, 3)])
-    again = Packed(bufs, "packed", [(np.float32, 10), (np.int32, 3)])
+    again = Packed(bufs, "packed", [(np.float32, 12), (np.int32, 3)])     # beside it: another buffer
     assert not set(map(id, packed.buffers)) & set(map(id, again.buffers))
-    sub = packed.buffers[1]
-    del packed, again
+    assert packed._parent is bufs.get("packed", 4) and again._parent is not packed._parent
+    first, sub = packed._parent, packed.buffers[1]
+    del packed
+    assert Packed(bufs, "packed", [(np.float32, 10)])._parent is not first    # its sub-buffer lives
+    del again
     assert sys.getrefcount(sub) == 2                  # this name's and the call's: nothing kept it
+    del sub
+    assert Packed(bufs, "packed", [(np.float32, 10)])._parent is first        # all gone: free again
 
 
 @pytest.mark.parametrize("dechirp", [True, False])

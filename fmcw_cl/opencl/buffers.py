@@ -27,6 +27,7 @@ class Buffers:
         self._recent: dict[str, list[str]] = {}     # upload_once's buffers of a name, least recent first
         self._free: list[tuple[int, object]] = []
         self._constants: OrderedDict[tuple[str, int], tuple[np.ndarray, object]] = OrderedDict()
+        self._claimed: set[str] = set()     # named buffers a Packed holds (`claim`)
 
     # a chunk's arrays vary by a few percent in size (its count of sync crossings, of
     # half-sweeps): a buffer made for one gets this share more, so that it is made once,
@@ -48,6 +49,18 @@ class Buffers:
             self._bufs[name] = self._new(cl.mem_flags.READ_WRITE, self._sizes[name])
             self._sources.pop(name, None)
         return self._bufs[name]
+
+    def claim(self, name: str, nbytes: int) -> tuple[Claim, object]:
+        """A buffer of at least `nbytes` for a Packed: `name`'s, or where a Packed still
+        holds that one (a chunk's step beside the next's), `name#1`, `name#2`... Sub-
+        buffers of two Packed never share a buffer: NVIDIA's OpenCL crashes the process
+        releasing overlapping ones (an H200, 2026-12-04). The claim ends when the
+        returned `Claim` goes, which the Packed and each of its sub-buffers hold."""
+        k = 0
+        while (slot := f"{name}#{k}" if k else name) in self._claimed:
+            k += 1
+        self._claimed.add(slot)
+        return Claim(self._claimed, slot), self.get(slot, nbytes)
 
     def upload(self, name: str, array: np.ndarray, wait: bool = True):
         """`array` into buffer `name`; without `wait` the copy runs behind the host
@@ -174,6 +187,18 @@ class DeviceRows:
         return out
 
 
+class Claim:
+    """A Packed's hold on its named buffer (`Buffers.claim`), let go when it goes."""
+
+    __slots__ = ("_claimed", "slot")
+
+    def __init__(self, claimed: set[str], slot: str) -> None:
+        self._claimed, self.slot = claimed, slot
+
+    def __del__(self) -> None:
+        self._claimed.discard(self.slot)
+
+
 @dataclass
 class Rider:
     """A small result that crosses with another step's download instead of by a copy of
@@ -205,12 +230,15 @@ class Packed:
             spans.append((size, np.dtype(dtype), nbytes))
             size += -(-max(nbytes, 4) // align) * align
         self._host = np.empty(size, np.uint8)
-        self._parent = bufs.get(name, size)
+        self._claim, self._parent = bufs.claim(name, size)
         views = [self._host[o: o + n].view(d) for o, d, n in spans]
         # sub-buffers of this object's own, not kept from chunk to chunk: kept per layout
         # (a few us a chunk saved), those of two layouts overlapped, and NVIDIA's OpenCL
-        # (an H200, 2026-12-04) crashed the process releasing them or their buffer
+        # (an H200, 2026-12-04) crashed the process releasing them or their buffer. Each
+        # holds the claim: its buffer is no other Packed's while one lives
         buffers = [self._parent.get_sub_region(o, max(n, 4)) for o, _, n in spans]
+        for buffer in buffers:
+            buffer.claim = self._claim
         self.views, self.buffers = views[: len(parts)], buffers[: len(parts)]
         self._riders = list(zip(riders, views[len(parts):], strict=True))
         for rider, buffer in zip(riders, buffers[len(parts):], strict=True):
