@@ -3,10 +3,10 @@
 from importlib.resources import files
 
 # programs built from more than one file (device functions first)
-PROGRAMS = {"spectrum": ("lanes", "peak", "cfar", "fft", "fft_lanes"),
+PROGRAMS = {"spectrum": ("lanes", "cycles", "peak", "cfar", "fft", "fft_lanes"),
             "integrate": ("lanes", "peak", "integrate", "integrate_lanes"),
             "lpf": ("lanes", "lpf"), "resample": ("lanes", "resample"), "sync": ("real", "sync"),
-            "delay": ("real", "delay"), "survey": ("lanes", "survey")}
+            "delay": ("real", "delay"), "survey": ("lanes", "survey"), "phase": ("cycles", "phase")}
 
 
 def files_of(program: str) -> tuple[str, ...]:
