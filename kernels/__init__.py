@@ -6,7 +6,7 @@ from importlib.resources import files
 PROGRAMS = {"spectrum": ("lanes", "cycles", "peak", "cfar", "fft", "fft_lanes"),
             "integrate": ("lanes", "peak", "integrate", "integrate_lanes"),
             "lpf": ("lanes", "lpf"), "resample": ("lanes", "resample"), "sync": ("real", "sync"),
-            "delay": ("real", "delay"), "survey": ("lanes", "survey"), "phase": ("cycles", "phase")}
+            "delay": ("real", "delay"), "survey": ("lanes", "survey"), "phase": ("lanes", "cycles", "phase")}
 
 
 def files_of(program: str) -> tuple[str, ...]:

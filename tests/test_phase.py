@@ -22,12 +22,12 @@ N, NFFT = 1000, 2048
 K = phase.radians_per_metre(np.array([193.4e12]))      # rad/m at 1550 nm
 
 
-def _rows(rng, rows, bins, v, beta, offset):
-    """Windowed tones at `bins` with the Doppler phase v beta and the phase `offset`
-    at the centre point, under noise."""
-    j = np.arange(N) - 0.5 * (N - 1)
+def _rows(rng, rows, bins, v, beta, offset, n=N):
+    """Windowed tones of `n` points at `bins` with the Doppler phase v beta and the
+    phase `offset` at the centre point, under noise."""
+    j = np.arange(n) - 0.5 * (n - 1)
     psi = 2 * np.pi * (np.outer(bins, j) / NFFT + np.outer(v, beta)) + offset[:, None]
-    return (np.cos(psi) * window(N) * 1000 + rng.normal(0, 1, (rows, N))).astype(np.float32)
+    return (np.cos(psi) * window(n) * 1000 + rng.normal(0, 1, (rows, n))).astype(np.float32)
 
 
 def test_phasor_reads_the_phase_at_the_centre():
@@ -56,16 +56,18 @@ def backend():
     return OpenCLProcessor()
 
 
-@pytest.mark.parametrize("rows", [1, 37, 700])
-def test_kernel_matches_numpy(backend, rows):
-    """peak_phasor against its twin: both directions, de-chirped and plain, peaks near
-    the band's top (250 cycles a row in float32) and near 0 Hz."""
+@pytest.mark.parametrize("rows,points", [(1, N), (37, N), (700, N), (37, 999), (5, 2047)])
+def test_kernel_matches_numpy(backend, kernel_variant, rows, points):
+    """peak_phasor against its twin, both variants (a work-group a row; a work-item a
+    row in float8, its cycles split so that float keeps them): both directions,
+    de-chirped and plain, peaks near the band's top (250 cycles a row in float32) and
+    near 0 Hz; rows whose points are no multiple of eight, and 2047 of them."""
     rng = np.random.default_rng(rows)
-    beta = np.linspace(-16, 16, N)
+    beta = np.linspace(-16, 16, points)
     bins = rng.uniform(2, 1020, rows)
     v = rng.uniform(-8, 8, rows)
-    xr = _rows(rng, rows, bins, v, beta, rng.uniform(-3, 3, rows))
-    xf = _rows(rng, rows, bins + 3, v, -beta, rng.uniform(-3, 3, rows))
+    xr = _rows(rng, rows, bins, v, beta, rng.uniform(-3, 3, rows), points)
+    xf = _rows(rng, rows, bins + 3, v, -beta, rng.uniform(-3, 3, rows), points)
     for vel in (v, None):
         got = backend.phasors_each((xr, xf), (beta, -beta), vel, (bins, bins + 3), NFFT)
         want = spectrum_ops.NUMPY.phasors_each((xr, xf), (beta, -beta), vel, (bins, bins + 3), NFFT)

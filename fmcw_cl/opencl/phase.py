@@ -23,11 +23,11 @@ def phasors_each(rt: Runtime, bufs: Buffers, xs, betas, v: np.ndarray | None, bi
     d_v, d_bins = Packed(bufs, "phase_in", [(np.float32, rows), (np.float32, 2 * rows)]).upload(
         vel, np.concatenate([np.asarray(b, np.float32) for b in bins]))
     out = Packed(bufs, "phase_out", [(np.float32, 4 * rows)])
-    lsz = rt.group_size(16, 128)
+    (size, lsz) = _items(rt, rows)
     rt.kernel("phase", "peak_phasor")(
-        rt.queue, (rows * lsz, 2), (lsz, 1), rows_of[0].buffer, rows_of[1].buffer, *_betas(bufs, betas), d_v,
+        rt.queue, (size, 2), (lsz, 1), rows_of[0].buffer, rows_of[1].buffer, *_betas(bufs, betas), d_v,
         d_bins, np.int32(rows), np.int32(points), np.float32(1.0 / nfft), np.int32(v is not None),
-        *out.buffers, cl.LocalMemory(8 * lsz))
+        np.int32(rt.lanes), *out.buffers, cl.LocalMemory(8 * lsz))
     (z,) = out.download()
     return complex_pairs(z)
 
@@ -39,11 +39,22 @@ def launch_state(rt: Runtime, bufs: Buffers, rows: tuple, model, vel, d_r, d_f, 
     pairs, points = rows[0].shape
     if pairs == 0:
         return
-    lsz = rt.group_size(16, 128)
+    (size, lsz) = _items(rt, pairs)
     rt.kernel("phase", "peak_phasor_state")(
-        rt.queue, (pairs * lsz, 2), (lsz, 1), rows[0].buffer, rows[1].buffer,
+        rt.queue, (size, 2), (lsz, 1), rows[0].buffer, rows[1].buffer,
         *_betas(bufs, (model.beta_rise, model.beta_fall)), vel, d_r, d_f, np.float64(model.metres_per_bin),
-        np.int32(pairs), np.int32(points), np.float32(1.0 / model.nfft), out, cl.LocalMemory(8 * lsz))
+        np.int32(pairs), np.int32(points), np.float32(1.0 / model.nfft), np.int32(rt.lanes), out,
+        cl.LocalMemory(8 * lsz))
+
+
+def _items(rt: Runtime, rows: int) -> tuple[int, int]:
+    """Work-items along the rows and their group size: a work-group a row (GPUs), or on
+    CPU devices (`Runtime.lanes`) a work-item a row, each in vectors along its points."""
+    if rt.lanes:
+        (size,), (lsz,) = rt.items(rows)
+        return size, lsz
+    lsz = rt.group_size(16, 128)
+    return rows * lsz, lsz
 
 
 def _betas(bufs: Buffers, betas) -> list:
