@@ -22,12 +22,17 @@ benchmarks/README.md: on one device,
 
 The captures (the bench's and the batch's) are written first, at once, a thread each
 (a 1 s capture takes a core 20-40 s), into `--captures` where given, which keeps them for
-the next run. Runs on any OpenCL device (PoCL too); the figures are ratios within one run.
+the next run. Before them, a 20 ms jump is converted on the device and by numpy and the
+tracks compared, so that a device that crashes or disagrees says so in seconds (on
+2026-12-04 every conversion crashed on an H200 after 90 s of writing captures);
+faulthandler prints where a crash happened, and `--json` is written after each part.
+Runs on any OpenCL device (PoCL too); the figures are ratios within one run.
 """
 
 from __future__ import annotations
 
 import argparse
+import faulthandler
 import json
 import os
 import tempfile
@@ -42,7 +47,7 @@ from fmcw_cl.bench import run
 from fmcw_cl.engine import process
 from fmcw_cl.opencl.selftest import check
 from fmcw_cl.options import Options
-from fmcw_cl.simulator import rail, simulate_captures
+from fmcw_cl.simulator import jump, rail, simulate_captures
 
 
 def captures(seconds: float, count: int, folder: Path) -> list[dict]:
@@ -50,6 +55,21 @@ def captures(seconds: float, count: int, folder: Path) -> list[dict]:
     warming up, last: jobs of `simulate_captures`."""
     return [{"path": folder / f"rail{k}_{seconds:g}s.h5", "trajectory": rail(seconds + 0.1),
              "duration_s": seconds, "seed": 100 + k, "start_s": 0.1} for k in range(count + 2)]
+
+
+def smoke(device: str | None, folder: Path) -> dict:
+    """A 20 ms jump converted on the device and by numpy: whether the valid pairs agree
+    and the largest distance apart (m) where both are valid."""
+    import numpy as np
+
+    (path,) = simulate_captures([{"path": folder / "smoke_jump.h5", "trajectory": jump(0.07),
+                                  "duration_s": 0.02, "seed": 5, "start_s": 0.04}])
+    got = process(path, Options(), make_processor("opencl", device))
+    want = process(path, Options(), make_processor("numpy"))
+    both = got.valid & want.valid
+    apart = float(np.max(np.abs(got.distance_m[both] - want.distance_m[both]), initial=0.0))
+    return {"device": device or "auto", "pairs": int(got.valid.size),
+            "valid_equal": bool(np.array_equal(got.valid, want.valid)), "max_distance_apart_m": apart}
 
 
 def batch(device: str | None, seconds: float, paths: list[Path], counts: Sequence[int] = (1, 2)
@@ -139,8 +159,21 @@ def main() -> None:
     ap.add_argument("--captures", type=Path, help="folder where the bench's and the batch's captures are "
                     "kept and found (default: a removed temp dir)")
     args = ap.parse_args()
+    faulthandler.enable()
+    out: dict = {}
+
+    def save(key: str, value) -> None:
+        out[key] = value
+        if args.json:
+            args.json.write_text(json.dumps(out, indent=2))
+
     with tempfile.TemporaryDirectory() as tmp:
         folder = args.captures or Path(tmp)
+        first = smoke(args.device, Path(tmp))
+        save("smoke", first)
+        print(f"smoke test, a 20 ms jump: {first['pairs']} pairs, valid pairs "
+              f"{'as' if first['valid_equal'] else 'NOT as'} numpy's, distances within "
+              f"{first['max_distance_apart_m']:.1e} m", flush=True)
         jobs = captures(args.seconds, args.batch, folder)
         bench_jobs = [] if args.batch_only else bench_captures(args.seconds, folder)
         paths = simulate_captures([*bench_jobs, *jobs])[len(bench_jobs):]      # all at once
@@ -148,6 +181,7 @@ def main() -> None:
         if not args.batch_only:
             check(args.device)
             rows = run(args.seconds, 1000, args.backends, args.device, folder=folder)
+            save("bench", rows)
             print("\n| backend | stage | s | x real time | of end to end | host CPU ms per s |")
             print("|---|---|---|---|---|---|")
         for r in rows:
@@ -156,6 +190,7 @@ def main() -> None:
             print(f"| {r['backend']} | {r['stage']} | {r['seconds']:.4f} | {r['real_time_multiple']:.2f} | "
                   f"{f'{share:.0%}' if share == share else ''} | {host} |")
         got = batch(args.device, args.seconds, paths, args.workers)
+        save("batch", got)
         for b in got:
             host = f", host CPU {b['host_cpu_ms_per_s']:.0f} ms per s" if b["workers"] == 1 else ""
             print(f"\nbatch: {b['captures']} captures of {args.seconds:g} s on {b['device']}, {b['workers']} "
@@ -163,20 +198,18 @@ def main() -> None:
                   f"{b['real_time_multiple']:.2f}x real time, {b['process_cpu_cores']:.2f} cores busy{host}",
                   flush=True)
         singles = alone(args.device, args.seconds, paths)
+        save("alone", singles)
         walls = ", ".join(f"{r['wall_s']:.3f}" for r in singles)
         multiples = ", ".join(f"{r['real_time_multiple']:.2f}" for r in singles)
         print(f"one capture alone: {walls} s ({multiples}x real time)", flush=True)
         spread = []
         for n in args.processes:
             spread.append(processes(args.device, args.seconds, paths, n, Path(tmp)))
+            save("processes", spread)
             p = spread[-1]
             print(f"batch on local:{n}: {p['captures']} captures of {args.seconds:g} s: {p['wall_s']:.2f} s, "
                   f"{p['real_time_multiple']:.2f}x real time (warm-up run {p['warm_up_wall_s']:.2f} s)",
                   flush=True)
-    if args.json:
-        args.json.write_text(json.dumps({"bench": rows, "batch": got, "alone": singles, "processes": spread},
-                                        indent=2))
-
 
 if __name__ == "__main__":
     main()
