@@ -40,6 +40,8 @@ import time
 from collections.abc import Sequence
 from pathlib import Path
 
+import numpy as np
+
 from fmcw_cl.backend import make_processor
 from fmcw_cl.batch import process_each
 from fmcw_cl.bench import captures as bench_captures
@@ -60,8 +62,6 @@ def captures(seconds: float, count: int, folder: Path) -> list[dict]:
 def smoke(device: str | None, folder: Path) -> dict:
     """A 20 ms jump converted on the device and by numpy: whether the valid pairs agree
     and the largest distance apart (m) where both are valid."""
-    import numpy as np
-
     (path,) = simulate_captures([{"path": folder / "smoke_jump.h5", "trajectory": jump(0.07),
                                   "duration_s": 0.02, "seed": 5, "start_s": 0.04}])
     got = process(path, Options(), make_processor("opencl", device))

@@ -47,13 +47,28 @@ SINCOS_CYCLES(sincos_cycles8, float8)
         }                                                                                        \
     }
 
+// The cycles of a point, m = 2 j - (points - 1), with Doppler basis b, in float exact
+// where they are large: f = F / 4096 + fl with F whole (F m / 8192 is exact for
+// |m| < 8192) and v = vh + vl; F m / 8192 and vh b reduced modulo one apart, vh b's
+// rounding by fma, then the small terms.
+#define SPLIT_CYCLES(NAME, T)                                                                    \
+    T NAME(const T m, const T b, const float F, const float fl, const float vh, const float vl)  \
+    {                                                                                            \
+        T a = F * m * (1.0f / 8192.0f), p = vh * b;                                              \
+        const T e = fma((T)vh, b, -p);                                                           \
+        a -= rint(a);                                                                            \
+        p -= rint(p);                                                                            \
+        return a + p + (0.5f * fl * m + (e + vl * b));                                           \
+    }
+
+SPLIT_CYCLES(split_cycles, float)
+SPLIT_CYCLES(split_cycles8, float8)
+
 // The same sum by one work-item, eight points a step in float8 (CPU devices,
 // Runtime.lanes). PoCL runs the work-group version's loop one work-item at a time,
 // unvectorised: on two cores of a Zen 4 it took 0.37 s of a 1 s rail's 0.9. The cycles
-// in float, exact where they are large: f = F / 4096 + fl, F whole (F m / 8192 is exact
-// for the point's m = 2 j - (points - 1), |m| < 8192), and v = vh + vl, vh b split by
-// fma into its rounded value and that rounding. (No double8: pip's PoCL, built for
-// AVX2, built a program with one into no kernels where Intel's runtime was loaded too.)
+// in float (`split_cycles`). (No double8: pip's PoCL, built for AVX2, built a program
+// with one into no kernels where Intel's runtime was loaded too.)
 #define PHASOR_LANES(NAME, REAL)                                                                 \
     void NAME(__global const float *row, __global const float *bt, const REAL f, const REAL v,  \
               const int points, __global float *out)                                            \
@@ -66,26 +81,17 @@ SINCOS_CYCLES(sincos_cycles8, float8)
         int j = 0;                                                                               \
         for (; j + 8 <= points; j += 8) {                                                        \
             const float8 m = k + (float)(2 * j - (points - 1));                                  \
-            const float8 b = vload8(0, bt + j);                                                  \
-            float8 a = F * m * (1.0f / 8192.0f), p = vh * b;                                     \
-            const float8 e = fma((float8)vh, b, -p);                                             \
-            a -= rint(a);                                                                        \
-            p -= rint(p);                                                                        \
             float8 s, co;                                                                        \
-            sincos_cycles8(a + p + (0.5f * fl * m + (e + vl * b)), &s, &co);                     \
+            sincos_cycles8(split_cycles8(m, vload8(0, bt + j), F, fl, vh, vl), &s, &co);         \
             const float8 y = vload8(0, row + j);                                                 \
             re8 += y * co;                                                                       \
             im8 -= y * s;                                                                        \
         }                                                                                        \
         float re = sum8(re8), im = sum8(im8);                                                    \
         for (; j < points; j++) {                                                                \
-            const float m = (float)(2 * j - (points - 1)), b = bt[j];                            \
-            float a = F * m * (1.0f / 8192.0f), p = vh * b;                                      \
-            const float e = fma(vh, b, -p);                                                      \
-            a -= rint(a);                                                                        \
-            p -= rint(p);                                                                        \
+            const float m = (float)(2 * j - (points - 1));                                       \
             float s, co;                                                                         \
-            sincos_cycles(a + p + (0.5f * fl * m + (e + vl * b)), &s, &co);                      \
+            sincos_cycles(split_cycles(m, bt[j], F, fl, vh, vl), &s, &co);                       \
             re += row[j] * co;                                                                   \
             im -= row[j] * s;                                                                    \
         }                                                                                        \

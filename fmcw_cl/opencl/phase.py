@@ -23,7 +23,7 @@ def phasors_each(rt: Runtime, bufs: Buffers, xs, betas, v: np.ndarray | None, bi
     d_v, d_bins = Packed(bufs, "phase_in", [(np.float32, rows), (np.float32, 2 * rows)]).upload(
         vel, np.concatenate([np.asarray(b, np.float32) for b in bins]))
     out = Packed(bufs, "phase_out", [(np.float32, 4 * rows)])
-    (size, lsz) = _items(rt, rows)
+    size, lsz = _items(rt, rows)
     rt.kernel("phase", "peak_phasor")(
         rt.queue, (size, 2), (lsz, 1), rows_of[0].buffer, rows_of[1].buffer, *_betas(bufs, betas), d_v,
         d_bins, np.int32(rows), np.int32(points), np.float32(1.0 / nfft), np.int32(v is not None),
@@ -39,7 +39,7 @@ def launch_state(rt: Runtime, bufs: Buffers, rows: tuple, model, vel, d_r, d_f, 
     pairs, points = rows[0].shape
     if pairs == 0:
         return
-    (size, lsz) = _items(rt, pairs)
+    size, lsz = _items(rt, pairs)
     rt.kernel("phase", "peak_phasor_state")(
         rt.queue, (size, 2), (lsz, 1), rows[0].buffer, rows[1].buffer,
         *_betas(bufs, (model.beta_rise, model.beta_fall)), vel, d_r, d_f, np.float64(model.metres_per_bin),
