@@ -121,8 +121,11 @@ def assemble(plan: Plan, parts: list[ChunkMeasurements], processor: ChunkProcess
     u_acc = uncertainty.acceleration_uncertainty(
         acc, acc_valid, noise_mps, period_s, motion.window, plan.period_ratio,
         uncertainty.derivative_scatter(vel, vel_valid, period_s, motion.window))
+    # the distances' errors correlated over a few pairs too (an anti-correlated noise
+    # reads higher on neighbours: the larger)
+    noise_d = np.fmax(noise_m, uncertainty.correlated_scatter(dist, valid, held, period_s) * weak)
     u = uncertainty.pair_uncertainty(
-        dist, vel, valid, vel_valid, noise_m, noise_mps, crb, held, bias, np.maximum(integrated, 1),
+        dist, vel, valid, vel_valid, noise_d, noise_mps, crb, held, bias, np.maximum(integrated, 1),
         period_s=period_s, scale_ppm=lut.scale_ppm, delay_m=plan.lag_sigma_m, delay_mps=plan.lag_sigma_mps,
         period_ratio=plan.period_ratio, resolution_m=lut.range_resolution_m,
         # the beat's cycles per sample per metre: 2 n B / (c x the half-sweep's samples)

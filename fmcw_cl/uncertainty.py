@@ -8,11 +8,14 @@ Sources (standard uncertainties, combined in quadrature):
 
 distance
     noise: the scatter of the pair's own distances about a smooth course, measured
-    locally (second differences, robust), never below the Cramer-Rao bound at its
-    half-sweeps' SNR; scale: the G(I) table's (or calibration's) relative
+    locally (second differences of neighbours and of pairs 4 apart, the motion taken
+    off, robust: errors correlated over a few pairs included), never below the
+    Cramer-Rao bound at its half-sweeps' SNR; scale: the G(I) table's (or calibration's) relative
     uncertainty times the distance; resampling: the cubic convolution's phase error at
     the beat's frequency (`resampling_m`); sync delay: the refined delay's uncertainty as a
-    distance; model: a quarter of the acceleration's bias correction (its model and the
+    distance; model: a tenth of the acceleration's bias correction (its model weighs the
+    half-sweep by the window alone, not by the beat's amplitude, which rises with the
+    laser's power: 7 % too large where the power is proportional to I - 12 mA; and the
     smoothed acceleration it uses); integration: the motion within the half-sweeps summed
     for a weak echo, a (K T)^2 / 12.
 velocity
@@ -38,7 +41,8 @@ from .stages.resample import keys_weights
 
 COVERAGE = 2.0          # k of the expanded uncertainties
 SCATTER_PAIRS = 41      # window (pairs) of the local scatter
-MODEL_SHARE = 0.25      # share of the acceleration bias correction taken as its uncertainty
+CORRELATED_PAIRS = 4    # second differences this many pairs apart see errors correlated over fewer
+MODEL_SHARE = 0.1       # share of the acceleration bias correction taken as its uncertainty
 SLOPE_PAIRS = 21        # window (pairs) of the distances' slope the velocity is checked against
 SLOPE_MIN_PAIRS = 7     # a run shorter than this cannot check its velocities
 SLOPE_SIGMAS = 5.0      # a velocity this many standard errors from the slope is not verified ...
@@ -101,6 +105,25 @@ def local_scatter(x: np.ndarray, valid: np.ndarray, window: int = SCATTER_PAIRS)
     spans = runs(valid)
     d2[spans[:, 0]] = np.nan
     d2[spans[:, 1] - 1] = np.nan
+    return 1.4826 * run_median(d2, valid, window) / np.sqrt(6.0)
+
+
+def correlated_scatter(x: np.ndarray, valid: np.ndarray, acceleration: np.ndarray, period_s: float,
+                       lag: int = CORRELATED_PAIRS, window: int = SCATTER_PAIRS) -> np.ndarray:
+    """Per valid pair, the standard deviation of x's errors near it, those correlated
+    over a few pairs included: `local_scatter`'s robust second differences, of pairs
+    `lag` apart, past the errors' correlation (the rail's distances: +0.30, +0.22, +0.08
+    at 1-3 pairs, which second differences of neighbours read 19 % low), less the
+    motion's a (lag T)^2 from the pair's `acceleration` (m/s^2). NaN where its run has
+    fewer than 2 lag + 1 pairs."""
+    x = np.asarray(x, np.float64)
+    a = np.nan_to_num(np.asarray(acceleration, np.float64))
+    d2 = np.full(x.size, np.nan)
+    d2[lag:-lag] = np.abs(x[:-2 * lag] - 2 * x[lag:-lag] + x[2 * lag:] - a[lag:-lag] * (lag * period_s) ** 2)
+    # only second differences whole within a run
+    for start, stop in runs(valid):
+        d2[start:min(start + lag, stop)] = np.nan
+        d2[max(stop - lag, start):stop] = np.nan
     return 1.4826 * run_median(d2, valid, window) / np.sqrt(6.0)
 
 

@@ -18,6 +18,7 @@ from fmcw_cl.track import OPTIONAL_PAIR_DATASETS, read_track, write_track
 from fmcw_cl.uncertainty import (
     SLOPE_MIN_PAIRS,
     budget_from_attrs,
+    correlated_scatter,
     distance_slope,
     local_scatter,
     velocity_verified,
@@ -45,6 +46,27 @@ def test_local_scatter_is_the_noise_not_the_motion(seed):
     assert np.all(np.isnan(s[700:703]))
     assert 4.0e-6 < np.nanmedian(s) < 6.0e-6     # 5 um drawn; 300 m/s^2 adds 0.75 um a second difference
     assert 0.8e-3 < np.nanmedian(local_scatter(v, ok)) < 1.2e-3
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_correlated_scatter_sees_errors_correlated_over_a_few_pairs(seed):
+    # the rail's distance errors: correlated +0.3, +0.2, +0.1 at 1-3 pairs (a moving
+    # average of four), a 5 um standard deviation, on a target accelerating at 300 m/s^2
+    t, d, _ = motion(4000, seed, sigma_m=0.0)
+    rng = np.random.default_rng(seed)
+    taps = np.array([1.0, 0.45, 0.35, 0.25])
+    e = np.convolve(rng.normal(0, 1, d.size + 3), taps, "valid")
+    d = d + 5e-6 * e / np.sqrt(np.sum(taps**2))
+    ok = np.ones(d.size, bool)
+    ok[1500:1503] = False
+    acc = np.where(ok, 300.0, np.nan)
+    white = np.nanmedian(local_scatter(d, ok))
+    seen = correlated_scatter(d, ok, acc, T)
+    assert white < 4.4e-6                              # neighbours' differences read it low
+    assert 4.6e-6 < np.nanmedian(seen) < 5.6e-6
+    assert np.all(np.isnan(seen[1500:1503]))
+    # the motion's a (4 T)^2 = 12 um is taken off, not read as noise
+    assert np.nanmedian(correlated_scatter(d, ok, np.zeros(d.size), T)) > 1.3 * np.nanmedian(seen)
 
 
 def test_slope_of_a_quadratic_course_and_its_gain():
