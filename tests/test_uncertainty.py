@@ -50,8 +50,9 @@ def test_local_scatter_is_the_noise_not_the_motion(seed):
 
 @pytest.mark.parametrize("seed", [1, 2, 3])
 def test_correlated_scatter_sees_errors_correlated_over_a_few_pairs(seed):
-    # the rail's distance errors: correlated +0.3, +0.2, +0.1 at 1-3 pairs (a moving
-    # average of four), a 5 um standard deviation, on a target accelerating at 300 m/s^2
+    # distance errors correlated +0.50, +0.33, +0.18 at 1-3 pairs (a moving average of
+    # four; the rail's read +0.3, +0.2, +0.1), a 5 um standard deviation, on a target
+    # accelerating at 300 m/s^2
     t, d, _ = motion(4000, seed, sigma_m=0.0)
     rng = np.random.default_rng(seed)
     taps = np.array([1.0, 0.45, 0.35, 0.25])
