@@ -1285,3 +1285,22 @@ def test_no_kernel_reads_a_scalar_local_buffer_as_vectors():
             for i, line in enumerate(p.read_text().splitlines(), 1) if cast.search(line)]
     assert len(list(kernels.glob("*.cl"))) > 10
     assert hits == []
+
+
+def test_waits_polled_asleep_as_on_a_gpu_give_the_same_track(backend, static_capture, monkeypatch):
+    """A GPU's waits poll the event asleep (`Runtime.wait`): the same path on this
+    device, in chunks of 128 periods (downloads that ride, copies that wait, a finish),
+    gives the track its own waits give, bitwise, and did sleep between polls."""
+    from fmcw_cl.opencl import context
+
+    options = Options(chunk_periods=128)
+    own = process(static_capture, options, backend)
+    naps = []
+    sleep = context.time.sleep
+    monkeypatch.setattr(context.time, "sleep", lambda s: (naps.append(s), sleep(s)))
+    monkeypatch.setattr(backend.rt, "polls", True)
+    polled = process(static_capture, options, backend)
+    assert naps and max(naps) <= context.POLL_LAST_S and min(naps) == context.POLL_FIRST_S
+    assert own.valid.sum() > 0.9 * own.valid.size
+    for name in ("distance_m", "velocity_mps", "valid", "distance_uncertainty_m", "displacement_m"):
+        np.testing.assert_array_equal(getattr(polled, name), getattr(own, name))

@@ -19,8 +19,8 @@ from ..errors import FmcwError
 from .choice import CPU, cl, describe, is_simulator, rank, select_device
 
 POCL = "Portable Computing Language"   # PoCL's platform name
-# a wait for the device polls its event, asleep between polls, from the first pause
-# doubling to the last, where the runtime's own wait spins (NVIDIA's, Intel's CPU runtime)
+# a wait for a GPU polls its event, asleep between polls, from the first pause doubling
+# to the last (NVIDIA's runtime spins in its own wait)
 POLL_FIRST_S = 20e-6
 POLL_LAST_S = 1e-3
 ITEMS_LOCAL = (64, 128)        # local size of one-work-item-per-output launches (CPU, GPU): `Runtime.items`
@@ -112,7 +112,7 @@ class Runtime:
     # the events of uploads that do not wait: pyopencl's event of such a copy waits for
     # it when dropped, so they are held until a download or `finish` has waited for them
     in_flight: list = field(default_factory=list)
-    own_wait_sleeps: bool = False     # the runtime's own wait for an event sleeps (PoCL's): `wait`
+    polls: bool = False     # a wait polls the event asleep (a GPU's): `wait`
 
     def __post_init__(self) -> None:
         self.context = cl.Context([self.device])
@@ -125,7 +125,7 @@ class Runtime:
         self.width = lanes_width(self.device)
         self.held = [] if is_simulator(self.device) else None
         self.shuffles = not is_simulator(self.device)
-        self.own_wait_sleeps = POCL in self.device.platform.name
+        self.polls = rank(self.device) != CPU
 
     def hold(self, buffer) -> None:
         """On a simulator, keep `buffer` as long as this runtime. Oclgrind gives a freed
@@ -223,13 +223,12 @@ class Runtime:
                 self.in_flight.append(event)
 
     def wait(self, event) -> None:
-        """Wait for `event` asleep. PoCL's own wait sleeps; NVIDIA's runtime and Intel's
-        CPU runtime spin in theirs, a core each for nothing (a batch's processes on one
-        GPU; on a CPU device a core taken from the kernels): on those, and any other,
-        its status is polled, the pause between polls doubling from POLL_FIRST_S to
-        POLL_LAST_S. Intel's CPU runtime, a 1 s rail: the converting thread's CPU 566-597
-        -> 140-147 ms a second of capture, as fast; PoCL polled: 10 % more CPU, 3 % slower."""
-        if not self.own_wait_sleeps:
+        """Wait for `event`. A GPU's host thread does none of the kernels' work, and
+        NVIDIA's runtime spins in its own wait, a core for nothing (a batch's processes on
+        one GPU each took one): there the event's status is polled asleep, the pause
+        doubling from POLL_FIRST_S to POLL_LAST_S (`polls`). A CPU runtime keeps its own:
+        PoCL's sleeps; Intel's runs kernels in the waiting thread (`docs/devices.md`)."""
+        if self.polls:
             self.queue.flush()             # submitted, or its status may never change
             pause = POLL_FIRST_S
             while event.command_execution_status > 0:        # queued, submitted, running
