@@ -124,9 +124,13 @@ def assemble(plan: Plan, parts: list[ChunkMeasurements], processor: ChunkProcess
     # the distances' errors correlated over a few pairs too (an anti-correlated noise
     # reads higher on neighbours: the larger)
     noise_d = np.fmax(noise_m, uncertainty.correlated_scatter(dist, valid, held, period_s) * weak)
+    # a delay refined on another echo passes that echo's errors on: these pairs' own mismatch
+    moved_mps = (uncertainty.transferred_mps(times[order], dist, vel, valid, plan.lag_at_m)
+                 if plan.lag_refined else 0.0)
     u = uncertainty.pair_uncertainty(
         dist, vel, valid, vel_valid, noise_d, noise_mps, crb, held, bias, np.maximum(integrated, 1),
-        period_s=period_s, scale_ppm=lut.scale_ppm, delay_m=plan.lag_sigma_m, delay_mps=plan.lag_sigma_mps,
+        period_s=period_s, scale_ppm=lut.scale_ppm, delay_m=plan.lag_sigma_m,
+        delay_mps=float(np.hypot(uncertainty.finite_or_zero(plan.lag_sigma_mps), moved_mps)),
         period_ratio=plan.period_ratio, resolution_m=lut.range_resolution_m,
         # the beat's cycles per sample per metre: 2 n B / (c x the half-sweep's samples)
         cycles_per_sample_per_m=1.0 / (lut.range_resolution_m * 0.5 * info.samples_per_period))

@@ -21,6 +21,7 @@ from fmcw_cl.uncertainty import (
     correlated_scatter,
     distance_slope,
     local_scatter,
+    transferred_mps,
     velocity_verified,
 )
 
@@ -68,6 +69,24 @@ def test_correlated_scatter_sees_errors_correlated_over_a_few_pairs(seed):
     assert np.all(np.isnan(seen[1500:1503]))
     # the motion's a (4 T)^2 = 12 um is taken off, not read as noise
     assert np.nanmedian(correlated_scatter(d, ok, np.zeros(d.size), T)) > 1.3 * np.nanmedian(seen)
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_a_delay_refined_on_another_echo_passes_its_bias_on(seed):
+    """A target whose velocities read 0.25 mm/s off (the delay refined on a wall's
+    fold): its own kinematic mismatch states it, where the delay was refined outside
+    its span; a consistent accelerating track states about its error; refined on the
+    pairs themselves, or without a run long enough to measure, nothing."""
+    t, d, v = motion(2000, seed, sigma_m=2e-6, sigma_mps=1e-4)
+    ok = np.ones(d.size, bool)
+    ok[900:903] = False
+    off = transferred_mps(t, d, v - 2.5e-4, ok, refined_at_m=0.45 + d.max())
+    assert 2.0e-4 < off < 3.0e-4
+    assert transferred_mps(t, d, v, ok, refined_at_m=0.45 + d.max()) < 5e-5
+    assert transferred_mps(t, d, v - 2.5e-4, ok, refined_at_m=float(np.median(d))) == 0.0
+    short = np.zeros(d.size, bool)
+    short[::50] = True
+    assert transferred_mps(t, d, v - 2.5e-4, short, refined_at_m=0.45 + d.max()) == 0.0
 
 
 def test_slope_of_a_quadratic_course_and_its_gain():
