@@ -127,8 +127,10 @@ def assemble(plan: Plan, parts: list[ChunkMeasurements], processor: ChunkProcess
     # a delay refined on another echo passes that echo's errors on: these pairs' own mismatch
     moved_mps = (uncertainty.transferred_mps(times[order], dist, vel, valid, plan.lag_at_m)
                  if plan.lag_refined else 0.0)
+    # the velocities' errors that wander over tens of pairs too (speckle decorrelating)
+    noise_v = np.fmax(noise_mps, uncertainty.course_scatter(vel, vel_valid, motion.window) * weak)
     u = uncertainty.pair_uncertainty(
-        dist, vel, valid, vel_valid, noise_d, noise_mps, crb, held, bias, np.maximum(integrated, 1),
+        dist, vel, valid, vel_valid, noise_d, noise_v, crb, held, bias, np.maximum(integrated, 1),
         period_s=period_s, scale_ppm=lut.scale_ppm, delay_m=plan.lag_sigma_m,
         delay_mps=float(np.hypot(uncertainty.finite_or_zero(plan.lag_sigma_mps), moved_mps)),
         period_ratio=plan.period_ratio, resolution_m=lut.range_resolution_m,

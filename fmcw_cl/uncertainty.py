@@ -19,13 +19,15 @@ distance
     smoothed acceleration it uses); integration: the motion within the half-sweeps summed
     for a weak echo, a (K T)^2 / 12.
 velocity
-    noise: its local scatter; sync delay: the refined delay's uncertainty as a
-    velocity, and where the delay was refined on another echo (a wall, a wall's fold
-    beyond the range), the pairs' own kinematic mismatch (`transferred_mps`); time
-    base: the sync's measured period against the file's attributes, |ratio - 1| (|v| +
-    the median |v|: the delay refined on the target moves with it); integration: a K T
-    / sqrt(12) for K > 1 half-sweeps summed (K = 1: none, a pair's velocity is its
-    half-sweeps' mean, the truth at its centre under a steady acceleration).
+    noise: its local scatter, or where larger that of its residuals about a smooth
+    course (`course_scatter`: errors that wander over tens of pairs); sync delay: the
+    refined delay's uncertainty as a velocity, and where the delay was refined on
+    another echo (a wall, a wall's fold beyond the range), the pairs' own kinematic
+    mismatch (`transferred_mps`); time base: the sync's measured period against the
+    file's attributes, |ratio - 1| (|v| + the median |v|: the delay refined on the
+    target moves with it); integration: a K T / sqrt(12) for K > 1 half-sweeps summed
+    (K = 1: none, a pair's velocity is its half-sweeps' mean, the truth at its centre
+    under a steady acceleration).
 """
 
 from __future__ import annotations
@@ -330,24 +332,62 @@ def budget_from_attrs(attrs: dict, quantity: str) -> list[tuple[str, float, floa
     return rows + [("combined", float(np.sqrt(np.nansum(rms**2))), 1.0)]
 
 
+def _course(window: int) -> np.ndarray:
+    """The filter giving each pair's smooth course: the centre value of the quadratic
+    least-squares fit over 4 `window` + 1 pairs (a shorter course takes in the wander it
+    should leave)."""
+    long = 2 * (2 * window) + 1
+    offsets = np.arange(long, dtype=np.float64) - long // 2
+    return np.linalg.pinv(np.vander(offsets, kinematics.POLYORDER + 1, increasing=True))[0]
+
+
+def _robust_rms(x: np.ndarray, edge: int) -> np.ndarray:
+    """The rms of x about each value over SCATTER_PAIRS, robustly (the median of
+    squares over its chi-squared median), and `edge` values more at each end, held from
+    the first and last."""
+    # numpy, not scipy.ndimage: a conversion imports no scipy (a second in a fresh process)
+    ends = np.pad(x * x, SCATTER_PAIRS // 2, mode="edge")
+    mid = SCATTER_PAIRS // 2           # the median of an odd window: its middle order statistic
+    inner = np.sqrt(np.partition(sliding_window_view(ends, SCATTER_PAIRS), mid, axis=1)[:, mid] / CHI2_MEDIAN)
+    return np.concatenate([np.full(edge, inner[0]), inner, np.full(edge, inner[-1])])
+
+
+def course_scatter(velocity: np.ndarray, valid: np.ndarray, window: int = kinematics.WINDOW_PAIRS
+                   ) -> np.ndarray:
+    """Per valid pair, the standard deviation of the velocities' errors, those that
+    wander over tens of pairs included: their residuals about their smooth course
+    (`_course`) over sqrt(1 - h) (h: the course's weight of the pair itself, what a fit
+    takes in of a white error), robustly over SCATTER_PAIRS (`_robust_rms`), held from
+    the nearest measured pair within half a course of the run's ends. A static target
+    under speckle decorrelating in 3 ms: its velocity errors correlated +0.23..+0.45 at
+    1-8 pairs and +0.11..+0.26 at 16, which second differences read 15-20 % low. NaN in
+    runs shorter than the course."""
+    v = np.asarray(velocity, np.float64)
+    course = _course(window)
+    half = course.size // 2
+    out = np.full(v.size, np.nan)
+    for a, b in runs(valid):
+        if b - a < course.size:
+            continue
+        resid = v[a + half:b - half] - np.correlate(v[a:b], course, "valid")
+        out[a:b] = _robust_rms(resid / np.sqrt(1.0 - course[half]), half)
+    return out
+
+
 def derivative_scatter(velocity: np.ndarray, valid: np.ndarray, period_s: float,
                        window: int = kinematics.WINDOW_PAIRS) -> np.ndarray:
     """Per valid pair, the standard deviation (m/s^2) of what the acceleration's
     derivative (quadratic over `window` pairs) passes of the velocities' errors,
-    correlated ones included: the velocities less their smooth course (a quadratic over
-    4 `window` + 1 pairs of their run: a shorter course takes in the wander it should
-    leave), differentiated as the acceleration is, robustly (from the median of squares)
-    over SCATTER_PAIRS, and held from the nearest measured pair within half a course and
-    half a window of the run's ends. Second differences see only the white part of the velocities'
+    correlated ones included: the velocities less their smooth course (`_course`),
+    differentiated as the acceleration is, robustly over SCATTER_PAIRS (`_robust_rms`),
+    and held from the nearest measured pair within half a course and half a window of
+    the run's ends. Second differences see only the white part of the velocities'
     noise; at speed their errors also wander over a few pairs (0.3 mm/s over 8 pairs of
     the jump: 0.5-0.8 m/s^2 where the white part stated 0.07). NaN in runs shorter than
     the course and a window."""
     v = np.asarray(velocity, np.float64)
-    long = 2 * (2 * window) + 1
-    half = long // 2
-    # the centre value of a window's least-squares quadratic: its constant coefficient
-    offsets = np.arange(long, dtype=np.float64) - half
-    course = np.linalg.pinv(np.vander(offsets, kinematics.POLYORDER + 1, increasing=True))[0]
+    course = _course(window)
+    half = course.size // 2
     slope = savgol_rows(window, kinematics.POLYORDER)[window // 2] / period_s
     edge = half + window // 2           # pairs at a run's ends with no whole course and window
     out = np.full(v.size, np.nan)
@@ -355,13 +395,7 @@ def derivative_scatter(velocity: np.ndarray, valid: np.ndarray, period_s: float,
         if b - a < 2 * edge + 1:
             continue
         resid = v[a + half:b - half] - np.correlate(v[a:b], course, "valid")
-        d = np.correlate(resid, slope, "valid")
-        # numpy, not scipy.ndimage: a conversion imports no scipy (a second in a fresh process)
-        ends = np.pad(d * d, SCATTER_PAIRS // 2, mode="edge")
-        mid = SCATTER_PAIRS // 2           # the median of an odd window: its middle order statistic
-        rank = np.partition(sliding_window_view(ends, SCATTER_PAIRS), mid, axis=1)[:, mid]
-        inner = np.sqrt(rank / CHI2_MEDIAN)
-        out[a:b] = np.concatenate([np.full(edge, inner[0]), inner, np.full(edge, inner[-1])])
+        out[a:b] = _robust_rms(np.correlate(resid, slope, "valid"), edge)
     return out
 
 
