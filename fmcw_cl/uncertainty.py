@@ -51,7 +51,6 @@ SLOPE_MIN_PAIRS = 7     # a run shorter than this cannot check its velocities
 SLOPE_SIGMAS = 5.0      # a velocity this many standard errors from the slope is not verified ...
 SLOPE_FLOOR_MPS = 0.01  # ... plus this (the distances' correlated errors: the table's ripple
                         # passed at speed)
-TRANSFER_RUN = 60       # pairs of a run whose kinematic mismatch is measured (refine.MIN_RUN)
 TRANSFER_APART_M = 0.02  # a delay refined this far outside the pairs' span was refined on another echo
 CHI2_MEDIAN = 0.45494   # median of chi-squared, one degree of freedom: a median of squares over it
 DISTANCE_SOURCES = ("noise", "scale", "resampling", "sync delay", "model", "integration")
@@ -98,38 +97,37 @@ def run_median(x: np.ndarray, valid: np.ndarray, window: int = SCATTER_PAIRS) ->
     return out
 
 
-def local_scatter(x: np.ndarray, valid: np.ndarray, window: int = SCATTER_PAIRS) -> np.ndarray:
+def local_scatter(x: np.ndarray, valid: np.ndarray, window: int = SCATTER_PAIRS, lag: int = 1,
+                  motion: np.ndarray | None = None) -> np.ndarray:
     """Per valid pair, the standard deviation of x's white part near it: from its run's
-    second differences (6 sigma^2 for white noise; a motion's smooth part, a T^2, lies far
-    below), robustly (1.4826 median |.| / sqrt 6) over `window` pairs of its run. NaN
-    where its run has fewer than 3 pairs."""
+    second differences of pairs `lag` apart (6 sigma^2 for white noise; a motion's smooth
+    part, a (lag T)^2, lies far below at lag 1, and `motion`, where given, is that part
+    taken off), robustly (1.4826 median |.| / sqrt 6) over `window` pairs of its run. NaN
+    where its run has fewer than 2 lag + 1 pairs."""
     x = np.asarray(x, np.float64)
     d2 = np.full(x.size, np.nan)
-    d2[1:-1] = np.abs(x[:-2] - 2 * x[1:-1] + x[2:])
-    # only second differences whole within a run: not at its first and last pair
+    d2[lag:-lag] = x[:-2 * lag] - 2 * x[lag:-lag] + x[2 * lag:]
+    if motion is not None:
+        d2[lag:-lag] -= motion[lag:-lag]
+    d2 = np.abs(d2)
+    # only second differences whole within a run: not at its first and last `lag` pairs
     spans = runs(valid)
-    d2[spans[:, 0]] = np.nan
-    d2[spans[:, 1] - 1] = np.nan
+    for k in range(lag):
+        first, last = spans[:, 0] + k, spans[:, 1] - 1 - k
+        d2[first[first < spans[:, 1]]] = np.nan
+        d2[last[last >= spans[:, 0]]] = np.nan
     return 1.4826 * run_median(d2, valid, window) / np.sqrt(6.0)
 
 
 def correlated_scatter(x: np.ndarray, valid: np.ndarray, acceleration: np.ndarray, period_s: float,
                        lag: int = CORRELATED_PAIRS, window: int = SCATTER_PAIRS) -> np.ndarray:
     """Per valid pair, the standard deviation of x's errors near it, those correlated
-    over a few pairs included: `local_scatter`'s robust second differences, of pairs
-    `lag` apart, past the errors' correlation (the rail's distances: +0.30, +0.22, +0.08
-    at 1-3 pairs, which second differences of neighbours read 19 % low), less the
-    motion's a (lag T)^2 from the pair's `acceleration` (m/s^2). NaN where its run has
-    fewer than 2 lag + 1 pairs."""
-    x = np.asarray(x, np.float64)
+    over a few pairs included: `local_scatter` of pairs `lag` apart, past the errors'
+    correlation (the rail's distances: +0.30, +0.22, +0.08 at 1-3 pairs, which second
+    differences of neighbours read 19 % low), less the motion's a (lag T)^2 from the
+    pair's `acceleration` (m/s^2). NaN where its run has fewer than 2 lag + 1 pairs."""
     a = np.nan_to_num(np.asarray(acceleration, np.float64))
-    d2 = np.full(x.size, np.nan)
-    d2[lag:-lag] = np.abs(x[:-2 * lag] - 2 * x[lag:-lag] + x[2 * lag:] - a[lag:-lag] * (lag * period_s) ** 2)
-    # only second differences whole within a run
-    for start, stop in runs(valid):
-        d2[start:min(start + lag, stop)] = np.nan
-        d2[max(stop - lag, start):stop] = np.nan
-    return 1.4826 * run_median(d2, valid, window) / np.sqrt(6.0)
+    return local_scatter(x, valid, window, lag, a * (lag * period_s) ** 2)
 
 
 def weakness(crb: np.ndarray, valid: np.ndarray, window: int = SCATTER_PAIRS) -> np.ndarray:
@@ -232,23 +230,26 @@ def transferred_mps(time_s: np.ndarray, distance: np.ndarray, velocity: np.ndarr
     """Standard uncertainty (m/s) of the velocity bias a sync delay refined on another
     echo leaves on these pairs: their own kinematic mismatch (the drift of the distance
     less the integrated velocity, refine's measure, which a delay error moves and a
-    consistent track keeps at zero; the runs of TRANSFER_RUN valid pairs, weighted by
-    their jackknifed errors) and its standard error, in quadrature. The delay moves to
+    consistent track keeps at zero; its runs of refine.MIN_RUN valid pairs, weighted by
+    their errors, jackknifed as refine's are) and its standard error, in quadrature. The delay moves to
     zero the mismatch of the echo it is refined on, whose own errors it then passes on:
     a wall's fold beyond the range, refined on, left a static target at 0.24 m -0.20 to
     -0.39 mm/s off. 0 where the delay was refined within TRANSFER_APART_M of the pairs'
     span (1st-99th percentile) or they hold no such run."""
+    from .refine import JACKKNIFE_BLOCKS, MIN_RUN  # here: refine imports motion, which reads this module
+
     ok = np.asarray(valid, bool) & np.isfinite(distance) & np.isfinite(velocity)
     if not ok.any() or not np.isfinite(refined_at_m):
         return 0.0
     lo, hi = np.percentile(distance[ok], [1, 99])
     if lo - TRANSFER_APART_M <= refined_at_m <= hi + TRANSFER_APART_M:
         return 0.0
-    spans = [(a, b) for a, b in runs(ok) if b - a >= TRANSFER_RUN]
+    spans = [(a, b) for a, b in runs(ok) if b - a >= MIN_RUN]
     if not spans:
         return 0.0
     idx = np.concatenate([np.arange(a, b) for a, b in spans])
-    slope, error = drifts(time_s[idx], distance[idx], velocity[idx], np.array([b - a for a, b in spans]), 6)
+    slope, error = drifts(time_s[idx], distance[idx], velocity[idx], np.array([b - a for a, b in spans]),
+                           JACKKNIFE_BLOCKS)
     w = 1.0 / np.square(np.fmax(error, 1e-12))
     return float(np.hypot(np.sum(w * slope) / np.sum(w), 1.0 / np.sqrt(np.sum(w))))
 
