@@ -9,11 +9,13 @@ motions are not: a rail at +1.9 m/s continues at +2.5 m/s, not at -2.9 m/s. So:
 
 - `parted`: each object cut where consecutive verified pairs cannot be one body's
   (objects.bodies), and, where two movers are both lost at once and either could have
-  come back as the other (objects.seen_again), at that gap (`crossing_cuts`);
+  come back as the other (objects.seen_again), at that gap, a track's ends counting as
+  gaps (`crossing_cuts`);
 - `rejoined`: parts seen again joined (objects.returns). Among several movers a join is
   made only where it is the one the motions tell (`contested`: no mover's part seen
   between them could join either, and none seen from the first's start to the second's end
-  joins either within RATIO times their `_cost` plus FLOOR), and only where a body
+  joins either within RATIO times their `_cost` plus FLOOR, and no object of the other
+  kind could be either instead while the other is seen), and only where a body
   can move so (verification.reachable's bounds), the cheapest first; else the parts stay
   objects of their own (fewer periods tracked, none on the wrong object). Parts of one
   object cut at crossings alone that are all joined again are that object as it was.
@@ -47,39 +49,70 @@ def least_acceleration(ta, da, va, tb, db, vb):
 
 def _gaps(track) -> tuple[np.ndarray, np.ndarray]:
     """The indices of the verified pairs before and after each gap of `track` (one
-    pair or more unverified between them)."""
+    pair or more unverified between them), its ends included as gaps open on one side
+    (-1: no pair there): a tracker lost for good, or one that starts late, is lost too."""
     ok = np.flatnonzero(track.valid)
     gap = np.flatnonzero(np.diff(ok) > 1)
-    return ok[gap], ok[gap + 1]
+    return np.r_[-1, ok[gap], ok[-1]], np.r_[ok[0], ok[gap + 1], -1]
+
+
+def _at(track, k: np.ndarray) -> tuple:
+    """(time s, distance m, velocity m/s) of `track`'s pairs `k` (k >= 0)."""
+    return track.time_s[k], track.distance_m[k], track.velocity_mps[k]
+
+
+def _swaps(x, y) -> np.ndarray:
+    """The times (s) at which to cut mover `x`: the middles of its gaps that overlap a
+    gap of mover `y` (both lost at once) across which either could have come back as
+    the other (objects.seen_again). Where `y`'s gap is one of its ends (lost for good,
+    or not yet seen), every later or earlier gap of `x` overlaps it: there the swap
+    must also be about as cheap as `x`'s own course across its gap (`_least` within
+    RATIO times it plus FLOOR, as a join's contest), not merely possible."""
+    x0, x1 = _gaps(x)
+    inner = (x0 >= 0) & (x1 >= 0)
+    x0, x1 = x0[inner], x1[inner]
+    y0, y1 = _gaps(y)
+    ty0 = np.where(y0 >= 0, y.time_s[np.maximum(y0, 0)], -np.inf)
+    ty1 = np.where(y1 >= 0, y.time_s[np.maximum(y1, 0)], np.inf)
+    lo = np.searchsorted(ty1, x.time_s[x0], side="right")     # y's first gap ending after x's starts
+    hi = np.searchsorted(ty0, x.time_s[x1], side="left")      # ... and past the last starting before x's ends
+    gx = np.repeat(np.arange(x0.size), np.maximum(hi - lo, 0))
+    if not gx.size:
+        return np.zeros(0)
+    gy = np.concatenate([np.arange(p, q) for p, q in zip(lo, hi, strict=True) if q > p])
+    px, nx, py, ny = x0[gx], x1[gx], y0[gy], y1[gy]
+    own = _least(*_at(x, px), *_at(x, nx))
+    back = np.zeros(gx.size, bool)      # y seen again after x's gap
+    ahead = np.zeros(gx.size, bool)     # x seen again as y after y's gap
+    has = py >= 0
+    back[has] = objects.seen_again(*_at(y, py[has]), *_at(x, nx[has]))
+    back[has & (ny < 0)] &= _least(*_at(y, py[has & (ny < 0)]), *_at(x, nx[has & (ny < 0)])) \
+        <= RATIO * own[has & (ny < 0)] + FLOOR
+    has = ny >= 0
+    ahead[has] = objects.seen_again(*_at(x, px[has]), *_at(y, ny[has]))
+    ahead[has & (py < 0)] &= _least(*_at(x, px[has & (py < 0)]), *_at(y, ny[has & (py < 0)])) \
+        <= RATIO * own[has & (py < 0)] + FLOOR
+    swap = back | ahead
+    return 0.5 * (x.time_s[px] + x.time_s[nx])[swap]
+
+
+def _least(ta, da, va, tb, db, vb) -> np.ndarray:
+    """`least_acceleration` times the root of the time between (m/s^1.5, `_cost`'s
+    measure, without its bounds)."""
+    return least_acceleration(ta, da, va, tb, db, vb) * np.sqrt(np.abs(tb - ta))
 
 
 def crossing_cuts(scene: list[SceneObject]) -> list[np.ndarray]:
-    """For each object, the times (s) at which to cut it: the middles of its gaps that
-    overlap a gap of another mover (both lost at once) where either could have come
-    back as the other (objects.seen_again across the two gaps). None for a fixed object."""
-    cuts = [[] for _ in scene]
+    """For each object, the times (s) at which to cut it: its gaps across which another
+    mover, lost at once, could have come back as it or it as the other (`_swaps`; a
+    leg's tracker lost for good as the legs cross while the other's comes back on it).
+    None for a fixed object."""
     movers = [k for k, o in enumerate(scene) if o.moving and o.track.valid.any()]
-    for x, i in enumerate(movers):
-        for j in movers[x + 1:]:
-            a, b = scene[i].track, scene[j].track
-            a0, a1 = _gaps(a)
-            b0, b1 = _gaps(b)
-            if not a0.size or not b0.size:
-                continue
-            ta0, ta1, tb0, tb1 = a.time_s[a0], a.time_s[a1], b.time_s[b0], b.time_s[b1]
-            lo = np.searchsorted(tb1, ta0, side="right")     # b's first gap ending after a's starts
-            hi = np.searchsorted(tb0, ta1, side="left")      # ... and past the last starting before a's ends
-            ga = np.repeat(np.arange(a0.size), np.maximum(hi - lo, 0))
-            if not ga.size:
-                continue
-            gb = np.concatenate([np.arange(p, q) for p, q in zip(lo, hi, strict=True) if q > p])
-            pa, na, pb, nb = a0[ga], a1[ga], b0[gb], b1[gb]
-            swap = (objects.seen_again(a.time_s[pa], a.distance_m[pa], a.velocity_mps[pa],
-                                       b.time_s[nb], b.distance_m[nb], b.velocity_mps[nb])
-                    | objects.seen_again(b.time_s[pb], b.distance_m[pb], b.velocity_mps[pb],
-                                         a.time_s[na], a.distance_m[na], a.velocity_mps[na]))
-            cuts[i] += list(0.5 * (ta0[ga] + ta1[ga])[swap])
-            cuts[j] += list(0.5 * (tb0[gb] + tb1[gb])[swap])
+    cuts = [[] for _ in scene]
+    for i in movers:
+        for j in movers:
+            if i != j:
+                cuts[i] += list(_swaps(scene[i].track, scene[j].track))
     return [np.unique(c) for c in cuts]
 
 
@@ -145,7 +178,11 @@ def contested(scene: list[SceneObject], i: int, j: int, cost: dict[tuple[int, in
     start, end = a.time_s[a.valid][0], b.time_s[b.valid][-1]
     for k, o in enumerate(scene):
         t = o.track.time_s[o.track.valid]
-        if k in (i, j) or o.moving != scene[i].moving or not np.any((t >= start) & (t <= end)):
+        if k in (i, j) or not np.any((t >= start) & (t <= end)):
+            continue
+        if o.moving != scene[i].moving:
+            if _other_kind(a, b, o.track):
+                return True
             continue
         inside = o.moving and t[0] > last and t[-1] < first
         for m in (i, j):
@@ -153,6 +190,25 @@ def contested(scene: list[SceneObject], i: int, j: int, cost: dict[tuple[int, in
             if key in cost and (inside or cost[key] <= bar):
                 return True
     return False
+
+
+def _other_kind(a, b, o) -> bool:
+    """Whether `o`, an object of the other kind first seen after `a` was last, could be
+    `a` (objects.seen_again: a rail come to rest) while `b` is seen, or, last seen before
+    `b` first was, could become `b` while `a` is seen: then `b` need not be `a` (a rail
+    at rest 10 mm on from where it was lost, seen while a glide passes 40 mm short of
+    it 140 ms later: 752 valid pairs of the glide joined to the rail)."""
+    t = o.time_s[o.valid]
+    ta, tb = a.time_s[a.valid], b.time_s[b.valid]
+    p, q = np.flatnonzero(a.valid)[-1], np.flatnonzero(b.valid)[0]
+    m, n = np.flatnonzero(o.valid)[[0, -1]]
+    became = (t[0] > ta[-1] and t[-1] >= tb[0]
+              and objects.seen_again(a.time_s[p], a.distance_m[p], a.velocity_mps[p],
+                                     o.time_s[m], o.distance_m[m], o.velocity_mps[m]))
+    becomes = (t[-1] < tb[0] and t[0] <= ta[-1]
+               and objects.seen_again(o.time_s[n], o.distance_m[n], o.velocity_mps[n],
+                                      b.time_s[q], b.distance_m[q], b.velocity_mps[q]))
+    return bool(became or becomes)
 
 
 def _cost(a, b) -> float:

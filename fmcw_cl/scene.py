@@ -116,10 +116,15 @@ def objects_of(cap: Capture, first: First, choice: target.Choice, own: Converted
     if pick < 0:                # the target's choice told one (6c): the object its pairs lie on stands
         on = [_same_echo(o.track, own.track) for o in scene]
         pick = int(np.argmax(on)) if max(on) else pick
-    # a target joined of two conversions is re-converted by neither: its first's plan stands
+    # a target joined of two conversions is re-converted by neither: the plan, the tuning
+    # and the rest of the one holding most of its pairs stand (the other's unverified
+    # stretches are not its echo: a glide joined across two read 7.5x the window's width)
     mine = scene[max(pick, 0)]
     origin = mine.track if mine.whole is None else mine.whole
-    conv = of.get(id(origin)) or next((d for d in done if d.track.valid.any()), own)
+    conv = of.get(id(origin))
+    if conv is None:
+        conv = max(done, key=lambda d: (_same_echo(d.track, mine.track), d.track.valid.any()), default=own)
+        return scene, pick, replace(conv, track=mine.track, whole=conv.track)
     return scene, pick, replace(conv, track=mine.track, whole=mine.whole)
 
 

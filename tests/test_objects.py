@@ -195,6 +195,49 @@ def test_a_return_so_soon_is_one_bodys_motion_or_none():
     assert objects.returns(_track(before), _track(hidden))
 
 
+def test_a_tracker_lost_for_good_cuts_the_other_where_it_comes_back_on_its_mover():
+    """The rail's tracker lost for good as the two movers cross (from 0.104 s), the
+    glide's lost at once and back on the rail at 0.120 s (two jumps' legs: 95 valid
+    pairs of one on the other): a track's end is a gap too, and where the lost one's
+    end explains the return better than the glide's own course, the glide's tracker is
+    cut there; the rail's end and its return are one object, the glide another. A
+    late gap of the glide that the rail's end explains worse than the glide's own
+    course (50 ms on, a two-jump scene's landing at rest) cuts nothing."""
+    n = 5000
+    t = PERIOD * (np.arange(n) + 0.5)
+    rail, glide = 0.06 + 1.28 * t, 0.36 - 1.4 * t
+    back = t >= 0.120
+    a = _track(np.where(t < 0.104, rail, np.nan), np.full(n, 1.28))
+    b = _track(np.where(back, rail, np.where(t < 0.104, glide, np.nan)), np.where(back, 1.28, -1.4))
+    scene = [objects.SceneObject(0, True, a, "rail"), objects.SceneObject(0, True, b, "glide")]
+    assert [c.size for c in identities.crossing_cuts(scene)] == [0, 1]
+    found = identities.untangled(scene, True)
+    assert len(found) == 2
+    for o in found:
+        ok = o.track.valid
+        on_rail = np.abs(o.track.distance_m[ok] - rail[ok]) < 1e-9
+        assert on_rail.all() or not on_rail.any()
+    slow = _track(np.where((t < 0.150) | (t > 0.152), glide, np.nan), np.full(n, -1.4))
+    assert [c.size for c in identities.crossing_cuts([scene[0], objects.SceneObject(0, True, slow, "")])] \
+        == [0, 0]
+
+
+def test_a_mover_come_to_rest_is_not_joined_to_a_later_mover():
+    """A rail lost at 40 ms (0.2628 m, +0.77 m/s), a fixed echo from 85 ms 10 mm on
+    (the rail at rest) and seen until the end, and a glide from 182 ms (0.2249 m, -1.58
+    m/s) whose start the rail's trapezoid reaches within 20 mm: the glide is not the
+    rail seen again, for the rail is seen at rest meanwhile (identities._other_kind);
+    without the fixed echo the join is made."""
+    n = 5400
+    t = PERIOD * (np.arange(n) + 0.5)
+    rail = _track(np.where(t < 0.040, 0.2628 + 0.77 * (t - 0.040), np.nan), np.full(n, 0.77))
+    rest = _track(np.where(t > 0.085, 0.273, np.nan))
+    later = _track(np.where(t > 0.182, 0.2249 - 1.58 * (t - 0.182), np.nan), np.full(n, -1.58))
+    movers = [objects.SceneObject(0, True, rail, "rail"), objects.SceneObject(0, True, later, "glide")]
+    assert len(identities.rejoined(list(movers), True)) == 1
+    assert len(identities.rejoined([movers[0], objects.SceneObject(0, False, rest, "rest"), movers[1]], True)) == 3
+
+
 def test_two_legs_whose_motions_tell_nothing_stay_apart():
     """Two legs near their apexes 40 ms apart (the same jump), both lost for 20 ms
     between them: a leg could have come back as either (least accelerations alike),
