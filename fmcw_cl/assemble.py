@@ -90,7 +90,8 @@ def assemble(plan: Plan, parts: list[ChunkMeasurements], processor: ChunkProcess
         reason_owned = target.ambiguous(reason_owned, t_mid, res["distance"], res["velocity"], choice, imaged,
                                         sigma_v, bias_v)
     if options.dechirp:         # the paper's method (--no-dechirp) is reported as the paper did
-        reason_owned = faults.verified(t_mid, res["distance"], res["velocity"], reason_owned, processor)
+        reason_owned = faults.verified(t_mid, res["distance"], res["velocity"], reason_owned, processor,
+                                       res["integrated"])
     res["valid"] = reason_owned == faults.OK
     valid = with_gaps(res["valid"], False)
     reason = with_gaps(reason_owned, faults.SYNC_GAP)

@@ -59,7 +59,8 @@ def moving_beside(cap: Capture, plan, processor, fixed_m: float) -> list[tuple[f
             if not parts:
                 continue
             tt, dd, vv, _ = pairs_of(parts, p.model, p.motion)
-            code = faults.verified(tt, dd, vv, np.concatenate([q.reason for q in parts]), processor)
+            code = faults.verified(tt, dd, vv, np.concatenate([q.reason for q in parts]), processor,
+                                   np.concatenate([q.result.integrated for q in parts]))
             t.append(tt)
             d.append(dd)
             v.append(vv)

@@ -458,6 +458,32 @@ def test_verification_drops_isolated_pairs_and_short_wrong_runs():
     assert got2[318:324].all() and got2[470:476].all()
 
 
+def test_an_integrated_run_stands_alone_only_past_one_integration():
+    """A run of 18 self-consistent pairs far from any other stands on its own (over
+    ANCHOR_PAIRS) where each pair is one look; where each sums K = 32 half-sweeps of a
+    direction, its pairs share their spectra (a noise peak integrated along the track):
+    it needs 17 + 31 pairs, or an anchor that predicts it. A run that long, or the
+    short one beside its anchor, stays."""
+    from fmcw_cl.stages import verification
+
+    t = np.arange(2000) * 50e-6
+    v = np.full(t.size, -1.4)
+    d = 0.42 - 1.4 * t
+    ok = np.zeros(t.size, bool)
+    ok[900:918] = True
+    looks = np.full(t.size, 32)
+    assert verification.verify(t, d, v, ok)[0][900:918].all()
+    got, unsupported = verification.verify(t, d, v, ok, looks=looks)
+    assert not got.any() and unsupported[900:918].all()
+    ok[918:948] = True                      # 48 pairs: past one integration
+    assert verification.verify(t, d, v, ok, looks=looks)[0][900:948].all()
+    ok[:] = False
+    ok[300:700] = True                      # an anchor, 1 ms before the short run
+    ok[720:738] = True
+    got, _ = verification.verify(t, d, v, ok, looks=looks)
+    assert got[300:700].all() and got[720:738].all()
+
+
 def test_verification_drops_runs_whose_distance_leaves_their_velocity(monkeypatch):
     """A rail's start beside a strong wall: a wrong echo held at one distance for 25 ms
     with a velocity of 0.94 m/s. Within 2 ms most pairs agree (0.94 m/s moves the

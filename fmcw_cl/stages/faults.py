@@ -124,11 +124,12 @@ def reasons(valid: np.ndarray, heard: np.ndarray, clip: np.ndarray, alias: np.nd
 
 
 def verified(t: np.ndarray, distance: np.ndarray, velocity: np.ndarray, code: np.ndarray,
-             ops: SpectrumOps = NUMPY) -> np.ndarray:
+             ops: SpectrumOps = NUMPY, looks: np.ndarray | None = None) -> np.ndarray:
     """The codes `code` of pairs at times t with the pairs that are OK but not vouched
-    for by enough OK neighbours (verification.verify, its tests by `ops`: a processor's)
-    set to UNVERIFIED, or DISCONTINUOUS where their neighbours disagree with them."""
-    ok, unsupported = verify(t, distance, velocity, code == OK, ops)
+    for by enough OK neighbours (verification.verify, its tests by `ops`: a processor's;
+    `looks`: the half-sweeps each pair's spectra summed) set to UNVERIFIED, or
+    DISCONTINUOUS where their neighbours disagree with them."""
+    ok, unsupported = verify(t, distance, velocity, code == OK, ops, looks)
     out = code.copy()
     dropped = (code == OK) & ~ok
     out[dropped] = np.where(unsupported[dropped], UNVERIFIED, DISCONTINUOUS)
