@@ -193,19 +193,20 @@ def contested(scene: list[SceneObject], i: int, j: int, cost: dict[tuple[int, in
 
 
 def _other_kind(a, b, o) -> bool:
-    """Whether `o`, an object of the other kind first seen after `a` was last, could be
-    `a` (objects.seen_again: a rail come to rest) while `b` is seen, or, last seen before
-    `b` first was, could become `b` while `a` is seen: then `b` need not be `a` (a rail
-    at rest 10 mm on from where it was lost, seen while a glide passes 40 mm short of
-    it 140 ms later: 752 valid pairs of the glide joined to the rail)."""
+    """Whether `o`, an object of the other kind, could be a part between `a` and `b`
+    instead (it comes first): first seen between them and seen again from `a` (a rail
+    come to rest 10 mm on, 45 ms later, and a glide at 182 ms whose start the rail's
+    trapezoid reaches within 20 mm over 142 ms: 752 valid pairs of the glide joined to
+    the rail; a foot at rest and a hand come down 13 mm from it 200 ms later, the foot
+    taking off 2.5 ms after its rest), or last seen between them, `b` seen again from it."""
     t = o.time_s[o.valid]
-    ta, tb = a.time_s[a.valid], b.time_s[b.valid]
     p, q = np.flatnonzero(a.valid)[-1], np.flatnonzero(b.valid)[0]
     m, n = np.flatnonzero(o.valid)[[0, -1]]
-    became = (t[0] > ta[-1] and t[-1] >= tb[0]
+    last, first = a.time_s[p], b.time_s[q]
+    became = (last < t[0] < first
               and objects.seen_again(a.time_s[p], a.distance_m[p], a.velocity_mps[p],
                                      o.time_s[m], o.distance_m[m], o.velocity_mps[m]))
-    becomes = (t[-1] < tb[0] and t[0] <= ta[-1]
+    becomes = (last < t[-1] < first
                and objects.seen_again(o.time_s[n], o.distance_m[n], o.velocity_mps[n],
                                       b.time_s[q], b.distance_m[q], b.velocity_mps[q]))
     return bool(became or becomes)

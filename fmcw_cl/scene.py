@@ -78,12 +78,12 @@ def objects_of(cap: Capture, first: First, choice: target.Choice, own: Converted
             moving = bool(choice.moving)
             # without the de-chirp (the paper's method) a mover's peaks smear over centimetres
             # and pass between bodies within one: the test is the de-chirped tracker's
-            track = one_body(own.track, moving) if options.dechirp else own.track
-            if track is own.track:
-                return [objects.SceneObject(1, moving, track, "the target: no other echo")], 0, own
-            # its tuning and its rest are still the conversion's (engine: `whole`)
-            alone = objects.SceneObject(1, moving, track, track.attrs["target_choice"], own.track)
-            return [alone], 0, replace(own, track=track, whole=own.track)
+            if not options.dechirp or one_body(own.track, moving) is own.track:
+                return [objects.SceneObject(1, moving, own.track, "the target: no other echo")], 0, own
+            # one candidate, two bodies or more: its parts are the objects, as two
+            # candidates' are, its tuning and its rest still the conversion's (`whole`)
+            found = [objects.SceneObject(0, moving, own.track, f"{own.choice.note}: two bodies or more")]
+            return _told_apart(found, [own], own, options, True)
         # the target's conversion stands for the candidate it holds, unless it held two echoes
         share = [objects.holds(own.track, c) for c in cands]
         held = int(np.argmax(share)) if share and max(share) >= 0.5 and not two else None
@@ -101,9 +101,17 @@ def objects_of(cap: Capture, first: First, choice: target.Choice, own: Converted
     unseen = {(i, j) for i, d in enumerate(done) for j in _unseen(d, done, first)}
     done = _unveiled(done, unseen, seconds, processor)
     done = _exclusive(done, unseen, first, seconds, processor)
-    of = {id(d.track): d for d in done}
     found = [objects.SceneObject(0, _moving(d), d.track, d.choice.note) for d in done]
     several = sum(o.moving and o.track.valid.any() for o in found) >= 2
+    return _told_apart(found, done, own, options, several)
+
+
+def _told_apart(found: list[objects.SceneObject], done: list[Converted], own: Converted, options,
+                several: bool) -> tuple[list[objects.SceneObject], int, Converted]:
+    """`objects_of`'s objects from the conversions `done` (`found`: an object each):
+    bodies told apart (identities.untangled, by contests where `several` movers may
+    be), numbered in the order they were seen, the target chosen by the user's rule."""
+    of = {id(d.track): d for d in done}
     scene = identities.untangled(found, several)
     scene.sort(key=lambda o: (o.attrs()["first_seen_s"] if o.track.valid.any() else np.inf,
                               o.attrs()["distance_span_m"][0]))
