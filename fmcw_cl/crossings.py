@@ -15,6 +15,7 @@ from . import fixed_echoes
 from .objects import GATE_M, level, per_pair
 from .stages import faults
 from .stages.clutter import STILL_S
+from .stages.verification import KINEMATIC_S
 from .track import Track
 
 BRIDGE_S = 5e-3          # an object's path is interpolated across gaps this short
@@ -103,6 +104,23 @@ def conflicts(tracks: list[Track], fixed: list[bool] | None = None,
             for a, b in ((i, j), (j, i)):
                 if (a, b) not in unseen:
                     out[a] |= close
+    return out
+
+
+def passing(tracks: list[Track]) -> list[np.ndarray]:
+    """For each track, the verified pairs within GATE_M of another object's `course` up
+    to verification.KINEMATIC_S beyond its verified pairs (of either kind: a sway's
+    2 ms at -1.3 m/s, 3 mm, is a fixed part): where one
+    tracker passed from one mover to another as they crossed, its last pairs on the
+    one and its first on the other, which no two tracks held at once (`conflicts`), a
+    merged peak's (a glide at +3.5 m/s and a sway at -1.3 m/s 1-2 mm apart: the glide's
+    last pair 2.1 mm off it)."""
+    courses = [course(t, KINEMATIC_S)[0] for t in tracks]
+    out = [np.zeros(t.pairs, bool) for t in tracks]
+    for i, a in enumerate(tracks):
+        for j, c in enumerate(courses):
+            if i != j:
+                out[i] |= a.valid & (np.abs(np.where(a.valid, a.distance_m, np.nan) - c) <= GATE_M)
     return out
 
 

@@ -46,13 +46,17 @@ import numpy as np
 
 from . import fixed_echoes, target
 from .stages import faults
-from .stages.verification import KINEMATIC_S, reachable
+from .stages.verification import ACCEL_MAX, KINEMATIC_S, reachable
 from .track import Track
 
 GATE_M = fixed_echoes.GATE_M   # two objects this close at one time cannot be told apart
 SAME_M = 5e-4            # two candidates' verified pairs this close ...
 SAME_SHARE = 0.8         # ... at this share of the pairs both hold: one echo
 RETURN_M = 0.04          # an object seen again within this of where it was last seen is the same one
+STEADY_S = 5e-4          # the tracker's running median's reach (+-8 pairs at 20 kHz) ...
+STEADY_MPS = 1.0         # ... over which one body's valid velocities differ by at most this + ACCEL_MAX dt
+                         # (`one_body`: 2 CONSISTENT_MPS of noise and a median a blend pulls: a leg's
+                         # apex 20 mm from the other leg read +0.27 then -0.33 m/s)
 RUN_M = 3e-3             # a part of a mover that runs this far as its velocities say moves (`runs`)
 STILL_ATTR = "still_echoes_removed_s"   # a track's attribute: its rows' running mean's span (s; 0: none)
 MAX_OBJECTS = 8          # candidates converted at most (the nearest first)
@@ -205,16 +209,30 @@ def bodies(track: Track) -> list[np.ndarray]:
     in time; one where the track is one body's): cut between two verified pairs,
     consecutive among them, that no body moves between (verification.reachable: its
     tracker, its anchors and its bands' choice all passed one that did, a wall's run
-    and a foot's 81 mm away 0.15 ms apart)."""
+    and a foot's 81 mm away 0.15 ms apart) or whose velocities no body holds so soon
+    (`one_body`)."""
     ok = np.flatnonzero(track.valid)
     t, d, v = track.time_s[ok], track.distance_m[ok], track.velocity_mps[ok]
-    cut = np.flatnonzero(~reachable(t[:-1], d[:-1], v[:-1], t[1:], d[1:], v[1:])) + 1
+    cut = np.flatnonzero(~one_body(t[:-1], d[:-1], v[:-1], t[1:], d[1:], v[1:])) + 1
     out = []
     for part in np.split(ok, cut):
         mask = np.zeros(track.pairs, bool)
         mask[part] = True
         out.append(mask)
     return out
+
+
+def one_body(ta, da, va, tb, db, vb) -> np.ndarray:
+    """Whether one body can make pairs (ta, da, va) and (tb, db, vb) (s, m, m/s;
+    arrays): verification.reachable, and within STEADY_S, where each valid pair's
+    velocity lies within verification.CONSISTENT_MPS of its neighbours' median, the
+    velocities within ACCEL_MAX |dt| + STEADY_MPS (two glides crossing at +1.74 and
+    -1.87 m/s, the tracker passing from one to the other 0.8 mm on in 0.15 ms: 59
+    valid pairs on the other; a landing's impact in a fade is not bounded so: 5 m/s
+    to rest within 2 ms)."""
+    dt = np.abs(tb - ta)
+    steady = (dt > STEADY_S) | (np.abs(vb - va) <= ACCEL_MAX * dt + STEADY_MPS)
+    return reachable(ta, da, va, tb, db, vb) & steady
 
 
 def invalidated(track: Track, where: np.ndarray, code: int = faults.AMBIGUOUS) -> Track:
@@ -280,7 +298,7 @@ def seen_again(ta, da, va, tb, db, vb) -> np.ndarray:
     (s, m, m/s; arrays): within RETURN_M of where the trapezoid of its two velocities
     carries it or, where one of the two is at rest (under fixed_echoes.MOVING_MPS), of
     where it lay; within verification.KINEMATIC_S, only where one body moves so
-    (`reachable`: a leg at 0.0762 m, +0.2 m/s, is not the other leg 1.9 mm nearer at
+    (`one_body`: a leg at 0.0762 m, +0.2 m/s, is not the other leg 1.9 mm nearer at
     -0.8 m/s 0.35 ms later). A mover that runs on at both ends is not seen again behind
     where it ran (a foot at 7 m/s, then 8 ms later a run at 2.8 m/s 8 mm short of it: the
     foot's rising peak and a wall's image in the falling ones)."""
@@ -289,7 +307,7 @@ def seen_again(ta, da, va, tb, db, vb) -> np.ndarray:
     still = np.minimum(np.abs(va), np.abs(vb)) < fixed_echoes.MOVING_MPS
     soon = np.abs(tb - ta) <= KINEMATIC_S       # so soon, one body's motion or none
     return (((np.abs(moved - run) <= RETURN_M) | (still & (np.abs(moved) <= RETURN_M)))
-            & (~soon | reachable(ta, da, va, tb, db, vb)))
+            & (~soon | one_body(ta, da, va, tb, db, vb)))
 
 
 def joined(a: Track, b: Track) -> Track:

@@ -83,7 +83,7 @@ def objects_of(cap: Capture, first: First, choice: target.Choice, own: Converted
             # one candidate, two bodies or more: its parts are the objects, as two
             # candidates' are, its tuning and its rest still the conversion's (`whole`)
             found = [objects.SceneObject(0, moving, own.track, f"{own.choice.note}: two bodies or more")]
-            return _told_apart(found, [own], own, options, True)
+            return _told_apart(found, [own], own, options, True, lone=True)
         # the target's conversion stands for the candidate it holds, unless it held two echoes
         share = [objects.holds(own.track, c) for c in cands]
         held = int(np.argmax(share)) if share and max(share) >= 0.5 and not two else None
@@ -107,12 +107,24 @@ def objects_of(cap: Capture, first: First, choice: target.Choice, own: Converted
 
 
 def _told_apart(found: list[objects.SceneObject], done: list[Converted], own: Converted, options,
-                several: bool) -> tuple[list[objects.SceneObject], int, Converted]:
+                several: bool, lone: bool = False) -> tuple[list[objects.SceneObject], int, Converted]:
     """`objects_of`'s objects from the conversions `done` (`found`: an object each):
     bodies told apart (identities.untangled, by contests where `several` movers may
-    be), numbered in the order they were seen, the target chosen by the user's rule."""
+    be), numbered in the order they were seen, the target chosen by the user's rule.
+    Each object's pairs are `ambiguous` where another's course passes within
+    objects.GATE_M (crossings.passing); a `lone` candidate's, whose one tracker held one
+    echo at a time, also where another's path does, a fixed one's span there all along
+    (crossings.conflicts, as `_exclusive` for several conversions: two legs landing 0.3
+    mm apart, the tracker passing from one to the other, 183 valid pairs on the other)."""
     of = {id(d.track): d for d in done}
     scene = identities.untangled(found, several)
+    tracks, moving = [o.track for o in scene], [o.moving for o in scene]
+    clash = crossings.passing(tracks)
+    if lone:
+        paths = crossings.conflicts(tracks, [not m for m in moving])
+        clash = [c | p for c, p in zip(clash, paths, strict=True)]
+    scene = [replace(o, track=objects.invalidated(o.track, c)) if (c & o.track.valid).any() else o
+             for o, c in zip(scene, clash, strict=True)]
     scene.sort(key=lambda o: (o.attrs()["first_seen_s"] if o.track.valid.any() else np.inf,
                               o.attrs()["distance_span_m"][0]))
     for k, o in enumerate(scene, 1):
