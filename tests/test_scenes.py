@@ -461,9 +461,9 @@ def test_verification_drops_isolated_pairs_and_short_wrong_runs():
 def test_an_integrated_run_stands_alone_only_past_one_integration():
     """A run of 18 self-consistent pairs far from any other stands on its own (over
     ANCHOR_PAIRS) where each pair is one look; where each sums K = 32 half-sweeps of a
-    direction, its pairs share their spectra (a noise peak integrated along the track):
-    it needs 17 + 31 pairs, or an anchor that predicts it. A run that long, or the
-    short one beside its anchor, stays."""
+    direction, one half-sweep's noise lifts K of them (a noise peak integrated along
+    the track): it needs K + 1 pairs, or an anchor that predicts it. A run that long,
+    or the short one beside its anchor, stays."""
     from fmcw_cl.stages import verification
 
     t = np.arange(2000) * 50e-6
@@ -475,8 +475,8 @@ def test_an_integrated_run_stands_alone_only_past_one_integration():
     assert verification.verify(t, d, v, ok)[0][900:918].all()
     got, unsupported = verification.verify(t, d, v, ok, looks=looks)
     assert not got.any() and unsupported[900:918].all()
-    ok[918:948] = True                      # 48 pairs: past one integration
-    assert verification.verify(t, d, v, ok, looks=looks)[0][900:948].all()
+    ok[918:933] = True                      # 33 pairs: two looks apart
+    assert verification.verify(t, d, v, ok, looks=looks)[0][900:933].all()
     ok[:] = False
     ok[300:700] = True                      # an anchor, 1 ms before the short run
     ok[720:738] = True

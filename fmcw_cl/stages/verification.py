@@ -309,10 +309,12 @@ def _anchored(t, dist, vel, ok, unsupported, looks=None) -> None:
     valid where the anchor run nearest on either side predicts its end (`_agrees`)
     across a gap of at most ANCHOR_GAP_S; else every pair of it is unsupported (a wrong
     echo followed for a few pairs is self-consistent). Pairs whose spectra sum K
-    half-sweeps (`looks`) share them with their K - 1 neighbours on each side: a run of
-    them is an anchor with ANCHOR_PAIRS pairs past one integration's K - 1 (18 pairs
-    at K = 32, 0.9 ms, stood on their own: a noise peak integrated along the track
-    paired with a mover's real peak in the other direction, 110 mm from both movers)."""
+    half-sweeps (`looks`) share them with their K - 1 neighbours on each side, and one
+    half-sweep's noise lifts the peaks of K of them: a run of them is an anchor with K
+    + 1 pairs at least, two looks apart (18 pairs at K = 32, 0.9 ms, stood on their
+    own: a noise peak integrated along the track paired with a mover's real peak in the
+    other direction, 110 mm from both movers; an object passing for 8 ms, runs of 33-45
+    pairs 3 ms apart, stands)."""
     runs = _runs(t, dist, vel, ok)
     if not runs:
         return
@@ -321,7 +323,7 @@ def _anchored(t, dist, vel, ok, unsupported, looks=None) -> None:
         return _agrees(t[a], dist[a], vel[a], t[b], dist[b], vel[b])
 
     def anchor(r) -> bool:
-        return r.size >= ANCHOR_PAIRS + (0 if looks is None else max(int(looks[r].max()), 1) - 1)
+        return r.size >= max(ANCHOR_PAIRS, 0 if looks is None else int(looks[r].max()) + 1)
 
     anchors = [r for r in runs if anchor(r)]
     firsts = np.array([r[0] for r in anchors])
