@@ -108,18 +108,21 @@ def conflicts(tracks: list[Track], fixed: list[bool] | None = None,
 
 
 def passing(tracks: list[Track]) -> list[np.ndarray]:
-    """For each track, the verified pairs within GATE_M of another object's `course` up
-    to verification.KINEMATIC_S beyond its verified pairs (of either kind: a sway's
-    2 ms at -1.3 m/s, 3 mm, is a fixed part): where one
+    """For each track, the verified pairs within GATE_M of the `course` of another
+    object in motion (a verified pair at fixed_echoes.MOVING_MPS or faster, of either
+    kind: a sway's 2 ms at -1.3 m/s, 3 mm, is a fixed part; a still wall is
+    `conflicts`', whose rows a mover's conversion may not hold) up to
+    verification.KINEMATIC_S beyond its verified pairs: where one
     tracker passed from one mover to another as they crossed, its last pairs on the
     one and its first on the other, which no two tracks held at once (`conflicts`), a
     merged peak's (a glide at +3.5 m/s and a sway at -1.3 m/s 1-2 mm apart: the glide's
     last pair 2.1 mm off it)."""
-    courses = [course(t, KINEMATIC_S)[0] for t in tracks]
+    moving = [bool(np.any(np.abs(t.velocity_mps[t.valid]) >= fixed_echoes.MOVING_MPS)) for t in tracks]
+    courses = [course(t, KINEMATIC_S)[0] if m else None for t, m in zip(tracks, moving, strict=True)]
     out = [np.zeros(t.pairs, bool) for t in tracks]
     for i, a in enumerate(tracks):
         for j, c in enumerate(courses):
-            if i != j:
+            if i != j and c is not None:
                 out[i] |= a.valid & (np.abs(np.where(a.valid, a.distance_m, np.nan) - c) <= GATE_M)
     return out
 
