@@ -15,7 +15,7 @@ motions are not: a rail at +1.9 m/s continues at +2.5 m/s, not at -2.9 m/s. So:
   made only where it is the one the motions tell (`contested`: no mover's part seen
   between them could join either, and none seen from the first's start to the second's end
   joins either within RATIO times their `_cost` plus FLOOR, and no object of the other
-  kind could be either instead while the other is seen), and only where a body
+  kind seen between them could be either instead), and only where a body
   can move so (verification.reachable's bounds), the cheapest first; else the parts stay
   objects of their own (fewer periods tracked, none on the wrong object). Parts of one
   object cut at crossings alone that are all joined again are that object as it was.
