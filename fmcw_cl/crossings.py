@@ -123,7 +123,7 @@ def passing(tracks: list[Track]) -> list[np.ndarray]:
     for i, a in enumerate(tracks):
         for j, c in enumerate(courses):
             if i != j and c is not None:
-                out[i] |= a.valid & (np.abs(np.where(a.valid, a.distance_m, np.nan) - c) <= GATE_M)
+                out[i] |= a.valid & (np.abs(a.distance_m - c) <= GATE_M)
     return out
 
 

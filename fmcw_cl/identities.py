@@ -81,18 +81,17 @@ def _swaps(x, y) -> np.ndarray:
         return np.zeros(0)
     gy = np.concatenate([np.arange(p, q) for p, q in zip(lo, hi, strict=True) if q > p])
     px, nx, py, ny = x0[gx], x1[gx], y0[gy], y1[gy]
-    own = _least(*_at(x, px), *_at(x, nx))
-    back = np.zeros(gx.size, bool)      # y seen again after x's gap
-    ahead = np.zeros(gx.size, bool)     # x seen again as y after y's gap
-    has = py >= 0
-    back[has] = objects.seen_again(*_at(y, py[has]), *_at(x, nx[has]))
-    back[has & (ny < 0)] &= _least(*_at(y, py[has & (ny < 0)]), *_at(x, nx[has & (ny < 0)])) \
-        <= RATIO * own[has & (ny < 0)] + FLOOR
-    has = ny >= 0
-    ahead[has] = objects.seen_again(*_at(x, px[has]), *_at(y, ny[has]))
-    ahead[has & (py < 0)] &= _least(*_at(x, px[has & (py < 0)]), *_at(y, ny[has & (py < 0)])) \
-        <= RATIO * own[has & (py < 0)] + FLOOR
-    swap = back | ahead
+    bar = RATIO * _least(*_at(x, px), *_at(x, nx)) + FLOOR
+
+    def swapped(a, pa, b, nb, end):     # a last seen at pa, then b first seen at nb: one body?
+        out = np.zeros(gx.size, bool)
+        has = (pa >= 0) & (nb >= 0)
+        out[has] = objects.seen_again(*_at(a, pa[has]), *_at(b, nb[has]))
+        end &= has                      # at y's end, as cheap as x's own course
+        out[end] &= _least(*_at(a, pa[end]), *_at(b, nb[end])) <= bar[end]
+        return out
+
+    swap = swapped(y, py, x, nx, ny < 0) | swapped(x, px, y, ny, py < 0)
     return 0.5 * (x.time_s[px] + x.time_s[nx])[swap]
 
 
@@ -174,14 +173,15 @@ def contested(scene: list[SceneObject], i: int, j: int, cost: dict[tuple[int, in
     their `_cost` + FLOOR (its motion tells as much as theirs). `cost`: the `_cost` of
     every two parts of one kind that objects.returns joins (keys (k, m), k < m)."""
     bar = RATIO * cost[i, j] + FLOOR
-    a, b, (last, *_, first, _, _) = objects.ends(scene[i].track, scene[j].track)
+    a, b, ends = objects.ends(scene[i].track, scene[j].track)
+    last, first = ends[0], ends[3]
     start, end = a.time_s[a.valid][0], b.time_s[b.valid][-1]
     for k, o in enumerate(scene):
         t = o.track.time_s[o.track.valid]
         if k in (i, j) or not np.any((t >= start) & (t <= end)):
             continue
         if o.moving != scene[i].moving:
-            if _other_kind(a, b, o.track):
+            if _other_kind(ends, o.track):
                 return True
             continue
         inside = o.moving and t[0] > last and t[-1] < first
@@ -192,23 +192,19 @@ def contested(scene: list[SceneObject], i: int, j: int, cost: dict[tuple[int, in
     return False
 
 
-def _other_kind(a, b, o) -> bool:
-    """Whether `o`, an object of the other kind, could be a part between `a` and `b`
-    instead (it comes first): first seen between them and seen again from `a` (a rail
+def _other_kind(ends: tuple, o) -> bool:
+    """Whether `o`, an object of the other kind, could be a part between two parts
+    instead (it comes first; `ends`: the earlier's last verified pair and the later's
+    first, objects.ends): first seen between them and seen again from the earlier (a rail
     come to rest 10 mm on, 45 ms later, and a glide at 182 ms whose start the rail's
     trapezoid reaches within 20 mm over 142 ms: 752 valid pairs of the glide joined to
     the rail; a foot at rest and a hand come down 13 mm from it 200 ms later, the foot
-    taking off 2.5 ms after its rest), or last seen between them, `b` seen again from it."""
-    t = o.time_s[o.valid]
-    p, q = np.flatnonzero(a.valid)[-1], np.flatnonzero(b.valid)[0]
+    taking off 2.5 ms after its rest), or last seen between them, the later seen again
+    from it."""
+    last, first = ends[0], ends[3]
     m, n = np.flatnonzero(o.valid)[[0, -1]]
-    last, first = a.time_s[p], b.time_s[q]
-    became = (last < t[0] < first
-              and objects.seen_again(a.time_s[p], a.distance_m[p], a.velocity_mps[p],
-                                     o.time_s[m], o.distance_m[m], o.velocity_mps[m]))
-    becomes = (last < t[-1] < first
-               and objects.seen_again(o.time_s[n], o.distance_m[n], o.velocity_mps[n],
-                                      b.time_s[q], b.distance_m[q], b.velocity_mps[q]))
+    became = last < o.time_s[m] < first and objects.seen_again(*ends[:3], *_at(o, m))
+    becomes = last < o.time_s[n] < first and objects.seen_again(*_at(o, n), *ends[3:])
     return bool(became or becomes)
 
 
@@ -228,7 +224,7 @@ def _cost(a, b) -> float:
         possible = abs(db - da) <= JUMP_MAX_M + max(abs(va), abs(vb)) * dt + 0.5 * ACCEL_MAX * dt * dt
     if not possible:
         return float("inf")
-    return float(least_acceleration(ta, da, va, tb, db, vb) * np.sqrt(dt))
+    return float(_least(ta, da, va, tb, db, vb))
 
 
 def untangled(scene: list[SceneObject], several: bool) -> list[SceneObject]:
