@@ -61,17 +61,21 @@ def _at(track, k: np.ndarray) -> tuple:
     return track.time_s[k], track.distance_m[k], track.velocity_mps[k]
 
 
-def _swaps(x, y) -> np.ndarray:
+def _swaps(x, y, ends_only: bool = False) -> np.ndarray:
     """The times (s) at which to cut mover `x`: the middles of its gaps that overlap a
     gap of mover `y` (both lost at once) across which either could have come back as
     the other (objects.seen_again). Where `y`'s gap is one of its ends (lost for good,
     or not yet seen), every later or earlier gap of `x` overlaps it: there the swap
     must also be about as cheap as `x`'s own course across its gap (`_least` within
-    RATIO times it plus FLOOR, as a join's contest), not merely possible."""
+    RATIO times it plus FLOOR, as a join's contest), not merely possible; for a fixed
+    `y` (`ends_only`: it came to rest, or set off, while `x` was lost) cheaper than it
+    (a foot landing at a window's distance goes on its own course)."""
     x0, x1 = _gaps(x)
     inner = (x0 >= 0) & (x1 >= 0)
     x0, x1 = x0[inner], x1[inner]
     y0, y1 = _gaps(y)
+    if ends_only:                                   # a fixed object's ends alone
+        y0, y1 = y0[[0, -1]], y1[[0, -1]]
     ty0 = np.where(y0 >= 0, y.time_s[np.maximum(y0, 0)], -np.inf)
     ty1 = np.where(y1 >= 0, y.time_s[np.maximum(y1, 0)], np.inf)
     lo = np.searchsorted(ty1, x.time_s[x0], side="right")     # y's first gap ending after x's starts
@@ -81,14 +85,16 @@ def _swaps(x, y) -> np.ndarray:
         return np.zeros(0)
     gy = np.concatenate([np.arange(p, q) for p, q in zip(lo, hi, strict=True) if q > p])
     px, nx, py, ny = x0[gx], x1[gx], y0[gy], y1[gy]
-    bar = RATIO * _least(*_at(x, px), *_at(x, nx)) + FLOOR
+    own = _least(*_at(x, px), *_at(x, nx))
+    bar = RATIO * own + FLOOR
 
     def swapped(a, pa, b, nb, end):     # a last seen at pa, then b first seen at nb: one body?
         out = np.zeros(gx.size, bool)
         has = (pa >= 0) & (nb >= 0)
         out[has] = objects.seen_again(*_at(a, pa[has]), *_at(b, nb[has]))
         end &= has                      # at y's end, as cheap as x's own course
-        out[end] &= _least(*_at(a, pa[end]), *_at(b, nb[end])) <= bar[end]
+        cost = _least(*_at(a, pa[end]), *_at(b, nb[end]))
+        out[end] &= cost < own[end] if ends_only else cost <= bar[end]
         return out
 
     swap = swapped(y, py, x, nx, ny < 0) | swapped(x, px, y, ny, py < 0)
@@ -104,14 +110,16 @@ def _least(ta, da, va, tb, db, vb) -> np.ndarray:
 def crossing_cuts(scene: list[SceneObject]) -> list[np.ndarray]:
     """For each object, the times (s) at which to cut it: its gaps across which another
     mover, lost at once, could have come back as it or it as the other (`_swaps`; a
-    leg's tracker lost for good as the legs cross while the other's comes back on it).
-    None for a fixed object."""
-    movers = [k for k, o in enumerate(scene) if o.moving and o.track.valid.any()]
+    leg's tracker lost for good as the legs cross while the other's comes back on it),
+    or across which a fixed object first seen after, or last seen before, could have
+    been it (only a fixed object's ends: a rail come to rest while lost, its tracker
+    back on a glide 7 ms later, 494 valid pairs). None for a fixed object."""
+    seen = [k for k, o in enumerate(scene) if o.track.valid.any()]
     cuts = [[] for _ in scene]
-    for i in movers:
-        for j in movers:
-            if i != j:
-                cuts[i] += list(_swaps(scene[i].track, scene[j].track))
+    for i in seen:
+        for j in seen:
+            if i != j and scene[i].moving:
+                cuts[i] += list(_swaps(scene[i].track, scene[j].track, ends_only=not scene[j].moving))
     return [np.unique(c) for c in cuts]
 
 
@@ -148,90 +156,144 @@ def rejoined(scene: list[SceneObject], contests: bool = False) -> list[SceneObje
     joined again are still parts of it (`whole`): its tuning and its rest are that
     conversion's. With `contests` (several movers), the least acceleration's join first,
     and only where not `contested` and, between two moving ends, reachable."""
-    while True:
-        pairs = [(i, j) for i in range(len(scene)) for j in range(i + 1, len(scene))
-                 if scene[i].moving == scene[j].moving and objects.returns(scene[i].track, scene[j].track)]
+    scene = list(scene)
+    ends = [_Ends.row(o) for o in scene]
+    while len(scene) > 1:
+        e = _Ends(ends, scene)
+        i, j = np.nonzero(np.triu(e.returns, 1))                 # (i, j) in order, i < j
         if contests:
-            cost = {p: _cost(scene[p[0]].track, scene[p[1]].track) for p in pairs}
-            pairs = [p for p in sorted(pairs, key=cost.get) if np.isfinite(cost[p])
-                     and not contested(scene, *p, cost)]
-        if not pairs:
-            return scene
-        i, j = pairs[0]
+            keep = np.isfinite(e.cost[i, j])
+            i, j = i[keep], j[keep]
+            order = np.argsort(e.cost[i, j], kind="stable")      # the cheapest join first
+            i, j = i[order], j[order]
+            first = next((k for k in range(i.size) if not contested(e, i[k], j[k])), None)
+        else:
+            first = 0 if i.size else None
+        if first is None:
+            break
+        i, j = int(i[first]), int(j[first])
         a, b = scene[i], scene.pop(j)
         moved = a.moving or abs(np.nanmedian(a.track.distance_m)
                                 - np.nanmedian(b.track.distance_m)) > objects.GATE_M
         scene[i] = SceneObject(0, moved, objects.joined(a.track, b.track), f"{a.note}; seen again: {b.note}",
                                a.whole if a.whole is not None and a.whole is b.whole else None)
+        ends.pop(j)
+        ends[i] = _Ends.row(scene[i])
+    return scene
 
 
-def contested(scene: list[SceneObject], i: int, j: int, cost: dict[tuple[int, int], float]) -> bool:
-    """Whether another part could be the one seen instead: a mover's part seen wholly
-    between parts i and j that could join either (it comes first: a leg lost for 88 ms,
-    seen again 9 ms on, then the other leg's landing 8 mm off its course), or one seen from
-    part i's first verified pair to part j's last that could join either within RATIO *
-    their `_cost` + FLOOR (its motion tells as much as theirs). `cost`: the `_cost` of
-    every two parts of one kind that objects.returns joins (keys (k, m), k < m)."""
-    bar = RATIO * cost[i, j] + FLOOR
-    a, b, ends = objects.ends(scene[i].track, scene[j].track)
-    last, first = ends[0], ends[3]
-    start, end = a.time_s[a.valid][0], b.time_s[b.valid][-1]
-    for k, o in enumerate(scene):
-        t = o.track.time_s[o.track.valid]
-        if k in (i, j) or not np.any((t >= start) & (t <= end)):
-            continue
-        if o.moving != scene[i].moving:
-            if _other_kind(ends, o.track):
-                return True
-            continue
-        inside = o.moving and t[0] > last and t[-1] < first
-        for m in (i, j):
-            key = (min(k, m), max(k, m))
-            if key in cost and (inside or cost[key] <= bar):
-                return True
-    return False
+class _Ends:
+    """Every part's first and last verified pair, and from them every two parts' joins
+    at once: whether the later is the earlier seen again (objects.returns, of one kind:
+    `returns`), the join's `_cost` (`cost`; inf where no body moves so) and the parts'
+    verified times (for `contested`)."""
+
+    def __init__(self, rows: list[tuple], scene: list[SceneObject]):
+        self.moving, i0, i1, *pairs = (np.array(c) for c in zip(*rows, strict=True))
+        self.t0, self.d0, self.v0, self.t1, self.d1, self.v1 = pairs
+        has = i0 >= 0
+        # [e, l]: e's last verified pair before l's first; seen: l seen again from e
+        self.later = has[:, None] & has[None, :] & (i1[:, None] < i0[None, :])
+        span = (self.t1[:, None], self.d1[:, None], self.v1[:, None],
+                self.t0[None, :], self.d0[None, :], self.v0[None, :])
+        self.seen = objects.seen_again(*span)
+        back = self.later & self.seen
+        self.returns = (back | back.T) & (self.moving[:, None] == self.moving[None, :])
+        cost = _costs(*span)
+        self.cost = np.where(self.later, cost, cost.T)
+        times = [o.track.time_s[o.track.valid] for o in scene]
+        self.owner = np.repeat(np.arange(len(times)), [t.size for t in times])
+        order = np.argsort(np.concatenate(times), kind="stable")
+        self.times, self.owner = np.concatenate(times)[order], self.owner[order]
+
+    @staticmethod
+    def row(o: SceneObject) -> tuple:
+        """Part `o`'s kind, its first and last verified pairs' indices (-1: none) and
+        their (time s, distance m, velocity m/s)."""
+        k = np.flatnonzero(o.track.valid)
+        if not k.size:
+            return (o.moving, -1, -1) + (0.0,) * 6
+        t, d, v = _at(o.track, k[[0, -1]])
+        return (o.moving, k[0], k[-1], t[0], d[0], v[0], t[-1], d[-1], v[-1])
+
+    def within(self, start: float, end: float) -> np.ndarray:
+        """Which parts hold a verified pair from `start` to `end` (s)."""
+        k = self.owner[np.searchsorted(self.times, start, "left"):np.searchsorted(self.times, end, "right")]
+        return np.bincount(k, minlength=self.moving.size) > 0
 
 
-def _other_kind(ends: tuple, o) -> bool:
-    """Whether `o`, an object of the other kind, could be a part between two parts
-    instead (it comes first; `ends`: the earlier's last verified pair and the later's
-    first, objects.ends): first seen between them and seen again from the earlier (a rail
-    come to rest 10 mm on, 45 ms later, and a glide at 182 ms whose start the rail's
-    trapezoid reaches within 20 mm over 142 ms: 752 valid pairs of the glide joined to
-    the rail; a foot at rest and a hand come down 13 mm from it 200 ms later, the foot
-    taking off 2.5 ms after its rest), or last seen between them, the later seen again
-    from it."""
-    last, first = ends[0], ends[3]
-    m, n = np.flatnonzero(o.valid)[[0, -1]]
-    became = last < o.time_s[m] < first and objects.seen_again(*ends[:3], *_at(o, m))
-    becomes = last < o.time_s[n] < first and objects.seen_again(*_at(o, n), *ends[3:])
-    return bool(became or becomes)
+def contested(e: _Ends, i: int, j: int) -> bool:
+    """Whether another part could be the one seen instead of the join of parts i and j
+    (`_Ends`): a mover's part seen wholly between them that could join either (it comes
+    first: a leg lost for 88 ms, seen again 9 ms on, then the other leg's landing 8 mm
+    off its course), or one seen from the earlier's first verified pair to the later's
+    last that could join either within RATIO * their `_cost` + FLOOR (its motion tells
+    as much as theirs), or an object of the other kind that could be a part between
+    them (`_other_kind`)."""
+    a, b = (i, j) if e.later[i, j] else (j, i)
+    last, first = e.t1[a], e.t0[b]
+    seen = e.within(e.t0[a], e.t1[b])
+    seen[[i, j]] = False
+    same = e.moving == e.moving[i]
+    bar = RATIO * e.cost[i, j] + FLOOR
+    if np.any(seen & ~same & _other_kind(e, a, b, bar)):
+        return True
+    inside = e.moving & (e.t0 > last) & (e.t1 < first)
+    joins = (e.returns[:, [i, j]] & (inside[:, None] | (e.cost[:, [i, j]] <= bar))).any(axis=1)
+    return bool(np.any(seen & same & joins))
+
+
+def _other_kind(e: _Ends, a: int, b: int, bar: float) -> np.ndarray:
+    """Which parts could be one of parts a and b (the earlier and the later) instead,
+    were they of the other kind (it comes first): first seen between them and seen again
+    from the earlier (a rail come to rest 10 mm on, 45 ms later, and a glide at 182 ms
+    whose start the rail's trapezoid reaches within 20 mm over 142 ms: 752 valid pairs of
+    the glide joined to the rail; a foot at rest and a hand come down 13 mm from it 200 ms
+    later, the foot taking off 2.5 ms after its rest), or last seen between them, the
+    later seen again from it; or first seen while the later is, or last seen while the
+    earlier is, and that within `bar` of `_costs` (a rail come to rest 11 mm on while a
+    glide it had passed was followed: 494; not a swaying cable last seen 37 ms before a
+    rail that passed it is seen again)."""
+    last, first = e.t1[a], e.t0[b]
+    became = (last < e.t0) & ((e.t0 < first) | ((e.t0 <= e.t1[b]) & (e.cost[a, :] <= bar))) & e.seen[a, :]
+    becomes = (e.t1 < first) & ((last < e.t1) | ((e.t0[a] <= e.t1) & (e.cost[:, b] <= bar))) & e.seen[:, b]
+    return became | becomes
 
 
 def _cost(a, b) -> float:
-    """How unlikely one body makes the earlier part's last verified pair and the later
-    one's first: the least acceleration between them times the root of the time between
-    (m/s^1.5; a white-noise acceleration's chi: 0.5 ms of a leg at 100 m/s^2 is likelier
-    than 12.6 ms at 148); inf where no body moves so: between two moving ends, beyond
-    verification.reachable's bound; from or to rest (a landing, hidden), further than
-    the faster end's speed and ACCEL_MAX carry it (a leg at rest, then 0.3 ms later the
-    other leg 19 mm away)."""
-    ta, da, va, tb, db, vb = objects.ends(a, b)[2]
+    """`_costs` of `a`'s and `b`'s ends (objects.ends: the earlier's last verified pair
+    and the later's first)."""
+    return float(_costs(*objects.ends(a, b)[2]))
+
+
+def _costs(ta, da, va, tb, db, vb) -> np.ndarray:
+    """How unlikely one body makes a part's last verified pair (ta, da, va) and a later
+    part's first (tb, db, vb) (s, m, m/s; arrays): the least acceleration between them
+    times the root of the time between (m/s^1.5; a white-noise acceleration's chi: 0.5 ms
+    of a leg at 100 m/s^2 is likelier than 12.6 ms at 148); inf where no body moves so:
+    between two moving ends, beyond verification.reachable's bound; from or to rest (a
+    landing, hidden), further than the faster end's speed and ACCEL_MAX carry it (a leg
+    at rest, then 0.3 ms later the other leg 19 mm away)."""
     dt = tb - ta
-    if min(abs(va), abs(vb)) >= fixed_echoes.MOVING_MPS:
-        possible = reachable(ta, da, va, tb, db, vb)
-    else:
-        possible = abs(db - da) <= JUMP_MAX_M + max(abs(va), abs(vb)) * dt + 0.5 * ACCEL_MAX * dt * dt
-    if not possible:
-        return float("inf")
-    return float(_least(ta, da, va, tb, db, vb))
+    fast = np.maximum(np.abs(va), np.abs(vb))
+    possible = np.where(np.minimum(np.abs(va), np.abs(vb)) >= fixed_echoes.MOVING_MPS,
+                        reachable(ta, da, va, tb, db, vb),
+                        np.abs(db - da) <= JUMP_MAX_M + fast * dt + 0.5 * ACCEL_MAX * dt * dt)
+    return np.where(possible, _least(ta, da, va, tb, db, vb), np.inf)
 
 
 def untangled(scene: list[SceneObject], several: bool) -> list[SceneObject]:
-    """The scene's objects `parted` and `rejoined`, each cut at crossings and joined by
-    contests where it holds `several` movers, and those cut at crossings alone and
-    joined whole `restored` (a new list; `scene` is left as it was)."""
-    return restored(rejoined(parted(scene, several), several), scene)
+    """The scene's objects `parted` and `rejoined`, each cut at crossings where it holds
+    `several` movers or a mover beside another object, joined by contests where it holds
+    `several` or its parts do (a sway at its turn a fixed candidate, its tracker and a
+    glide's passing between them: a join 33 mm off the trapezoid, the velocity turned
+    from +0.65 to -0.61 m/s, gave 171 valid pairs of the sway to the glide), and those
+    cut at crossings alone and joined whole `restored` (a new list; `scene` is left as
+    it was)."""
+    seen = [o for o in scene if o.track.valid.any()]
+    parts = parted(scene, several or (len(seen) >= 2 and any(o.moving for o in seen)))
+    several = several or sum(p.moving and p.track.valid.any() for p in parts) >= 2
+    return restored(rejoined(parts, several), scene)
 
 
 def restored(parts: list[SceneObject], scene: list[SceneObject]) -> list[SceneObject]:

@@ -273,6 +273,32 @@ def test_a_mover_come_to_rest_is_not_joined_to_a_later_mover():
     assert len(identities.rejoined(beside, True)) == 3
 
 
+def test_a_mover_come_to_rest_while_lost_is_not_the_mover_its_tracker_found():
+    """A rail decelerating at 30 m/s^2 lost at 53 ms (0.3741 m, +0.9 m/s), its tracker
+    back 7 ms later on a glide at -0.71 m/s 1.2 mm further (the trapezoid passes), the
+    rail seen at rest 11 mm on from 96 ms (a fixed object): the tracker is cut where the
+    rail's rest explains the return better than its own turn (crossing_cuts, a fixed
+    object's ends), and the two parts are not joined while the rest is seen
+    (`_other_kind`): no object holds both movers (494 valid pairs of the glide)."""
+    n = 4200
+    t = PERIOD * (np.arange(n) + 0.5)
+    stop = 0.053 + 0.9 / 30.0
+    rail = np.where(t < stop, 0.3741 + 0.9 * (t - 0.053) - 15.0 * (t - 0.053) ** 2,
+                    0.3741 + 0.9 ** 2 / 60.0)
+    rail_v = np.where(t < stop, 0.9 - 30.0 * (t - 0.053), 0.0)
+    glide = 0.3753 - 0.71 * (t - 0.0606) - 7.0 * (t - 0.0606) ** 2
+    glide_v = -0.71 - 14.0 * (t - 0.0606)
+    early, late = t < 0.0533, t > 0.0606
+    one = _track(np.where(early, rail, np.where(late, glide, np.nan)), np.where(early, rail_v, glide_v))
+    rest = _track(np.where(t > 0.096, rail, np.nan))
+    scene = [objects.SceneObject(0, True, one, "tracker"), objects.SceneObject(0, False, rest, "rest")]
+    assert identities.crossing_cuts(scene)[0].size == 1
+    for o in identities.untangled(scene, False):
+        ok = o.track.valid
+        on_glide = np.abs(o.track.distance_m[ok] - glide[ok]) < 1e-9
+        assert on_glide.all() or not on_glide.any()
+
+
 def test_two_legs_whose_motions_tell_nothing_stay_apart():
     """Two legs near their apexes 40 ms apart (the same jump), both lost for 20 ms
     between them: a leg could have come back as either (least accelerations alike),
