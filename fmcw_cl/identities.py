@@ -30,6 +30,7 @@ from .objects import SceneObject
 from .stages import faults
 from .stages.verification import ACCEL_MAX, JUMP_MAX_M, reachable
 
+BLOCK = 64            # contested joins weighed at once, the cheapest first
 RATIO = 3.0           # a join is the motion's where every other costs this many times its `_cost` ...
 FLOOR = 1.0           # ... plus this (m/s^1.5: 30 m/s^2 over 1 ms); the rail: 3.3 on, 38 as the glide
 VELOCITY_NOISE = 0.05     # m/s and m of a pair's velocity and distance not counted as acceleration
@@ -166,7 +167,9 @@ def rejoined(scene: list[SceneObject], contests: bool = False) -> list[SceneObje
             i, j = i[keep], j[keep]
             order = np.argsort(e.cost[i, j], kind="stable")      # the cheapest join first
             i, j = i[order], j[order]
-            first = next((k for k in range(i.size) if not contested(e, i[k], j[k])), None)
+            first = next((k + free[0] for k in range(0, i.size, BLOCK)     # a block at a time
+                          if (free := np.flatnonzero(~contested(e, i[k:k + BLOCK], j[k:k + BLOCK]))).size),
+                         None)
         else:
             first = 0 if i.size else None
         if first is None:
@@ -185,8 +188,8 @@ def rejoined(scene: list[SceneObject], contests: bool = False) -> list[SceneObje
 class _Ends:
     """Every part's first and last verified pair, and from them every two parts' joins
     at once: whether the later is the earlier seen again (objects.returns, of one kind:
-    `returns`), the join's `_cost` (`cost`; inf where no body moves so) and the parts'
-    verified times (for `contested`)."""
+    `returns`; symmetric), the join's `_cost` (`cost`; symmetric, inf where no body moves
+    so) and the parts' verified times (for `contested`)."""
 
     def __init__(self, rows: list[tuple], scene: list[SceneObject]):
         self.moving, i0, i1, *pairs = (np.array(c) for c in zip(*rows, strict=True))
@@ -201,10 +204,12 @@ class _Ends:
         self.returns = (back | back.T) & (self.moving[:, None] == self.moving[None, :])
         cost = _costs(*span)
         self.cost = np.where(self.later, cost, cost.T)
+        # every part's verified times in one sorted array: part k's shifted by k wide spans
         times = [o.track.time_s[o.track.valid] for o in scene]
-        self.owner = np.repeat(np.arange(len(times)), [t.size for t in times])
-        order = np.argsort(np.concatenate(times), kind="stable")
-        self.times, self.owner = np.concatenate(times)[order], self.owner[order]
+        low = min((t[0] for t in times if t.size), default=0.0)
+        self.width = 1.0 + max((t[-1] - low for t in times if t.size), default=0.0)
+        self.times = np.concatenate([k * self.width + (t - low) for k, t in enumerate(times)])
+        self.low = low
 
     @staticmethod
     def row(o: SceneObject) -> tuple:
@@ -216,47 +221,48 @@ class _Ends:
         t, d, v = _at(o.track, k[[0, -1]])
         return (o.moving, k[0], k[-1], t[0], d[0], v[0], t[-1], d[-1], v[-1])
 
-    def within(self, start: float, end: float) -> np.ndarray:
-        """Which parts hold a verified pair from `start` to `end` (s)."""
-        k = self.owner[np.searchsorted(self.times, start, "left"):np.searchsorted(self.times, end, "right")]
-        return np.bincount(k, minlength=self.moving.size) > 0
+    def within(self, start: np.ndarray, end: np.ndarray) -> np.ndarray:
+        """Which parts (columns) hold a verified pair from `start` to `end` (s; rows)."""
+        shift = self.width * np.arange(self.moving.size)
+        lo = np.searchsorted(self.times, shift + (start[:, None] - self.low), "left")
+        return np.searchsorted(self.times, shift + (end[:, None] - self.low), "right") > lo
 
 
-def contested(e: _Ends, i: int, j: int) -> bool:
-    """Whether another part could be the one seen instead of the join of parts i and j
-    (`_Ends`): a mover's part seen wholly between them that could join either (it comes
-    first: a leg lost for 88 ms, seen again 9 ms on, then the other leg's landing 8 mm
-    off its course), or one seen from the earlier's first verified pair to the later's
-    last that could join either within RATIO * their `_cost` + FLOOR (its motion tells
-    as much as theirs), or an object of the other kind that could be a part between
-    them (`_other_kind`)."""
-    a, b = (i, j) if e.later[i, j] else (j, i)
-    last, first = e.t1[a], e.t0[b]
+def contested(e: _Ends, i: np.ndarray, j: np.ndarray) -> np.ndarray:
+    """Whether another part could be the one seen instead, for each join of parts i and
+    j (arrays; `_Ends`): a mover's part seen wholly between them that could join either
+    (it comes first: a leg lost for 88 ms, seen again 9 ms on, then the other leg's
+    landing 8 mm off its course), or one seen from the earlier's first verified pair to
+    the later's last that could join either within RATIO * their `_cost` + FLOOR (its
+    motion tells as much as theirs), or an object of the other kind that could be a part
+    between them (`_other_kind`). Rows: the joins; columns: the other parts."""
+    ahead = e.later[i, j]
+    a, b = np.where(ahead, i, j), np.where(ahead, j, i)             # the earlier part, the later
     seen = e.within(e.t0[a], e.t1[b])
-    seen[[i, j]] = False
-    same = e.moving == e.moving[i]
-    bar = RATIO * e.cost[i, j] + FLOOR
-    if np.any(seen & ~same & _other_kind(e, a, b, bar)):
-        return True
-    inside = e.moving & (e.t0 > last) & (e.t1 < first)
-    joins = (e.returns[:, [i, j]] & (inside[:, None] | (e.cost[:, [i, j]] <= bar))).any(axis=1)
-    return bool(np.any(seen & same & joins))
+    seen[np.arange(i.size), i] = seen[np.arange(i.size), j] = False
+    bar = (RATIO * e.cost[i, j] + FLOOR)[:, None]
+    inside = e.moving & (e.t0 > e.t1[a, None]) & (e.t1 < e.t0[b, None])
+    joins = ((e.returns[i] & (inside | (e.cost[i] <= bar)))
+             | (e.returns[j] & (inside | (e.cost[j] <= bar))))     # (symmetric)
+    same = e.moving == e.moving[i, None]
+    return (seen & np.where(same, joins, _other_kind(e, a, b, bar))).any(axis=1)
 
 
-def _other_kind(e: _Ends, a: int, b: int, bar: float) -> np.ndarray:
-    """Which parts could be one of parts a and b (the earlier and the later) instead,
-    were they of the other kind (it comes first): first seen between them and seen again
-    from the earlier (a rail come to rest 10 mm on, 45 ms later, and a glide at 182 ms
-    whose start the rail's trapezoid reaches within 20 mm over 142 ms: 752 valid pairs of
-    the glide joined to the rail; a foot at rest and a hand come down 13 mm from it 200 ms
-    later, the foot taking off 2.5 ms after its rest), or last seen between them, the
-    later seen again from it; or first seen while the later is, or last seen while the
-    earlier is, and that within `bar` of `_costs` (a rail come to rest 11 mm on while a
-    glide it had passed was followed: 494; not a swaying cable last seen 37 ms before a
-    rail that passed it is seen again)."""
-    last, first = e.t1[a], e.t0[b]
-    became = (last < e.t0) & ((e.t0 < first) | ((e.t0 <= e.t1[b]) & (e.cost[a, :] <= bar))) & e.seen[a, :]
-    becomes = (e.t1 < first) & ((last < e.t1) | ((e.t0[a] <= e.t1) & (e.cost[:, b] <= bar))) & e.seen[:, b]
+def _other_kind(e: _Ends, a: np.ndarray, b: np.ndarray, bar: np.ndarray) -> np.ndarray:
+    """Which parts (columns) could be one of parts a and b (the earlier and the later;
+    rows) instead, were they of the other kind (it comes first): first seen between them
+    and seen again from the earlier (a rail come to rest 10 mm on, 45 ms later, and a
+    glide at 182 ms whose start the rail's trapezoid reaches within 20 mm over 142 ms: 752
+    valid pairs of the glide joined to the rail; a foot at rest and a hand come down 13 mm
+    from it 200 ms later, the foot taking off 2.5 ms after its rest), or last seen between
+    them, the later seen again from it; or first seen while the later is, or last seen
+    while the earlier is, and that within `bar` of `_costs` (a rail come to rest 11 mm on
+    while a glide it had passed was followed: 494; not a swaying cable last seen 37 ms
+    before a rail that passed it is seen again)."""
+    last, first = e.t1[a, None], e.t0[b, None]
+    became = (last < e.t0) & ((e.t0 < first) | ((e.t0 <= e.t1[b, None]) & (e.cost[a] <= bar))) & e.seen[a]
+    into = e.seen[:, b].T                       # the later seen again from each
+    becomes = (e.t1 < first) & ((last < e.t1) | ((e.t0[a, None] <= e.t1) & (e.cost[b] <= bar))) & into
     return became | becomes
 
 
