@@ -10,12 +10,13 @@ motions are not: a rail at +1.9 m/s continues at +2.5 m/s, not at -2.9 m/s. So:
 - `parted`: each object cut where consecutive verified pairs cannot be one body's
   (objects.bodies), and, where two movers are both lost at once and either could have
   come back as the other (objects.seen_again), at that gap, a track's ends counting as
-  gaps (`crossing_cuts`);
+  gaps, and a fixed object's first and last pairs too (`crossing_cuts`);
 - `rejoined`: parts seen again joined (objects.returns). Among several movers a join is
   made only where it is the one the motions tell (`contested`: no mover's part seen
   between them could join either, and none seen from the first's start to the second's end
   joins either within RATIO times their `_cost` plus FLOOR, and no object of the other
-  kind seen between them could be either instead), and only where a body
+  kind seen between them, or while one of them is seen and within that bound, could be
+  either instead; contests wherever the parts hold two movers), and only where a body
   can move so (verification.reachable's bounds), the cheapest first; else the parts stay
   objects of their own (fewer periods tracked, none on the wrong object). Parts of one
   object cut at crossings alone that are all joined again are that object as it was.
@@ -167,9 +168,7 @@ def rejoined(scene: list[SceneObject], contests: bool = False) -> list[SceneObje
             i, j = i[keep], j[keep]
             order = np.argsort(e.cost[i, j], kind="stable")      # the cheapest join first
             i, j = i[order], j[order]
-            first = next((k + free[0] for k in range(0, i.size, BLOCK)     # a block at a time
-                          if (free := np.flatnonzero(~contested(e, i[k:k + BLOCK], j[k:k + BLOCK]))).size),
-                         None)
+            first = _uncontested(e, i, j)
         else:
             first = 0 if i.size else None
         if first is None:
@@ -183,6 +182,16 @@ def rejoined(scene: list[SceneObject], contests: bool = False) -> list[SceneObje
         ends.pop(j)
         ends[i] = _Ends.row(scene[i])
     return scene
+
+
+def _uncontested(e: _Ends, i: np.ndarray, j: np.ndarray) -> int | None:
+    """The first of the joins of parts i and j (arrays, the cheapest first) that is not
+    `contested`, weighed BLOCK at a time; None if all are."""
+    for k in range(0, i.size, BLOCK):
+        free = np.flatnonzero(~contested(e, i[k:k + BLOCK], j[k:k + BLOCK]))
+        if free.size:
+            return k + int(free[0])
+    return None
 
 
 class _Ends:
