@@ -17,7 +17,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from . import fixed_echoes, heap, objects, rest_calibration, scene, target
+from . import conversions, fixed_echoes, heap, objects, rest_calibration, scene, target
 from .assemble import assemble
 from .band import echo_outside
 from .capture import Capture
@@ -64,7 +64,7 @@ def process(path, options: Options | None = None, processor: ChunkProcessor | No
                 parts = capture_parts(cap, plan, processor, progress=progress, ahead=ahead)
             first = assemble(plan, parts, processor, time.perf_counter() - started)
             choice, fixed, beside = chosen(cap, plan, processor, first)
-            was = scene.First(plan, parts, first, fixed, beside)
+            was = conversions.First(plan, parts, first, fixed, beside)
             if choice.band_m != plan.options.band_m:          # the target alone in its band: again
                 plan = plan.with_band(choice.band_m)
                 parts = capture_parts(cap, plan, processor, progress=progress)
@@ -76,8 +76,8 @@ def process(path, options: Options | None = None, processor: ChunkProcessor | No
                 found, pick = [objects.SceneObject(1, bool(choice.moving), track, "the strongest echo "
                                                    "of the band, pair by pair")], 0
             else:
-                own = scene.Converted(objects.Candidate(np.nan, np.nan, bool(choice.moving)), choice, plan,
-                                      parts, track)
+                own = conversions.Converted(objects.Candidate(np.nan, np.nan, bool(choice.moving)), choice,
+                                            plan, parts, track)
                 found, pick, own = scene.objects_of(cap, was, choice, own, processor,
                                                     lambda: time.perf_counter() - started, progress)
                 plan, choice, track = own.plan, own.choice, own.track

@@ -8,52 +8,18 @@ objects, the target among them by the user's rule.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import replace
 
 import numpy as np
 
-from . import crossings, fixed_echoes, identities, objects, target
-from .assemble import assemble
+from . import conversions, crossings, fixed_echoes, identities, objects, target
 from .capture import Capture
-from .chunks import capture_parts
-from .errors import FmcwError
-from .options import RANGE_GAP_M
-from .plan import Plan
+from .conversions import Converted, First
 from .processor import ChunkMeasurements, ChunkProcessor
-from .stages import clutter
 from .track import Track
 
-# a mover's side bands end this far from a fixed object inside its span, where rows without
-# still echoes still hold it (`_convert`)
-SIDE_MARGIN_M = target.WALL_MARGIN_M
 # a part of a track this many verified pairs long (2 ms: fixed_echoes.TOGETHER_S) is a body's
 BODY_PAIRS = 40
-
-
-@dataclass
-class Converted:
-    """One candidate's conversion: the choice that set its band, the plan and
-    measurements in that band, and its track."""
-
-    candidate: objects.Candidate
-    choice: target.Choice
-    plan: Plan
-    parts: list[ChunkMeasurements]
-    track: Track
-    joined: bool = False        # the track joins several bands' (`plan`, `parts`: one of them)
-    whole: Track | None = None  # the conversion's track, where `track` is one body's part of it
-
-
-@dataclass
-class First:
-    """The first conversion (the user's band): plan, measurements, track, the fixed
-    echoes of its tables and the moving echoes a second look found (`beside`)."""
-
-    plan: Plan
-    parts: list[ChunkMeasurements]
-    track: Track
-    fixed: fixed_echoes.Fixed
-    beside: list[tuple[float, float]]
 
 
 def objects_of(cap: Capture, first: First, choice: target.Choice, own: Converted, processor: ChunkProcessor,
@@ -88,8 +54,8 @@ def objects_of(cap: Capture, first: First, choice: target.Choice, own: Converted
         share = [objects.holds(own.track, c) for c in cands]
         held = int(np.argmax(share)) if share and max(share) >= 0.5 and not two else None
         mine = held if held is not None and _stands_for(own, cands[held]) else None
-        done = [own if i == mine else _convert(cap, first, c, spans + extra, made, processor, seconds,
-                                               progress, own if i == held else None)
+        done = [own if i == mine else conversions.convert(cap, first, c, spans + extra, made, processor,
+                                                          seconds, progress, own if i == held else None)
                 for i, c in enumerate(cands)]
         found = [s for d in done for s in objects.parts_of(d.track) + _passing(d, first, processor, seconds)
                  if not any(c.lo - fixed_echoes.APART_M <= 0.5 * (s[0] + s[1]) <= c.hi + fixed_echoes.APART_M
@@ -97,6 +63,7 @@ def objects_of(cap: Capture, first: First, choice: target.Choice, own: Converted
         if not found or extra:
             break
         extra = found
+    done = _at_rest(cap, done, first, made, processor, seconds, progress)
     done = _distinct(done, first, seconds, processor)
     unseen = {(i, j) for i, d in enumerate(done) for j in _unseen(d, done, first)}
     done = _unveiled(done, unseen, seconds, processor)
@@ -176,7 +143,7 @@ def _same_echo(a: Track, b: Track) -> int:
 def _stands_for(own: Converted, c: objects.Candidate) -> bool:
     """Whether the target's own conversion `own`, which holds candidate `c` alone, is
     its conversion: its band covers the candidate's span, and no fixed object lies
-    inside that span (a moving echo is then tracked on each side of them: `_convert`)."""
+    inside that span (a moving echo is then tracked on each side of them: `conversions.convert`)."""
     lo, hi = own.choice.band_m
     covered = lo <= c.lo and (hi is None or hi >= c.hi)
     return covered and not (c.moving and own.choice.ambiguous_m.size)
@@ -187,114 +154,51 @@ def _moving(d: Converted) -> bool:
     return d.candidate.moving or (not d.candidate.fixed and objects.moves(d.track))
 
 
-def _convert(cap: Capture, first: First, c: objects.Candidate, spans: list[tuple[float, float]],
-             made: dict, processor: ChunkProcessor, seconds, progress, own: Converted | None = None
-             ) -> Converted:
-    """Candidate `c` converted in its own band (target.choose with `near_m` at its centre,
-    its kind before the other at a tie), the measurements of a band already converted
-    (`made`) assembled again. A moving echo whose span holds fixed objects is converted
-    on rows without still echoes (stages.clutter; none of a still echo's images looked
-    for, no displacement: the running mean bends a slow mover's phase). `own`: the
-    target's conversion, where it holds this candidate but not alone (one side of the
-    fixed objects inside its span: target.choose), the tracks one (objects.joined; where
-    both verify a pair more than objects.SAME_M apart, it is `ambiguous`)."""
-    tr = first.track
-    beside = list(spans) + ([] if c.fixed or c.moving else [(c.lo, c.hi)])
-    choice = target.choose("auto", c.centre_m, tr.time_s, tr.distance_m, tr.velocity_mps, tr.valid, tr.echoes,
-                           first.plan.lut.unambiguous_range_m, first.plan.options.band_m, beside,
-                           fixed=first.fixed, moving=c.moving, sides=c.moving)
-    if c.fixed:
-        choice = replace(choice, at_rest_m=c.centre_m)
-    # the user's --target-near chooses among the objects, and need not lie in this one's band
-    unnamed = replace(first.plan, options=replace(first.plan.options, target_near=None))
-    if not _searchable(unnamed, choice.band_m):
-        # no band of its own can be searched (its start past plan.MIN_RANGE_SHARE of the
-        # range, or narrower than a band may be): an object without pairs, not a crash
-        empty = replace(tr, attrs={**tr.attrs, **choice.attrs()})
-        objects.invalidate(empty, np.ones(tr.pairs, bool))
-        return Converted(c, choice, first.plan, first.parts, empty)
-    # a mover among fixed objects: its rows without still echoes, its band whole
-    still = clutter.half_width(cap.info.modulation.period_s) if (
-        c.moving and choice.moving and choice.ambiguous_m.size) else 0
-
-    def one(band: tuple[float, float | None], half: int) -> Converted:
-        plan = replace(unnamed.with_band(band), still_half=half)
-        if own is not None and (band, half) == (own.choice.band_m, 0):
-            return Converted(c, own.choice, plan, own.parts, replace(own.track, attrs=dict(own.track.attrs)))
-        key = (band, half) if half else band
-        if key not in made:
-            made[key] = capture_parts(cap, plan, processor, progress=progress)
-        side = replace(choice, band_m=band)
-        if half:        # no still echo's image in these rows; a trembling one's: `_stays`, `_exclusive`
-            side = replace(side, walls_m=np.zeros(0), walls_db=np.zeros(0))
-        seen = tr.echoes if key == first.plan.options.band_m else None     # the band's own echo table
-        track = _assembled(plan, made[key], processor, seconds, side, seen)
-        return Converted(c, side, plan, made[key], track)
-
-    items = [(choice.band_m, still)]
-    done = [one(*items[0])]
-    if still and _stays(done[0].track, choice.ambiguous_m, first):
-        # something trembles: a shorter running mean takes it out, a mover keeps its echo
-        # from a few mm/s (stages.clutter); where it still stays, bands cut off each side
-        still = clutter.half_width(cap.info.modulation.period_s, clutter.TREMBLING_S)
-        items = [(choice.band_m, still)]
-        done = [one(*items[0])]
-        if _stays(done[0].track, choice.ambiguous_m, first):
-            items += [(b, still) for b in _sides(choice.band_m, choice.ambiguous_m)
-                      if _searchable(unnamed, b)]
-            done += [one(*item) for item in items[1:]]
-    if own is not None and (own.choice.band_m, 0) not in items:
-        items.append((own.choice.band_m, 0))
-        done.append(one(*items[-1]))
-    out = done[0]
-    for d in done[1:]:                  # the other's pairs where only it holds them; both apart: ambiguous
-        both = out.track.valid & d.track.valid
-        apart = both & (np.abs(out.track.distance_m - d.track.distance_m) > objects.SAME_M)
-        objects.invalidate(out.track, apart)
-        objects.invalidate(d.track, apart | both)
-        joined = objects.joined(out.track, d.track)
-        out = replace(d if d.track.valid.sum() > out.track.valid.sum() else out, track=joined, joined=True)
-    if len(items) > 1:
-        out.track.attrs["object_bands_m"] = np.asarray([(a, np.nan if b is None else b)
-                                                         for (a, b), _ in items]).ravel()
+def _at_rest(cap: Capture, done: list[Converted], first: First, made: dict, processor: ChunkProcessor,
+             seconds, progress) -> list[Converted]:
+    """`done` with each mover whose choice left a fixed echo ambiguous that is its own
+    rest (`_rests`) assembled on its band's plain rows without that ambiguity (a foot at
+    rest by a stronger wall, which the first conversion followed, so that the rest was
+    "seen while the target was away"; then off 7 mm in 9 ms: every pair `ambiguous`,
+    the wall taken for the target), and each fixed echo that is a mover's rest, no mover
+    holding it, as that mover (its pairs without the rest's bounds: the foot moving 3
+    mm, every pair faster than MOVING_MPS `ambiguous`). `_distinct` then drops twins."""
+    out, rests = list(done), set()
+    for k, o in enumerate(done):
+        for m, d in enumerate(done):
+            near = np.abs(o.choice.ambiguous_m - d.candidate.centre_m) <= fixed_echoes.APART_M
+            if not (o.candidate.moving and d.candidate.fixed and near.any()):
+                continue
+            plan, parts = conversions.measured(cap, first, o.choice.band_m, 0, made, processor, progress)
+            said = o.choice.note.removesuffix(target.passes(o.choice.ambiguous_m)) + _rest(d)
+            choice = replace(o.choice, ambiguous_m=o.choice.ambiguous_m[~near],
+                             note=said + target.passes(o.choice.ambiguous_m[~near]))
+            loose = conversions.assembled(plan, parts, processor, seconds, choice, None)
+            if _rests(d.track, loose):
+                out[k] = Converted(o.candidate, choice, plan, parts, loose)
+                rests.add(m)
+                break
+    for m, d in enumerate(done):
+        if d.candidate.fixed and d.track.valid.any() and m not in rests:
+            choice = replace(d.choice, at_rest_m=None, note=d.choice.note + _rest(d))
+            loose = conversions.again(d, choice, processor, seconds)
+            if _rests(d.track, loose):
+                mover = replace(d.candidate, moving=True, fixed=False)
+                out[m] = Converted(mover, choice, d.plan, d.parts, loose)
     return out
 
 
-def _searchable(plan: Plan, band: tuple[float, float | None]) -> bool:
-    """Whether `plan` can search `band` (m): Options' and plan.make_search's limits."""
-    try:
-        plan.with_band(band)
-    except FmcwError:
-        return False
-    return True
+def _rest(d: Converted) -> str:
+    return f"; the fixed echo at {d.candidate.centre_m:.3f} m is its rest"
 
 
-def _held(track: Track, first: First) -> np.ndarray:
-    """The distances (m) of the fixed objects `track`'s own echo table lists
-    (fixed_echoes.fixed_of: echoes seen while its target is away)."""
-    left = fixed_echoes.fixed_of(track.echoes, first.plan.lut.unambiguous_range_m, track.time_s,
-                                 track.distance_m, track.velocity_mps, track.valid)
-    return left.distance_m[left.objects]
-
-
-def _stays(track: Track, inner: np.ndarray, first: First) -> bool:
-    """Whether rows without still echoes (`track`'s) still hold a fixed object within
-    fixed_echoes.APART_M of one of the fixed echoes `inner` (m) (`_held`): something
-    that trembles (a cable, a pane: a micrometre turns its phase through radians)."""
-    there = _held(track, first)
-    near = np.abs(there[:, None] - np.asarray(inner)[None, :]) <= fixed_echoes.APART_M
-    return bool(there.size and np.any(near))
-
-
-def _sides(band: tuple[float, float | None], inner: np.ndarray) -> list[tuple[float, float | None]]:
-    """`band` cut at the fixed objects `inner` (m), SIDE_MARGIN_M off each, the parts at
-    least options.RANGE_GAP_M wide."""
-    edges = [(band[0], None)]
-    for f in np.sort(np.asarray(inner, float)):
-        edges[-1] = (edges[-1][0], f - SIDE_MARGIN_M)
-        edges.append((f + SIDE_MARGIN_M, None))
-    edges[-1] = (edges[-1][0], band[1])
-    return [(a, b) for a, b in edges if (b is None or b - a >= RANGE_GAP_M)] or [band]
+def _rests(rest: Track, mover: Track) -> bool:
+    """Whether `mover` runs as its velocities say (objects.runs) and holds SAME_SHARE of
+    `rest`'s verified pairs within SAME_M (if any: else nothing stays there to be told
+    from it): `rest` is where it lay."""
+    held = mover.valid & (np.abs(mover.distance_m - rest.distance_m) <= objects.SAME_M)
+    share = held[rest.valid].mean() if rest.valid.any() else 1.0
+    return objects.runs(mover) and bool(share >= objects.SAME_SHARE)
 
 
 def _passing(d: Converted, first: First, processor, seconds) -> list[tuple[float, float]]:
@@ -304,7 +208,7 @@ def _passing(d: Converted, first: First, processor, seconds) -> list[tuple[float
     cable, beyond it)."""
     if d.choice.at_rest_m is None:
         return []
-    loose = _again(d, replace(d.choice, at_rest_m=None), processor, seconds)
+    loose = conversions.again(d, replace(d.choice, at_rest_m=None), processor, seconds)
     away = np.abs(loose.distance_m - d.choice.at_rest_m) > fixed_echoes.APART_M
     return fixed_echoes.moving_spans(loose.time_s, loose.distance_m, loose.velocity_mps, loose.valid & away,
                                      np.zeros(0))
@@ -325,7 +229,7 @@ def _distinct(done: list[Converted], first: First, seconds, processor) -> list[C
         if d.candidate.fixed and o.choice.ambiguous_m.size and not o.joined:
             keep = np.abs(o.choice.ambiguous_m - d.candidate.centre_m) > fixed_echoes.APART_M
             choice = replace(o.choice, ambiguous_m=o.choice.ambiguous_m[keep])
-            out[twin] = replace(o, choice=choice, track=_again(o, choice, processor, seconds))
+            out[twin] = replace(o, choice=choice, track=conversions.again(o, choice, processor, seconds))
     return out
 
 
@@ -347,7 +251,7 @@ def _exclusive(done: list[Converted], unseen: set[tuple[int, int]], first: First
             d = replace(d, track=objects.invalidated(d.track, c))
         elif c.any():
             choice = replace(d.choice, taken_s=np.sort(d.track.time_s[c]))
-            again = _again(d, choice, processor, seconds)
+            again = conversions.again(d, choice, processor, seconds)
             # the tests above saw the pairs valid before: one verified only now is unchecked
             objects.invalidate(again, again.valid & ~d.track.valid)
             d = replace(d, choice=choice, track=again)
@@ -355,32 +259,15 @@ def _exclusive(done: list[Converted], unseen: set[tuple[int, int]], first: First
     return out
 
 
-def _again(d: Converted, choice: target.Choice, processor: ChunkProcessor, seconds) -> Track:
-    """Conversion `d`'s measurements assembled again under `choice` (its echo table kept)."""
-    return _assembled(d.plan, d.parts, processor, seconds, choice, d.track.echoes)
-
-
-def _assembled(plan: Plan, parts: list[ChunkMeasurements], processor: ChunkProcessor, seconds,
-               choice: target.Choice, seen) -> Track:
-    """`assemble`, its attribute objects.STILL_ATTR set; on rows without still echoes
-    no displacement (the running mean bends a slow mover's phase)."""
-    track = assemble(plan, parts, processor, seconds(), choice, seen)
-    track.attrs[objects.STILL_ATTR] = (2 * plan.still_half * plan.info.modulation.period_s if plan.still_half
-                                       else 0.0)
-    if plan.still_half:
-        objects.no_displacement(track)
-    return track
-
-
 def _unseen(d: Converted, done: list[Converted], first: First) -> list[int]:
     """The objects among `done` that conversion `d`'s rows hold nothing of: where its
     rows are without still echoes (Plan.still_half; not a track joined of several
     conversions), the still objects (crossings.still) near which its own echo table
-    lists no fixed object (`_held`: a cable that trembles a micrometre stays in these
+    lists no fixed object (`conversions.held`: a cable that trembles a micrometre stays in these
     rows)."""
     if not d.plan.still_half or d.joined:
         return []
-    there = _held(d.track, first)
+    there = conversions.held(d.track, first)
     wl = first.plan.lut.wavelength_m
     return [k for k, o in enumerate(done) if o is not d and not _moving(o) and crossings.still(o.track, wl)
             and np.all(np.abs(there - objects.where_m(o.track)) > fixed_echoes.APART_M)]
@@ -398,6 +285,6 @@ def _unveiled(done: list[Converted], unseen: set[tuple[int, int]], seconds, proc
                              for f in d.choice.ambiguous_m])
             if not keep.all():
                 choice = replace(d.choice, ambiguous_m=d.choice.ambiguous_m[keep])
-                d = replace(d, choice=choice, track=_again(d, choice, processor, seconds))
+                d = replace(d, choice=choice, track=conversions.again(d, choice, processor, seconds))
         out.append(d)
     return out

@@ -337,9 +337,12 @@ def _choose(rule: str, near_m: float | None, time_s, distance_m, velocity_mps, v
             within = np.zeros(0)
     left = fixed[outside]
     note = what + (f", fixed echoes at {_list(left)} left out" if left.size else "")
-    if within.size:
-        note += f"; ambiguous where it passes the fixed echoes at {_list(within)}"
-    return Choice(name, fixed, objects, (lo, hi), moving, new, within, note)
+    return Choice(name, fixed, objects, (lo, hi), moving, new, within, note + passes(within))
+
+
+def passes(within: np.ndarray) -> str:
+    """The note's clause on the fixed echoes `within` (m) a moving choice passes."""
+    return f"; ambiguous where it passes the fixed echoes at {_list(within)}" if within.size else ""
 
 
 def _part_band(span: tuple[float, float], cuts: np.ndarray, found: np.ndarray, bounds: np.ndarray, band
