@@ -29,7 +29,7 @@ import numpy as np
 from . import fixed_echoes, objects
 from .objects import SceneObject
 from .stages import faults
-from .stages.verification import ACCEL_MAX, JUMP_MAX_M, reachable
+from .stages.verification import ACCEL_MAX, JUMP_MAX_M, KINEMATIC_S, reachable
 
 BLOCK = 64            # contested joins weighed at once, the cheapest first
 RATIO = 3.0           # a join is the motion's where every other costs this many times its `_cost` ...
@@ -243,8 +243,10 @@ def contested(e: _Ends, i: np.ndarray, j: np.ndarray) -> np.ndarray:
     (it comes first: a leg lost for 88 ms, seen again 9 ms on, then the other leg's
     landing 8 mm off its course), or one seen from the earlier's first verified pair to
     the later's last that could join either within RATIO * their `_cost` + FLOOR (its
-    motion tells as much as theirs), or an object of the other kind that could be a part
-    between them (`_other_kind`). Rows: the joins; columns: the other parts."""
+    motion tells as much as theirs), or one its tracker can have passed to or from at
+    the later's start or the earlier's end (`_handed`), or an object of the other kind
+    that could be a part between them (`_other_kind`). Rows: the joins; columns: the
+    other parts."""
     ahead = e.later[i, j]
     a, b = np.where(ahead, i, j), np.where(ahead, j, i)             # the earlier part, the later
     seen = e.within(e.t0[a], e.t1[b])
@@ -253,8 +255,24 @@ def contested(e: _Ends, i: np.ndarray, j: np.ndarray) -> np.ndarray:
     inside = e.moving & (e.t0 > e.t1[a, None]) & (e.t1 < e.t0[b, None])
     joins = ((e.returns[i] & (inside | (e.cost[i] <= bar)))
              | (e.returns[j] & (inside | (e.cost[j] <= bar))))     # (symmetric)
+    joins |= _handed(e.t1, e.d1, e.v1, e.t0[b, None], e.d0[b, None], e.v0[b, None])    # it is the later, or
+    joins |= _handed(e.t1[a, None], e.d1[a, None], e.v1[a, None], e.t0, e.d0, e.v0)    # the earlier goes on
     same = e.moving == e.moving[i, None]
     return (seen & np.where(same, joins, _other_kind(e, a, b, bar))).any(axis=1)
+
+
+def _handed(ta, da, va, tb, db, vb) -> np.ndarray:
+    """Whether a tracker can have passed from one part, last seen at (ta s, da m, va m/s),
+    to another first seen at (tb, db, vb) between two bodies that nothing tells apart:
+    within KINEMATIC_S after it, objects.GATE_M of it and velocities alike as one body's
+    (ACCEL_MAX dt + objects.STEADY_MPS). A leg's landing, its tracker ending on the other
+    leg at rest 1.8 mm beside it, then on the first as it bounced (-0.51, +0.31 m/s): a
+    part that ends so contests the later one's every other join, a part that begins so
+    the earlier one's (166 valid pairs of the bounce on the other leg); not two movers
+    crossing at +1.9 and -2.9 m/s, whose motions tell."""
+    dt = tb - ta
+    return ((dt >= 0) & (dt <= KINEMATIC_S) & (np.abs(db - da) <= objects.GATE_M)
+            & (np.abs(vb - va) <= ACCEL_MAX * dt + objects.STEADY_MPS))
 
 
 def _other_kind(e: _Ends, a: np.ndarray, b: np.ndarray, bar: np.ndarray) -> np.ndarray:

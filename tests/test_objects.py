@@ -301,6 +301,29 @@ def test_a_mover_come_to_rest_while_lost_is_not_the_mover_its_tracker_found():
         assert on_glide.all() or not on_glide.any()
 
 
+def test_a_part_the_tracker_handed_over_to_is_not_joined_elsewhere():
+    """Two legs landing (a lone tracker): one leg's landing ends at 36.2 ms (0.0767 m,
+    -1.34 m/s); the tracker follows the other leg's landing until 73.6 ms, ending on the
+    first leg at rest beside it (0.0741 m, -0.51 m/s), then 0.2 ms later holds the other
+    leg's bounce (0.0759 m, +0.31 m/s: no one body, so cut). The bounce is not the first
+    leg seen again 37 ms on, for the tracker passed to it from a part alike in time,
+    place and velocity (identities._handed); with the bounce's start 12 mm off, it is."""
+    n = 2500
+    t = PERIOD * (np.arange(n) + 0.5)
+    first, other, bounce = np.full(n, np.nan), np.full(n, np.nan), np.full(n, np.nan)
+    s1, s2, s3 = t <= 0.0362, (t >= 0.0365) & (t <= 0.0736), t >= 0.0738
+    first[s1] = 0.0767 - 1.34 * (t[s1] - 0.0362)
+    other[s2] = 0.0741 - 0.51 * (t[s2] - 0.0736)
+    bounce[s3] = 0.0759 + 0.31 * (t[s3] - 0.0738) - 3.0 * (t[s3] - 0.0738) ** 2
+    v = np.where(s1, -1.34, np.where(s2, -0.51, 0.31 - 6.0 * (t - 0.0738)))
+    parts = [objects.SceneObject(0, True, _track(x, v), name) for x, name in
+             ((first, "first"), (other, "other"), (bounce, "bounce"))]
+    assert len(identities.rejoined(list(parts), True)) == 3
+    away = objects.SceneObject(0, True, _track(np.where(s3, bounce + 0.012, np.nan), v), "bounce")
+    joined = identities.rejoined([parts[0], parts[1], away], True)
+    assert len(joined) == 2 and "bounce" in joined[0].note
+
+
 def test_two_legs_whose_motions_tell_nothing_stay_apart():
     """Two legs near their apexes 40 ms apart (the same jump), both lost for 20 ms
     between them: a leg could have come back as either (least accelerations alike),
