@@ -16,6 +16,7 @@ from . import conversions, crossings, fixed_echoes, identities, objects, target
 from .capture import Capture
 from .conversions import Converted, First
 from .processor import ChunkMeasurements, ChunkProcessor
+from .stages import faults
 from .track import Track
 
 # a part of a track this many verified pairs long (2 ms: fixed_echoes.TOGETHER_S) is a body's
@@ -157,17 +158,19 @@ def _moving(d: Converted) -> bool:
 def _at_rest(cap: Capture, done: list[Converted], first: First, made: dict, processor: ChunkProcessor,
              seconds, progress) -> list[Converted]:
     """`done` with each mover whose choice left a fixed echo ambiguous that is its own
-    rest (`_rests`) assembled on its band's plain rows without that ambiguity (a foot at
-    rest by a stronger wall, which the first conversion followed, so that the rest was
-    "seen while the target was away"; then off 7 mm in 9 ms: every pair `ambiguous`,
-    the wall taken for the target), and each fixed echo that is a mover's rest, no mover
-    holding it, as that mover (its pairs without the rest's bounds: the foot moving 3
-    mm, every pair faster than MOVING_MPS `ambiguous`). `_distinct` then drops twins."""
+    rest (`_rests`), that ambiguity holding as many of its pairs as it verified,
+    assembled on its band's plain rows without it (a foot at rest by a stronger wall,
+    which the first conversion followed, so that the rest was "seen while the target
+    was away"; then off 7 mm in 9 ms: every pair `ambiguous`, the wall taken for the
+    target), and each fixed echo that is a mover's rest, no mover holding it, as that
+    mover (its pairs without the rest's bounds: the foot moving 3 mm, every pair faster
+    than MOVING_MPS `ambiguous`). `_distinct` then drops twins."""
     out, rests = list(done), set()
     for k, o in enumerate(done):
         for m, d in enumerate(done):
             near = np.abs(o.choice.ambiguous_m - d.candidate.centre_m) <= fixed_echoes.APART_M
-            if not (o.candidate.moving and d.candidate.fixed and near.any()):
+            lost = np.sum(o.track.reason == faults.AMBIGUOUS) >= o.track.valid.sum()
+            if not (o.candidate.moving and d.candidate.fixed and near.any() and lost):
                 continue
             plan, parts = conversions.measured(cap, first, o.choice.band_m, 0, made, processor, progress)
             said = o.choice.note.removesuffix(target.passes(o.choice.ambiguous_m)) + _rest(d)
