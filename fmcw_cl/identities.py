@@ -63,14 +63,14 @@ def _at(track, k: np.ndarray) -> tuple:
     return track.time_s[k], track.distance_m[k], track.velocity_mps[k]
 
 
-def _swaps(x, y, ends_only: bool = False) -> np.ndarray:
+def _swaps(x, y, fixed: bool = False) -> np.ndarray:
     """The times (s) at which to cut mover `x`: the middles of its gaps that overlap a
     gap of mover `y` (both lost at once) across which either could have come back as
     the other (objects.seen_again). Where `y`'s gap is one of its ends (lost for good,
     or not yet seen), every later or earlier gap of `x` overlaps it: there the swap
     must also be about as cheap as `x`'s own course across its gap (`_least` within
-    RATIO times it plus FLOOR, as a join's contest), not merely possible; for a fixed
-    `y` (`ends_only`: first seen after `x` was lost, come to rest) cheaper than it (a
+    RATIO times it plus FLOOR, as a join's contest), not merely possible. A `fixed` `y`
+    only at its first end (first seen after `x` was lost: come to rest), cheaper than it (a
     foot landing at a window's distance goes on its own course). Not a fixed object
     last seen before: a wall's echo fades (a landing cut where a weak wall seen for 2 ms
     14 ms before its gap could have set off as it: 84.8 -> 27.5 % of its periods)."""
@@ -78,7 +78,7 @@ def _swaps(x, y, ends_only: bool = False) -> np.ndarray:
     inner = (x0 >= 0) & (x1 >= 0)
     x0, x1 = x0[inner], x1[inner]
     y0, y1 = _gaps(y)
-    if ends_only:                                   # a fixed object's first end alone
+    if fixed:                                       # a fixed object's first end alone
         y0, y1 = y0[:1], y1[:1]
     ty0 = np.where(y0 >= 0, y.time_s[np.maximum(y0, 0)], -np.inf)
     ty1 = np.where(y1 >= 0, y.time_s[np.maximum(y1, 0)], np.inf)
@@ -98,7 +98,7 @@ def _swaps(x, y, ends_only: bool = False) -> np.ndarray:
         out[has] = objects.seen_again(*_at(a, pa[has]), *_at(b, nb[has]))
         end &= has                      # at y's end, as cheap as x's own course
         cost = _least(*_at(a, pa[end]), *_at(b, nb[end]))
-        out[end] &= cost < own[end] if ends_only else cost <= bar[end]
+        out[end] &= cost < own[end] if fixed else cost <= bar[end]
         return out
 
     swap = swapped(y, py, x, nx, ny < 0) | swapped(x, px, y, ny, py < 0)
@@ -123,7 +123,7 @@ def crossing_cuts(scene: list[SceneObject]) -> list[np.ndarray]:
     for i in seen:
         for j in seen:
             if i != j and scene[i].moving:
-                cuts[i] += list(_swaps(scene[i].track, scene[j].track, ends_only=not scene[j].moving))
+                cuts[i] += list(_swaps(scene[i].track, scene[j].track, fixed=not scene[j].moving))
     return [np.unique(c) for c in cuts]
 
 
@@ -267,14 +267,13 @@ def _handed(ta, da, va, tb, db, vb) -> np.ndarray:
     """Whether a tracker can have passed from one part, last seen at (ta s, da m, va m/s),
     to another first seen at (tb, db, vb) between two bodies that nothing tells apart:
     within KINEMATIC_S after it, objects.GATE_M of it and velocities alike as one body's
-    (ACCEL_MAX dt + objects.STEADY_MPS). A leg's landing, its tracker ending on the other
+    (objects.alike). A leg's landing, its tracker ending on the other
     leg at rest 1.8 mm beside it, then on the first as it bounced (-0.51, +0.31 m/s): a
     part that ends so contests the later one's every other join, a part that begins so
     the earlier one's (166 valid pairs of the bounce on the other leg); not two movers
     crossing at +1.9 and -2.9 m/s, whose motions tell."""
     dt = tb - ta
-    return ((dt >= 0) & (dt <= KINEMATIC_S) & (np.abs(db - da) <= objects.GATE_M)
-            & (np.abs(vb - va) <= ACCEL_MAX * dt + objects.STEADY_MPS))
+    return (dt >= 0) & (dt <= KINEMATIC_S) & (np.abs(db - da) <= objects.GATE_M) & objects.alike(dt, va, vb)
 
 
 def _other_kind(e: _Ends, a: np.ndarray, b: np.ndarray, bar: np.ndarray) -> np.ndarray:

@@ -231,8 +231,13 @@ def one_body(ta, da, va, tb, db, vb) -> np.ndarray:
     valid pairs on the other; a landing's impact in a fade is not bounded so: 5 m/s
     to rest within 2 ms)."""
     dt = np.abs(tb - ta)
-    steady = (dt > STEADY_S) | (np.abs(vb - va) <= ACCEL_MAX * dt + STEADY_MPS)
-    return reachable(ta, da, va, tb, db, vb) & steady
+    return reachable(ta, da, va, tb, db, vb) & ((dt > STEADY_S) | alike(dt, va, vb))
+
+
+def alike(dt, va, vb) -> np.ndarray:
+    """Whether velocities `va` and `vb` (m/s) `dt` apart (s, >= 0) can be one body's
+    within STEADY_S: within ACCEL_MAX dt + STEADY_MPS."""
+    return np.abs(vb - va) <= ACCEL_MAX * dt + STEADY_MPS
 
 
 def invalidated(track: Track, where: np.ndarray, code: int = faults.AMBIGUOUS) -> Track:
