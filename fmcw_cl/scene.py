@@ -58,13 +58,16 @@ def objects_of(cap: Capture, first: First, choice: target.Choice, own: Converted
         done = [own if i == mine else conversions.convert(cap, first, c, spans + extra, made, processor,
                                                           seconds, progress, own if i == held else None)
                 for i, c in enumerate(cands)]
-        found = [s for d in done for s in objects.parts_of(d.track) + _passing(d, first, processor, seconds)
+        # a fixed object's measurements without its rest's bounds: what else its band holds
+        loose = {id(d.track): conversions.again(d, replace(d.choice, at_rest_m=None), processor, seconds)
+                 for d in done if d.choice.at_rest_m is not None}
+        found = [s for d in done for s in objects.parts_of(d.track) + _passing(d, loose.get(id(d.track)))
                  if not any(c.lo - fixed_echoes.APART_M <= 0.5 * (s[0] + s[1]) <= c.hi + fixed_echoes.APART_M
                             and c.moving for c in cands)]
         if not found or extra:
             break
         extra = found
-    done = _at_rest(cap, done, first, made, processor, seconds, progress)
+    done = _at_rest(cap, done, loose, first, made, processor, seconds, progress)
     done = _distinct(done, first, seconds, processor)
     unseen = {(i, j) for i, d in enumerate(done) for j in _unseen(d, done, first)}
     done = _unveiled(done, unseen, seconds, processor)
@@ -155,8 +158,8 @@ def _moving(d: Converted) -> bool:
     return d.candidate.moving or (not d.candidate.fixed and objects.moves(d.track))
 
 
-def _at_rest(cap: Capture, done: list[Converted], first: First, made: dict, processor: ChunkProcessor,
-             seconds, progress) -> list[Converted]:
+def _at_rest(cap: Capture, done: list[Converted], loose: dict[int, Track], first: First, made: dict,
+             processor: ChunkProcessor, seconds, progress) -> list[Converted]:
     """`done` with each mover whose choice left a fixed echo ambiguous that is its own
     rest (`_rests`), that ambiguity holding as many of its pairs as it verified,
     assembled on its band's plain rows without it (a foot at rest by a stronger wall,
@@ -164,30 +167,31 @@ def _at_rest(cap: Capture, done: list[Converted], first: First, made: dict, proc
     was away"; then off 7 mm in 9 ms: every pair `ambiguous`, the wall taken for the
     target), and each fixed echo that is a mover's rest, no mover holding it, as that
     mover (its pairs without the rest's bounds: the foot moving 3 mm, every pair faster
-    than MOVING_MPS `ambiguous`). `_distinct` then drops twins."""
+    than MOVING_MPS `ambiguous`; `loose`: each fixed conversion's pairs without its
+    rest's bounds, by id of its track). `_distinct` then drops twins."""
     out, rests = list(done), set()
     for k, o in enumerate(done):
+        if not (o.candidate.moving and np.sum(o.track.reason == faults.AMBIGUOUS) >= o.track.valid.sum()):
+            continue
         for m, d in enumerate(done):
             near = np.abs(o.choice.ambiguous_m - d.candidate.centre_m) <= fixed_echoes.APART_M
-            lost = np.sum(o.track.reason == faults.AMBIGUOUS) >= o.track.valid.sum()
-            if not (o.candidate.moving and d.candidate.fixed and near.any() and lost):
+            if not (d.candidate.fixed and near.any()):
                 continue
             plan, parts = conversions.measured(cap, first, o.choice.band_m, 0, made, processor, progress)
             said = o.choice.note.removesuffix(target.passes(o.choice.ambiguous_m)) + _rest(d)
             choice = replace(o.choice, ambiguous_m=o.choice.ambiguous_m[~near],
                              note=said + target.passes(o.choice.ambiguous_m[~near]))
-            loose = conversions.assembled(plan, parts, processor, seconds, choice, None)
-            if _rests(d.track, loose):
-                out[k] = Converted(o.candidate, choice, plan, parts, loose)
+            plain = conversions.assembled(plan, parts, processor, seconds, choice, None)
+            if _rests(d.track, plain):
+                out[k] = Converted(o.candidate, choice, plan, parts, plain)
                 rests.add(m)
                 break
     for m, d in enumerate(done):
-        if d.candidate.fixed and d.track.valid.any() and m not in rests:
+        free = loose.get(id(d.track))
+        if d.candidate.fixed and d.track.valid.any() and m not in rests and _rests(d.track, free):
             choice = replace(d.choice, at_rest_m=None, note=d.choice.note + _rest(d))
-            loose = conversions.again(d, choice, processor, seconds)
-            if _rests(d.track, loose):
-                mover = replace(d.candidate, moving=True, fixed=False)
-                out[m] = Converted(mover, choice, d.plan, d.parts, loose)
+            track = replace(free, attrs={**free.attrs, **choice.attrs()})
+            out[m] = Converted(replace(d.candidate, moving=True, fixed=False), choice, d.plan, d.parts, track)
     return out
 
 
@@ -204,14 +208,13 @@ def _rests(rest: Track, mover: Track) -> bool:
     return objects.runs(mover) and bool(share >= objects.SAME_SHARE)
 
 
-def _passing(d: Converted, first: First, processor, seconds) -> list[tuple[float, float]]:
+def _passing(d: Converted, loose: Track | None) -> list[tuple[float, float]]:
     """The spans (m) of what moves through a fixed object's band: its measurements
-    assembled without the fixed object's bounds (target.Choice.at_rest_m), the moving
-    spans of their verified pairs more than APART_M from it (a rail passing a swaying
-    cable, beyond it)."""
-    if d.choice.at_rest_m is None:
+    assembled without the fixed object's bounds (target.Choice.at_rest_m: `loose`), the
+    moving spans of their verified pairs more than APART_M from it (a rail passing a
+    swaying cable, beyond it)."""
+    if loose is None:
         return []
-    loose = conversions.again(d, replace(d.choice, at_rest_m=None), processor, seconds)
     away = np.abs(loose.distance_m - d.choice.at_rest_m) > fixed_echoes.APART_M
     return fixed_echoes.moving_spans(loose.time_s, loose.distance_m, loose.velocity_mps, loose.valid & away,
                                      np.zeros(0))
