@@ -93,18 +93,45 @@ def truth_visible(truth: Truth, t: np.ndarray, span_s: float = 0.0) -> np.ndarra
     return seen[hi + 1] - seen[lo] > 0
 
 
-def on_objects(track: Track, truths: list[Truth]) -> np.ndarray:
-    """For each valid pair of `track`, the index of the truth object (of `truths`)
-    within WRONG_M of its distance, visible then (within the span of half-sweeps it
-    integrates; the nearest where several are), or -1 where none is."""
+def _misses(track: Track, truths: list[Truth]) -> np.ndarray:
+    """(truths, valid pairs): each valid pair's distance from each truth object (m),
+    inf where that object is not visible then (within the span of half-sweeps it
+    integrates)."""
     t, d = track.time_s[track.valid], track.distance_m[track.valid]
     span = float(track.attrs.get("time_resolution_s", 0.0))
     err = np.full((len(truths), t.size), np.inf)
     for k, tr in enumerate(truths):
-        e = np.abs(d - truth_at(tr, t)[0])
-        err[k] = np.where(truth_visible(tr, t, span), e, np.inf)
-    best = np.argmin(err, axis=0) if truths else np.zeros(t.size, np.int64)
+        err[k] = np.where(truth_visible(tr, t, span), np.abs(d - truth_at(tr, t)[0]), np.inf)
+    return err
+
+
+def on_objects(track: Track, truths: list[Truth]) -> np.ndarray:
+    """For each valid pair of `track`, the index of the truth object (of `truths`)
+    within WRONG_M of its distance, visible then (within the span of half-sweeps it
+    integrates; the nearest where several are), or -1 where none is."""
+    return _nearest(_misses(track, truths))
+
+
+def _nearest(err: np.ndarray) -> np.ndarray:
+    """`on_objects` of the pairs' `_misses`."""
+    best = np.argmin(err, axis=0) if err.shape[0] else np.zeros(err.shape[1], np.int64)
     return np.where(np.min(err, axis=0, initial=np.inf) <= WRONG_M, best, -1)
+
+
+def followed(track: Track, truths: list[Truth]) -> int:
+    """The truth object (index of `truths`) that `track`'s valid pairs follow: the one
+    most of them lie on alone (within WRONG_M of it and of no other), else the one most
+    lie on (`on_objects`), else 0. Two legs at rest at one distance: the pairs of both
+    tell neither; those before the second came there tell which (an object's first three
+    pairs 0.0 mm from the leg it held, 2.1 mm from the other, were counted "wrong" when
+    the tie went to the other)."""
+    err = _misses(track, truths)
+    near = err <= WRONG_M
+    alone = near & (near.sum(axis=0) == 1)
+    if alone.any():
+        return int(np.argmax(alone.sum(axis=1)))
+    on = _nearest(err)
+    return int(np.bincount(on[on >= 0], minlength=len(truths)).argmax()) if (on >= 0).any() else 0
 
 
 def periods_tracked(track: Track, truth: Truth) -> float:
@@ -119,10 +146,10 @@ def periods_tracked(track: Track, truth: Truth) -> float:
 
 def object_scores(track: Track, truths: list[Truth]) -> list[dict]:
     """Per object of `track` (`Track.objects`; the track alone where it lists none): its
-    id, the truth it follows (the index of `truths` most of its valid pairs lie on,
-    `on_objects`; None without valid pairs), its valid pairs more than WRONG_M from
-    that truth or while it is hidden ("wrong"), and the share of that truth's visible
-    periods it holds ("tracked", `periods_tracked`)."""
+    id, the truth it follows (the index of `truths`, `followed`; None without valid
+    pairs), its valid pairs more than WRONG_M from that truth or while it is hidden
+    ("wrong"), and the share of that truth's visible periods it holds ("tracked",
+    `periods_tracked`)."""
     out = []
     for o in track.objects or [None]:
         t = track if o is None else o.track
@@ -130,8 +157,7 @@ def object_scores(track: Track, truths: list[Truth]) -> list[dict]:
         if not t.valid.any():
             out.append({"id": ident, "truth": None, "wrong": 0, "tracked": 0.0})
             continue
-        on = on_objects(t, truths)
-        own = int(np.bincount(on[on >= 0], minlength=len(truths)).argmax()) if (on >= 0).any() else 0
+        own = followed(t, truths)
         when = t.time_s[t.valid]
         err = np.abs(t.distance_m[t.valid] - truth_at(truths[own], when)[0])
         seen = truth_visible(truths[own], when, float(t.attrs.get("time_resolution_s", 0.0)))

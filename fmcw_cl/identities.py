@@ -70,16 +70,19 @@ def _swaps(x, y, fixed: bool = False) -> np.ndarray:
     or not yet seen), every later or earlier gap of `x` overlaps it: there the swap
     must also be about as cheap as `x`'s own course across its gap (`_least` within
     RATIO times it plus FLOOR, as a join's contest), not merely possible. A `fixed` `y`
-    only at its first end (first seen after `x` was lost: come to rest), cheaper than it (a
-    foot landing at a window's distance goes on its own course). Not a fixed object
-    last seen before: a wall's echo fades (a landing cut where a weak wall seen for 2 ms
-    14 ms before its gap could have set off as it: 84.8 -> 27.5 % of its periods)."""
+    only at its ends: its first (first seen after `x` was lost: come to rest), cheaper
+    than `x`'s course (a foot landing at a window's distance goes on its own course);
+    its last (last seen while `x` was lost: set off as `x`), only where `x`'s course
+    costs RATIO times the swap plus FLOOR or more, for a wall's echo fades (a landing
+    cut where a weak wall seen for 2 ms 14 ms before its gap could have set off as it:
+    84.8 -> 27.5 % of its periods) while a glide at rest 132 ms set off 11 mm from
+    where it lay (a rail at rest 48 mm away, lost 58 ms: 1213 valid pairs of the glide)."""
     x0, x1 = _gaps(x)
     inner = (x0 >= 0) & (x1 >= 0)
     x0, x1 = x0[inner], x1[inner]
     y0, y1 = _gaps(y)
-    if fixed:                                       # a fixed object's first end alone
-        y0, y1 = y0[:1], y1[:1]
+    if fixed:                                       # a fixed object's ends alone
+        y0, y1 = y0[[0, -1]], y1[[0, -1]]
     ty0 = np.where(y0 >= 0, y.time_s[np.maximum(y0, 0)], -np.inf)
     ty1 = np.where(y1 >= 0, y.time_s[np.maximum(y1, 0)], np.inf)
     lo = np.searchsorted(ty1, x.time_s[x0], side="right")     # y's first gap ending after x's starts
@@ -92,16 +95,21 @@ def _swaps(x, y, fixed: bool = False) -> np.ndarray:
     own = _least(*_at(x, px), *_at(x, nx))
     bar = RATIO * own + FLOOR
 
-    def swapped(a, pa, b, nb, end):     # a last seen at pa, then b first seen at nb: one body?
+    def swapped(a, pa, b, nb, end, left):     # a last seen at pa, then b first seen at nb: one body?
         out = np.zeros(gx.size, bool)
         has = (pa >= 0) & (nb >= 0)
         out[has] = objects.seen_again(*_at(a, pa[has]), *_at(b, nb[has]))
         end &= has                      # at y's end, as cheap as x's own course
         cost = _least(*_at(a, pa[end]), *_at(b, nb[end]))
-        out[end] &= cost < own[end] if fixed else cost <= bar[end]
+        if not fixed:
+            out[end] &= cost <= bar[end]
+        elif left:                      # a fixed y set off as x (or its echo faded): its motion tells
+            out[end] &= RATIO * cost + FLOOR <= own[end]
+        else:                           # x come to rest as a fixed y
+            out[end] &= cost < own[end]
         return out
 
-    swap = swapped(y, py, x, nx, ny < 0) | swapped(x, px, y, ny, py < 0)
+    swap = swapped(y, py, x, nx, ny < 0, True) | swapped(x, px, y, ny, py < 0, False)
     return 0.5 * (x.time_s[px] + x.time_s[nx])[swap]
 
 
@@ -129,27 +137,42 @@ def crossing_cuts(scene: list[SceneObject]) -> list[np.ndarray]:
 
 def parted(scene: list[SceneObject], crossings: bool = False) -> list[SceneObject]:
     """Each object whose verified pairs no one body can have made split into objects of
-    one body each (objects.bodies), and with `crossings`, at its `crossing_cuts`; each
-    part's kind its own (objects.moves; a mover's part that runs as its velocities say,
-    however briefly, moves: objects.runs), each knowing the track it was cut from
-    (`whole`); parts that one body can join again are joined by `rejoined`."""
+    one body each (objects.bodies), and with `crossings`, at its `crossing_cuts`
+    (`split`); parts that one body can join again are joined by `rejoined`."""
     cuts = crossing_cuts(scene) if crossings else [np.zeros(0)] * len(scene)
     out = []
     for o, cut in zip(scene, cuts, strict=True):
         bodies = objects.bodies(o.track)
-        parts = bodies
-        if cut.size:
-            k = np.searchsorted(cut, o.track.time_s)        # the crossing span each pair lies in
-            parts = [p & (k == s) for p in bodies for s in np.unique(k[p])]
+        parts = cut_at(bodies, cut, o.track.time_s)
         if len(parts) < 2:
             out.append(o)
             continue
         why = " or ".join([w for w, n in (("no body moves between them", len(bodies) > 1),
                                         ("lost while another mover was", len(parts) > len(bodies))) if n])
-        for k, mask in enumerate(parts, 1):
-            track = objects.invalidated(o.track, ~mask, faults.DISCONTINUOUS)    # another body's
-            moving = objects.moves(track) or (o.moving and objects.runs(track))
-            out.append(SceneObject(0, moving, track, f"{o.note}; part {k} of {len(parts)}: {why}", o.track))
+        out += split(o, parts, why)
+    return out
+
+
+def cut_at(masks: list[np.ndarray], cut: np.ndarray, time_s: np.ndarray) -> list[np.ndarray]:
+    """Each of the pair masks `masks` cut at the times `cut` (s, sorted; pairs at
+    `time_s`): a mask per span between cuts that holds pairs."""
+    if not cut.size:
+        return masks
+    k = np.searchsorted(cut, time_s)                # the span between cuts each pair lies in
+    return [p & (k == s) for p in masks for s in np.unique(k[p])]
+
+
+def split(o: SceneObject, parts: list[np.ndarray], why: str) -> list[SceneObject]:
+    """Object `o` as an object per part (pair masks `parts`), the others' pairs
+    `discontinuous` (another body's); each part's kind its own (objects.moves; a
+    mover's part that runs as its velocities say, however briefly, moves: objects.runs),
+    each knowing the track it was cut from (`whole`), its note saying `why`."""
+    out = []
+    for k, mask in enumerate(parts, 1):
+        track = objects.invalidated(o.track, ~mask, faults.DISCONTINUOUS)
+        moving = objects.moves(track) or (o.moving and objects.runs(track))
+        out.append(SceneObject(0, moving, track, f"{o.note}; part {k} of {len(parts)}: {why}",
+                               o.track if o.whole is None else o.whole))
     return out
 
 
