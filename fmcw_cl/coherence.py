@@ -27,8 +27,10 @@ from __future__ import annotations
 import numpy as np
 
 from . import objects
+from .fixed_echoes import MOVING_MPS
 from .objects import per_pair
 from .stages import faults
+from .stages.verification import ACCEL_MAX, JUMP_MAX_M
 from .track import Track
 
 WINDOW = 16         # steps a window (0.8 ms at 20 kHz)
@@ -132,6 +134,54 @@ def two_bodies(track: Track, rad_per_m: float) -> np.ndarray:
     period = track.period_s or float(np.median(np.diff(track.time_s)))
     return apart(track.time_s, per_pair(track, "sweep_time_s"), phases, snr, track.velocity_mps, used,
                  rad_per_m, period)
+
+
+def cuts(track: Track, two: np.ndarray, others: list[Track]) -> np.ndarray:
+    """The times (s) at which `track` held another body as well as its own, and came
+    out of it on one of the two with nothing to tell which: the middle of each run of
+    its `two` pairs (`two_bodies`) with verified pairs on both sides, one of those two
+    slower than fixed_echoes.MOVING_MPS or the velocity across the run turned by more
+    than that beyond the accelerations either side (`slope`), where a mover of `others`
+    can have been there (from its last verified pair before the run or its first after,
+    `_there`): two legs' plateaus within the resolution at once, parting at
+    +0.18 and +0.19 m/s (365 valid pairs of one leg on the other's object); two legs
+    crossing at -0.50 and +0.43 m/s (42). Not where the track runs on through it as
+    one body (a switch to a body moving alike within that is not caught), nor where no
+    other mover can have been there (a target setting off beside a trembling wall, its
+    rest cut from its run: 80 -> 72 % of its periods)."""
+    k = np.flatnonzero(track.valid)
+    flag = two[k]
+    if not flag.any():
+        return np.zeros(0)
+    edge = np.diff(np.r_[0, flag.astype(np.int8), 0])
+    lo, hi = np.flatnonzero(edge == 1), np.flatnonzero(edge == -1) - 1      # runs of flagged pairs, in k
+    inner = (lo > 0) & (hi < k.size - 1)
+    lo, hi = k[lo[inner]], k[hi[inner]]
+    before, after = k[np.searchsorted(k, lo) - 1], k[np.searchsorted(k, hi) + 1]
+    t, v = track.time_s, track.velocity_mps
+    rest = k[~flag]                 # the accelerations either side, from the pairs outside the runs
+    period = track.period_s or float(np.median(np.diff(t)))
+    acc = [slope(t[rest], v[rest], t[x], SLOPE_PERIODS * period) for x in (before, after)]
+    turn = np.abs(v[after] - v[before] - 0.5 * (acc[0] + acc[1]) * (t[after] - t[before]))
+    keep = (np.minimum(np.abs(v[before]), np.abs(v[after])) < MOVING_MPS) | (turn > MOVING_MPS)
+    lo, hi = lo[keep], hi[keep]
+    near = np.zeros(lo.size, bool)
+    for o in others:
+        ok = np.flatnonzero(o.valid)
+        if not ok.size:
+            continue
+        last = ok[np.maximum(np.searchsorted(o.time_s[ok], t[lo]) - 1, 0)]
+        first = ok[np.minimum(np.searchsorted(o.time_s[ok], t[hi], "right"), ok.size - 1)]
+        near |= (o.time_s[last] < t[lo]) & _there(o, last, t[lo], track.distance_m[lo])
+        near |= (o.time_s[first] > t[hi]) & _there(o, first, t[hi], track.distance_m[hi])
+    return 0.5 * (t[lo[near]] + t[hi[near]])
+
+
+def _there(o: Track, k: np.ndarray, t: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """Whether the body of `o`'s pairs `k` can be at distances `d` (m) at times `t` (s):
+    within verification.JUMP_MAX_M + ACCEL_MAX dt^2 / 2 of where its velocity carries it."""
+    dt = t - o.time_s[k]
+    return np.abs(d - o.distance_m[k] - o.velocity_mps[k] * dt) <= JUMP_MAX_M + 0.5 * ACCEL_MAX * dt * dt
 
 
 def verified_again(track: Track) -> Track:

@@ -98,7 +98,9 @@ def _swaps(x, y, fixed: bool = False) -> np.ndarray:
     def swapped(a, pa, b, nb, end, left):     # a last seen at pa, then b first seen at nb: one body?
         out = np.zeros(gx.size, bool)
         has = (pa >= 0) & (nb >= 0)
-        out[has] = objects.seen_again(*_at(a, pa[has]), *_at(b, nb[has]))
+        pairs = (*_at(a, pa[has]), *_at(b, nb[has]))
+        # beyond the trapezoid (to or from rest), only as cheap as x's own course
+        out[has] = objects.seen_again(*pairs) | (could_be(*pairs) & (_least(*pairs) <= bar[has]))
         end &= has                      # at y's end, as cheap as x's own course
         cost = _least(*_at(a, pa[end]), *_at(b, nb[end]))
         if not fixed:
@@ -111,6 +113,19 @@ def _swaps(x, y, fixed: bool = False) -> np.ndarray:
 
     swap = swapped(y, py, x, nx, ny < 0, True) | swapped(x, px, y, ny, py < 0, False)
     return 0.5 * (x.time_s[px] + x.time_s[nx])[swap]
+
+
+def could_be(ta, da, va, tb, db, vb) -> np.ndarray:
+    """Whether a mover lost at (ta, da, va) can be the body seen at (tb, db, vb) (s, m,
+    m/s; arrays): seen again (objects.seen_again), or, from motion to rest or from rest
+    to motion, where a body can move so (`_costs` finite): a landing's trapezoid misses
+    by the rest of its flight. `_swaps` takes the second only where the swap costs
+    within RATIO times the mover's own course plus FLOOR (a leg lost at -4.94 m/s
+    157.6 mm, landed 50 ms later at 76.7 mm: 42.6 mm off the trapezoid, cost 30, while
+    the other leg's, 4 mm beside, was 27 mm off, cost 54: 34 valid pairs of one leg's
+    rest on the other; not a foot's 1 ms gap at rest against a leg lost 48 ms before)."""
+    slow = (np.abs(va) < fixed_echoes.MOVING_MPS) != (np.abs(vb) < fixed_echoes.MOVING_MPS)
+    return objects.seen_again(ta, da, va, tb, db, vb) | (slow & np.isfinite(_costs(ta, da, va, tb, db, vb)))
 
 
 def _least(ta, da, va, tb, db, vb) -> np.ndarray:
@@ -306,13 +321,16 @@ def _other_kind(e: _Ends, a: np.ndarray, b: np.ndarray, bar: np.ndarray) -> np.n
     glide at 182 ms whose start the rail's trapezoid reaches within 20 mm over 142 ms: 752
     valid pairs of the glide joined to the rail; a foot at rest and a hand come down 13 mm
     from it 200 ms later, the foot taking off 2.5 ms after its rest), or last seen between
-    them, the later seen again from it; or first seen while the later is, within `bar`
-    of `_costs` (a rail come to rest 11 mm on while a glide it had passed was followed:
-    494; not a swaying cable seen before a rail that passed it is seen again, nor a
-    weak wall's last pairs before a landing's gap: a wall's echo fades)."""
+    them or within KINEMATIC_S before the earlier's end (lost at once: a rail lost 0.1 ms
+    before a glide at rest it passed, its next 23 pairs too short to run, so fixed, were
+    joined to the rest: 101 valid pairs), the later seen again from it; or first seen
+    while the later is, within `bar` of `_costs` (a rail come to rest 11 mm on while a
+    glide it had passed was followed: 494; not a swaying cable seen before a rail that
+    passed it is seen again, nor a weak wall's last pairs before a landing's gap: a
+    wall's echo fades)."""
     last, first = e.t1[a, None], e.t0[b, None]
     became = (last < e.t0) & ((e.t0 < first) | ((e.t0 <= e.t1[b, None]) & (e.cost[a] <= bar))) & e.seen[a]
-    becomes = (last < e.t1) & (e.t1 < first) & e.seen[:, b].T
+    becomes = (last - KINEMATIC_S < e.t1) & (e.t1 < first) & e.seen[:, b].T
     return became | becomes
 
 

@@ -99,7 +99,10 @@ def _told_apart(found: list[objects.SceneObject], done: list[Converted], own: Co
     if lone:
         paths = crossings.conflicts(tracks, [not m for m in moving])
         clash = [c | p for c, p in zip(clash, paths, strict=True)]
-    scene = [_taken(o, c, w) for o, c, w in zip(scene, clash, two, strict=True)]
+    movers = [o.track for o in scene if o.moving]
+    cut = [coherence.cuts(o.track, w, [t for t in movers if t is not o.track])
+           for o, w in zip(scene, two, strict=True)]
+    scene = [p for o, c, w, k in zip(scene, clash, two, cut, strict=True) for p in _taken(o, c, w, k)]
     scene.sort(key=lambda o: (o.attrs()["first_seen_s"] if o.track.valid.any() else np.inf,
                               o.attrs()["distance_span_m"][0]))
     for k, o in enumerate(scene, 1):
@@ -123,14 +126,24 @@ def _told_apart(found: list[objects.SceneObject], done: list[Converted], own: Co
     return scene, pick, replace(conv, track=mine.track, whole=mine.whole)
 
 
-def _taken(o: objects.SceneObject, clash: np.ndarray, two: np.ndarray) -> objects.SceneObject:
+def _taken(o: objects.SceneObject, clash: np.ndarray, two: np.ndarray,
+           cut: np.ndarray) -> list[objects.SceneObject]:
     """`o` with its valid pairs `clash` (another's echo beside them) and `two` (two
     bodies' phases: coherence.two_bodies, a subset of its valid pairs) `ambiguous`;
-    where `two` took any, the pairs left verified again among themselves."""
+    where `two` took any, the pairs left verified again among themselves, and the
+    object cut at the times `cut` (s: coherence.cuts, where its tracker came out of two
+    bodies on one, nothing telling which)."""
     if not ((clash | two) & o.track.valid).any():
-        return o
+        return [o]
     track = objects.invalidated(o.track, clash | two)
-    return replace(o, track=coherence.verified_again(track) if two.any() else track)
+    if not two.any():
+        return [replace(o, track=track)]
+    track = coherence.verified_again(track)
+    parts = identities.cut_at([track.valid], cut, track.time_s)
+    if len(parts) < 2:
+        return [replace(o, track=track)]
+    whole = replace(o, track=track, whole=o.track if o.whole is None else o.whole)
+    return identities.split(whole, parts, "it held two bodies between its parts")
 
 
 def one_body(track: Track, moving: bool) -> Track:

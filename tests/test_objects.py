@@ -390,6 +390,62 @@ def test_a_mover_lost_while_a_body_at_rest_set_off_is_not_that_body():
     assert identities.crossing_cuts(scene)[0].size == 0
 
 
+def test_two_legs_lost_at_once_either_may_land_where_one_is_seen_at_rest():
+    """Two legs coming down (-4.14 and -4.94 m/s at 104.1 and 157.6 mm), both lost at
+    52.9 ms; one tracker back 50 ms later on a leg at rest at 76.7 mm. A landing's
+    trapezoid misses by the rest of its flight (the second leg's by 42.6 mm, more than
+    a body seen again may be off it; the first's 27 mm), yet either leg can land there:
+    the tracker is cut at its gap (34 valid pairs of one leg's rest on the other, movers.py
+    seed 7, 35). A leg going away at +4.94 m/s from 0.40 m cannot be the rest: no cut."""
+    n = 2100
+    t = PERIOD * (np.arange(n) + 0.5)
+    lost, back = t <= 0.0529, t >= 0.1028
+    x = _track(np.where(lost, 0.1041 - 4.14 * (t - 0.0529), np.where(back, 0.0767, np.nan)),
+               np.where(lost, -4.14, 0.0))
+    y = _track(np.where(lost, 0.1576 - 4.94 * (t - 0.0529), np.nan), np.full(n, -4.94))
+    legs = [objects.SceneObject(0, True, x, "first"), objects.SceneObject(0, True, y, "second")]
+    assert identities.crossing_cuts(legs)[0].size == 1
+    for o in identities.untangled(legs, True):
+        assert np.all(back[o.track.valid]) or not np.any(back[o.track.valid])
+    away = _track(np.where(lost, 0.40 + 4.94 * (t - 0.0529), np.nan), np.full(n, 4.94))
+    assert identities.crossing_cuts([legs[0], objects.SceneObject(0, True, away, "away")])[0].size == 0
+
+
+def test_a_short_gap_at_rest_is_not_cut_for_a_leg_lost_long_before():
+    """A foot at rest at 71.5 mm, its tracker lost 1.1 ms (118.8-119.9 ms); the other
+    leg lost 48 ms before (224 mm, -4.09 m/s) and seen again at 130 ms: that leg can
+    land there, but the foot's own course across its gap costs next to nothing, so
+    nothing is cut (movers.py seed 8, 27: the landing's rest cut off, 76 -> 50 % of
+    its periods, when reach alone cut)."""
+    n = 2800
+    t = PERIOD * (np.arange(n) + 0.5)
+    rest = (t >= 0.105) & ((t <= 0.1188) | (t >= 0.1199))
+    foot = _track(np.where(rest, 0.0715, np.nan))
+    early, late = t <= 0.0721, t >= 0.130
+    down, up = 0.224 - 4.09 * (t - 0.0721), 0.2086 + 1.40 * (t - 0.130)
+    leg = _track(np.where(early, down, np.where(late, up, np.nan)), np.where(early, -4.09, 1.40))
+    scene = [objects.SceneObject(0, True, foot, "foot"), objects.SceneObject(0, True, leg, "leg")]
+    assert identities.crossing_cuts(scene)[0].size == 0
+
+
+def test_a_body_at_rest_is_not_the_mover_that_passed_as_it_was_lost():
+    """A rail (+2.72 m/s at 309.5 mm) lost at 105.3 ms as it passes a glide at rest at
+    325.4 mm, whose tracker loses it 0.1 ms later; 25 ms on, 23 pairs at 367 mm, +1.70
+    m/s, too short to run 3 mm (a fixed part). The rail's trapezoid reaches them within
+    2 mm; the rest's within 20: the rail, lost at once, contests the join of the two
+    fixed parts (movers.py seed 7, 26: 101 valid pairs of the rail on the glide). With no
+    rail, the rest and the part are joined."""
+    n = 2700
+    t = PERIOD * (np.arange(n) + 0.5)
+    run = (t >= 0.1307) & (t <= 0.1319)
+    rail = _track(np.where(t <= 0.1053, 0.3095 + 2.72 * (t - 0.1053), np.nan), np.full(n, 2.72))
+    rest = _track(np.where(t <= 0.1054, 0.3254, np.nan))
+    part = _track(np.where(run, 0.3672 + 1.70 * (t - 0.1307), np.nan), np.full(n, 1.70))
+    fixed = [objects.SceneObject(0, False, rest, "rest"), objects.SceneObject(0, False, part, "part")]
+    assert len(identities.rejoined([objects.SceneObject(0, True, rail, "rail")] + fixed, True)) == 3
+    assert len(identities.rejoined(list(fixed), True)) == 1
+
+
 def test_a_part_the_tracker_handed_over_to_is_not_joined_elsewhere():
     """Two legs landing (a lone tracker): one leg's landing ends at 36.2 ms (0.0767 m,
     -1.34 m/s); the tracker follows the other leg's landing until 73.6 ms, ending on the
