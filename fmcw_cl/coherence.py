@@ -131,9 +131,8 @@ def two_bodies(track: Track, rad_per_m: float) -> np.ndarray:
         used &= track.integrated <= 1
     elif track.attrs.get("integrated_sweeps_max", 1) > 1:      # every pair a sum of K half-sweeps
         used[:] = False
-    period = track.period_s or float(np.median(np.diff(track.time_s)))
     return apart(track.time_s, per_pair(track, "sweep_time_s"), phases, snr, track.velocity_mps, used,
-                 rad_per_m, period)
+                 rad_per_m, _period(track))
 
 
 def cuts(track: Track, two: np.ndarray, others: list[Track]) -> np.ndarray:
@@ -160,8 +159,7 @@ def cuts(track: Track, two: np.ndarray, others: list[Track]) -> np.ndarray:
     before, after = k[np.searchsorted(k, lo) - 1], k[np.searchsorted(k, hi) + 1]
     t, v = track.time_s, track.velocity_mps
     rest = k[~flag]                 # the accelerations either side, from the pairs outside the runs
-    period = track.period_s or float(np.median(np.diff(t)))
-    acc = [slope(t[rest], v[rest], t[x], SLOPE_PERIODS * period) for x in (before, after)]
+    acc = [slope(t[rest], v[rest], t[x], SLOPE_PERIODS * _period(track)) for x in (before, after)]
     turn = np.abs(v[after] - v[before] - 0.5 * (acc[0] + acc[1]) * (t[after] - t[before]))
     keep = (np.minimum(np.abs(v[before]), np.abs(v[after])) < MOVING_MPS) | (turn > MOVING_MPS)
     lo, hi = lo[keep], hi[keep]
@@ -175,6 +173,11 @@ def cuts(track: Track, two: np.ndarray, others: list[Track]) -> np.ndarray:
         near |= (o.time_s[last] < t[lo]) & _there(o, last, t[lo], track.distance_m[lo])
         near |= (o.time_s[first] > t[hi]) & _there(o, first, t[hi], track.distance_m[hi])
     return 0.5 * (t[lo[near]] + t[hi[near]])
+
+
+def _period(track: Track) -> float:
+    """The track's modulation period (s): its own, else its pairs' median spacing."""
+    return track.period_s or float(np.median(np.diff(track.time_s)))
 
 
 def _there(o: Track, k: np.ndarray, t: np.ndarray, d: np.ndarray) -> np.ndarray:

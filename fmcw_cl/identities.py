@@ -97,12 +97,14 @@ def _swaps(x, y, fixed: bool = False) -> np.ndarray:
 
     def swapped(a, pa, b, nb, end, left):     # a last seen at pa, then b first seen at nb: one body?
         out = np.zeros(gx.size, bool)
+        least = np.full(gx.size, np.inf)
         has = (pa >= 0) & (nb >= 0)
         pairs = (*_at(a, pa[has]), *_at(b, nb[has]))
+        least[has] = _least(*pairs)
         # beyond the trapezoid (to or from rest), only as cheap as x's own course
-        out[has] = objects.seen_again(*pairs) | (could_be(*pairs) & (_least(*pairs) <= bar[has]))
+        out[has] = objects.seen_again(*pairs) | (_landed(*pairs) & (least[has] <= bar[has]))
         end &= has                      # at y's end, as cheap as x's own course
-        cost = _least(*_at(a, pa[end]), *_at(b, nb[end]))
+        cost = least[end]
         if not fixed:
             out[end] &= cost <= bar[end]
         elif left:                      # a fixed y set off as x (or its echo faded): its motion tells
@@ -115,17 +117,17 @@ def _swaps(x, y, fixed: bool = False) -> np.ndarray:
     return 0.5 * (x.time_s[px] + x.time_s[nx])[swap]
 
 
-def could_be(ta, da, va, tb, db, vb) -> np.ndarray:
+def _landed(ta, da, va, tb, db, vb) -> np.ndarray:
     """Whether a mover lost at (ta, da, va) can be the body seen at (tb, db, vb) (s, m,
-    m/s; arrays): seen again (objects.seen_again), or, from motion to rest or from rest
-    to motion, where a body can move so (`_costs` finite): a landing's trapezoid misses
-    by the rest of its flight. `_swaps` takes the second only where the swap costs
-    within RATIO times the mover's own course plus FLOOR (a leg lost at -4.94 m/s
+    m/s; arrays) beyond objects.seen_again's trapezoid: from motion to rest, or from
+    rest to motion, where a body can move so (`_costs` finite), for a landing's
+    trapezoid misses by the rest of its flight. `_swaps` takes it only where the swap
+    costs within RATIO times the mover's own course plus FLOOR (a leg lost at -4.94 m/s
     157.6 mm, landed 50 ms later at 76.7 mm: 42.6 mm off the trapezoid, cost 30, while
     the other leg's, 4 mm beside, was 27 mm off, cost 54: 34 valid pairs of one leg's
     rest on the other; not a foot's 1 ms gap at rest against a leg lost 48 ms before)."""
     slow = (np.abs(va) < fixed_echoes.MOVING_MPS) != (np.abs(vb) < fixed_echoes.MOVING_MPS)
-    return objects.seen_again(ta, da, va, tb, db, vb) | (slow & np.isfinite(_costs(ta, da, va, tb, db, vb)))
+    return slow & np.isfinite(_costs(ta, da, va, tb, db, vb))
 
 
 def _least(ta, da, va, tb, db, vb) -> np.ndarray:
