@@ -5,13 +5,16 @@ us, against 3-4 us for a partition of a few hundred values): the tracker and the
 tables take them per chunk, per slice and per cluster. A running median and a
 Savitzky-Golay derivative that equal scipy.ndimage.median_filter's and
 scipy.signal.savgol_filter's: importing those two modules costs a second (scipy.signal
-imports scipy.stats), which every fresh process converting a capture paid.
+imports scipy.stats), which every fresh process converting a capture paid. Running
+medians by bottleneck's double heap (O(log w) a value; a partition of every window was
+O(w): 65 pairs over 20 000, 23 ms against 0.9 ms, the same values).
 """
 
 from __future__ import annotations
 
 import functools
 
+import bottleneck as bn
 import numpy as np
 
 
@@ -91,17 +94,44 @@ def neighbour_sums(h: np.ndarray) -> np.ndarray:
 def running_median(x: np.ndarray, size: int, ends: tuple | None = None) -> np.ndarray:
     """Median of each value's `size` (odd) neighbourhood, the ends extended with the end
     values: scipy.ndimage.median_filter(x, size, mode="nearest") for finite x. `ends`:
-    each value's first and last index of its segment (int arrays), each segment filtered
-    on its own, in one call."""
+    each value's first and last index of its segment (int arrays; the segments laid end
+    to end), each segment filtered on its own, in one call."""
     half = size // 2
     x = np.asarray(x, np.float64)
     if x.size == 0:
         return np.zeros(0)
+    if not np.isfinite(x).all():        # NaN sorts last in a partition; bottleneck skips it
+        idx = (window_index(x.size, half, ends)[0] if ends is not None
+               else np.clip(np.arange(x.size)[:, None] + np.arange(-half, half + 1), 0, x.size - 1))
+        return np.partition(x[idx], half, axis=1)[:, half]
     if ends is None:
-        windows = np.lib.stride_tricks.sliding_window_view(padded(x, half), size)
-    else:
-        windows = x[window_index(x.size, half, ends)[0]]
-    return np.partition(windows, half, axis=1)[:, half]
+        return bn.move_median(padded(x, half), size)[size - 1:]
+    # each segment padded with its own end values, all filtered in one pass
+    first, last = (np.asarray(e, np.int64) for e in ends)
+    start = np.flatnonzero(np.r_[True, first[1:] != first[:-1]])
+    which, k = ragged(first[start] - half, last[start] + half + 1)
+    at = np.arange(x.size) + 2 * half * np.searchsorted(start, np.arange(x.size), "right") - half
+    return bn.move_median(x[np.clip(k, first[start][which], last[start][which])], size)[at + half]
+
+
+def running_nanmedian(x: np.ndarray, size: int, segments: np.ndarray) -> np.ndarray:
+    """Median of the finite values of each value's `size` (odd) neighbourhood within its
+    segment (`segments`: (R, 2) start, stop; np.nanmedian of each window, NaN where it
+    holds none); NaN outside the segments."""
+    half = size // 2
+    x = np.asarray(x, np.float64)
+    out = np.full(x.size, np.nan)
+    segments = np.asarray(segments, np.int64).reshape(-1, 2)
+    if segments.size == 0:
+        return out
+    # the segments laid end to end, `half` NaN before each and after the last
+    which, k = ragged(segments[:, 0], segments[:, 1])
+    n = segments[:, 1] - segments[:, 0]
+    at = np.arange(k.size) + half * (which + 1)
+    pad = np.full(k.size + half * (n.size + 1), np.nan)
+    pad[at] = x[k]
+    out[k] = bn.move_median(pad, size, min_count=1)[at + half]
+    return out
 
 
 def window_index(n: int, half: int, ends: tuple, at=slice(None)) -> tuple[np.ndarray, np.ndarray]:

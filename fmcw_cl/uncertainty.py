@@ -36,9 +36,8 @@ import functools
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.lib.stride_tricks import sliding_window_view
 
-from .numeric import drifts, row_nanmedian, runs, savgol_rows
+from .numeric import drifts, running_median, running_nanmedian, runs, savgol_rows
 from .stages import kinematics
 from .stages.resample import keys_weights
 
@@ -88,13 +87,7 @@ class Uncertainty:
 def run_median(x: np.ndarray, valid: np.ndarray, window: int = SCATTER_PAIRS) -> np.ndarray:
     """Per valid pair, the median of the finite values of x over `window` pairs of its
     own run (NaN where there are none); NaN outside `valid`."""
-    out = np.full(np.size(x), np.nan)
-    half = window // 2
-    for a, b in runs(valid):
-        pad = np.full(b - a + 2 * half, np.nan)
-        pad[half:half + b - a] = x[a:b]
-        out[a:b] = row_nanmedian(sliding_window_view(pad, window))
-    return out
+    return running_nanmedian(x, window, runs(valid))
 
 
 def local_scatter(x: np.ndarray, valid: np.ndarray, window: int = SCATTER_PAIRS, lag: int = 1,
@@ -346,10 +339,7 @@ def _robust_rms(x: np.ndarray, edge: int) -> np.ndarray:
     """The rms of x about each value over SCATTER_PAIRS, robustly (the median of
     squares over its chi-squared median), and `edge` values more at each end, held from
     the first and last."""
-    # numpy, not scipy.ndimage: a conversion imports no scipy (a second in a fresh process)
-    ends = np.pad(x * x, SCATTER_PAIRS // 2, mode="edge")
-    mid = SCATTER_PAIRS // 2           # the median of an odd window: its middle order statistic
-    inner = np.sqrt(np.partition(sliding_window_view(ends, SCATTER_PAIRS), mid, axis=1)[:, mid] / CHI2_MEDIAN)
+    inner = np.sqrt(running_median(x * x, SCATTER_PAIRS) / CHI2_MEDIAN)
     return np.concatenate([np.full(edge, inner[0]), inner, np.full(edge, inner[-1])])
 
 

@@ -389,6 +389,32 @@ def test_running_median_and_savgol_derivative_equal_scipys():
                                            rtol=1e-10, atol=1e-10 * np.abs(want).max())
 
 
+def test_running_median_of_segments_and_long_windows_equals_scipys():
+    """The running median (bottleneck's double heap) of segments laid end to end, each
+    on its own (the tracker's groups), against scipy's on each segment alone; windows up
+    to the displacement's 65 pairs, values with ties, segments shorter than the window;
+    values with NaN: each window's middle with NaN sorted last, as a partition gives."""
+    from scipy.ndimage import median_filter
+
+    from fmcw_cl.numeric import running_median
+
+    rng = np.random.default_rng(4)
+    for n in (1, 2, 7, 64, 300):
+        x = np.round(np.cumsum(rng.normal(size=n)), 1)         # ties
+        for size in (1, 3, 17, 33, 41, 65):
+            np.testing.assert_array_equal(running_median(x, size), median_filter(x, size=size, mode="nearest"))
+            edges = np.unique(np.r_[0, rng.integers(1, max(n, 2), size=3), n])
+            edges = edges[edges <= n]
+            first = np.repeat(edges[:-1], np.diff(edges))
+            last = np.repeat(edges[1:] - 1, np.diff(edges))
+            want = np.concatenate([median_filter(x[a:b], size=size, mode="nearest")
+                                   for a, b in zip(edges[:-1], edges[1:], strict=True)])
+            np.testing.assert_array_equal(running_median(x, size, (first, last)), want)
+            gappy = np.where(rng.random(n) < 0.2, np.nan, x)
+            windows = gappy[np.clip(np.arange(n)[:, None] + np.arange(-(size // 2), size // 2 + 1), 0, n - 1)]
+            np.testing.assert_array_equal(running_median(gappy, size), np.sort(windows, axis=1)[:, size // 2])
+
+
 def test_neighbour_residuals_in_blocks_equal_those_of_each_pair():
     """The continuity residuals of all pairs, taken RESIDUAL_BLOCK rows at a time,
     against those of subsets of pairs (one block of copied windows), across the
