@@ -34,7 +34,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .numeric import median, running_median
+from .numeric import median, ragged, running_median, segment_cumsum
 
 SLIP_RAD = np.pi / 2      # a step's residual (or the directions' disagreement) beyond this may hide a turn
 GAP_PAIRS = 4             # the phase is followed across at most this many missing pairs (150 us)
@@ -208,9 +208,10 @@ def _unwrapped(use, t_r, t_f, phase_r, phase_f, velocity, moments, rad_per_m, bi
     mean_s, half_square_s2 = moments
     bent = np.gradient(velocity[use], t_mid) * (0.5 * h * h + half_square_s2 - h * mean_s)
     x = np.zeros(use.size)
-    for a, b in zip(starts, ends, strict=True):
-        x[a + 1:b] = 0.5 * (np.cumsum(incs[0][a:b - 1]) + np.cumsum(incs[1][a:b - 1]))
-        x[a:b] -= bent[a:b] - bent[a]
+    # x[a + 1:b] of each stretch [a, b): the running sums of its steps a .. b - 2
+    after = ragged(starts + 1, ends)[1]
+    x[after] = 0.5 * (segment_cumsum(incs[0], starts, ends - 1) + segment_cumsum(incs[1], starts, ends - 1))
+    x -= bent - np.repeat(bent[starts], ends - starts)
     return x, incs, starts, ends
 
 
@@ -267,17 +268,22 @@ def _jerked(x, t, starts, ends, rad_per_m) -> np.ndarray:
     jerk x dt^3 (31 nm for 1 um at 1 kHz, 1.5 um for 50 um) and smooth: the median
     takes it off to (1 - cos(2 pi f dt)) of itself, 75 nm at 50 um."""
     bad = np.zeros(x.size, bool)
-    for a, b in zip(starts, ends, strict=True):
-        if b - a < 4:
-            continue
-        xs, ts = x[a:b], t[a:b]
-        d = xs
-        for k in (1, 2, 3):                   # divided differences: exact for any spacing
-            d = np.diff(d) / (ts[k:] - ts[:-k])
-        third = 6.0 * d * ((ts[3:] - ts[:-3]) / 3.0) ** 3
-        hit = np.abs(third - running_median(third, 3)) > np.pi / rad_per_m
-        for k in range(4):
-            bad[a + k: b - 3 + k] |= hit
+    long = np.flatnonzero(ends - starts >= 4)
+    if not long.size:
+        return bad
+    d = x
+    for k in (1, 2, 3):                       # divided differences: exact for any spacing
+        d = np.diff(d) / (t[k:] - t[:-k])
+    third = 6.0 * d * ((t[3:] - t[:-3]) / 3.0) ** 3
+    # each stretch's thirds (those of four of its own pairs), filtered within it
+    lo, hi = starts[long], ends[long] - 3
+    which, k = ragged(lo, hi)
+    n = hi - lo
+    first, last = np.repeat(np.cumsum(n) - n, n), np.repeat(np.cumsum(n) - 1, n)
+    own = third[k]
+    hit = k[np.abs(own - running_median(own, 3, (first, last))) > np.pi / rad_per_m]
+    for s in range(4):
+        bad[hit + s] = True
     return bad
 
 

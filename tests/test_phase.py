@@ -134,6 +134,44 @@ def test_never_a_hidden_slip(seed):
     _no_slip(got, truth, lam4)
 
 
+@pytest.mark.parametrize("seed", [1, 2])
+def test_stretches_at_once_equal_one_at_a_time(seed):
+    """The unwrapping's running sums and the jerk check, every stretch at once
+    (numeric.segment_cumsum, a running median of segments), give what a loop over the
+    stretches gives, to the bit: on a low SNR's many stretches (0.7 rad of noise)."""
+    from fmcw_cl.numeric import running_median, segment_cumsum
+
+    t_r, t_f, (pr, pf), snr, dist, v, _ = _synthetic(seed, sigma=0.7)
+    use = np.arange(v.size)
+    x, incs, starts, ends = displacement._unwrapped(use, t_r, t_f, np.angle(pr), np.angle(pf), v, (0.0, 0.0),
+                                                    K)
+    assert starts.size >= 3
+    h = 0.5 * (t_f - t_r)
+    bent = np.gradient(v, 0.5 * (t_r + t_f)) * (0.5 * h * h)
+    want = np.zeros(use.size)
+    for a, b in zip(starts, ends, strict=True):
+        want[a + 1:b] = 0.5 * (np.cumsum(incs[0][a:b - 1]) + np.cumsum(incs[1][a:b - 1]))
+        want[a:b] -= bent[a:b] - bent[a]
+    np.testing.assert_array_equal(x, want)
+    lo, hi = starts[:-1], ends[:-1] - 1
+    want = np.concatenate([np.cumsum(incs[0][a:b]) for a, b in zip(lo, hi, strict=True)])
+    np.testing.assert_array_equal(segment_cumsum(incs[0], lo, hi), want)
+    t = 0.5 * (t_r + t_f)
+    x = x + np.random.default_rng(seed).normal(0, 2e-7, x.size)    # some thirds beyond the bound
+    bad = np.zeros(x.size, bool)
+    for a, b in zip(starts, ends, strict=True):
+        if b - a >= 4:
+            d, ts = x[a:b], t[a:b]
+            for k in (1, 2, 3):
+                d = np.diff(d) / (ts[k:] - ts[:-k])
+            third = 6.0 * d * ((ts[3:] - ts[:-3]) / 3.0) ** 3
+            hit = np.abs(third - running_median(third, 3)) > np.pi / K
+            for k in range(4):
+                bad[a + k: b - 3 + k] |= hit
+    assert bad.any() and not bad.all()
+    np.testing.assert_array_equal(displacement._jerked(x, t, starts, ends, K), bad)
+
+
 def _vibrating(seed, bias=0.0, pairs=2000, sigma=0.02, outlier=0.0):
     """A target at 0.3 m vibrating 50 um at 1 kHz (0.31 m/s, 1970 m/s^2): both
     directions' phases with `sigma` rad of noise, its velocities with 0.5 mm/s of noise,

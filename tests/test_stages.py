@@ -402,7 +402,8 @@ def test_running_median_of_segments_and_long_windows_equals_scipys():
     for n in (1, 2, 7, 64, 300):
         x = np.round(np.cumsum(rng.normal(size=n)), 1)         # ties
         for size in (1, 3, 17, 33, 41, 65):
-            np.testing.assert_array_equal(running_median(x, size), median_filter(x, size=size, mode="nearest"))
+            want = median_filter(x, size=size, mode="nearest")
+            np.testing.assert_array_equal(running_median(x, size), want)
             edges = np.unique(np.r_[0, rng.integers(1, max(n, 2), size=3), n])
             edges = edges[edges <= n]
             first = np.repeat(edges[:-1], np.diff(edges))
