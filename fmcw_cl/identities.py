@@ -10,16 +10,20 @@ motions are not: a rail at +1.9 m/s continues at +2.5 m/s, not at -2.9 m/s. So:
 - `parted`: each object cut where consecutive verified pairs cannot be one body's
   (objects.bodies), and, where two movers are both lost at once and either could have
   come back as the other (objects.seen_again), at that gap, a track's ends counting as
-  gaps, and a fixed object's first and last pairs too (`crossing_cuts`);
+  gaps, and a fixed object's first and last pairs too, or where the other is first or
+  last seen within the mover's gap and one `goes_on` as the other (`crossing_cuts`);
 - `rejoined`: parts seen again joined (objects.returns). Among several movers a join is
   made only where it is the one the motions tell (`contested`: no mover's part seen
-  between them could join either, and none seen from the first's start to the second's end
+  between them could join either, or is first seen between them as the earlier going
+  on, or last seen going on as the later, and none seen from the first's start to the second's end
   joins either within RATIO times their `_cost` plus FLOOR, and no object of the other
   kind seen between them, or while one of them is seen and within that bound, could be
   either instead; contests wherever the parts hold two movers), and only where a body
   can move so (verification.reachable's bounds), the cheapest first; else the parts stay
   objects of their own (fewer periods tracked, none on the wrong object). Parts of one
-  object cut at crossings alone that are all joined again are that object as it was.
+  object cut at crossings alone that are all joined again are that object as it was;
+- `rests_parted`: a fixed object cut at a gap it was left or come to moving while
+  movers passed (two feet resting at one spot in turn).
 """
 
 from __future__ import annotations
@@ -27,6 +31,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import fixed_echoes, objects
+from .numeric import centred_slope, median
 from .objects import SceneObject
 from .stages import faults
 from .stages.verification import ACCEL_MAX, JUMP_MAX_M, KINEMATIC_S, reachable
@@ -34,6 +39,10 @@ from .stages.verification import ACCEL_MAX, JUMP_MAX_M, KINEMATIC_S, reachable
 BLOCK = 64            # contested joins weighed at once, the cheapest first
 RATIO = 3.0           # a join is the motion's where every other costs this many times its `_cost` ...
 FLOOR = 1.0           # ... plus this (m/s^1.5: 30 m/s^2 over 1 ms); the rail: 3.3 on, 38 as the glide
+TREND_S = 3.2e-3      # a part's acceleration at its end: its velocities' slope over this
+ACCEL_FLOOR = 30.0    # m/s^2: a course across a gap within this, or its end's acceleration, of that ...
+LEAVING_MPS = 0.03    # a fixed object's rest ending or starting this fast (median of END_PAIRS) ...
+END_PAIRS = 16        # ... left or came (walls' at their gaps: 0.006 at most; a foot setting off 0.063)
 VELOCITY_NOISE = 0.05     # m/s and m of a pair's velocity and distance not counted as acceleration
 DISTANCE_NOISE = 5e-4     # (a lab's SNR; de-chirped peaks)
 
@@ -63,13 +72,44 @@ def _at(track, k: np.ndarray) -> tuple:
     return track.time_s[k], track.distance_m[k], track.velocity_mps[k]
 
 
+def _trend(track, k: np.ndarray, ahead: bool = False) -> np.ndarray:
+    """The acceleration (m/s^2) of `track`'s verified pairs over TREND_S up to each pair
+    `k` (`ahead`: from it): their velocities' least-squares slope (0 where fewer than
+    three)."""
+    ok = np.flatnonzero(track.valid)
+    t, v = track.time_s[ok], track.velocity_mps[ok]
+    out = np.zeros(np.size(k))
+    for m, r in enumerate(np.searchsorted(ok, k)):
+        lo, hi = (r, np.searchsorted(t, t[r] + TREND_S, "right")) if ahead else \
+                 (np.searchsorted(t, t[r] - TREND_S, "left"), r + 1)
+        if hi - lo >= 3:
+            out[m] = centred_slope(t[lo:hi], v[lo:hi])[0]
+    return out
+
+
+def goes_on(ta, da, va, aa, tb, db, vb) -> np.ndarray:
+    """Whether a body last seen at (ta, da, va), accelerating at `aa` (m/s^2, `_trend`),
+    goes on as the one first seen at (tb, db, vb) (s, m, m/s; arrays): seen again
+    (objects.seen_again) at a mean acceleration across the gap within its own, or
+    ACCEL_FLOOR, of it (a foot's take-off at 170 m/s^2 seen again 17 ms on at 272; not
+    a rail at +23 m/s^2 turned to a glide's -2.85 m/s 15 ms on, -316)."""
+    gap = (vb - va) / np.maximum(np.abs(tb - ta), 1e-9)
+    steady = np.abs(gap - aa) <= np.maximum(np.abs(aa), ACCEL_FLOOR)
+    return objects.seen_again(ta, da, va, tb, db, vb) & steady
+
+
 def _swaps(x, y, fixed: bool = False) -> np.ndarray:
     """The times (s) at which to cut mover `x`: the middles of its gaps that overlap a
     gap of mover `y` (both lost at once) across which either could have come back as
     the other (objects.seen_again). Where `y`'s gap is one of its ends (lost for good,
     or not yet seen), every later or earlier gap of `x` overlaps it: there the swap
     must also be about as cheap as `x`'s own course across its gap (`_least` within
-    RATIO times it plus FLOOR, as a join's contest), not merely possible. A `fixed` `y`
+    RATIO times it plus FLOOR, as a join's contest), not merely possible, unless `y`
+    is first or last seen within `x`'s gap, where one goes on as the other (`goes_on`:
+    a foot's take-off lost for 115 ms, the other foot's flight then on its tracker,
+    while the first went on 17 ms later 7 mm from its trapezoid, as fast as it sped
+    up; a long gap's course is cheap whatever body made it: 221 valid pairs of one foot
+    on the other). A `fixed` `y`
     only at its ends: its first (first seen after `x` was lost: come to rest), cheaper
     than `x`'s course (a foot landing at a window's distance goes on its own course);
     its last (last seen while `x` was lost: set off as `x`), only where `x`'s course
@@ -95,25 +135,30 @@ def _swaps(x, y, fixed: bool = False) -> np.ndarray:
     own = _least(*_at(x, px), *_at(x, nx))
     bar = RATIO * own + FLOOR
 
-    def swapped(a, pa, b, nb, end, left):     # a last seen at pa, then b first seen at nb: one body?
+    def swapped(a, pa, b, nb, end, left, within):     # a last seen at pa, then b first seen at nb
         out = np.zeros(gx.size, bool)
         least = np.full(gx.size, np.inf)
+        on = np.zeros(gx.size, bool)
         has = (pa >= 0) & (nb >= 0)
         pairs = (*_at(a, pa[has]), *_at(b, nb[has]))
         least[has] = _least(*pairs)
         # beyond the trapezoid (to or from rest), only as cheap as x's own course
         out[has] = objects.seen_again(*pairs) | (_landed(*pairs) & (least[has] <= bar[has]))
-        end &= has                      # at y's end, as cheap as x's own course
+        end &= has                      # at y's end, as cheap as x's own course, or ...
         cost = least[end]
-        if not fixed:
-            out[end] &= cost <= bar[end]
+        if not fixed:                   # ... y's end within x's gap, a goes on as b (`goes_on`)
+            at = np.flatnonzero(end & within)
+            on[at] = goes_on(*_at(a, pa[at]), _trend(a, pa[at]), *_at(b, nb[at]))
+            out[end] &= (cost <= bar[end]) | on[end]
         elif left:                      # a fixed y set off as x (or its echo faded): its motion tells
             out[end] &= RATIO * cost + FLOOR <= own[end]
         else:                           # x come to rest as a fixed y
             out[end] &= cost < own[end]
         return out
 
-    swap = swapped(y, py, x, nx, ny < 0, True) | swapped(x, px, y, ny, py < 0, False)
+    tx0, tx1 = x.time_s[px], x.time_s[nx]
+    swap = (swapped(y, py, x, nx, ny < 0, True, y.time_s[np.maximum(py, 0)] > tx0)
+            | swapped(x, px, y, ny, py < 0, False, y.time_s[np.maximum(ny, 0)] < tx1))
     return 0.5 * (x.time_s[px] + x.time_s[nx])[swap]
 
 
@@ -150,6 +195,60 @@ def crossing_cuts(scene: list[SceneObject]) -> list[np.ndarray]:
             if i != j and scene[i].moving:
                 cuts[i] += list(_swaps(scene[i].track, scene[j].track, fixed=not scene[j].moving))
     return [np.unique(c) for c in cuts]
+
+
+def rests_parted(scene: list[SceneObject]) -> list[SceneObject]:
+    """Each fixed object cut where it was left or come to (`_left`) while one of two
+    movers or more was seen: which body rested after is not told (objects of their
+    own; a scene of one mover keeps its rest whole)."""
+    movers = [o.track for o in scene if o.moving and o.track.valid.any()]
+    out = []
+    for o in scene:
+        others = [m for m in movers if m is not o.track]
+        fixed = not o.moving and o.track.valid.any() and len(others) >= 2
+        cut = _left(o.track, others) if fixed else np.zeros(0)
+        parts = cut_at([o.track.valid], cut, o.track.time_s)
+        out += split(o, parts, "left or come to while movers passed") if len(parts) > 1 else [o]
+    return out
+
+
+def _left(x, movers: list) -> np.ndarray:
+    """The times (s) at which to cut fixed object `x`: the middles of its gaps of more
+    than KINEMATIC_S at rest either side (under fixed_echoes.MOVING_MPS, `_velocities`),
+    that it left moving away (LEAVING_MPS or more, going on at it takes it further from
+    where the later pairs start) or came back to moving from away (so, back from where
+    they start), while a mover of `movers` was seen: a body at rest that set off, or
+    one that came to rest, is not told from another by where it rests (two feet resting
+    in turn at one spot, 130 ms apart, both in the air between: 173 valid pairs of one
+    foot's rest on the other's). A wall's echo fades at rest; a glide slowing onto its
+    rest comes towards it (a slow glide's short parts, too short to run, are fixed
+    parts at 0.3-1.5 m/s)."""
+    p, n = _gaps(x)
+    inner = (p >= 0) & (n >= 0)
+    p, n = p[inner], n[inner]
+    if not p.size:
+        return np.zeros(0)
+    (t0, d0, _), (t1, d1, _) = _at(x, p), _at(x, n)
+    v0, v1 = _velocities(x, p, n)
+    rest = (np.abs(v0) < fixed_echoes.MOVING_MPS) & (np.abs(v1) < fixed_echoes.MOVING_MPS)
+    dt, apart = t1 - t0, np.abs(d1 - d0)
+    left = (np.abs(v0) >= LEAVING_MPS) & (np.abs(d0 + v0 * dt - d1) > apart)
+    came = (np.abs(v1) >= LEAVING_MPS) & (np.abs(d1 - v1 * dt - d0) > apart)
+    passed = np.zeros(p.size, bool)
+    for m in movers:
+        tm = m.time_s[m.valid]
+        passed |= np.searchsorted(tm, t1, "left") > np.searchsorted(tm, t0, "right")
+    return 0.5 * (t0 + t1)[(dt > KINEMATIC_S) & rest & passed & (left | came)]
+
+
+def _velocities(x, p: np.ndarray, n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The velocity (m/s, median) of `x`'s END_PAIRS verified pairs up to each pair `p`
+    and from each pair `n` (indices of verified pairs)."""
+    ok = np.flatnonzero(x.valid)
+    v = x.velocity_mps[ok]
+    rp, rn = np.searchsorted(ok, p), np.searchsorted(ok, n)
+    return (np.array([median(v[max(r - END_PAIRS + 1, 0): r + 1]) for r in rp]),
+            np.array([median(v[r: r + END_PAIRS]) for r in rn]))
 
 
 def parted(scene: list[SceneObject], crossings: bool = False) -> list[SceneObject]:
@@ -244,13 +343,14 @@ class _Ends:
 
     def __init__(self, rows: list[tuple], scene: list[SceneObject]):
         self.moving, i0, i1, *pairs = (np.array(c) for c in zip(*rows, strict=True))
-        self.t0, self.d0, self.v0, self.t1, self.d1, self.v1 = pairs
+        self.t0, self.d0, self.v0, self.t1, self.d1, self.v1, self.a1 = pairs
         has = i0 >= 0
         # [e, l]: e's last verified pair before l's first; seen: l seen again from e
         self.later = has[:, None] & has[None, :] & (i1[:, None] < i0[None, :])
         span = (self.t1[:, None], self.d1[:, None], self.v1[:, None],
                 self.t0[None, :], self.d0[None, :], self.v0[None, :])
         self.seen = objects.seen_again(*span)
+        self.goes = self.later & goes_on(*span[:3], self.a1[:, None], *span[3:])
         back = self.later & self.seen
         self.returns = (back | back.T) & (self.moving[:, None] == self.moving[None, :])
         cost = _costs(*span)
@@ -264,13 +364,14 @@ class _Ends:
 
     @staticmethod
     def row(o: SceneObject) -> tuple:
-        """Part `o`'s kind, its first and last verified pairs' indices (-1: none) and
-        their (time s, distance m, velocity m/s)."""
+        """Part `o`'s kind, its first and last verified pairs' indices (-1: none),
+        their (time s, distance m, velocity m/s) and its acceleration at its end
+        (`_trend`)."""
         k = np.flatnonzero(o.track.valid)
         if not k.size:
-            return (o.moving, -1, -1) + (0.0,) * 6
+            return (o.moving, -1, -1) + (0.0,) * 7
         t, d, v = _at(o.track, k[[0, -1]])
-        return (o.moving, k[0], k[-1], t[0], d[0], v[0], t[-1], d[-1], v[-1])
+        return (o.moving, k[0], k[-1], t[0], d[0], v[0], t[-1], d[-1], v[-1], _trend(o.track, k[[-1]])[0])
 
     def within(self, start: np.ndarray, end: np.ndarray) -> np.ndarray:
         """Which parts (columns) hold a verified pair from `start` to `end` (s; rows)."""
@@ -297,6 +398,10 @@ def contested(e: _Ends, i: np.ndarray, j: np.ndarray) -> np.ndarray:
     inside = e.moving & (e.t0 > e.t1[a, None]) & (e.t1 < e.t0[b, None])
     joins = ((e.returns[i] & (inside | (e.cost[i] <= bar)))
              | (e.returns[j] & (inside | (e.cost[j] <= bar))))     # (symmetric)
+    # first seen between them, the earlier going on as it; last seen between them, going
+    # on as the later (`goes_on`): as good a course as theirs, however cheap a long gap's
+    joins |= e.moving & (e.t0 > e.t1[a, None]) & (e.t0 < e.t0[b, None]) & e.goes[a]
+    joins |= e.moving & (e.t1 > e.t1[a, None]) & (e.t1 < e.t0[b, None]) & e.goes[:, b].T
     joins |= _handed(e.t1, e.d1, e.v1, e.t0[b, None], e.d0[b, None], e.v0[b, None])    # it is the later, or
     joins |= _handed(e.t1[a, None], e.d1[a, None], e.v1[a, None], e.t0, e.d0, e.v0)    # the earlier goes on
     same = e.moving == e.moving[i, None]

@@ -91,7 +91,8 @@ def _told_apart(found: list[objects.SceneObject], done: list[Converted], own: Co
     Doppler-shifted peak in one direction, a glide's in the other, made 74 valid pairs
     46 mm from both as they crossed)."""
     of = {id(d.track): d for d in done}
-    scene = exchanges.apart(identities.untangled(found, several), [o.track for o in found if not o.moving])
+    scene = exchanges.apart(identities.rests_parted(identities.untangled(found, several)),
+                           [o.track for o in found if not o.moving])
     tracks, moving = [o.track for o in scene], [o.moving for o in scene]
     rad_per_m = phase.radians_per_metre(own.plan.lut.nu_hz, own.plan.info.refractive_index)
     two = [coherence.two_bodies(t, rad_per_m) for t in tracks]

@@ -428,6 +428,63 @@ def test_a_short_gap_at_rest_is_not_cut_for_a_leg_lost_long_before():
     assert identities.crossing_cuts(scene)[0].size == 0
 
 
+def test_a_tracker_lost_as_its_body_went_on_as_another_part_is_cut_there():
+    """movers.py seed 11, 30: a foot's take-off (+173 m/s^2) lost at 41.2 ms, 2.53 m/s;
+    a part first seen 17 ms later 4 mm from its trapezoid at 7.14 m/s (sped up at 274
+    m/s^2: the foot going on, `goes_on`); the tracker back 115 ms on the other foot's
+    flight, whose course from the take-off is cheap (a long gap's is): 221 valid pairs of
+    one foot on the other. Cut at the gap, and its parts not joined again. A part seen
+    in the gap at -2.85 m/s (a turn at -320 m/s^2 against the take-off's +173) is not
+    the foot going on: nothing cut."""
+    n = 3200
+    t = PERIOD * (np.arange(n) + 0.5)
+    up, back = (t >= 0.0284) & (t <= 0.0412), t >= 0.1561
+    s, r = t - 0.0284, t - 0.1561
+    foot = np.where(t < 0.0284, 0.0714, 0.0714 + 0.32 * s + 86.5 * s * s)
+    x = _track(np.where(up | (t < 0.0284), foot, np.where(back, 0.2768 + 1.29 * r - 50 * r * r, np.nan)),
+               np.where(t < 0.0284, 0.0, np.where(back, 1.29 - 100 * r, 0.32 + 173 * s)))
+    on = t >= 0.058                                 # seen on while the tracker is back
+    g = t - 0.058
+    y = _track(np.where(on, 0.1752 + 7.14 * g - 50 * g * g, np.nan), 7.14 - 100 * g)
+    scene = [objects.SceneObject(0, True, x, "tracker"), objects.SceneObject(0, True, y, "went on")]
+    cut = identities.crossing_cuts(scene)[0]
+    assert cut.size == 1 and 0.0412 < cut[0] < 0.1561
+    for o in identities.untangled(scene, True):
+        ok = o.track.valid
+        assert not (np.any(back[ok]) and np.any(up[ok]))
+    turned = _track(np.where(on, 0.0870 - 2.85 * g, np.nan), np.full(n, -2.85))
+    scene[1] = objects.SceneObject(0, True, turned, "turned")
+    assert identities.crossing_cuts(scene)[0].size == 0
+
+
+def test_two_rests_at_one_spot_left_and_come_to_while_movers_passed_are_two_objects():
+    """movers.py seed 9, 35: one foot at rest at 0.0700 m setting off (its last pairs
+    +0.06 m/s), 130 ms in which both feet fly (two movers seen), then the other foot come
+    to rest at the same spot (its first pairs -0.10 m/s): one fixed object held both
+    rests, 173 valid pairs of one foot on the other. Cut there (`rests_parted`); not a
+    wall's gap (its pairs at rest), not with one mover (a foot's own return), not a gap
+    of 2 ms or less."""
+    n = 5600
+    t = PERIOD * (np.arange(n) + 0.5)
+    before, after = t <= 0.0089, t >= 0.1389
+    v = np.where(before, 0.07 * t / 0.0089, np.where(after, -0.10 * np.exp(-(t - 0.1389) / 0.002), 0.0))
+    foot = _track(np.where(before | after, 0.0700, np.nan), v)
+    early, late = (t >= 0.02) & (t <= 0.0595), (t >= 0.0599) & (t <= 0.15)
+    legs = [objects.SceneObject(0, True, _track(np.where(early, 0.28 - 2 * (t - 0.02), np.nan),
+                                                np.full(n, -2.0)), "a leg"),
+            objects.SceneObject(0, True, _track(np.where(late, 0.26 - 3 * (t - 0.0599), np.nan),
+                                                np.full(n, -3.0)), "the other")]
+    rests = identities.rests_parted([objects.SceneObject(0, False, foot, "rest"), *legs])
+    fixed = [o.track.valid for o in rests if not o.moving]
+    assert len(fixed) == 2 and all(np.all(before[m]) or np.all(after[m]) for m in fixed)
+    wall = _track(np.where(before | after, 0.0700, np.nan))
+    assert len(identities.rests_parted([objects.SceneObject(0, False, wall, "wall"), *legs])) == 3
+    assert len(identities.rests_parted([objects.SceneObject(0, False, foot, "rest"), legs[0]])) == 2
+    short = (t <= 0.0300) | (t >= 0.0315)              # 1.5 ms, a leg seen in it
+    soon = _track(np.where(short, 0.0700, np.nan), np.where(t <= 0.0300, 0.07, 0.0))
+    assert len(identities.rests_parted([objects.SceneObject(0, False, soon, "rest"), *legs])) == 3
+
+
 def test_a_body_at_rest_is_not_the_mover_that_passed_as_it_was_lost():
     """A rail (+2.72 m/s at 309.5 mm) lost at 105.3 ms as it passes a glide at rest at
     325.4 mm, whose tracker loses it 0.1 ms later; 25 ms on, 23 pairs at 367 mm, +1.70
