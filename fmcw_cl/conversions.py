@@ -55,6 +55,14 @@ class First:
     beside: list[tuple[float, float]]
 
 
+def looked(c: objects.Candidate, beside: list[tuple[float, float]]) -> bool:
+    """Whether moving candidate `c` overlaps a moving echo that the second look found
+    (fmcw_cl.second_look, on rows without still echoes): the first conversion's tracker
+    held the fixed echo beside it, whose peaks a tracker in its band pairs with its own
+    (a hand passing a foot at rest: none of its pairs verified)."""
+    return c.moving and any(lo <= c.hi and c.lo <= hi for lo, hi in beside)
+
+
 def convert(cap: Capture, first: First, c: objects.Candidate, spans: list[tuple[float, float]],
             made: dict, processor: ChunkProcessor, seconds, progress, own: Converted | None = None
             ) -> Converted:
@@ -81,9 +89,10 @@ def convert(cap: Capture, first: First, c: objects.Candidate, spans: list[tuple[
         empty = replace(tr, attrs={**tr.attrs, **choice.attrs()})
         objects.invalidate(empty, np.ones(tr.pairs, bool))
         return Converted(c, choice, first.plan, first.parts, empty)
-    # a mover among fixed objects: its rows without still echoes, its band whole
+    # a mover among fixed objects, or one only a second look on such rows found: its rows
+    # without still echoes, its band whole
     still = clutter.half_width(cap.info.modulation.period_s) if (
-        c.moving and choice.moving and choice.ambiguous_m.size) else 0
+        c.moving and choice.moving and (choice.ambiguous_m.size or looked(c, first.beside))) else 0
 
     def one(band: tuple[float, float | None], half: int) -> Converted:
         if own is not None and (band, half) == (own.choice.band_m, 0):

@@ -14,6 +14,7 @@ from __future__ import annotations
 import contextlib
 import time
 from collections.abc import Callable
+from dataclasses import replace
 
 import numpy as np
 
@@ -28,7 +29,7 @@ from .plan import TABLE, Plan, fit_chunks, make_plan
 from .processor import ChunkMeasurements, ChunkProcessor, NumpyProcessor
 from .refine import WIDTH_LIMIT, peak_width_ratio, refine_lag, stillest
 from .second_look import moving_beside
-from .stages import faults
+from .stages import clutter, faults
 from .track import Track
 
 # peaks this much wider than the window's own: the chirp is so far from its table that no
@@ -65,8 +66,13 @@ def process(path, options: Options | None = None, processor: ChunkProcessor | No
             first = assemble(plan, parts, processor, time.perf_counter() - started)
             choice, fixed, beside = chosen(cap, plan, processor, first)
             was = conversions.First(plan, parts, first, fixed, beside)
+            # a mover only a second look found (on rows without still echoes): on such rows too
+            looked = bool(choice.moving) and choice.span_m is not None and conversions.looked(
+                objects.Candidate(*choice.span_m, True), beside)
             if choice.band_m != plan.options.band_m:          # the target alone in its band: again
                 plan = plan.with_band(choice.band_m)
+                if looked:
+                    plan = replace(plan, still_half=clutter.half_width(cap.info.modulation.period_s))
                 parts = capture_parts(cap, plan, processor, progress=progress)
                 track = assemble(plan, parts, processor, time.perf_counter() - started, choice)
             else:
@@ -84,8 +90,10 @@ def process(path, options: Options | None = None, processor: ChunkProcessor | No
                 # a chirp far from its table bends distances apart: its tuning is checked and
                 # its rest sought on the whole conversion, not on one body's part of it
                 whole = track if own.whole is None else own.whole
-            ratio = check_tuning(cap, plan, whole, processor)
-            track.attrs.update({k: whole.attrs[k] for k in TUNING_ATTRS})
+            # such a mover holds no rest: the tuning is read on the still echo the first
+            # conversion held (a hand moving throughout read peaks 8.7 times too wide)
+            ratio = check_tuning(cap, *((was.plan, first) if looked else (plan, whole)), processor)
+            track.attrs.update({k: (first if looked else whole).attrs[k] for k in TUNING_ATTRS})
             if ratio > UNCALIBRATED_RATIO and plan.options.dechirp:
                 track = calibrated_on_rest(cap, plan, whole, processor, choice, started, progress)
                 # its pairs may still be two movers' (a glide through a swaying object, the

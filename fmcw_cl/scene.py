@@ -54,7 +54,7 @@ def objects_of(cap: Capture, first: First, choice: target.Choice, own: Converted
         # the target's conversion stands for the candidate it holds, unless it held two echoes
         share = [objects.holds(own.track, c) for c in cands]
         held = int(np.argmax(share)) if share and max(share) >= 0.5 and not two else None
-        mine = held if held is not None and _stands_for(own, cands[held]) else None
+        mine = held if held is not None and _stands_for(own, cands[held], first.beside) else None
         done = [own if i == mine else conversions.convert(cap, first, c, spans + extra, made, processor,
                                                           seconds, progress, own if i == held else None)
                 for i, c in enumerate(cands)]
@@ -172,13 +172,14 @@ def _same_echo(a: Track, b: Track) -> int:
     return int(np.sum(np.abs(a.distance_m[both] - b.distance_m[both]) <= objects.GATE_M))
 
 
-def _stands_for(own: Converted, c: objects.Candidate) -> bool:
+def _stands_for(own: Converted, c: objects.Candidate, beside: list[tuple[float, float]]) -> bool:
     """Whether the target's own conversion `own`, which holds candidate `c` alone, is
-    its conversion: its band covers the candidate's span, and no fixed object lies
-    inside that span (a moving echo is then tracked on each side of them: `conversions.convert`)."""
+    its conversion: its band covers the candidate's span, no fixed object lies inside
+    that span (a moving echo is then tracked on each side of them) and no second look
+    found it (`beside`; then on rows without still echoes: `conversions.convert`)."""
     lo, hi = own.choice.band_m
     covered = lo <= c.lo and (hi is None or hi >= c.hi)
-    return covered and not (c.moving and own.choice.ambiguous_m.size)
+    return covered and not (c.moving and own.choice.ambiguous_m.size) and not conversions.looked(c, beside)
 
 
 def _moving(d: Converted) -> bool:

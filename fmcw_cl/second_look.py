@@ -5,11 +5,15 @@ plain spectra than a wall (smeared by its Doppler term, under noise at full scal
 then never tracked, its echoes too rare to count (fixed_echoes.OTHERS_SHARE), and the wall is
 "one echo: the target": a take-off beside a wall of 800 codes put 979 valid pairs on the
 wall, up to 138 mm off. With the wall out of the band, the same capture tracks the
-target. So before a lone fixed echo is taken for the target, the delay's trial stretches
-(`refine.stretches`) are converted in the user's band on each side of it, the echo and
-target.WALL_MARGIN_M about it left out, each measurement integrating LOOK_K half-sweeps,
-their pairs verified as a track's are, and the moving echoes they show
-(`fixed_echoes.moving_spans`) join the choice.
+target. So before a lone fixed echo is taken for the target, or called indistinct from
+the echoes beside it (fixed_echoes.OTHERS_SHARE of the half-sweeps hold others), the
+delay's trial stretches (`refine.stretches`) are converted in the user's band on each
+side of it, the echo and target.WALL_MARGIN_M about it left out, on rows without still
+echoes (stages.clutter: on the plain rows a tracker paired a hand's peak in one
+direction with a foot's at rest in the other, and none of its pairs passed), each
+measurement integrating LOOK_K half-sweeps, their pairs verified as a track's are, and
+the moving echoes they show (`fixed_echoes.moving_spans`) join the choice; such an echo
+is converted on such rows too (conversions.looked).
 
 The stretches are three of 12 ms, spread through the capture (most of a lab's 50 ms
 capture): a target that moves only between them is not seen.
@@ -25,7 +29,7 @@ from . import fixed_echoes, target
 from .capture import Capture
 from .plan import MIN_RANGE_SHARE
 from .refine import by_stretch, pairs_of, stretches
-from .stages import faults
+from .stages import clutter, faults
 
 MIN_SIDE_M = 0.02     # a side band narrower than this is not converted
 LOOK_K = 8            # half-sweeps of a direction integrated (stages.integrate) unless the user
@@ -51,8 +55,9 @@ def moving_beside(cap: Capture, plan, processor, fixed_m: float) -> list[tuple[f
     pairs verified (faults.verified)."""
     held = stretches(cap, plan, processor)
     t, d, v, ok = [], [], [], []
+    half = clutter.half_width(cap.info.modulation.period_s)
     for band in sides(fixed_m, plan.options.band_m, plan.lut.unambiguous_range_m):
-        p = plan.with_band(band)
+        p = replace(plan.with_band(band), still_half=half)
         processor.open(replace(p, check=None, survey=False, search=replace(p.search, echoes=False),
                                options=replace(p.options, integrate=p.options.integrate or LOOK_K)))
         for parts in by_stretch(held, processor.process_apart(held)):

@@ -115,7 +115,7 @@ class Choice:
         found in the capture's mean spectra only).
     ambiguous_spans_m : (k, 2) moving echoes' spans (m) the rule cannot tell apart.
     note : what was chosen and why, one line.
-    lone : one fixed echo was taken for the target before a second look beside it.
+    lone : a second look beside the one fixed echo is due (taken for the target, or others' beside it).
     unseen_rest : no echo was found, fixed or moving: the pairs at rest are ambiguous.
     walls_m, walls_db : the fixed echoes that are not the target (out of its band, or
         ambiguous with it; the user's band's too) and their levels (dB over the floor):
@@ -263,8 +263,8 @@ def _choose(rule: str, near_m: float | None, time_s, distance_m, velocity_mps, v
         if swings and abs(fixed[0] - centre) <= reach + SMEAR_M:
             fixed = np.array([centre])                # the end of its own swing: it is where its pairs are
         seen = others_share(e, fixed[0], band, 2 * np.size(time_s))
-        if seen >= OTHERS_SHARE:                      # an echo that is neither fixed nor found moving
-            return Choice(name, fixed, objects, None, False, band, fixed.copy(),
+        if seen >= OTHERS_SHARE:                      # neither fixed nor found moving: a second look first
+            return Choice(name, fixed, objects, None, False, band, fixed.copy(), lone=beside is None,
                           note=f"no echo moves, but {100 * seen:.0f} % of the half-sweeps hold other echoes "
                                f"than the fixed echo at {_list(fixed)}: the target cannot be told apart")
         hidden = besides(e, fixed[0], band, unambiguous_m, clipped)
