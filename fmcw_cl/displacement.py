@@ -278,8 +278,8 @@ def _jerked(x, t, starts, ends, rad_per_m) -> np.ndarray:
     # each stretch's thirds (those of four of its own pairs), filtered within it
     lo, hi = starts[long], ends[long] - 3
     which, k = ragged(lo, hi)
-    n = hi - lo
-    first, last = np.repeat(np.cumsum(n) - n, n), np.repeat(np.cumsum(n) - 1, n)
+    end = np.cumsum(hi - lo)
+    first, last = (end - (hi - lo))[which], (end - 1)[which]      # each third's stretch, in `own`
     own = third[k]
     hit = k[np.abs(own - running_median(own, 3, (first, last))) > np.pi / rad_per_m]
     for s in range(4):

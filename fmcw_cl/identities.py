@@ -21,9 +21,7 @@ motions are not: a rail at +1.9 m/s continues at +2.5 m/s, not at -2.9 m/s. So:
   either instead; contests wherever the parts hold two movers), and only where a body
   can move so (verification.reachable's bounds), the cheapest first; else the parts stay
   objects of their own (fewer periods tracked, none on the wrong object). Parts of one
-  object cut at crossings alone that are all joined again are that object as it was;
-- `rests_parted`: a fixed object cut at a gap it was left or come to moving while
-  movers passed (two feet resting at one spot in turn).
+  object cut at crossings alone that are all joined again are that object as it was.
 """
 
 from __future__ import annotations
@@ -31,7 +29,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import fixed_echoes, objects
-from .numeric import centred_slope, median
+from .numeric import centred_slope
 from .objects import SceneObject
 from .stages import faults
 from .stages.verification import ACCEL_MAX, JUMP_MAX_M, KINEMATIC_S, reachable
@@ -41,8 +39,6 @@ RATIO = 3.0           # a join is the motion's where every other costs this many
 FLOOR = 1.0           # ... plus this (m/s^1.5: 30 m/s^2 over 1 ms); the rail: 3.3 on, 38 as the glide
 TREND_S = 3.2e-3      # a part's acceleration at its end: its velocities' slope over this
 ACCEL_FLOOR = 30.0    # m/s^2: a course across a gap within this, or its end's acceleration, of that ...
-LEAVING_MPS = 0.03    # a fixed object's rest ending or starting this fast (median of END_PAIRS) ...
-END_PAIRS = 16        # ... left or came (walls' at their gaps: 0.006 at most; a foot setting off 0.063)
 VELOCITY_NOISE = 0.05     # m/s and m of a pair's velocity and distance not counted as acceleration
 DISTANCE_NOISE = 5e-4     # (a lab's SNR; de-chirped peaks)
 
@@ -58,7 +54,7 @@ def least_acceleration(ta, da, va, tb, db, vb):
     return np.maximum(dv / dt, 8.0 * miss / (dt * dt))
 
 
-def _gaps(track) -> tuple[np.ndarray, np.ndarray]:
+def gaps(track) -> tuple[np.ndarray, np.ndarray]:
     """The indices of the verified pairs before and after each gap of `track` (one
     pair or more unverified between them), its ends included as gaps open on one side
     (-1: no pair there): a tracker lost for good, or one that starts late, is lost too."""
@@ -67,21 +63,19 @@ def _gaps(track) -> tuple[np.ndarray, np.ndarray]:
     return np.r_[-1, ok[gap], ok[-1]], np.r_[ok[0], ok[gap + 1], -1]
 
 
-def _at(track, k: np.ndarray) -> tuple:
+def pairs_at(track, k: np.ndarray) -> tuple:
     """(time s, distance m, velocity m/s) of `track`'s pairs `k` (k >= 0)."""
     return track.time_s[k], track.distance_m[k], track.velocity_mps[k]
 
 
-def _trend(track, k: np.ndarray, ahead: bool = False) -> np.ndarray:
+def _trend(track, k: np.ndarray) -> np.ndarray:
     """The acceleration (m/s^2) of `track`'s verified pairs over TREND_S up to each pair
-    `k` (`ahead`: from it): their velocities' least-squares slope (0 where fewer than
-    three)."""
+    `k`: their velocities' least-squares slope (0 where fewer than three)."""
     ok = np.flatnonzero(track.valid)
     t, v = track.time_s[ok], track.velocity_mps[ok]
     out = np.zeros(np.size(k))
     for m, r in enumerate(np.searchsorted(ok, k)):
-        lo, hi = (r, np.searchsorted(t, t[r] + TREND_S, "right")) if ahead else \
-                 (np.searchsorted(t, t[r] - TREND_S, "left"), r + 1)
+        lo, hi = np.searchsorted(t, t[r] - TREND_S, "left"), r + 1
         if hi - lo >= 3:
             out[m] = centred_slope(t[lo:hi], v[lo:hi])[0]
     return out
@@ -117,10 +111,10 @@ def _swaps(x, y, fixed: bool = False) -> np.ndarray:
     cut where a weak wall seen for 2 ms 14 ms before its gap could have set off as it:
     84.8 -> 27.5 % of its periods) while a glide at rest 132 ms set off 11 mm from
     where it lay (a rail at rest 48 mm away, lost 58 ms: 1213 valid pairs of the glide)."""
-    x0, x1 = _gaps(x)
+    x0, x1 = gaps(x)
     inner = (x0 >= 0) & (x1 >= 0)
     x0, x1 = x0[inner], x1[inner]
-    y0, y1 = _gaps(y)
+    y0, y1 = gaps(y)
     if fixed:                                       # a fixed object's ends alone
         y0, y1 = y0[[0, -1]], y1[[0, -1]]
     ty0 = np.where(y0 >= 0, y.time_s[np.maximum(y0, 0)], -np.inf)
@@ -132,7 +126,7 @@ def _swaps(x, y, fixed: bool = False) -> np.ndarray:
         return np.zeros(0)
     gy = np.concatenate([np.arange(p, q) for p, q in zip(lo, hi, strict=True) if q > p])
     px, nx, py, ny = x0[gx], x1[gx], y0[gy], y1[gy]
-    own = _least(*_at(x, px), *_at(x, nx))
+    own = _least(*pairs_at(x, px), *pairs_at(x, nx))
     bar = RATIO * own + FLOOR
 
     def swapped(a, pa, b, nb, end, left, within):     # a last seen at pa, then b first seen at nb
@@ -140,7 +134,7 @@ def _swaps(x, y, fixed: bool = False) -> np.ndarray:
         least = np.full(gx.size, np.inf)
         on = np.zeros(gx.size, bool)
         has = (pa >= 0) & (nb >= 0)
-        pairs = (*_at(a, pa[has]), *_at(b, nb[has]))
+        pairs = (*pairs_at(a, pa[has]), *pairs_at(b, nb[has]))
         least[has] = _least(*pairs)
         # beyond the trapezoid (to or from rest), only as cheap as x's own course
         out[has] = objects.seen_again(*pairs) | (_landed(*pairs) & (least[has] <= bar[has]))
@@ -148,7 +142,7 @@ def _swaps(x, y, fixed: bool = False) -> np.ndarray:
         cost = least[end]
         if not fixed:                   # ... y's end within x's gap, a goes on as b (`goes_on`)
             at = np.flatnonzero(end & within)
-            on[at] = goes_on(*_at(a, pa[at]), _trend(a, pa[at]), *_at(b, nb[at]))
+            on[at] = goes_on(*pairs_at(a, pa[at]), _trend(a, pa[at]), *pairs_at(b, nb[at]))
             out[end] &= (cost <= bar[end]) | on[end]
         elif left:                      # a fixed y set off as x (or its echo faded): its motion tells
             out[end] &= RATIO * cost + FLOOR <= own[end]
@@ -195,60 +189,6 @@ def crossing_cuts(scene: list[SceneObject]) -> list[np.ndarray]:
             if i != j and scene[i].moving:
                 cuts[i] += list(_swaps(scene[i].track, scene[j].track, fixed=not scene[j].moving))
     return [np.unique(c) for c in cuts]
-
-
-def rests_parted(scene: list[SceneObject]) -> list[SceneObject]:
-    """Each fixed object cut where it was left or come to (`_left`) while one of two
-    movers or more was seen: which body rested after is not told (objects of their
-    own; a scene of one mover keeps its rest whole)."""
-    movers = [o.track for o in scene if o.moving and o.track.valid.any()]
-    out = []
-    for o in scene:
-        others = [m for m in movers if m is not o.track]
-        fixed = not o.moving and o.track.valid.any() and len(others) >= 2
-        cut = _left(o.track, others) if fixed else np.zeros(0)
-        parts = cut_at([o.track.valid], cut, o.track.time_s)
-        out += split(o, parts, "left or come to while movers passed") if len(parts) > 1 else [o]
-    return out
-
-
-def _left(x, movers: list) -> np.ndarray:
-    """The times (s) at which to cut fixed object `x`: the middles of its gaps of more
-    than KINEMATIC_S at rest either side (under fixed_echoes.MOVING_MPS, `_velocities`),
-    that it left moving away (LEAVING_MPS or more, going on at it takes it further from
-    where the later pairs start) or came back to moving from away (so, back from where
-    they start), while a mover of `movers` was seen: a body at rest that set off, or
-    one that came to rest, is not told from another by where it rests (two feet resting
-    in turn at one spot, 130 ms apart, both in the air between: 173 valid pairs of one
-    foot's rest on the other's). A wall's echo fades at rest; a glide slowing onto its
-    rest comes towards it (a slow glide's short parts, too short to run, are fixed
-    parts at 0.3-1.5 m/s)."""
-    p, n = _gaps(x)
-    inner = (p >= 0) & (n >= 0)
-    p, n = p[inner], n[inner]
-    if not p.size:
-        return np.zeros(0)
-    (t0, d0, _), (t1, d1, _) = _at(x, p), _at(x, n)
-    v0, v1 = _velocities(x, p, n)
-    rest = (np.abs(v0) < fixed_echoes.MOVING_MPS) & (np.abs(v1) < fixed_echoes.MOVING_MPS)
-    dt, apart = t1 - t0, np.abs(d1 - d0)
-    left = (np.abs(v0) >= LEAVING_MPS) & (np.abs(d0 + v0 * dt - d1) > apart)
-    came = (np.abs(v1) >= LEAVING_MPS) & (np.abs(d1 - v1 * dt - d0) > apart)
-    passed = np.zeros(p.size, bool)
-    for m in movers:
-        tm = m.time_s[m.valid]
-        passed |= np.searchsorted(tm, t1, "left") > np.searchsorted(tm, t0, "right")
-    return 0.5 * (t0 + t1)[(dt > KINEMATIC_S) & rest & passed & (left | came)]
-
-
-def _velocities(x, p: np.ndarray, n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The velocity (m/s, median) of `x`'s END_PAIRS verified pairs up to each pair `p`
-    and from each pair `n` (indices of verified pairs)."""
-    ok = np.flatnonzero(x.valid)
-    v = x.velocity_mps[ok]
-    rp, rn = np.searchsorted(ok, p), np.searchsorted(ok, n)
-    return (np.array([median(v[max(r - END_PAIRS + 1, 0): r + 1]) for r in rp]),
-            np.array([median(v[r: r + END_PAIRS]) for r in rn]))
 
 
 def parted(scene: list[SceneObject], crossings: bool = False) -> list[SceneObject]:
@@ -370,7 +310,7 @@ class _Ends:
         k = np.flatnonzero(o.track.valid)
         if not k.size:
             return (o.moving, -1, -1) + (0.0,) * 7
-        t, d, v = _at(o.track, k[[0, -1]])
+        t, d, v = pairs_at(o.track, k[[0, -1]])
         return (o.moving, k[0], k[-1], t[0], d[0], v[0], t[-1], d[-1], v[-1], _trend(o.track, k[[-1]])[0])
 
     def within(self, start: np.ndarray, end: np.ndarray) -> np.ndarray:

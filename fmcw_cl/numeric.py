@@ -120,9 +120,9 @@ def running_median(x: np.ndarray, size: int, ends: tuple | None = None) -> np.nd
     if x.size == 0:
         return np.zeros(0)
     if not np.isfinite(x).all():        # NaN sorts last in a partition; bottleneck skips it
-        idx = (window_index(x.size, half, ends)[0] if ends is not None
-               else np.clip(np.arange(x.size)[:, None] + np.arange(-half, half + 1), 0, x.size - 1))
-        return np.partition(x[idx], half, axis=1)[:, half]
+        windows = (np.lib.stride_tricks.sliding_window_view(padded(x, half), size) if ends is None
+                   else x[window_index(x.size, half, ends)[0]])
+        return np.partition(windows, half, axis=1)[:, half]
     if ends is None:
         return bn.move_median(padded(x, half), size)[size - 1:]
     # each segment padded with its own end values, all filtered in one pass

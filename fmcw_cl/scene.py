@@ -12,7 +12,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from . import coherence, conversions, crossings, exchanges, fixed_echoes, identities, objects, target
+from . import coherence, conversions, crossings, exchanges, fixed_echoes, identities, objects, rests, target
 from .capture import Capture
 from .conversions import Converted, First
 from .processor import ChunkMeasurements, ChunkProcessor
@@ -91,7 +91,7 @@ def _told_apart(found: list[objects.SceneObject], done: list[Converted], own: Co
     Doppler-shifted peak in one direction, a glide's in the other, made 74 valid pairs
     46 mm from both as they crossed)."""
     of = {id(d.track): d for d in done}
-    scene = exchanges.apart(identities.rests_parted(identities.untangled(found, several)),
+    scene = exchanges.apart(rests.rests_parted(identities.untangled(found, several)),
                            [o.track for o in found if not o.moving])
     tracks, moving = [o.track for o in scene], [o.moving for o in scene]
     rad_per_m = phase.radians_per_metre(own.plan.lut.nu_hz, own.plan.info.refractive_index)

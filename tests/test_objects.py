@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from conftest import process
 
-from fmcw_cl import crossings, exchanges, identities, objects
+from fmcw_cl import crossings, exchanges, identities, objects, rests
 from fmcw_cl.capture import Capture
 from fmcw_cl.evaluate import object_scores, on_objects, truth_at
 from fmcw_cl.options import Options
@@ -474,15 +474,15 @@ def test_two_rests_at_one_spot_left_and_come_to_while_movers_passed_are_two_obje
                                                 np.full(n, -2.0)), "a leg"),
             objects.SceneObject(0, True, _track(np.where(late, 0.26 - 3 * (t - 0.0599), np.nan),
                                                 np.full(n, -3.0)), "the other")]
-    rests = identities.rests_parted([objects.SceneObject(0, False, foot, "rest"), *legs])
-    fixed = [o.track.valid for o in rests if not o.moving]
+    parts = rests.rests_parted([objects.SceneObject(0, False, foot, "rest"), *legs])
+    fixed = [o.track.valid for o in parts if not o.moving]
     assert len(fixed) == 2 and all(np.all(before[m]) or np.all(after[m]) for m in fixed)
     wall = _track(np.where(before | after, 0.0700, np.nan))
-    assert len(identities.rests_parted([objects.SceneObject(0, False, wall, "wall"), *legs])) == 3
-    assert len(identities.rests_parted([objects.SceneObject(0, False, foot, "rest"), legs[0]])) == 2
+    assert len(rests.rests_parted([objects.SceneObject(0, False, wall, "wall"), *legs])) == 3
+    assert len(rests.rests_parted([objects.SceneObject(0, False, foot, "rest"), legs[0]])) == 2
     short = (t <= 0.0300) | (t >= 0.0315)              # 1.5 ms, a leg seen in it
     soon = _track(np.where(short, 0.0700, np.nan), np.where(t <= 0.0300, 0.07, 0.0))
-    assert len(identities.rests_parted([objects.SceneObject(0, False, soon, "rest"), *legs])) == 3
+    assert len(rests.rests_parted([objects.SceneObject(0, False, soon, "rest"), *legs])) == 3
 
 
 def test_a_body_at_rest_is_not_the_mover_that_passed_as_it_was_lost():
