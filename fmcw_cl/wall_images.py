@@ -43,6 +43,7 @@ IMAGE_REACH_SHARE = 0.6  # ... plus this share of its shift |v k|: it holds 20 d
                          # power within 0.4 of the shift of its centre
 VELOCITY_STEP = 5e-3     # m/s: an image moves 0.14 mm (0.3 bins) a step
 BLOCK = 256              # velocities whose spectra are taken at once
+GAIN_BOUND_DB = 0.01     # no image keeps more than an unsmeared tone's power (|sum w e^(i phi)| <= sum w)
 
 
 def image_gain_db(beta: np.ndarray, velocity: np.ndarray, offset_m: np.ndarray, window: np.ndarray,
@@ -60,13 +61,31 @@ def image_gain_db(beta: np.ndarray, velocity: np.ndarray, offset_m: np.ndarray, 
     at, top = np.empty(k.shape), np.empty(k.shape[1])
     for a in range(0, speeds.size, BLOCK):          # (velocities, nfft) spectra, a block at a time
         v = VELOCITY_STEP * speeds[a:a + BLOCK, None]
-        power = np.abs(np.fft.fft(window * np.exp(-2j * np.pi * v * beta), model.nfft, axis=1)) ** 2
+        power = np.abs(np.fft.fft(_dechirped(window, v, beta), model.nfft, axis=1)) ** 2
         mine = np.flatnonzero((which >= a) & (which < a + BLOCK))
         rows = which[mine] - a
         at[:, mine] = power[rows[None, :], k[:, mine]]
         top[mine] = power.max(axis=1)[rows]
     with np.errstate(divide="ignore"):
         return 10 * np.log10(at / own).reshape(offset_m.shape), 10 * np.log10(top / own)
+
+
+def _dechirped(window: np.ndarray, v: np.ndarray, beta: np.ndarray) -> np.ndarray:
+    """window * exp(-2 pi i v beta) (rows: velocities `v`, m/s): the cosine and sine of
+    the real phase, the values exp gives for a zero real part, in 3/4 of its time."""
+    phase = (-2 * np.pi * v) * beta
+    out = np.empty(phase.shape, np.complex128)
+    np.cos(phase, out=out.real)
+    np.sin(phase, out=out.imag)
+    out *= window
+    return out
+
+
+def _may_reach(level_db, own_db: np.ndarray) -> np.ndarray:
+    """Whether an image of a tone read at `level_db` could come within IMAGE_MARGIN_DB
+    of `own_db` at all: at the window's whole power (a smeared image keeps less; the
+    slack covers the FFT's rounding), so a pair that cannot takes no spectrum."""
+    return _as_strong(level_db, GAIN_BOUND_DB, own_db)
 
 
 def image_level_db(level_db, gain_db):
@@ -97,11 +116,12 @@ def confused(velocity: np.ndarray, peaks_m: tuple, snr_db: tuple, walls_m: np.nd
     own = np.fmin(*snr_db)                           # the echo's level: where no image adds to it
     tones = np.concatenate([walls_m, -np.asarray(walls_m)])      # each wall's tone and its mirror
     levels = np.concatenate([walls_db, walls_db])
+    reach = _may_reach(levels[:, None], own[None, :])      # (tones, pairs)
     for beta, k, peak in zip((model.beta_rise, model.beta_fall), (model.k_rise, model.k_fall), peaks_m,
                              strict=True):
         shift = -v * k                               # where an image's centre lies from its tone
         offset = peak[None, :] - tones[:, None]      # (tones, pairs)
-        near = rows & (np.abs(offset - shift) <= IMAGE_REACH_M + IMAGE_REACH_SHARE * np.abs(shift))
+        near = rows & reach & (np.abs(offset - shift) <= IMAGE_REACH_M + IMAGE_REACH_SHARE * np.abs(shift))
         idx = np.flatnonzero(near.any(axis=0))
         if idx.size:                                 # one spectrum per velocity for all tones
             at, top = image_gain_db(beta, v[idx], offset[:, idx], window, model)
@@ -120,8 +140,8 @@ def confused_moving(velocity: np.ndarray, peaks_m: tuple, snr_db: tuple, other_m
     the conjugate, at v + u); `other_db` is its level (dB over the floor)."""
     out = np.zeros(rows.size, bool)
     v = np.asarray(velocity, np.float64)
-    there = rows & np.isfinite(other_m) & np.isfinite(other_mps) & np.isfinite(v)
     own = np.fmin(*snr_db)
+    there = rows & np.isfinite(other_m) & np.isfinite(other_mps) & np.isfinite(v) & _may_reach(other_db, own)
     for sign in (1.0, -1.0):                       # the tone, then its mirror
         rel = v - sign * np.nan_to_num(other_mps)
         tone = sign * np.nan_to_num(other_m)

@@ -155,3 +155,40 @@ def test_a_weak_wall_beside_a_rail_holds_no_blend(tmp_path):
     simulate_capture(path, rail(0.4), 0.05, seed=658, config=lab, start_s=0.05)
     scores = scene_of(process(path, processor=make_processor("opencl")), path)
     assert max(s["tracked"] for s in scores if s["truth"] == 0) > 0.3           # the rail (37 %)
+
+
+def test_pairs_no_image_can_reach_take_no_spectrum_and_lose_nothing(shaped, monkeypatch):
+    """`confused` and `confused_moving` skip the spectra of pairs that an image at the
+    window's whole power could not reach within the margin (`_may_reach`); on pairs
+    whose levels lie on both sides of that bound, near the images and far from them,
+    the answers are those of taking every spectrum, and some pairs were skipped."""
+    lut, win, model = shaped
+    rng = np.random.default_rng(5)
+    n = 400
+    v = np.r_[rng.uniform(-0.05, 0.05, n // 2), rng.uniform(-5.0, 5.0, n // 2)]   # images sharp and smeared
+    peaks = tuple(WALL_M - v * k + rng.normal(0.0, 2e-4, n) for k in (model.k_rise, model.k_fall))
+    # levels about the image's top there (30 dB + its gain), within the margin and beyond
+    snr = tuple(30.0 + wall_images.image_gain_db(beta, v, np.zeros(n), win, model)[1]
+                + rng.uniform(-4.0, 4.0, n) for beta in (model.beta_rise, model.beta_fall))
+    rows = rng.random(n) < 0.9
+    walls_db = np.array([30.0])
+    other_m, other_mps = np.full(n, WALL_M), np.full(n, 0.3)
+    got = (wall_images.confused(v, peaks, snr, np.array([WALL_M]), walls_db, model, win, rows),
+           wall_images.confused_moving(v, peaks, snr, other_m, other_mps, 30.0, model, win, rows))
+    own = np.fmin(*snr)
+    assert 0 < wall_images._may_reach(30.0, own).mean() < 1
+    monkeypatch.setattr(wall_images, "_may_reach", lambda level_db, own_db: np.ones(np.broadcast(
+        level_db, own_db).shape, bool))
+    every = (wall_images.confused(v, peaks, snr, np.array([WALL_M]), walls_db, model, win, rows),
+             wall_images.confused_moving(v, peaks, snr, other_m, other_mps, 30.0, model, win, rows))
+    assert got[0].tolist() == every[0].tolist() and got[0].any()
+    assert got[1].tolist() == every[1].tolist() and got[1].any()
+
+
+def test_the_de_chirped_window_is_the_window_times_the_basis(shaped):
+    """`_dechirped` (cosine and sine of the real phase) gives window * exp(-2 pi i v
+    beta), the values exp gives, to its last bits here."""
+    lut, win, model = shaped
+    v = np.array([-7.3, -0.005, 0.0, 0.4, 5.0])[:, None]
+    want = win * np.exp(-2j * np.pi * v * model.beta_rise)
+    np.testing.assert_allclose(wall_images._dechirped(win, v, model.beta_rise), want, rtol=1e-14, atol=1e-15)
