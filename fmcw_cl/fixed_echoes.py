@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import echoes
-from .numeric import group_median, nearest
+from .numeric import group_median, nearest, ragged
 from .swing import peak_offsets, shift_per_mps
 
 FIXED_SHARE = 0.5     # of the slices a fixed echo is seen in
@@ -246,11 +246,21 @@ def _own_peaks(e: echoes.Echoes, mine: np.ndarray, period_s: float) -> np.ndarra
     m = e.means
     t, d, rising = m["peak_time_s"], m["peak_distance_m"], m["peak_rising"]
     half = 0.5 * echoes.MEAN_ROWS * echoes.SURVEY_STRIDE * period_s
-    tt, dt, rt = e.time_s[mine], e.distance_m[mine], e.rising[mine]
     out = np.zeros(t.size, bool)
-    for i in range(t.size):
-        sel = (rt == rising[i]) & (np.abs(tt - t[i]) <= half)
-        out[i] = bool(sel.any()) and np.mean(np.abs(dt[sel] - d[i]) <= 1.5 * echoes.HIST_M) >= echoes.PRESENT
+    for way in (True, False):
+        own = mine & (e.rising == way)
+        order = np.argsort(e.time_s[own], kind="stable")     # the table's own order: cheap
+        tt, dt = e.time_s[own][order], e.distance_m[own][order]
+        # each peak's images lie in one stretch of them: a little wider, the test itself below
+        peaks = np.flatnonzero(rising == way)
+        which, j = ragged(np.searchsorted(tt, t[peaks] - 1.01 * half, "left"),
+                          np.searchsorted(tt, t[peaks] + 1.01 * half, "right"))
+        i = peaks[which]
+        sel = np.abs(tt[j] - t[i]) <= half
+        seen = np.bincount(which[sel], minlength=peaks.size)
+        close = np.bincount(which[sel & (np.abs(dt[j] - d[i]) <= 1.5 * echoes.HIST_M)], minlength=peaks.size)
+        with np.errstate(invalid="ignore"):
+            out[peaks] = (seen > 0) & (close / seen >= echoes.PRESENT)
     return out
 
 

@@ -65,6 +65,19 @@ def test_swapped_channels_are_refused_naming_the_order(scenes, tmp_path, fmcw):
     assert "swapped.h5: the channels look swapped" in res.stderr and "--order beat,sync" in res.stderr
 
 
+def test_roughness_of_codes_is_that_of_their_values():
+    """plan.roughness sums ADC codes as integers (exact) and other samples as floats:
+    the same figure for a sync triangle, a beat, a constant and a step."""
+    from fmcw_cl.plan import roughness
+
+    rng = np.random.default_rng(3)
+    tri = (1000 * np.abs((np.arange(200_000) / 5000) % 1 - 0.5)).astype(np.int16)
+    for codes in (tri, rng.integers(-32768, 32767, 200_000).astype(np.int16), np.full(50, 7, np.int16),
+                  np.r_[np.zeros(10, np.int16), np.ones(10, np.int16)]):
+        assert roughness(codes) == pytest.approx(roughness(codes.astype(np.float64)), rel=1e-12, abs=0)
+    assert roughness(tri) < 0.01 < roughness(rng.integers(-100, 100, 5000).astype(np.int16))
+
+
 def test_no_target_is_said_and_no_chirp_is_blamed(scenes, tmp_path, fmcw):
     res = fmcw("process", scenes / "empty.h5", scenes / "target.h5", "-o", tmp_path)
     assert MISMATCH not in res.stderr

@@ -241,3 +241,32 @@ def test_the_capture_mean_spectra_tests_of_one_echo():
     assert rivals.besides(one, fixed_m, band, 0.47, clipped=True) == []
     harmonic = 10 ** -2.5 * 1e3 * hann_tone(half, 800.0)
     assert rivals.besides(table(echo + harmonic, echo + harmonic), fixed_m, band, 0.47) == []
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_own_peaks_of_all_mean_spectra_equal_peak_by_peak(seed):
+    """fixed_echoes._own_peaks (each peak's stretch of the target's images, all peaks at
+    once) equals the test made peak by peak over every image, on detections and peaks
+    of both directions, near and far from each other in time and distance."""
+    from fmcw_cl import fixed_echoes
+
+    rng = np.random.default_rng(seed)
+    n = 3000
+    period = 50e-6
+    t = np.sort(rng.integers(0, 4000, n)) * period * 0.5
+    e = echoes.Echoes(time_s=t, distance_m=0.2 + 0.01 * rng.standard_normal(n), snr_db=np.zeros(n),
+                      rising=rng.random(n) < 0.5, tracked=np.ones(n, bool), persistent={},
+                      means={"peak_time_s": rng.uniform(-0.01, 0.11, 400),
+                             "peak_rising": rng.random(400) < 0.5,
+                             "peak_distance_m": 0.2 + 0.004 * rng.standard_normal(400)})
+    mine = rng.random(n) < 0.8
+    half = 0.5 * echoes.MEAN_ROWS * echoes.SURVEY_STRIDE * period
+    m = e.means
+    want = np.zeros(400, bool)
+    for i in range(400):
+        sel = mine & (e.rising == m["peak_rising"][i]) & (np.abs(t - m["peak_time_s"][i]) <= half)
+        want[i] = bool(sel.any()) and (np.mean(np.abs(e.distance_m[sel] - m["peak_distance_m"][i])
+                                               <= 1.5 * echoes.HIST_M) >= echoes.PRESENT)
+    got = fixed_echoes._own_peaks(e, mine, period)
+    assert 0 < want.sum() < want.size
+    assert got.tolist() == want.tolist()
