@@ -6,9 +6,14 @@ one foot's rest on the other's): nothing in where a body rests tells which body 
 So where a fixed object's gap of more than verification.KINEMATIC_S was left moving, or
 come back to moving (the median velocity of END_PAIRS verified pairs before or after it,
 LEAVING_MPS or more, away from the other side's pairs), at rest either side, while one of
-two movers or more was seen, the object is cut there (`rests_parted`). A wall's echo
-fades at rest (its velocities at its gaps: 0.006 m/s at most); a glide slowing onto its
-rest comes towards it; a scene of one mover keeps its rest whole (a foot's own return).
+two movers or more was seen, the object is cut there (`rests_parted`). So too, in a
+scene of two movers or more, whether one was seen in the gap or not, where it set off
+faster than a rest (fixed_echoes.MOVING_MPS), away, and is at rest after (two feet
+landing 2-7 mm apart: one setting off at 0.43 m/s, the other at rest 3.8 mm nearer 4.5
+ms later), or was at rest either side MOVED_M further apart than their velocities carry
+(one foot's rest 6.6 mm from the other's, 9 ms later). A wall's echo fades at rest (its
+velocities at its gaps: 0.006 m/s at most); a glide slowing onto its rest comes towards
+it; a scene of one mover keeps its rest whole (a foot's own return).
 """
 
 from __future__ import annotations
@@ -23,6 +28,7 @@ from .stages.verification import KINEMATIC_S
 
 LEAVING_MPS = 0.03    # a fixed object's rest ending or starting this fast (median of END_PAIRS) ...
 END_PAIRS = 16        # ... left or came (walls' at their gaps: 0.006 at most; a foot setting off 0.063)
+MOVED_M = 0.005       # rests this far apart across a gap: a body moved in it, or another came
 
 
 def rests_parted(scene: list[SceneObject]) -> list[SceneObject]:
@@ -50,7 +56,8 @@ def _left(x, movers: list) -> np.ndarray:
     in turn at one spot, 130 ms apart, both in the air between: 173 valid pairs of one
     foot's rest on the other's). A wall's echo fades at rest; a glide slowing onto its
     rest comes towards it (a slow glide's short parts, too short to run, are fixed
-    parts at 0.3-1.5 m/s)."""
+    parts at 0.3-1.5 m/s). Also, mover seen or not, gaps set off from faster than a rest,
+    away, to a rest, and rests further apart than their velocities carry."""
     p, n = gaps(x)
     keep = (p >= 0) & (n >= 0) & (x.time_s[n] - x.time_s[p] > KINEMATIC_S)   # so soon, one body's rest
     p, n = p[keep], n[keep]
@@ -58,15 +65,25 @@ def _left(x, movers: list) -> np.ndarray:
         return np.zeros(0)
     (t0, d0, _), (t1, d1, _) = pairs_at(x, p), pairs_at(x, n)
     v0, v1 = _velocities(x, p, n)
-    rest = (np.abs(v0) < fixed_echoes.MOVING_MPS) & (np.abs(v1) < fixed_echoes.MOVING_MPS)
+    rest0, rest1 = np.abs(v0) < fixed_echoes.MOVING_MPS, np.abs(v1) < fixed_echoes.MOVING_MPS
     dt, apart = t1 - t0, np.abs(d1 - d0)
     left = (np.abs(v0) >= LEAVING_MPS) & (np.abs(d0 + v0 * dt - d1) > apart)
     came = (np.abs(v1) >= LEAVING_MPS) & (np.abs(d1 - v1 * dt - d0) > apart)
+    # a side faster than a rest went away from the other (a glide slowing onto its rest
+    # comes towards it): a foot setting off at 0.4 m/s, the other come to rest 4 mm nearer
+    left &= rest0 | (v0 * (d0 - d1) > 0)
+    came &= rest1 | (v1 * (d1 - d0) < 0)
+    # at rest either side, further apart than their velocities carry them: a body moved
+    # unseen, or another came (one foot's rest 6.6 mm from the other's, 9 ms apart)
+    moved = rest0 & rest1 & (apart > MOVED_M + 0.5 * (np.abs(v0) + np.abs(v1)) * dt)
     passed = np.zeros(p.size, bool)
     for m in movers:
         tm = m.time_s[m.valid]
         passed |= np.searchsorted(tm, t1, "left") > np.searchsorted(tm, t0, "right")
-    return 0.5 * (t0 + t1)[rest & passed & (left | came)]
+    # set off fast and found at rest nearer, or moved: no body does that unseen (no
+    # mover need pass; 4.5 ms: -570 m/s^2 and it would not be at rest)
+    return 0.5 * (t0 + t1)[(passed & rest0 & rest1 & (left | came)) | (left & rest1 & ~rest0)
+                           | (came & rest0 & ~rest1) | moved]
 
 
 def _velocities(x, p: np.ndarray, n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -485,6 +485,35 @@ def test_two_rests_at_one_spot_left_and_come_to_while_movers_passed_are_two_obje
     assert len(rests.rests_parted([objects.SceneObject(0, False, soon, "rest"), *legs])) == 3
 
 
+def test_a_rest_set_off_from_fast_or_found_moved_is_cut_with_no_mover_in_the_gap():
+    """movers.py seed 14, 0: two feet landing within 2-7 mm of each other. A fixed object
+    held one foot setting off (+0.43 m/s, away) and, 4.5 ms later, the other at rest 3.8
+    mm nearer (43 valid pairs of one foot on the other); another held one foot's rest at
+    0.0766 m and, 9 ms later, the other's at 0.0700 (25 pairs). No mover was seen in
+    either gap. Both cut: no body is found at rest nearer 4.5 ms after setting off away
+    at 0.4 m/s, nor rests 6.6 mm further unseen. Not cut: a glide slowing onto its rest
+    (it comes towards it), nor rests 2 mm apart, nor with one mover in the scene."""
+    n = 4000
+    t = PERIOD * (np.arange(n) + 0.5)
+    legs = [objects.SceneObject(0, True, _track(np.where(t < 0.05, 0.2 - 2 * t, np.nan), np.full(n, -2.0)),
+                                "a leg"),
+            objects.SceneObject(0, True, _track(np.where(t > 0.17, 0.3 - 2 * (t - 0.17), np.nan),
+                                                np.full(n, -2.0)), "the other")]
+
+    def parts(d, v):
+        return len(rests.rests_parted([objects.SceneObject(0, False, _track(d, v), "rest"), *legs])) - 2
+
+    before, after = (t >= 0.1468) & (t <= 0.1519), (t >= 0.1564) & (t <= 0.159)
+    off = np.where(before, 0.0719 + 0.35 * (t - 0.1468), np.where(after, 0.0700, np.nan))
+    assert parts(off, np.where(before, 0.425, 0.0)) == 2
+    assert parts(off, np.where(before, -0.425, 0.0)) == 1              # coming towards its rest
+    a, b = (t >= 0.1610) & (t <= 0.1622), (t >= 0.1710) & (t <= 0.1732)
+    assert parts(np.where(a, 0.0766, np.where(b, 0.0700, np.nan)), np.zeros(n)) == 2
+    assert parts(np.where(a, 0.0720, np.where(b, 0.0700, np.nan)), np.zeros(n)) == 1
+    rest = objects.SceneObject(0, False, _track(off, np.where(before, 0.425, 0.0)), "rest")
+    assert len(rests.rests_parted([rest, legs[0]])) == 2
+
+
 def test_a_body_at_rest_is_not_the_mover_that_passed_as_it_was_lost():
     """A rail (+2.72 m/s at 309.5 mm) lost at 105.3 ms as it passes a glide at rest at
     325.4 mm, whose tracker loses it 0.1 ms later; 25 ms on, 23 pairs at 367 mm, +1.70
