@@ -80,8 +80,8 @@ def _left(x, movers: list) -> np.ndarray:
     for m in movers:
         tm = m.time_s[m.valid]
         passed |= np.searchsorted(tm, t1, "left") > np.searchsorted(tm, t0, "right")
-    # set off fast and found at rest nearer, or moved: no body does that unseen (no
-    # mover need pass; 4.5 ms: -570 m/s^2 and it would not be at rest)
+    # set off fast, or moved: which body rests after is not told, mover seen or not (in
+    # 4.5 ms one foot would turn at -570 m/s^2 and not be at rest; longer, it may be either)
     return 0.5 * (t0 + t1)[(passed & rest0 & rest1 & (left | came)) | (left & rest1 & ~rest0)
                            | (came & rest0 & ~rest1) | moved]
 
