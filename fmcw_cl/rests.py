@@ -80,10 +80,11 @@ def _left(x, movers: list) -> np.ndarray:
     for m in movers:
         tm = m.time_s[m.valid]
         passed |= np.searchsorted(tm, t1, "left") > np.searchsorted(tm, t0, "right")
-    # set off fast, or moved: which body rests after is not told, mover seen or not (in
-    # 4.5 ms one foot would turn at -570 m/s^2 and not be at rest; longer, it may be either)
-    return 0.5 * (t0 + t1)[(passed & rest0 & rest1 & (left | came)) | (left & rest1 & ~rest0)
-                           | (came & rest0 & ~rest1) | moved]
+    # left to a rest (or come from one) while a mover passed, or faster than a rest, or
+    # moved: which body rests after is not told (in 4.5 ms one foot would turn at -570
+    # m/s^2 and not be at rest; longer, it may be either)
+    cut = (left & rest1 & (passed | ~rest0)) | (came & rest0 & (passed | ~rest1)) | moved
+    return 0.5 * (t0 + t1)[cut]
 
 
 def _velocities(x, p: np.ndarray, n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
