@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import fixed_echoes, objects
+from . import fixed_echoes, handovers, objects
 from .numeric import centred_slope
 from .objects import SceneObject
 from .stages import faults
@@ -193,18 +193,24 @@ def crossing_cuts(scene: list[SceneObject]) -> list[np.ndarray]:
 
 def parted(scene: list[SceneObject], crossings: bool = False) -> list[SceneObject]:
     """Each object whose verified pairs no one body can have made split into objects of
-    one body each (objects.bodies), and with `crossings`, at its `crossing_cuts`
-    (`split`); parts that one body can join again are joined by `rejoined`."""
+    one body each (objects.bodies), a mover's where its tracker passed to another echo
+    at once (fmcw_cl.handovers), and with `crossings`, at its `crossing_cuts` (`split`);
+    parts that one body can join again are joined by `rejoined`, never across a
+    handover."""
     cuts = crossing_cuts(scene) if crossings else [np.zeros(0)] * len(scene)
     out = []
     for o, cut in zip(scene, cuts, strict=True):
         bodies = objects.bodies(o.track)
-        parts = cut_at(bodies, cut, o.track.time_s)
+        handed = np.mean(handovers.handovers(o.track), axis=0) if o.moving else np.zeros(0)
+        crossed = cut_at(bodies, cut, o.track.time_s)
+        parts = cut_at(crossed, handed, o.track.time_s)
         if len(parts) < 2:
             out.append(o)
             continue
         why = " or ".join([w for w, n in (("no body moves between them", len(bodies) > 1),
-                                        ("lost while another mover was", len(parts) > len(bodies))) if n])
+                                        ("lost while another mover was", len(crossed) > len(bodies)),
+                                        ("its tracker passed to another echo", len(parts) > len(crossed)))
+                           if n])
         out += split(o, parts, why)
     return out
 
@@ -292,7 +298,8 @@ class _Ends:
         self.seen = objects.seen_again(*span)
         self.goes = self.later & goes_on(*span[:3], self.a1[:, None], *span[3:])
         back = self.later & self.seen
-        self.returns = (back | back.T) & (self.moving[:, None] == self.moving[None, :])
+        self.returns = (back | back.T) & (self.moving[:, None] == self.moving[None, :]) & ~_handed_over(
+            scene, self.t1, self.t0)
         cost = _costs(*span)
         self.cost = np.where(self.later, cost, cost.T)
         # every part's verified times in one sorted array: part k's shifted by k wide spans
@@ -318,6 +325,22 @@ class _Ends:
         shift = self.width * np.arange(self.moving.size)
         lo = np.searchsorted(self.times, shift + (start[:, None] - self.low), "left")
         return np.searchsorted(self.times, shift + (end[:, None] - self.low), "right") > lo
+
+
+def _handed_over(scene: list[SceneObject], t1: np.ndarray, t0: np.ndarray) -> np.ndarray:
+    """[e, l] (symmetric): whether parts e and l of one conversion's track (`whole`) lie
+    either side of a gap its tracker crossed by passing to another echo at once
+    (fmcw_cl.handovers: e's last verified pair at `t1`, l's first at `t0`, s)."""
+    out = np.zeros((len(scene), len(scene)), bool)
+    of: dict[int, tuple] = {}
+    for k, o in enumerate(scene):
+        whole = o.track if o.whole is None else o.whole
+        of.setdefault(id(whole), (whole, []))[1].append(k)
+    for whole, ks in of.values():
+        if len(ks) > 1:
+            for ta, tb in zip(*handovers.handovers(whole), strict=True):
+                out[np.ix_([k for k in ks if t1[k] == ta], [k for k in ks if t0[k] == tb])] = True
+    return out | out.T
 
 
 def contested(e: _Ends, i: np.ndarray, j: np.ndarray) -> np.ndarray:

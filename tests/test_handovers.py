@@ -1,0 +1,102 @@
+"""A tracker that passes from one echo to another at once (fmcw_cl.handovers): two
+bodies, whatever one body's motion could join, and a fade's noise or a return to its
+own echo is not such a pass."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from fmcw_cl import handovers, identities, objects
+from fmcw_cl.stages import faults
+from fmcw_cl.track import Track
+
+PERIOD = 50e-6
+N = 1200
+T = PERIOD * (np.arange(N) + 0.5)
+
+
+def _track(path: np.ndarray, velocity: np.ndarray, valid: np.ndarray, seed: int) -> Track:
+    """A conversion's track whose tracker held `path` (m; its de-chirped half-sweep peaks
+    that, with 30 um of noise), verified at `valid`."""
+    rng = np.random.default_rng(seed)
+    sweeps = np.repeat(path, 2) + 3e-5 * rng.standard_normal(2 * N)
+    reason = np.where(valid, faults.OK, faults.AMBIGUOUS).astype(np.uint8)
+    return Track(np.repeat(T, 2) + np.tile([-PERIOD / 4, PERIOD / 4], N), np.tile([True, False], N),
+                 sweeps, np.full(2 * N, 25.0), T, np.where(valid, path, np.nan),
+                 np.where(valid, velocity, np.nan), np.zeros(N), valid, {},
+                 sweep_distance_dechirped_m=sweeps, sweep_snr_dechirped_db=np.full(2 * N, 25.0),
+                 reason=reason, period_s=PERIOD)
+
+
+def _rail_then_glide(flip: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A rail at +1.8 m/s slowing at 45 m/s^2 (pairs 0-559), its tracker then on a glide
+    at rest 20 mm beyond it that sets off towards it at -60 m/s^2 (verified from pair
+    1160 on, `flip` pairs before that on another echo 20 mm beyond it): the glide's pairs
+    lie where the rail slowing at 90 m/s^2 would be."""
+    t0 = T[560]
+    rail = 0.30 + 1.8 * T - 22.5 * T ** 2
+    start = rail[559] + 0.020
+    go = np.maximum(T - T[600], 0.0)
+    glide = start - 30.0 * go ** 2
+    path = np.where(T < t0, rail, glide)
+    velocity = np.where(T < t0, 1.8 - 45.0 * T, -60.0 * go)
+    path[1160 - flip:1160] += 0.02
+    valid = (np.arange(N) < 560) | (np.arange(N) >= 1160)
+    return path, velocity, valid
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+@pytest.mark.parametrize("flip", [0, 34])
+def test_a_tracker_passed_to_another_echo_at_once_holds_two_bodies(seed, flip):
+    """The verified pairs either side of the gap make one body's course (`seen_again`), so
+    the motion alone joins them; the tracker's pass from the rail straight onto the glide
+    parts them, the glide's 34 pairs on the rail at its end notwithstanding, and no join
+    mends it."""
+    path, velocity, valid = _rail_then_glide(flip)
+    track = _track(path, velocity, valid, seed)
+    a, b = 559, 1160
+    assert objects.seen_again(T[a], path[a], velocity[a], T[b], path[b], velocity[b])
+    before, after = handovers.handovers(track)
+    assert before.tolist() == [T[a]] and after.tolist() == [T[b]]
+    scene = identities.rejoined(identities.parted([objects.SceneObject(1, True, track, "")]), True)
+    held = sorted(int(o.track.valid.sum()) for o in scene)
+    assert held == sorted([560, N - 1160])
+    for o in scene:                              # each part one body's, not both
+        k = np.flatnonzero(o.track.valid)
+        assert k.max() < 560 or k.min() >= 1160
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_a_fade_or_a_return_to_its_own_echo_is_no_pass(seed):
+    """Lost in a fade (noise peaks over the band) and back on its own body, or passed to
+    a wall 40 mm off for 10 ms and back: no pass between the verified pairs' echoes (the
+    later's chain starts after the wall's), and the track stays one object."""
+    rng = np.random.default_rng(seed)
+    body = 0.30 + 1.0 * T
+    valid = (np.arange(N) < 400) | (np.arange(N) >= 800)
+    faded = body.copy()
+    faded[400:800] = rng.uniform(0.02, 0.45, 400)
+    walled = body.copy()
+    walled[400:600] = body[399] + 0.04
+    walled[600:800] = rng.uniform(0.02, 0.45, 200)        # then a fade back to it
+    for path in (faded, walled):
+        track = _track(path, np.ones(N), valid, seed)
+        assert handovers.handovers(track)[0].size == 0
+        assert len(identities.rejoined(identities.parted([objects.SceneObject(1, True, track, "")]))) == 1
+
+
+def test_chains_join_a_stretch_that_goes_on_as_an_echo_and_skip_noise():
+    """An echo's stretches either side of a 34-pair flip onto another are one chain;
+    a stretch of noise peaks is none, and an echo's stretch after it a chain of its
+    own when it starts beyond LINK_S after."""
+    rng = np.random.default_rng(4)
+    path = 0.30 - 0.5 * T
+    path[300:334] += 0.02                        # a flip onto another echo
+    path[600:700] = rng.uniform(0.02, 0.45, 100)   # noise
+    path[700:] += 0.01                             # on again 10 mm off, 5 ms later
+    lab = handovers.chains(T, path)
+    assert lab[0] == lab[299] == lab[334] == lab[599] >= 0
+    assert lab[300] not in (-1, lab[0])
+    assert (lab[600:700] == -1).all()
+    assert lab[700] not in (-1, lab[0], lab[300])
