@@ -1,10 +1,11 @@
 """Where a conversion's tracker left one echo for another while both were there.
 
-Its path (the mean of each pair's de-chirped half-sweep peaks, verified or not) steps
-between consecutive pairs by less than STEP_M while it holds one echo; a stretch of
-LONG_PAIRS such pairs or more is an echo (noise peaks do not go on so), and a stretch
-that goes on as an earlier one, within LINK_S and as it moved, is that echo again
-(`chains`: a few pairs on another echo between them do not part them). Where a gap of
+Its path (the mean of each pair's de-chirped half-sweep peaks, verified or not, where
+they agree within JUMP_MAX_M) steps between consecutive pairs by less than STEP_M while
+it holds one echo; a stretch of LONG_PAIRS such pairs or more is an echo (noise peaks do
+not go on so), and a stretch that goes on as an earlier one, within LINK_S and as it
+moved, is that echo again (`chains`: a few pairs of noise or on another echo between
+them do not part them). Where a gap of
 the verified pairs holds a step from the chain of the verified pair before it straight
 onto the chain of the one after (`handovers`), the tracker passed from one echo to
 another at once: two echoes at one time, so two bodies, however well one body's motion
@@ -22,54 +23,91 @@ from .stages.verification import ACCEL_MAX, JUMP_MAX_M, KINEMATIC_S
 from .track import Track
 
 STEP_M = 2e-3            # a step between consecutive pairs beyond any body's (40 m/s at 20 kHz)
-LONG_PAIRS = 20          # a stretch of steps within STEP_M this long is an echo (1 ms at 20 kHz)
+KINK_MPS = 0.5           # the path's velocity turning this much at a pair (TREND_PAIRS either side): another
+                         # echo's (a sway at +1.9 m/s onto a glide at +0.4 it crossed)
+LONG_PAIRS = 20          # a stretch without steps or kinks this long is an echo (1 ms at 20 kHz)
 LINK_S = KINEMATIC_S     # a stretch goes on as an earlier chain across at most this ...
 TREND_PAIRS = 8          # ... moved on at the velocity of the chain's last this many pairs
 
 
+def stretches(time_s: np.ndarray, path_m: np.ndarray) -> np.ndarray:
+    """Where the path `path_m` (m, at `time_s` s) starts a new stretch of one echo (a
+    boolean per pair): a step beyond STEP_M from the pair before (or NaN), or a kink,
+    its least-squares velocities over TREND_PAIRS before and from it, both free of
+    steps, KINK_MPS apart or more."""
+    n, k = path_m.size, TREND_PAIRS
+    out = np.zeros(n, bool)
+    out[1:] = ~(np.abs(np.diff(path_m)) <= STEP_M)            # NaN steps too
+    if n < 2 * k + 1:
+        return out
+    w = np.arange(k) - 0.5 * (k - 1)
+    dt = float(np.median(np.diff(time_s)))
+    slope = np.correlate(np.nan_to_num(path_m), w, "valid") / (dt * np.sum(w * w))   # over [m, m + k)
+    steps = np.cumsum(out)
+    whole = steps[k - 1:] - steps[:n - k + 1] == 0             # no step inside [m, m + k)
+    slope[~whole] = np.nan
+    i = np.arange(k, n - k + 1)                                # left window [i - k, i), right [i, i + k)
+    out[i] |= np.abs(slope[i] - slope[i - k]) >= KINK_MPS
+    return out
+
+
 def chains(time_s: np.ndarray, path_m: np.ndarray) -> np.ndarray:
     """Each pair's chain (-1: none; a stretch shorter than LONG_PAIRS) of the path
-    `path_m` (m) at `time_s` (s): stretches of steps within STEP_M, each LONG_PAIRS or
-    more joined to the chain whose last stretch it goes on within LINK_S (that stretch's
-    end moved on at its velocity, within JUMP_MAX_M + ACCEL_MAX dt^2 / 2), the nearest
-    such; else a chain of its own."""
+    `path_m` (m) at `time_s` (s): `stretches` of LONG_PAIRS or more, each joined to the
+    chain whose last stretch it goes on within LINK_S (that stretch's `_end` moved on
+    at its velocity, within STEP_M + ACCEL_MAX dt^2 / 2, its velocity within KINK_MPS +
+    ACCEL_MAX dt), the nearest such; else a chain of its own."""
     n = path_m.size
     out = np.full(n, -1)
-    step = ~(np.abs(np.diff(path_m)) <= STEP_M)            # NaN steps too
-    starts = np.r_[0, np.flatnonzero(step) + 1]
+    starts = np.r_[0, np.flatnonzero(stretches(time_s, path_m)[1:]) + 1]
     stops = np.r_[starts[1:], n]
     long = stops - starts >= LONG_PAIRS
     ends: list[tuple[float, float, float]] = []           # each chain's last (time, distance, velocity)
     for a, b in zip(starts[long], stops[long], strict=True):
         t, d = time_s[a:b], path_m[a:b]
+        t0, d0, v0 = _end(t[::-1], d[::-1])                 # its start
         best, miss = -1, np.inf
         for k, (te, de, ve) in enumerate(ends):
-            dt = t[0] - te
+            dt = t0 - te
             if 0 < dt <= LINK_S:
-                m = abs(d[0] - (de + ve * dt))
-                if m <= JUMP_MAX_M + 0.5 * ACCEL_MAX * dt * dt and m < miss:
+                m = abs(d0 - (de + ve * dt))
+                if (m <= STEP_M + 0.5 * ACCEL_MAX * dt * dt and abs(v0 - ve) <= KINK_MPS + ACCEL_MAX * dt
+                        and m < miss):
                     best, miss = k, m
         if best < 0:
             best = len(ends)
             ends.append((0.0, 0.0, 0.0))
-        k = min(TREND_PAIRS, b - a)
-        ends[best] = (t[-1], d[-1], (d[-1] - d[-k]) / max(t[-1] - t[-k], 1e-12))
+        ends[best] = _end(t, d)
         out[a:b] = best
     return out
 
 
+def _end(t: np.ndarray, d: np.ndarray) -> tuple[float, float, float]:
+    """A stretch's end (time s, distance m, velocity m/s; its start, given in reverse)
+    that its last pairs' noise does not move: the medians of its last TREND_PAIRS pairs
+    and of the TREND_PAIRS before them (a fade's first pair 1.2 mm off, in the stretch,
+    read -6.6 m/s)."""
+    k = min(TREND_PAIRS, d.size // 2)
+    last, before = np.median(d[-k:]), np.median(d[-2 * k:-k])
+    v = (last - before) / float(np.median(t[-k:]) - np.median(t[-2 * k:-k]))
+    return float(t[-1]), float(last + v * (t[-1] - np.median(t[-k:]))), float(v)
+
+
 def handovers(track: Track) -> tuple[np.ndarray, np.ndarray]:
     """The times (s) of the verified pairs either side of each gap of `track` across
-    which its tracker passed from one echo to another at once (the earlier's chain, then
-    straight the later's, `chains`): (before, after)."""
+    which its tracker passed from one echo to another at once (a step from the earlier's
+    chain straight onto the later's, `chains`): (before, after)."""
     ok = np.flatnonzero(track.valid)
     gap = np.flatnonzero(np.diff(ok) > 1)
     if not gap.size:
         return np.zeros(0), np.zeros(0)
     a, b = ok[gap], ok[gap + 1]
-    lab = chains(track.time_s, np.mean(per_pair(track, "sweep_distance_dechirped_m"), axis=0))
+    peaks = per_pair(track, "sweep_distance_dechirped_m")
+    path = np.where(np.abs(peaks[0] - peaks[1]) <= JUMP_MAX_M, np.mean(peaks, axis=0), np.nan)
+    lab = chains(track.time_s, path)
     x, y = lab[a], lab[b]
     # the first pair after a on the later's chain, and whether the pair before it is on the earlier's
     first = np.array([a[i] + 1 + int(np.argmax(lab[a[i] + 1:b[i] + 1] == y[i])) for i in range(a.size)])
-    handed = (x >= 0) & (y >= 0) & (x != y) & (lab[first - 1] == x)
+    handed = ((x >= 0) & (y >= 0) & (x != y) & (lab[first - 1] == x)
+              & (np.abs(path[first] - path[first - 1]) > STEP_M))
     return track.time_s[a[handed]], track.time_s[b[handed]]

@@ -68,6 +68,28 @@ def test_a_tracker_passed_to_another_echo_at_once_holds_two_bodies(seed, flip):
 
 
 @pytest.mark.parametrize("seed", [1, 2, 3])
+@pytest.mark.parametrize("agree", [False, True])
+def test_noise_pairs_at_a_stretchs_end_are_no_pass(seed, agree):
+    """A rail's two pairs in a fade, one half-sweep's peak 2.5 and 4.7 mm off (or both
+    peaks 1.2 and 2.4 mm off, so the path drifts by a step), then on its own echo
+    again: the stretch's end is its pairs' before them, not the drift's -6.6 m/s."""
+    path = 0.28 + 0.3 * T
+    valid = np.ones(N, bool)
+    valid[400:402] = False
+    track = _track(path, np.full(N, 0.3), valid, seed)
+    off = np.array([1.2e-3, 2.4e-3])
+    rise = track.sweep_distance_dechirped_m[800:804:2]
+    fall = track.sweep_distance_dechirped_m[801:804:2]
+    if agree:
+        rise -= off
+        fall -= off
+    else:
+        rise -= 2 * off
+    track.sweep_distance_dechirped_m[800:804:2], track.sweep_distance_dechirped_m[801:804:2] = rise, fall
+    assert handovers.handovers(track)[0].size == 0
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
 def test_a_fade_or_a_return_to_its_own_echo_is_no_pass(seed):
     """Lost in a fade (noise peaks over the band) and back on its own body, or passed to
     a wall 40 mm off for 10 ms and back: no pass between the verified pairs' echoes (the
@@ -84,6 +106,24 @@ def test_a_fade_or_a_return_to_its_own_echo_is_no_pass(seed):
         track = _track(path, np.ones(N), valid, seed)
         assert handovers.handovers(track)[0].size == 0
         assert len(identities.rejoined(identities.parted([objects.SceneObject(1, True, track, "")]))) == 1
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_a_tracker_back_from_an_echo_it_crossed_onto_is_no_pass(seed):
+    """A sway at +1.9 m/s unverified as it crosses a glide at +0.4 m/s: its tracker
+    goes on along the glide (no step, a kink), then steps back onto the sway 2.5 ms
+    on: the step is from the glide's chain, not the sway's, and the sway stays whole."""
+    sway = 0.15 + 1.9 * T
+    cross = 560
+    glide = sway[cross] + 0.4 * (T - T[cross])
+    path = sway.copy()
+    path[cross:cross + 50] = glide[cross:cross + 50]
+    valid = (np.arange(N) < 520) | (np.arange(N) >= 640)
+    track = _track(path, np.full(N, 1.9), valid, seed)
+    lab = handovers.chains(T, path)
+    assert lab[cross - 30] != lab[cross + 30]                 # the kink parts the chains
+    assert handovers.handovers(track)[0].size == 0
+    assert len(identities.rejoined(identities.parted([objects.SceneObject(1, True, track, "")]))) == 1
 
 
 def test_chains_join_a_stretch_that_goes_on_as_an_echo_and_skip_noise():
