@@ -91,7 +91,8 @@ def _told_apart(found: list[objects.SceneObject], done: list[Converted], own: Co
     Doppler-shifted peak in one direction, a glide's in the other, made 74 valid pairs
     46 mm from both as they crossed); and where a half-sweep's peak could be another
     object's de-chirped image (crossings.images, as `_exclusive` across conversions, but
-    on the objects told apart; not a still object's in rows without still echoes)."""
+    on the objects told apart; not a still object's in rows without still echoes); and
+    where a fixed object's pairs read moving (crossings.read_moving)."""
     of = {id(d.track): d for d in done}
     scene = exchanges.apart(rests.rests_parted(identities.untangled(found, several)),
                            [o.track for o in found if not o.moving])
@@ -104,6 +105,7 @@ def _told_apart(found: list[objects.SceneObject], done: list[Converted], own: Co
     # glide's image, 18 pairs
     image = crossings.images(tracks, own.plan.model, own.plan.window, _calm_unseen(scene, of, own))
     clash = [c | m for c, m in zip(clash, image, strict=True)]
+    clash = [c | m for c, m in zip(clash, crossings.read_moving(tracks, moving), strict=True)]
     if lone:
         paths = crossings.conflicts(tracks, [not m for m in moving])
         clash = [c | p for c, p in zip(clash, paths, strict=True)]

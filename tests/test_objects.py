@@ -146,6 +146,19 @@ def test_bodies_cut_where_the_velocity_turns_faster_than_a_body():
     assert len(objects.bodies(_track(d, slow, valid))) == 1
 
 
+def test_a_fixed_objects_pairs_that_read_moving_are_not_its_own():
+    """A fixed part standing at 0.334 m whose pairs read -0.34 to -0.61 m/s (two bodies'
+    peaks paired across) holds them not; a mover's pairs, and the fixed part's that read
+    at rest, stand."""
+    v = np.r_[np.full(20, 0.02), np.full(15, -0.61), np.full(15, -0.34), np.full(10, -0.29)]
+    still = _track(np.full(v.size, 0.334), v)
+    moving = _track(0.334 + np.cumsum(v) * PERIOD, v)
+    taken = crossings.read_moving([still, moving], [False, True])
+    assert taken[0].tolist() == (np.abs(v) >= 0.3).tolist() and taken[0].sum() == 30
+    assert not taken[1].any()
+    assert not crossings.read_moving([_track(np.full(5, np.nan))], [False])[0].any()
+
+
 def test_a_tracker_passing_between_crossing_objects_leaves_its_pairs_there_ambiguous():
     """One object's last pairs before a crossing and another's first after it, never
     held at once: where each lies within GATE_M of the other's course (moved on at its
