@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .objects import per_pair
+from .objects import SceneObject, per_pair
 from .stages.verification import ACCEL_MAX, JUMP_MAX_M, KINEMATIC_S
 from .track import Track
 
@@ -62,22 +62,24 @@ def chains(time_s: np.ndarray, path_m: np.ndarray) -> np.ndarray:
     starts = np.r_[0, np.flatnonzero(stretches(time_s, path_m)[1:]) + 1]
     stops = np.r_[starts[1:], n]
     long = stops - starts >= LONG_PAIRS
-    ends: list[tuple[float, float, float]] = []           # each chain's last (time, distance, velocity)
+    recent: dict[int, tuple[float, float, float]] = {}    # chains' last (time, distance, velocity)
+    count = 0
     for a, b in zip(starts[long], stops[long], strict=True):
         t, d = time_s[a:b], path_m[a:b]
         t0, d0, v0 = _end(t[::-1], d[::-1])                 # its start
         best, miss = -1, np.inf
-        for k, (te, de, ve) in enumerate(ends):
+        for k, (te, de, ve) in list(recent.items()):
             dt = t0 - te
-            if 0 < dt <= LINK_S:
-                m = abs(d0 - (de + ve * dt))
-                if (m <= STEP_M + 0.5 * ACCEL_MAX * dt * dt and abs(v0 - ve) <= KINK_MPS + ACCEL_MAX * dt
-                        and m < miss):
-                    best, miss = k, m
+            if dt > LINK_S:
+                del recent[k]                               # ended too long ago for any later
+                continue
+            m = abs(d0 - (de + ve * dt))
+            if (0 < dt and m <= STEP_M + 0.5 * ACCEL_MAX * dt * dt
+                    and abs(v0 - ve) <= KINK_MPS + ACCEL_MAX * dt and m < miss):
+                best, miss = k, m
         if best < 0:
-            best = len(ends)
-            ends.append((0.0, 0.0, 0.0))
-        ends[best] = _end(t, d)
+            best, count = count, count + 1
+        recent[best] = _end(t, d)
         out[a:b] = best
     return out
 
@@ -91,6 +93,20 @@ def _end(t: np.ndarray, d: np.ndarray) -> tuple[float, float, float]:
     last, before = np.median(d[-k:]), np.median(d[-2 * k:-k])
     v = (last - before) / float(np.median(t[-k:]) - np.median(t[-2 * k:-k]))
     return float(t[-1]), float(last + v * (t[-1] - np.median(t[-k:]))), float(v)
+
+
+class Asked:
+    """`handovers` of tracks, each taken once while they are asked about (the tracks
+    held, so that no other takes one's id)."""
+
+    def __init__(self) -> None:
+        self._of: dict[int, tuple[Track, tuple[np.ndarray, np.ndarray]]] = {}
+
+    def __call__(self, track: Track) -> tuple[np.ndarray, np.ndarray]:
+        got = self._of.get(id(track))
+        if got is None or got[0] is not track:
+            got = self._of[id(track)] = (track, handovers(track))
+        return got[1]
 
 
 def handovers(track: Track) -> tuple[np.ndarray, np.ndarray]:
@@ -111,3 +127,19 @@ def handovers(track: Track) -> tuple[np.ndarray, np.ndarray]:
     handed = ((x >= 0) & (y >= 0) & (x != y) & (lab[first - 1] == x)
               & (np.abs(path[first] - path[first - 1]) > STEP_M))
     return track.time_s[a[handed]], track.time_s[b[handed]]
+
+
+def across(parts: list[SceneObject], t1: np.ndarray, t0: np.ndarray, asked: Asked) -> np.ndarray:
+    """[e, l] (symmetric): whether parts e and l of one conversion's track (`whole`) lie
+    either side of a gap its tracker crossed by passing to another echo at once (e's
+    last verified pair at `t1`, l's first at `t0`, s)."""
+    out = np.zeros((len(parts), len(parts)), bool)
+    of: dict[int, tuple] = {}
+    for k, o in enumerate(parts):
+        whole = o.track if o.whole is None else o.whole
+        of.setdefault(id(whole), (whole, []))[1].append(k)
+    for whole, ks in of.values():
+        if len(ks) > 1:
+            for ta, tb in zip(*asked(whole), strict=True):
+                out[np.ix_([k for k in ks if t1[k] == ta], [k for k in ks if t0[k] == tb])] = True
+    return out | out.T

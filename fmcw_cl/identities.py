@@ -191,7 +191,8 @@ def crossing_cuts(scene: list[SceneObject]) -> list[np.ndarray]:
     return [np.unique(c) for c in cuts]
 
 
-def parted(scene: list[SceneObject], crossings: bool = False) -> list[SceneObject]:
+def parted(scene: list[SceneObject], crossings: bool = False,
+           asked: handovers.Asked | None = None) -> list[SceneObject]:
     """Each object whose verified pairs no one body can have made split into objects of
     one body each (objects.bodies), a mover's where its tracker passed to another echo
     at once (fmcw_cl.handovers), and with `crossings`, at its `crossing_cuts` (`split`);
@@ -201,7 +202,7 @@ def parted(scene: list[SceneObject], crossings: bool = False) -> list[SceneObjec
     out = []
     for o, cut in zip(scene, cuts, strict=True):
         bodies = objects.bodies(o.track)
-        handed = np.mean(handovers.handovers(o.track), axis=0) if o.moving else np.zeros(0)
+        handed = np.mean((asked or handovers.handovers)(o.track), axis=0) if o.moving else np.zeros(0)
         crossed = cut_at(bodies, cut, o.track.time_s)
         parts = cut_at(crossed, handed, o.track.time_s)
         if len(parts) < 2:
@@ -238,7 +239,8 @@ def split(o: SceneObject, parts: list[np.ndarray], why: str) -> list[SceneObject
     return out
 
 
-def rejoined(scene: list[SceneObject], contests: bool = False) -> list[SceneObject]:
+def rejoined(scene: list[SceneObject], contests: bool = False,
+             asked: handovers.Asked | None = None) -> list[SceneObject]:
     """The objects with those seen again joined (objects.returns): one object. Only
     objects of one kind: a fixed object that a mover crossed is not the mover after it
     (a swaying cable that a rail passed, the rail beyond it). Two parts of one track
@@ -247,8 +249,9 @@ def rejoined(scene: list[SceneObject], contests: bool = False) -> list[SceneObje
     and only where not `contested` and, between two moving ends, reachable."""
     scene = list(scene)
     ends = [_Ends.row(o) for o in scene]
+    asked = asked or handovers.Asked()
     while len(scene) > 1:
-        e = _Ends(ends, scene)
+        e = _Ends(ends, scene, asked)
         i, j = np.nonzero(np.triu(e.returns, 1))                 # (i, j) in order, i < j
         if contests:
             keep = np.isfinite(e.cost[i, j])
@@ -287,7 +290,7 @@ class _Ends:
     `returns`; symmetric), the join's `_cost` (`cost`; symmetric, inf where no body moves
     so) and the parts' verified times (for `contested`)."""
 
-    def __init__(self, rows: list[tuple], scene: list[SceneObject]):
+    def __init__(self, rows: list[tuple], scene: list[SceneObject], asked: handovers.Asked):
         self.moving, i0, i1, *pairs = (np.array(c) for c in zip(*rows, strict=True))
         self.t0, self.d0, self.v0, self.t1, self.d1, self.v1, self.a1 = pairs
         has = i0 >= 0
@@ -298,8 +301,8 @@ class _Ends:
         self.seen = objects.seen_again(*span)
         self.goes = self.later & goes_on(*span[:3], self.a1[:, None], *span[3:])
         back = self.later & self.seen
-        self.returns = (back | back.T) & (self.moving[:, None] == self.moving[None, :]) & ~_handed_over(
-            scene, self.t1, self.t0)
+        self.returns = (back | back.T) & (self.moving[:, None] == self.moving[None, :]) & ~handovers.across(
+            scene, self.t1, self.t0, asked)
         cost = _costs(*span)
         self.cost = np.where(self.later, cost, cost.T)
         # every part's verified times in one sorted array: part k's shifted by k wide spans
@@ -325,22 +328,6 @@ class _Ends:
         shift = self.width * np.arange(self.moving.size)
         lo = np.searchsorted(self.times, shift + (start[:, None] - self.low), "left")
         return np.searchsorted(self.times, shift + (end[:, None] - self.low), "right") > lo
-
-
-def _handed_over(scene: list[SceneObject], t1: np.ndarray, t0: np.ndarray) -> np.ndarray:
-    """[e, l] (symmetric): whether parts e and l of one conversion's track (`whole`) lie
-    either side of a gap its tracker crossed by passing to another echo at once
-    (fmcw_cl.handovers: e's last verified pair at `t1`, l's first at `t0`, s)."""
-    out = np.zeros((len(scene), len(scene)), bool)
-    of: dict[int, tuple] = {}
-    for k, o in enumerate(scene):
-        whole = o.track if o.whole is None else o.whole
-        of.setdefault(id(whole), (whole, []))[1].append(k)
-    for whole, ks in of.values():
-        if len(ks) > 1:
-            for ta, tb in zip(*handovers.handovers(whole), strict=True):
-                out[np.ix_([k for k in ks if t1[k] == ta], [k for k in ks if t0[k] == tb])] = True
-    return out | out.T
 
 
 def contested(e: _Ends, i: np.ndarray, j: np.ndarray) -> np.ndarray:
@@ -435,9 +422,10 @@ def untangled(scene: list[SceneObject], several: bool) -> list[SceneObject]:
     cut at crossings alone and joined whole `restored` (a new list; `scene` is left as
     it was)."""
     seen = [o for o in scene if o.track.valid.any()]
-    parts = parted(scene, several or (len(seen) >= 2 and any(o.moving for o in seen)))
+    asked = handovers.Asked()
+    parts = parted(scene, several or (len(seen) >= 2 and any(o.moving for o in seen)), asked)
     several = several or sum(p.moving and p.track.valid.any() for p in parts) >= 2
-    return restored(rejoined(parts, several), scene)
+    return restored(rejoined(parts, several, asked), scene)
 
 
 def restored(parts: list[SceneObject], scene: list[SceneObject]) -> list[SceneObject]:
