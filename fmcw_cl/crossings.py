@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import fixed_echoes
+from .numeric import steps
 from .objects import GATE_M, level, per_pair
 from .stages import faults
 from .stages.clutter import STILL_S
@@ -23,6 +24,8 @@ BRIDGE_S = 5e-3          # an object's path is interpolated across gaps this sho
 COURSE_S = 0.01          # an object's images are looked for this far beyond its verified pairs
                          # (moved on at their velocity: 25 mm at 500 m/s^2, inside an image's reach)
 STILL_M = 5e-4           # an object whose verified distances span at most this is still (`still`)
+FOLLOW_PAIRS = 16        # a fixed object's pairs read moving this close in pairs are taken together ...
+FOLLOW_M = 2.5e-4        # ... and their own where their distances follow their velocities within this
 
 
 def path(track: Track) -> np.ndarray:
@@ -46,13 +49,26 @@ def path(track: Track) -> np.ndarray:
 
 
 def read_moving(tracks: list[Track], moving: list[bool]) -> list[np.ndarray]:
-    """Per object, its pairs that are not its own where it is fixed (`moving` False)
-    and they read a velocity of fixed_echoes.MOVING_MPS or more: another echo's, or two
-    bodies' peaks paired across (a part cut from a jump's conversion: 43 integrated pairs
-    standing at 0.334 m while they read -0.34 to -0.61 m/s); none of a mover's. As a
-    fixed target's (target.ambiguous), for the parts the objects were cut into."""
-    return [np.zeros(t.pairs, bool) if m else np.abs(t.velocity_mps) >= fixed_echoes.MOVING_MPS
-            for t, m in zip(tracks, moving, strict=True)]
+    """Per object, its pairs that are not its own where it is fixed (`moving` False):
+    those that read a velocity of fixed_echoes.MOVING_MPS or more where, with the others
+    so read within FOLLOW_PAIRS of them, their distances do not follow their velocities
+    (first to last, within FOLLOW_M + 25 % of the velocities' integral): another echo's,
+    or two bodies' peaks paired across (a part cut from a jump's conversion: 43
+    integrated pairs standing at 0.334 m while they read -0.34 to -0.61 m/s). A mover's
+    part too brief to run (objects.runs), so fixed, keeps its pairs (a glide's 41 at
+    +0.52 m/s, 1.0 mm in 2 ms). None of a mover's; as a fixed target's
+    (target.ambiguous), for the parts the objects were cut into."""
+    out = []
+    for t, m in zip(tracks, moving, strict=True):
+        fast = np.flatnonzero(np.abs(t.velocity_mps) >= fixed_echoes.MOVING_MPS)
+        taken = np.zeros(t.pairs, bool)
+        if not m:
+            for k in np.split(fast, np.flatnonzero(np.diff(fast) > FOLLOW_PAIRS) + 1):
+                ran = float(np.sum(steps(t.time_s[k], t.velocity_mps[k])))
+                moved = t.distance_m[k[-1]] - t.distance_m[k[0]] if k.size else 0.0
+                taken[k] = k.size < 2 or abs(moved - ran) > FOLLOW_M + 0.25 * abs(ran)
+        out.append(taken)
+    return out
 
 
 def heard(track: Track) -> np.ndarray:
