@@ -1,17 +1,18 @@
 """Where a conversion's tracker left one echo for another while both were there.
 
 Its path (the mean of each pair's de-chirped half-sweep peaks, verified or not, where
-they agree within JUMP_MAX_M) steps between consecutive pairs by less than STEP_M while
-it holds one echo; a stretch of LONG_PAIRS such pairs or more is an echo (noise peaks do
-not go on so), and a stretch that goes on as an earlier one, within LINK_S and as it
-moved, is that echo again (`chains`: a few pairs of noise or on another echo between
-them do not part them). Where a gap of
-the verified pairs holds a step from the chain of the verified pair before it straight
-onto the chain of the one after (`handovers`), the tracker passed from one echo to
-another at once: two echoes at one time, so two bodies, however well one body's motion
-joins the pairs either side (a rail decelerating at 45 m/s^2, its tracker onto a glide
-at rest 21 mm beyond it, held as the glide set off: 30 ms on, the glide's pairs at -0.95
-m/s lay where the rail slowing at 90 m/s^2 would be; 47 valid pairs of the glide).
+they agree within JUMP_MAX_M) holds one echo in `stretches`: no step beyond STEP_M
+between consecutive pairs, no kink (its velocity turning by KINK_MPS, as where it runs
+onto another echo it crosses). A stretch of LONG_PAIRS pairs or more is an echo (noise
+peaks do not go on so), and one that goes on as an earlier one, within LINK_S, where
+and as fast as it moved, is that echo again (`chains`: a few pairs of noise or of
+another echo between them do not part them). Where a gap of the verified pairs holds a
+step from the chain of the verified pair before it straight onto the chain of the one
+after (`handovers`), the tracker passed from one echo to another at once: two echoes
+at one time, so two bodies, however well one body's motion joins the pairs either side
+(a rail decelerating at 45 m/s^2, its tracker onto a glide at rest 21 mm beyond it,
+held as the glide set off: 30 ms on, the glide's pairs at -0.95 m/s lay where the rail
+slowing at 90 m/s^2 would be; 47 valid pairs of the glide).
 """
 
 from __future__ import annotations
