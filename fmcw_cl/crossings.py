@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import fixed_echoes
-from .numeric import steps
+from .numeric import follows
 from .objects import GATE_M, level, per_pair
 from .stages import faults
 from .stages.clutter import STILL_S
@@ -52,7 +52,7 @@ def read_moving(tracks: list[Track], moving: list[bool]) -> list[np.ndarray]:
     """Per object, its pairs that are not its own where it is fixed (`moving` False):
     those that read a velocity of fixed_echoes.MOVING_MPS or more where, with the others
     so read within FOLLOW_PAIRS of them, their distances do not follow their velocities
-    (first to last, within FOLLOW_M + 25 % of the velocities' integral): another echo's,
+    (numeric.follows: first to last, within FOLLOW_M + 25 % of their integral): another echo's,
     or two bodies' peaks paired across (a part cut from a jump's conversion: 43
     integrated pairs standing at 0.334 m while they read -0.34 to -0.61 m/s). A mover's
     part too brief to run (objects.runs), so fixed, keeps its pairs (a glide's 41 at
@@ -62,11 +62,10 @@ def read_moving(tracks: list[Track], moving: list[bool]) -> list[np.ndarray]:
     for t, m in zip(tracks, moving, strict=True):
         fast = np.flatnonzero(np.abs(t.velocity_mps) >= fixed_echoes.MOVING_MPS)
         taken = np.zeros(t.pairs, bool)
-        if not m:
+        if not m and fast.size:
             for k in np.split(fast, np.flatnonzero(np.diff(fast) > FOLLOW_PAIRS) + 1):
-                ran = float(np.sum(steps(t.time_s[k], t.velocity_mps[k])))
-                moved = t.distance_m[k[-1]] - t.distance_m[k[0]] if k.size else 0.0
-                taken[k] = k.size < 2 or abs(moved - ran) > FOLLOW_M + 0.25 * abs(ran)
+                along = k.size > 1 and follows(t.time_s[k], t.distance_m[k], t.velocity_mps[k], FOLLOW_M)[0]
+                taken[k] = not along
         out.append(taken)
     return out
 

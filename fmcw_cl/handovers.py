@@ -44,8 +44,8 @@ def stretches(time_s: np.ndarray, path_m: np.ndarray) -> np.ndarray:
     w = np.arange(k) - 0.5 * (k - 1)
     dt = float(np.median(np.diff(time_s)))
     slope = np.correlate(np.nan_to_num(path_m), w, "valid") / (dt * np.sum(w * w))   # over [m, m + k)
-    steps = np.cumsum(out)
-    whole = steps[k - 1:] - steps[:n - k + 1] == 0             # no step inside [m, m + k)
+    count = np.cumsum(out)
+    whole = count[k - 1:] - count[:n - k + 1] == 0             # no step inside [m, m + k)
     slope[~whole] = np.nan
     i = np.arange(k, n - k + 1)                                # left window [i - k, i), right [i, i + k)
     out[i] |= np.abs(slope[i] - slope[i - k]) >= KINK_MPS

@@ -224,6 +224,14 @@ def travelled(t: np.ndarray, v: np.ndarray) -> np.ndarray:
     return np.concatenate([[0.0], np.cumsum(steps(t, v))])
 
 
+def follows(t: np.ndarray, d: np.ndarray, v: np.ndarray, floor_m: float) -> tuple[bool, float]:
+    """Whether distances d (m) at times t (s) follow velocities v (m/s), first to last,
+    within `floor_m` + 25 % of the velocities' integral (trapezoids); and that integral
+    (m). At least one point."""
+    ran = float(np.sum(steps(t, v)))
+    return bool(abs(d[-1] - d[0] - ran) <= floor_m + 0.25 * abs(ran)), ran
+
+
 def centred_slope(t: np.ndarray, r: np.ndarray) -> tuple[float, float, np.ndarray, np.ndarray]:
     """Least-squares slope of r over t; the sum of squares of t about its mean; t and r
     less their means."""

@@ -48,7 +48,7 @@ from dataclasses import dataclass, fields, replace
 
 import numpy as np
 
-from . import fixed_echoes, target
+from . import fixed_echoes, numeric, target
 from .stages import faults
 from .stages.verification import ACCEL_MAX, KINEMATIC_S, reachable
 from .track import Track
@@ -158,9 +158,8 @@ def runs(track: Track) -> bool:
     ok = np.flatnonzero(track.valid)
     if np.sum(np.abs(track.velocity_mps[ok]) >= fixed_echoes.MOVING_MPS) < 3:
         return False
-    t, d, v = track.time_s[ok], track.distance_m[ok], track.velocity_mps[ok]
-    ran = float(np.sum(np.diff(t) * 0.5 * (v[1:] + v[:-1])))
-    return bool(abs(ran) >= RUN_M and abs(d[-1] - d[0] - ran) <= 1e-3 + 0.25 * abs(ran))
+    along, ran = numeric.follows(track.time_s[ok], track.distance_m[ok], track.velocity_mps[ok], 1e-3)
+    return abs(ran) >= RUN_M and along
 
 
 def holds(track: Track, c: Candidate) -> float:

@@ -15,6 +15,7 @@ import numpy as np
 from . import coherence, conversions, crossings, exchanges, fixed_echoes, identities, objects, rests, target
 from .capture import Capture
 from .conversions import Converted, First
+from .handovers import Asked
 from .processor import ChunkMeasurements, ChunkProcessor
 from .stages import faults, phase
 from .track import Track
@@ -104,8 +105,7 @@ def _told_apart(found: list[objects.SceneObject], done: list[Converted], own: Co
     # before their parts were told apart): a sway's part de-chirped at -3.48 m/s held a
     # glide's image, 18 pairs
     image = crossings.images(tracks, own.plan.model, own.plan.window, _calm_unseen(scene, of, own))
-    clash = [c | m for c, m in zip(clash, image, strict=True)]
-    clash = [c | m for c, m in zip(clash, crossings.read_moving(tracks, moving), strict=True)]
+    clash = [c | m | r for c, m, r in zip(clash, image, crossings.read_moving(tracks, moving), strict=True)]
     if lone:
         paths = crossings.conflicts(tracks, [not m for m in moving])
         clash = [c | p for c, p in zip(clash, paths, strict=True)]
@@ -173,7 +173,9 @@ def one_body(track: Track, moving: bool) -> Track:
     to the other where they come near) a copy with all of them `ambiguous`. Two sways
     crossing in one span, one object: 1167 valid pairs on the other sway; a hand moved
     down through a jump's path: 2109."""
-    parts = identities.rejoined(identities.parted([objects.SceneObject(1, moving, track, "")]))
+    asked = Asked()             # the track's handovers read once for both
+    parts = identities.rejoined(identities.parted([objects.SceneObject(1, moving, track, "")], asked=asked),
+                                asked=asked)
     if sum(int(p.track.valid.sum()) >= BODY_PAIRS for p in parts) < 2:
         return track
     out = objects.invalidated(track, track.valid.copy())
