@@ -13,17 +13,19 @@ from __future__ import annotations
 import numpy as np
 
 from . import fixed_echoes
+from .coherence import slope
 from .numeric import follows
 from .objects import GATE_M, level, per_pair
 from .stages import faults
 from .stages.clutter import STILL_S
-from .stages.verification import KINEMATIC_S
+from .stages.verification import ACCEL_MAX, KINEMATIC_S
 from .track import Track
 
 BRIDGE_S = 5e-3          # an object's path is interpolated across gaps this short
 COURSE_S = 0.01          # an object's images are looked for this far beyond its verified pairs
                          # (moved on at their velocity: 25 mm at 500 m/s^2, inside an image's reach)
 STILL_M = 5e-4           # an object whose verified distances span at most this is still (`still`)
+SLOPE_S = 2e-3           # a course beyond the verified pairs accelerates as their velocities within this
 FOLLOW_PAIRS = 16        # a fixed object's pairs read moving this close in pairs are taken together ...
 FOLLOW_M = 2.5e-4        # ... and their own where their distances follow their velocities within this
 
@@ -85,8 +87,11 @@ def heard(track: Track) -> np.ndarray:
 def course(track: Track, reach_s: float = COURSE_S) -> tuple[np.ndarray, np.ndarray]:
     """An object's distance (m) and velocity (m/s) at each pair as far as its motion
     tells: its `path` (the velocities interpolated alike), and beyond it, within
-    `reach_s` of the nearest verified pair, that pair's distance moved on at its
-    velocity; NaN further."""
+    `reach_s` of the nearest verified pair, that pair moved on at its velocity and
+    acceleration (`_acceleration`); NaN further. At its velocity alone, a hand's course 3.5 ms before its
+    first verified pair (accelerating at 40 m/s^2) lay 0.13 m/s off, and its image
+    4 mm from where a pair of its peak and a jump's lay (benchmarks/movers.py seed 17,
+    capture 12)."""
     where = path(track)
     ok = np.flatnonzero(track.valid)
     if ok.size == 0:
@@ -101,9 +106,20 @@ def course(track: Track, reach_s: float = COURSE_S) -> tuple[np.ndarray, np.ndar
     dt = t[gap] - t[near]
     reach = np.abs(dt) <= reach_s
     gap, near, dt = gap[reach], near[reach], dt[reach]
-    where[gap] = d[near] + v[near] * dt
-    u[gap] = v[near]
+    ends = np.unique(near)
+    acc = _acceleration(t[ok], v[ok], t[ends])[np.searchsorted(ends, near)]
+    where[gap] = d[near] + (v[near] + 0.5 * acc * dt) * dt
+    u[gap] = v[near] + acc * dt
     return where, u
+
+
+def _acceleration(t: np.ndarray, v: np.ndarray, at: np.ndarray) -> np.ndarray:
+    """The slope (m/s^2) of the verified velocities `v` at times `t` (s) within SLOPE_S
+    of each of the pairs' times `at`, at most ACCEL_MAX; 0 where those pairs span less
+    than half of SLOPE_S (a few pairs' noise is no acceleration)."""
+    lo, hi = np.searchsorted(t, at - SLOPE_S), np.searchsorted(t, at + SLOPE_S, side="right")
+    wide = t[hi - 1] - t[lo] >= 0.5 * SLOPE_S
+    return np.where(wide, np.clip(slope(t, v, at, SLOPE_S), -ACCEL_MAX, ACCEL_MAX), 0.0)
 
 
 def conflicts(tracks: list[Track], fixed: list[bool] | None = None,
@@ -187,7 +203,7 @@ def images(tracks: list[Track], model, window: np.ndarray,
            unseen: set[tuple[int, int]] = frozenset()) -> list[np.ndarray]:
     """For each track, the verified pairs whose de-chirped peaks could be the image of
     another object (fmcw_cl.wall_images.confused_moving, along its `course`, at its
-    velocity and median level): a band left empty of echoes lets a tracker hold
+    velocity and level, `_levels`): a band left empty of echoes lets a tracker hold
     another's image (a rail's, de-chirped 10 m/s off, 0.3 m beyond it). A fixed one's
     too, beside the target choice's `walls_m`: a cable swaying +-10 mm at 0.19 m/s,
     listed at 0.260 m, put its image 15 mm from that of a still tone there. Not where
@@ -195,10 +211,10 @@ def images(tracks: list[Track], model, window: np.ndarray,
     from .wall_images import confused_moving
 
     out = [np.zeros(t.pairs, bool) for t in tracks]
-    sources = {}                        # each object's course, velocity, verified path and level
+    sources = {}                        # each object's course, velocity, verified path and levels
     for j, b in enumerate(tracks):
         if b.valid.any():
-            sources[j] = (*course(b), path(b), level(b))
+            sources[j] = (*course(b), path(b), _levels(b))
     for i, a in enumerate(tracks):
         if not a.valid.any():
             continue
@@ -215,6 +231,17 @@ def images(tracks: list[Track], model, window: np.ndarray,
             out[i] |= a.valid & confused_moving(a.velocity_mps, tuple(peaks), tuple(snr), beyond, u, np.inf,
                                                 model, window, a.valid)
     return out
+
+
+def _levels(track: Track) -> np.ndarray:
+    """An object's level (dB over the floor) in each pair's rising and falling
+    half-sweeps, (2, pairs): its median (objects.level), or its own de-chirped peak's
+    where a verified pair reads it louder. A jump's image 3.7 m/s off passed as 3.1 dB
+    under the peak of a pair that held it, by its median level, 20.6 dB; its own
+    half-sweeps there read 21-24 dB (benchmarks/movers.py seed 17, capture 15)."""
+    median = level(track)
+    own = per_pair(track, "sweep_snr_dechirped_db")
+    return np.where(track.valid, np.fmax(own, median), median)
 
 
 def still(track: Track, wavelength_m: float) -> bool:

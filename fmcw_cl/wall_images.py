@@ -137,16 +137,19 @@ def confused_moving(velocity: np.ndarray, peaks_m: tuple, snr_db: tuple, other_m
     """`confused` for another object that moves: at `other_m` (m) with `other_mps` (m/s)
     at each pair (NaN: not there). Its tone carries its own Doppler term, so a
     half-sweep de-chirped at v shows it as a still tone de-chirped at v - u (its mirror,
-    the conjugate, at v + u); `other_db` is its level (dB over the floor)."""
+    the conjugate, at v + u); `other_db` is its level (dB over the floor): one, or per
+    pair in its rising and falling half-sweeps, (2, pairs)."""
     out = np.zeros(rows.size, bool)
     v = np.asarray(velocity, np.float64)
     own = np.fmin(*snr_db)
-    there = rows & np.isfinite(other_m) & np.isfinite(other_mps) & np.isfinite(v) & _may_reach(other_db, own)
+    levels = np.broadcast_to(np.asarray(other_db, np.float64), (2, rows.size))
+    there = (rows & np.isfinite(other_m) & np.isfinite(other_mps) & np.isfinite(v)
+             & _may_reach(np.max(levels, axis=0), own))
     for sign in (1.0, -1.0):                       # the tone, then its mirror
         rel = v - sign * np.nan_to_num(other_mps)
         tone = sign * np.nan_to_num(other_m)
-        for beta, k, peak in zip((model.beta_rise, model.beta_fall), (model.k_rise, model.k_fall), peaks_m,
-                                 strict=True):
+        for beta, k, peak, level in zip((model.beta_rise, model.beta_fall), (model.k_rise, model.k_fall),
+                                        peaks_m, levels, strict=True):
             shift = -rel * k
             offset = peak - tone
             near = there & (np.abs(offset - shift) <= IMAGE_REACH_M + IMAGE_REACH_SHARE * np.abs(shift))
@@ -154,6 +157,6 @@ def confused_moving(velocity: np.ndarray, peaks_m: tuple, snr_db: tuple, other_m
             if idx.size:
                 at, top = image_gain_db(beta, rel[idx], offset[None, idx], window, model)
                 core = at[0] >= top - IMAGE_CORE_DB
-                strong = _as_strong(other_db, at[0], own[idx])
+                strong = _as_strong(level[idx], at[0], own[idx])
                 out[idx] |= core & strong
     return out

@@ -122,6 +122,30 @@ def test_a_weak_walls_image_reads_its_power_and_the_noise(shaped):
     assert got.tolist() == [True, False]
 
 
+def test_a_movers_image_is_as_strong_as_its_level_in_that_direction(shaped):
+    """A mover at 0.29 m, +1.95 m/s, seen from a pair de-chirped at -1.7 m/s whose rising
+    peak lies at the mover's image's top: given the mover's level per direction, the
+    pair is confused where its rising level makes the image strong enough (3 dB over
+    its median: its own half-sweeps there read it so, movers.py seed 17, capture 15),
+    not at the median alone, nor where only its falling level is louder (that
+    direction's image lies elsewhere)."""
+    lut, win, model = shaped
+    v, u, at_m = np.full(3, -1.7), np.full(3, 1.95), np.full(3, 0.29)
+    rel = v[0] - u[0]
+    grid = at_m[0] - rel * model.k_rise + np.arange(-0.06, 0.06, model.metres_per_bin)
+    gain, top = wall_images.image_gain_db(model.beta_rise, np.full(grid.size, rel), grid - at_m[0], win,
+                                          model)
+    peak = grid[np.argmax(gain)]
+    median = 20.0
+    own = float(wall_images.image_level_db(median, top[0])) + wall_images.IMAGE_MARGIN_DB + 1.0
+    peaks, snr = (np.full(3, peak), np.full(3, 0.15)), (np.full(3, own), np.full(3, own + 3))
+    rows = np.ones(3, bool)
+    assert not wall_images.confused_moving(v, peaks, snr, at_m, u, median, model, win, rows).any()
+    levels = np.array([[median, median + 3.0, median], [median, median, median + 3.0]])
+    got = wall_images.confused_moving(v, peaks, snr, at_m, u, levels, model, win, rows)
+    assert got.tolist() == [False, True, False]
+
+
 @pytest.mark.parametrize("seed", [532, 533])
 def test_a_take_off_past_a_weak_wall_under_full_scale_noise_makes_no_phantom(tmp_path, seed):
     """benchmarks/hunt.py seed 24, capture 50 (and the next seed of the simulator): a
