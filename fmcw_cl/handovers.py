@@ -8,7 +8,8 @@ peaks do not go on so), and one that goes on as an earlier one, within LINK_S, w
 and as fast as it moved, is that echo again (`chains`: a few pairs of noise or of
 another echo between them do not part them). Where a gap of the verified pairs holds a
 step from the chain of the verified pair before it straight onto the chain of the one
-after (`handovers`), the tracker passed from one echo to another at once: two echoes
+after (`handovers`; across pairs whose two peaks part, each on one echo), the tracker
+passed from one echo to another at once: two echoes
 at one time, so two bodies, however well one body's motion joins the pairs either side
 (a rail decelerating at 45 m/s^2, its tracker onto a glide at rest 21 mm beyond it,
 held as the glide set off: 30 ms on, the glide's pairs at -0.95 m/s lay where the rail
@@ -122,12 +123,37 @@ def handovers(track: Track) -> tuple[np.ndarray, np.ndarray]:
     peaks = per_pair(track, "sweep_distance_dechirped_m")
     path = np.where(np.abs(peaks[0] - peaks[1]) <= JUMP_MAX_M, np.mean(peaks, axis=0), np.nan)
     lab = chains(track.time_s, path)
-    x, y = lab[a], lab[b]
-    # the first pair after a on the later's chain, and whether the pair before it is on the earlier's
-    first = np.array([a[i] + 1 + int(np.argmax(lab[a[i] + 1:b[i] + 1] == y[i])) for i in range(a.size)])
-    handed = ((x >= 0) & (y >= 0) & (x != y) & (lab[first - 1] == x)
-              & (np.abs(path[first] - path[first - 1]) > STEP_M))
+    on = np.flatnonzero(lab >= 0)
+    if not on.size:
+        return np.zeros(0), np.zeros(0)
+    # the chains of the verified pairs either side, or of the pairs on chains nearest them
+    # within 2 TREND_PAIRS (a pair whose peaks part is on none, nor are the pairs before
+    # it within a kink's windows)
+    xa = on[np.maximum(np.searchsorted(on, a, "right") - 1, 0)]
+    yb = on[np.minimum(np.searchsorted(on, b), on.size - 1)]
+    x = np.where((xa <= a) & (a - xa <= 2 * TREND_PAIRS), lab[xa], -1)
+    y = np.where((yb >= b) & (yb - b <= 2 * TREND_PAIRS), lab[yb], -1)
+    handed = np.zeros(a.size, bool)
+    for i in np.flatnonzero((x >= 0) & (y >= 0) & (x != y)):
+        # the first pair after the earlier's on the later's chain, and the last on a chain before it
+        first = xa[i] + 1 + int(np.argmax(lab[xa[i] + 1:yb[i] + 1] == y[i]))
+        last = on[np.searchsorted(on, first) - 1]
+        if lab[last] == x[i] and first - last <= 2 * TREND_PAIRS + 1:
+            handed[i] = _stepped(track.time_s, path, lab == x[i], last, first)
     return track.time_s[a[handed]], track.time_s[b[handed]]
+
+
+def _stepped(time_s: np.ndarray, path: np.ndarray, mine: np.ndarray, last: int, first: int) -> bool:
+    """Whether the path steps from pair `last` (on a chain, `mine` its pairs) to pair
+    `first` beyond STEP_M + ACCEL_MAX dt^2 / 2 from where the chain's end (`_end`) moves
+    on at its velocity. Between them lie pairs whose two half-sweeps' peaks part (one on
+    each echo: a glide's rising peak held as its falling one followed it, 2.4 mm apart
+    where it passed onto a glide at rest 8 mm beyond, benchmarks/movers.py seed 19,
+    capture 23) or none."""
+    k = np.flatnonzero(mine[:last + 1])[-2 * TREND_PAIRS:]
+    te, de, ve = _end(time_s[k], path[k])
+    dt = time_s[first] - te
+    return bool(abs(path[first] - (de + ve * dt)) > STEP_M + 0.5 * ACCEL_MAX * dt * dt)
 
 
 def across(parts: list[SceneObject], t1: np.ndarray, t0: np.ndarray, asked: Asked) -> np.ndarray:

@@ -68,6 +68,27 @@ def test_a_tracker_passed_to_another_echo_at_once_holds_two_bodies(seed, flip):
 
 
 @pytest.mark.parametrize("seed", [1, 2, 3])
+def test_a_pass_through_pairs_whose_peaks_part_holds_two_bodies(seed):
+    """A glide at -2.4 m/s passing a glide at rest 8 mm nearer (movers.py seed 19, capture
+    23): its last 6 pairs' rising peaks stay as the falling ones follow it (up to 2.4 mm
+    apart: on no chain, the last verified one too), then the tracker is on the rest, the
+    rest verified from 7 ms on. A body landing there could join them; the step from
+    the glide's chain onto the rest's, across the parting pairs, parts them."""
+    glide = 0.3300 - 2.4 * (T - T[400])
+    rest = np.full(N, 0.3133)
+    path = np.where(np.arange(N) < 560, glide, rest)
+    velocity = np.where(np.arange(N) < 560, -2.4, 0.0)
+    valid = (np.arange(N) < 560) | (np.arange(N) >= 700)
+    track = _track(path, velocity, valid, seed)
+    lag = 4.8e-4 * np.arange(1, 7)                  # the rising peaks held where they were
+    track.sweep_distance_dechirped_m[2 * 554:2 * 560:2] += lag
+    before, after = handovers.handovers(track)
+    assert before.tolist() == [T[559]] and after.tolist() == [T[700]]
+    scene = identities.rejoined(identities.parted([objects.SceneObject(1, True, track, "")]), True)
+    assert sorted(int(o.track.valid.sum()) for o in scene) == [N - 700, 560]
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
 @pytest.mark.parametrize("agree", [False, True])
 def test_noise_pairs_at_a_stretchs_end_are_no_pass(seed, agree):
     """A rail's two pairs in a fade, one half-sweep's peak 2.5 and 4.7 mm off (or both
