@@ -20,13 +20,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from .objects import SceneObject, per_pair
+from .objects import SceneObject, per_pair, seen_again
 from .stages.verification import ACCEL_MAX, JUMP_MAX_M, KINEMATIC_S
 from .track import Track
 
 STEP_M = 2e-3            # a step between consecutive pairs beyond any body's (40 m/s at 20 kHz)
 KINK_MPS = 0.5           # the path's velocity turning this much at a pair (TREND_PAIRS either side): another
                          # echo's (a sway at +1.9 m/s onto a glide at +0.4 it crossed)
+KINK_SIGMAS = 5.0        # ... and this many times the two slopes' noise (their windows' residuals)
 LONG_PAIRS = 20          # a stretch without steps or kinks this long is an echo (1 ms at 20 kHz)
 LINK_S = KINEMATIC_S     # a stretch goes on as an earlier chain across at most this ...
 TREND_PAIRS = 8          # ... moved on at the velocity of the chain's last this many pairs
@@ -36,7 +37,9 @@ def stretches(time_s: np.ndarray, path_m: np.ndarray) -> np.ndarray:
     """Where the path `path_m` (m, at `time_s` s) starts a new stretch of one echo (a
     boolean per pair): a step beyond STEP_M from the pair before (or NaN), or a kink,
     its least-squares velocities over TREND_PAIRS before and from it, both free of
-    steps, KINK_MPS apart or more."""
+    steps, KINK_MPS apart or more and KINK_SIGMAS times their noise (a glide's path at
+    29 dB broke into stretches of 1-16 pairs at KINK_MPS alone, movers.py seed 20,
+    capture 21)."""
     n, k = path_m.size, TREND_PAIRS
     out = np.zeros(n, bool)
     out[1:] = ~(np.abs(np.diff(path_m)) <= STEP_M)            # NaN steps too
@@ -44,12 +47,19 @@ def stretches(time_s: np.ndarray, path_m: np.ndarray) -> np.ndarray:
         return out
     w = np.arange(k) - 0.5 * (k - 1)
     dt = float(np.median(np.diff(time_s)))
-    slope = np.correlate(np.nan_to_num(path_m), w, "valid") / (dt * np.sum(w * w))   # over [m, m + k)
+    y = np.nan_to_num(path_m - np.nanmedian(path_m))
+    slope = np.correlate(y, w, "valid") / (dt * np.sum(w * w))   # over [m, m + k)
+    # each window's residual variance about its line, so its slope's (a noisy path's
+    # slopes scatter by more than KINK_MPS: 0.1 mm at 20 dB)
+    sums = [np.convolve(x, np.ones(k), "valid") for x in (y, y * y)]
+    spread = np.maximum(sums[1] - sums[0] ** 2 / k - slope ** 2 * dt * dt * np.sum(w * w), 0.0)
+    var = spread / (k - 2) / (dt * dt * np.sum(w * w))
     count = np.cumsum(out)
     whole = count[k - 1:] - count[:n - k + 1] == 0             # no step inside [m, m + k)
     slope[~whole] = np.nan
     i = np.arange(k, n - k + 1)                                # left window [i - k, i), right [i, i + k)
-    out[i] |= np.abs(slope[i] - slope[i - k]) >= KINK_MPS
+    bar = np.maximum(KINK_MPS, KINK_SIGMAS * np.sqrt(var[i] + var[i - k]))
+    out[i] |= np.abs(slope[i] - slope[i - k]) >= bar
     return out
 
 
@@ -134,13 +144,32 @@ def handovers(track: Track) -> tuple[np.ndarray, np.ndarray]:
     x = np.where((xa <= a) & (a - xa <= 2 * TREND_PAIRS), lab[xa], -1)
     y = np.where((yb >= b) & (yb - b <= 2 * TREND_PAIRS), lab[yb], -1)
     handed = np.zeros(a.size, bool)
+    t = track.time_s
     for i in np.flatnonzero((x >= 0) & (y >= 0) & (x != y)):
         # the first pair after the earlier's on the later's chain, and the last on a chain before it
         first = xa[i] + 1 + int(np.argmax(lab[xa[i] + 1:yb[i] + 1] == y[i]))
         last = on[np.searchsorted(on, first) - 1]
-        if lab[last] == x[i] and first - last <= 2 * TREND_PAIRS + 1:
-            handed[i] = _stepped(track.time_s, path, lab == x[i], last, first)
+        w = lab[last]
+        if w == y[i] or first - last > 2 * TREND_PAIRS + 1 or not _stepped(t, path, lab == w, last, first):
+            continue
+        handed[i] = w == x[i] or _goes_on(t, path, lab, xa[i], w)
     return track.time_s[a[handed]], track.time_s[b[handed]]
+
+
+def _goes_on(time_s: np.ndarray, path: np.ndarray, lab: np.ndarray, last: int, w: int) -> bool:
+    """Whether chain `w`, after pair `last`, can be the body of `last`'s chain seen
+    again (objects.seen_again, from that chain's `_end` before w to w's first pairs'):
+    not where chain w starts within 2 TREND_PAIRS of that end (a step or a kink off it
+    at once: another echo). A rail's tracker left it for a glide at rest 8 mm beyond it, then held the
+    rail coming to rest there, then stepped onto the glide setting off: 1372 valid pairs
+    of the glide on the rail's object (benchmarks/movers.py seed 20, capture 21)."""
+    theirs = np.flatnonzero(lab == w)
+    theirs = theirs[theirs > last][:2 * TREND_PAIRS]
+    mine = np.flatnonzero(lab[:theirs[0]] == lab[last])[-2 * TREND_PAIRS:] if theirs.size else theirs
+    if not theirs.size or theirs[0] - mine[-1] <= 2 * TREND_PAIRS + 1:
+        return False
+    start = _end(time_s[theirs][::-1], path[theirs][::-1])
+    return bool(seen_again(*_end(time_s[mine], path[mine]), start[0], start[1], start[2]))
 
 
 def _stepped(time_s: np.ndarray, path: np.ndarray, mine: np.ndarray, last: int, first: int) -> bool:

@@ -46,8 +46,12 @@ def objects_of(cap: Capture, first: First, choice: target.Choice, own: Converted
             moving = bool(choice.moving)
             # without the de-chirp (the paper's method) a mover's peaks smear over centimetres
             # and pass between bodies within one: the test is the de-chirped tracker's
-            if not options.dechirp or one_body(own.track, moving) is own.track:
+            bodies, body = _bodies(own.track, moving) if options.dechirp else (1, own.track)
+            if body is own.track and bodies < 2:
                 return [objects.SceneObject(1, moving, own.track, "the target: no other echo")], 0, own
+            if bodies < 2:                  # another echo held briefly: its pairs ambiguous
+                return ([objects.SceneObject(1, moving, body, "the target: another echo held at once "
+                                             "is ambiguous")], 0, replace(own, track=body, whole=own.track))
             # one candidate, two bodies or more: its parts are the objects, as two
             # candidates' are, its tuning and its rest still the conversion's (`whole`)
             found = [objects.SceneObject(0, moving, own.track, f"{own.choice.note}: two bodies or more")]
@@ -172,16 +176,44 @@ def one_body(track: Track, moving: bool) -> Track:
     and .rejoined: two movers whose spans overlap in range, the tracker passing from one
     to the other where they come near) a copy with all of them `ambiguous`. Two sways
     crossing in one span, one object: 1167 valid pairs on the other sway; a hand moved
-    down through a jump's path: 2109."""
-    asked = Asked()             # the track's handovers read once for both
-    parts = identities.rejoined(identities.parted([objects.SceneObject(1, moving, track, "")], asked=asked),
-                                asked=asked)
-    if sum(int(p.track.valid.sum()) >= BODY_PAIRS for p in parts) < 2:
-        return track
+    down through a jump's path: 2109. Beside one body, parts its tracker passed onto at
+    once are another echo's (`_passed_onto`)."""
+    bodies, body = _bodies(track, moving)
+    if bodies < 2:
+        return body
     out = objects.invalidated(track, track.valid.copy())
     out.attrs["target_choice"] = (f"{track.attrs.get('target_choice', '')}: its verified pairs are two "
                                   "bodies or more (no one body moves between them): cannot be told apart")
     return out
+
+
+def _bodies(track: Track, moving: bool) -> tuple[int, Track]:
+    """How many parts of BODY_PAIRS verified pairs or more `track` holds, one body's
+    each (identities.parted and .rejoined), and beside one such, `track` with the parts
+    its tracker passed onto at once `ambiguous` (`_passed_onto`)."""
+    asked = Asked()             # the track's handovers read once for both
+    parts = identities.rejoined(identities.parted([objects.SceneObject(1, moving, track, "")], asked=asked),
+                                asked=asked)
+    big = [int(p.track.valid.sum()) >= BODY_PAIRS for p in parts]
+    if sum(big) != 1:
+        return sum(big), track
+    return 1, _passed_onto(track, [p.track for p, b in zip(parts, big, strict=True) if not b], asked(track))
+
+
+def _passed_onto(track: Track, small: list[Track], handed: tuple[np.ndarray, np.ndarray]) -> Track:
+    """`track` with the verified pairs of its `small` parts (beside one of BODY_PAIRS or
+    more) `ambiguous` where the tracker passed onto such a part or off it at once
+    (`handed`: the handovers' times before and after): another echo's, there while the
+    body was elsewhere. Two legs landing 5 mm apart: the tracker left the one for the
+    other for 2 ms and came back, 39 valid pairs of the other (movers.py seed 20,
+    capture 30)."""
+    before, after = handed
+    taken = np.zeros(track.pairs, bool)
+    for p in small:
+        t = p.time_s[p.valid]
+        if t.size and (np.isin(t[0], after) or np.isin(t[-1], before)):
+            taken |= p.valid
+    return objects.invalidated(track, taken) if taken.any() else track
 
 
 def _same_echo(a: Track, b: Track) -> int:

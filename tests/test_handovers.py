@@ -161,3 +161,69 @@ def test_chains_join_a_stretch_that_goes_on_as_an_echo_and_skip_noise():
     assert lab[300] not in (-1, lab[0])
     assert (lab[600:700] == -1).all()
     assert lab[700] not in (-1, lab[0], lab[300])
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_a_noisy_paths_slopes_make_no_kinks_a_turn_does(seed):
+    """A glide decelerating at 83 m/s^2 whose path reads 0.1 mm of noise (a peak at
+    about 20 dB): its 8-pair slopes scatter by 0.3 m/s, and at KINK_MPS alone it broke
+    into stretches of a few pairs (movers.py seed 20, capture 21); it is one chain. A
+    turn by 6 m/s in that noise still starts a stretch, and in a quiet path one by
+    1 m/s does."""
+    rng = np.random.default_rng(seed)
+    k = np.arange(N)
+    glide = 0.27 - 1.15 * T - 41.5 * T ** 2
+    noisy = glide + 1e-4 * rng.standard_normal(N)
+    lab = handovers.chains(T, noisy)
+    assert lab[0] >= 0 and np.mean(lab == lab[0]) > 0.95
+    turned = noisy + np.where(k >= 600, 6.0 * (T - T[600]), 0.0)
+    starts = np.flatnonzero(handovers.stretches(T, turned))
+    assert np.any(np.abs(starts - 600) <= handovers.TREND_PAIRS)
+    quiet = glide + 2e-5 * rng.standard_normal(N) + np.where(k >= 600, 1.0 * (T - T[600]), 0.0)
+    assert np.any(np.abs(np.flatnonzero(handovers.stretches(T, quiet)) - 600) <= handovers.TREND_PAIRS)
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_a_pass_from_the_body_come_to_rest_onto_another_holds_two_bodies(seed):
+    """movers.py seed 20, capture 21: a rail slowing at 83 m/s^2 (verified to pair 399),
+    its tracker then on a glide at rest 8 mm beyond (100 pairs), then on the rail come
+    to rest (140 pairs), then straight onto the glide setting off (verified from pair
+    700): the step onto the later's chain is from the rail's body (seen again at rest
+    where it slowed to), not from its own chain, and still parts the two. Where the
+    tracker left the rail's chain for that echo at once (a step off it), the echo is
+    not the rail's and the step onto the glide parts nothing."""
+    t0 = T[400]
+    rail = 0.2717 + 0.99 * (T - t0) - 41.5 * (T - t0) ** 2
+    stop = 0.2717 + 0.99 ** 2 / 166.0
+    glide = 0.2806 - 0.5 * 60.0 * np.maximum(T - T[690], 0.0) ** 2
+    k = np.arange(N)
+    path = np.where(k < 420, rail, glide)
+    path[560:700] = stop
+    velocity = np.where(k < 400, 0.99 - 83.0 * (T - t0), -60.0 * np.maximum(T - T[690], 0.0))
+    valid = (k < 400) | (k >= 700)
+    track = _track(path, velocity, valid, seed)
+    before, after = handovers.handovers(track)
+    assert before.tolist() == [T[399]] and after.tolist() == [T[700]]
+    path[420:700] = stop + 0.01               # off the rail's chain at once onto a still echo
+    assert handovers.handovers(_track(path, velocity, valid, seed))[0].size == 0
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_a_lone_tracks_brief_pass_onto_another_echo_is_ambiguous(seed):
+    """movers.py seed 20, capture 30: two legs landing 5 mm apart, one object; its
+    tracker left the one for the other for 39 pairs and came back. Those pairs are
+    another echo's (`ambiguous`), the body's stay; held for BODY_PAIRS or more, the
+    track holds two bodies, every pair ambiguous (scene.one_body)."""
+    from fmcw_cl import scene
+
+    k = np.arange(N)
+    body = 0.0765 - 0.14 * T
+    for flip, left in ((39, N - 41), (45, 0)):
+        other = (k >= 600) & (k < 600 + flip)
+        path = np.where(other, body - 0.0045 - 0.16 * (T - T[600]), body)
+        velocity = np.where(other, -0.3, -0.14)
+        valid = (k != 599) & (k != 600 + flip)           # the pairs at the steps unverified
+        track = _track(path, velocity, valid, seed)
+        out = scene.one_body(track, True)
+        assert int(out.valid.sum()) == left
+        assert not out.valid[other].any() and np.all(out.reason[other & valid] == faults.AMBIGUOUS)
