@@ -88,10 +88,10 @@ def course(track: Track, reach_s: float = COURSE_S) -> tuple[np.ndarray, np.ndar
     """An object's distance (m) and velocity (m/s) at each pair as far as its motion
     tells: its `path` (the velocities interpolated alike), and beyond it, within
     `reach_s` of the nearest verified pair, that pair moved on at its velocity and
-    acceleration (`_acceleration`); NaN further. At its velocity alone, a hand's course 3.5 ms before its
-    first verified pair (accelerating at 40 m/s^2) lay 0.13 m/s off, and its image
-    4 mm from where a pair of its peak and a jump's lay (benchmarks/movers.py seed 17,
-    capture 12)."""
+    acceleration (`_acceleration`); NaN further. At its velocity alone, a hand's course
+    3.5 ms before its first verified pair (accelerating at 40 m/s^2) lay 0.13 m/s off,
+    and its image 4 mm from where a pair of its peak and a jump's lay
+    (benchmarks/movers.py seed 17, capture 12)."""
     where = path(track)
     ok = np.flatnonzero(track.valid)
     if ok.size == 0:

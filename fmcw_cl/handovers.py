@@ -2,18 +2,18 @@
 
 Its path (the mean of each pair's de-chirped half-sweep peaks, verified or not, where
 they agree within JUMP_MAX_M) holds one echo in `stretches`: no step beyond STEP_M
-between consecutive pairs, no kink (its velocity turning by KINK_MPS, as where it runs
-onto another echo it crosses). A stretch of LONG_PAIRS pairs or more is an echo (noise
+between consecutive pairs, no kink (its velocity turning by KINK_MPS and beyond its
+noise, as where it runs onto another echo it crosses). A stretch of LONG_PAIRS pairs or more is an echo (noise
 peaks do not go on so), and one that goes on as an earlier one, within LINK_S, where
 and as fast as it moved, is that echo again (`chains`: a few pairs of noise or of
 another echo between them do not part them). Where a gap of the verified pairs holds a
 step from the chain of the verified pair before it straight onto the chain of the one
-after (`handovers`; across pairs whose two peaks part, each on one echo), the tracker
-passed from one echo to another at once: two echoes
-at one time, so two bodies, however well one body's motion joins the pairs either side
-(a rail decelerating at 45 m/s^2, its tracker onto a glide at rest 21 mm beyond it,
-held as the glide set off: 30 ms on, the glide's pairs at -0.95 m/s lay where the rail
-slowing at 90 m/s^2 would be; 47 valid pairs of the glide).
+after (`handovers`; across pairs whose two peaks part, each on one echo, or from a
+chain the earlier one's body can be), the tracker passed from one echo to another at
+once: two echoes at one time, so two bodies, however well one body's motion joins the
+pairs either side (a rail decelerating at 45 m/s^2, its tracker onto a glide at rest
+21 mm beyond it, held as the glide set off: 30 ms on, the glide's pairs at -0.95 m/s
+lay where the rail slowing at 90 m/s^2 would be; 47 valid pairs of the glide).
 """
 
 from __future__ import annotations
@@ -160,9 +160,10 @@ def _goes_on(time_s: np.ndarray, path: np.ndarray, lab: np.ndarray, last: int, w
     """Whether chain `w`, after pair `last`, can be the body of `last`'s chain seen
     again (objects.seen_again, from that chain's `_end` before w to w's first pairs'):
     not where chain w starts within 2 TREND_PAIRS of that end (a step or a kink off it
-    at once: another echo). A rail's tracker left it for a glide at rest 8 mm beyond it, then held the
-    rail coming to rest there, then stepped onto the glide setting off: 1372 valid pairs
-    of the glide on the rail's object (benchmarks/movers.py seed 20, capture 21)."""
+    at once: another echo). A rail's tracker left it for a glide at rest 8 mm beyond
+    it, then held the rail coming to rest there, then stepped onto the glide setting
+    off: 1372 valid pairs of the glide on the rail's object (benchmarks/movers.py seed
+    20, capture 21)."""
     theirs = np.flatnonzero(lab == w)
     theirs = theirs[theirs > last][:2 * TREND_PAIRS]
     mine = np.flatnonzero(lab[:theirs[0]] == lab[last])[-2 * TREND_PAIRS:] if theirs.size else theirs
