@@ -25,7 +25,7 @@ BRIDGE_S = 5e-3          # an object's path is interpolated across gaps this sho
 COURSE_S = 0.01          # an object's images are looked for this far beyond its verified pairs
                          # (moved on at their velocity: 25 mm at 500 m/s^2, inside an image's reach)
 STILL_M = 5e-4           # an object whose verified distances span at most this is still (`still`)
-SLOPE_S = 2e-3           # a course beyond the verified pairs accelerates as their velocities within this
+SLOPE_S = 2e-3           # a course accelerates this long beyond its pairs, as their velocities within it
 FOLLOW_PAIRS = 16        # a fixed object's pairs read moving this close in pairs are taken together ...
 FOLLOW_M = 2.5e-4        # ... and their own where their distances follow their velocities within this
 
@@ -87,11 +87,11 @@ def heard(track: Track) -> np.ndarray:
 def course(track: Track, reach_s: float = COURSE_S) -> tuple[np.ndarray, np.ndarray]:
     """An object's distance (m) and velocity (m/s) at each pair as far as its motion
     tells: its `path` (the velocities interpolated alike), and beyond it, within
-    `reach_s` of the nearest verified pair, that pair moved on at its velocity and
-    acceleration (`_acceleration`); NaN further. At its velocity alone, a hand's course
-    3.5 ms before its first verified pair (accelerating at 40 m/s^2) lay 0.13 m/s off,
-    and its image 4 mm from where a pair of its peak and a jump's lay
-    (benchmarks/movers.py seed 17, capture 12)."""
+    `reach_s` of the nearest verified pair, that pair moved on at its velocity and, for
+    SLOPE_S (as long as it was measured), at its acceleration (`_acceleration`); NaN
+    further. At its velocity alone, a hand's course 3.5 ms before its first verified
+    pair (accelerating at 40 m/s^2) lay 0.13 m/s off, and its image 4 mm from where a
+    pair of its peak and a jump's lay (benchmarks/movers.py seed 17, capture 12)."""
     where = path(track)
     ok = np.flatnonzero(track.valid)
     if ok.size == 0:
@@ -108,8 +108,9 @@ def course(track: Track, reach_s: float = COURSE_S) -> tuple[np.ndarray, np.ndar
     gap, near, dt = gap[reach], near[reach], dt[reach]
     ends = np.unique(near)
     acc = _acceleration(t[ok], v[ok], t[ends])[np.searchsorted(ends, near)]
-    where[gap] = d[near] + (v[near] + 0.5 * acc * dt) * dt
-    u[gap] = v[near] + acc * dt
+    held = np.clip(dt, -SLOPE_S, SLOPE_S)            # as long as it was measured, then at that velocity
+    where[gap] = d[near] + v[near] * dt + acc * held * (dt - 0.5 * held)
+    u[gap] = v[near] + acc * held
     return where, u
 
 

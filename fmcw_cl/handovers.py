@@ -141,8 +141,8 @@ def handovers(track: Track) -> tuple[np.ndarray, np.ndarray]:
     # it within a kink's windows)
     xa = on[np.maximum(np.searchsorted(on, a, "right") - 1, 0)]
     yb = on[np.minimum(np.searchsorted(on, b), on.size - 1)]
-    x = np.where((xa <= a) & (a - xa <= 2 * TREND_PAIRS), lab[xa], -1)
-    y = np.where((yb >= b) & (yb - b <= 2 * TREND_PAIRS), lab[yb], -1)
+    x = np.where((xa <= a) & (a - xa <= 2 * TREND_PAIRS) & _near(track, path, a, xa), lab[xa], -1)
+    y = np.where((yb >= b) & (yb - b <= 2 * TREND_PAIRS) & _near(track, path, b, yb), lab[yb], -1)
     handed = np.zeros(a.size, bool)
     t = track.time_s
     for i in np.flatnonzero((x >= 0) & (y >= 0) & (x != y)):
@@ -154,6 +154,15 @@ def handovers(track: Track) -> tuple[np.ndarray, np.ndarray]:
             continue
         handed[i] = w == x[i] or _goes_on(t, path, lab, xa[i], w)
     return track.time_s[a[handed]], track.time_s[b[handed]]
+
+
+def _near(track: Track, path: np.ndarray, k: np.ndarray, at: np.ndarray) -> np.ndarray:
+    """Whether the path at pairs `at` lies where the verified pairs `k` move on at their
+    velocities (within STEP_M + ACCEL_MAX dt^2 / 2): the same echo, not one the tracker
+    stepped to after it."""
+    dt = track.time_s[at] - track.time_s[k]
+    there = track.distance_m[k] + track.velocity_mps[k] * dt
+    return np.abs(path[at] - there) <= STEP_M + 0.5 * ACCEL_MAX * dt * dt
 
 
 def _goes_on(time_s: np.ndarray, path: np.ndarray, lab: np.ndarray, last: int, w: int) -> bool:

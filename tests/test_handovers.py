@@ -227,3 +227,20 @@ def test_a_lone_tracks_brief_pass_onto_another_echo_is_ambiguous(seed):
         out = scene.one_body(track, True)
         assert int(out.valid.sum()) == left
         assert not out.valid[other].any() and np.all(out.reason[other & valid] == faults.AMBIGUOUS)
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_the_chain_after_a_gap_is_the_verified_pairs_own(seed):
+    """A glide at +3.8 m/s whose tracker held a sway near its turn 20 mm short of it for
+    5 ms, came back onto the glide for 5 verified pairs, their peaks apart (on no chain),
+    then onto the sway again (movers.py seed 20, capture 24): the chain after the gap is
+    not the sway's, which lies nowhere near the verified pairs' course; no pass."""
+    k = np.arange(N)
+    glide = 0.2769 + 3.8 * (T - T[400])
+    sway = np.full(N, 0.2553)
+    path = np.where((k >= 400) & (k < 500) | (k >= 505) & (k < 700), sway, glide)
+    valid = (k < 400) | (k >= 500) & (k < 505) | (k >= 700)
+    track = _track(path, np.full(N, 3.8), valid, seed)
+    track.sweep_distance_dechirped_m[2 * 500:2 * 505:2] += 1.5e-3        # peaks apart: on no chain
+    before, after = handovers.handovers(track)
+    assert T[399] not in before.tolist()
