@@ -106,8 +106,8 @@ def course(track: Track, reach_s: float = COURSE_S) -> tuple[np.ndarray, np.ndar
     dt = t[gap] - t[near]
     reach = np.abs(dt) <= reach_s
     gap, near, dt = gap[reach], near[reach], dt[reach]
-    ends = np.unique(near)
-    acc = _acceleration(t[ok], v[ok], t[ends])[np.searchsorted(ends, near)]
+    ends, which = np.unique(near, return_inverse=True)
+    acc = _acceleration(t[ok], v[ok], t[ends])[which]
     held = np.clip(dt, -SLOPE_S, SLOPE_S)            # as long as it was measured, then at that velocity
     where[gap] = d[near] + v[near] * dt + acc * held * (dt - 0.5 * held)
     u[gap] = v[near] + acc * held

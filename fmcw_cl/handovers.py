@@ -3,9 +3,9 @@
 Its path (the mean of each pair's de-chirped half-sweep peaks, verified or not, where
 they agree within JUMP_MAX_M) holds one echo in `stretches`: no step beyond STEP_M
 between consecutive pairs, no kink (its velocity turning by KINK_MPS and beyond its
-noise, as where it runs onto another echo it crosses). A stretch of LONG_PAIRS pairs or more is an echo (noise
-peaks do not go on so), and one that goes on as an earlier one, within LINK_S, where
-and as fast as it moved, is that echo again (`chains`: a few pairs of noise or of
+noise, as where it runs onto another echo it crosses). A stretch of LONG_PAIRS pairs or
+more is an echo (noise peaks do not go on so), and one that goes on as an earlier one,
+within LINK_S, where and as fast as it moved, is that echo again (`chains`: a few pairs of noise or of
 another echo between them do not part them). Where a gap of the verified pairs holds a
 step from the chain of the verified pair before it straight onto the chain of the one
 after (`handovers`; across pairs whose two peaks part, each on one echo, or from a
@@ -47,13 +47,14 @@ def stretches(time_s: np.ndarray, path_m: np.ndarray) -> np.ndarray:
         return out
     w = np.arange(k) - 0.5 * (k - 1)
     dt = float(np.median(np.diff(time_s)))
+    sxx = dt * dt * np.sum(w * w)                              # the windows' times about their mean, squared
     y = np.nan_to_num(path_m - np.nanmedian(path_m))
-    slope = np.correlate(y, w, "valid") / (dt * np.sum(w * w))   # over [m, m + k)
+    slope = np.correlate(y, w, "valid") * dt / sxx              # over [m, m + k)
     # each window's residual variance about its line, so its slope's (a noisy path's
     # slopes scatter by more than KINK_MPS: 0.1 mm at 20 dB)
     sums = [np.convolve(x, np.ones(k), "valid") for x in (y, y * y)]
-    spread = np.maximum(sums[1] - sums[0] ** 2 / k - slope ** 2 * dt * dt * np.sum(w * w), 0.0)
-    var = spread / (k - 2) / (dt * dt * np.sum(w * w))
+    spread = np.maximum(sums[1] - sums[0] ** 2 / k - slope ** 2 * sxx, 0.0)
+    var = spread / (k - 2) / sxx
     count = np.cumsum(out)
     whole = count[k - 1:] - count[:n - k + 1] == 0             # no step inside [m, m + k)
     slope[~whole] = np.nan
@@ -85,15 +86,25 @@ def chains(time_s: np.ndarray, path_m: np.ndarray) -> np.ndarray:
             if dt > LINK_S:
                 del recent[k]                               # ended too long ago for any later
                 continue
-            m = abs(d0 - (de + ve * dt))
-            if (0 < dt and m <= STEP_M + 0.5 * ACCEL_MAX * dt * dt
-                    and abs(v0 - ve) <= KINK_MPS + ACCEL_MAX * dt and m < miss):
+            m = _off(d0, de, ve, dt)
+            if 0 < dt and m <= _reach(dt) and abs(v0 - ve) <= KINK_MPS + ACCEL_MAX * dt and m < miss:
                 best, miss = k, m
         if best < 0:
             best, count = count, count + 1
         recent[best] = _end(t, d)
         out[a:b] = best
     return out
+
+
+def _off(d, d0, v0, dt):
+    """How far (m) distance `d` lies from `d0` moved on at `v0` (m/s) for `dt` (s)."""
+    return np.abs(d - (d0 + v0 * dt))
+
+
+def _reach(dt):
+    """How far (m) one echo can lie from where its velocity carries it over `dt` (s):
+    STEP_M + ACCEL_MAX dt^2 / 2."""
+    return STEP_M + 0.5 * ACCEL_MAX * dt * dt
 
 
 def _end(t: np.ndarray, d: np.ndarray) -> tuple[float, float, float]:
@@ -161,8 +172,7 @@ def _near(track: Track, path: np.ndarray, k: np.ndarray, at: np.ndarray) -> np.n
     velocities (within STEP_M + ACCEL_MAX dt^2 / 2): the same echo, not one the tracker
     stepped to after it."""
     dt = track.time_s[at] - track.time_s[k]
-    there = track.distance_m[k] + track.velocity_mps[k] * dt
-    return np.abs(path[at] - there) <= STEP_M + 0.5 * ACCEL_MAX * dt * dt
+    return _off(path[at], track.distance_m[k], track.velocity_mps[k], dt) <= _reach(dt)
 
 
 def _goes_on(time_s: np.ndarray, path: np.ndarray, lab: np.ndarray, last: int, w: int) -> bool:
@@ -175,11 +185,12 @@ def _goes_on(time_s: np.ndarray, path: np.ndarray, lab: np.ndarray, last: int, w
     20, capture 21)."""
     theirs = np.flatnonzero(lab == w)
     theirs = theirs[theirs > last][:2 * TREND_PAIRS]
-    mine = np.flatnonzero(lab[:theirs[0]] == lab[last])[-2 * TREND_PAIRS:] if theirs.size else theirs
-    if not theirs.size or theirs[0] - mine[-1] <= 2 * TREND_PAIRS + 1:
+    if not theirs.size:
         return False
-    start = _end(time_s[theirs][::-1], path[theirs][::-1])
-    return bool(seen_again(*_end(time_s[mine], path[mine]), start[0], start[1], start[2]))
+    mine = np.flatnonzero(lab[:theirs[0]] == lab[last])[-2 * TREND_PAIRS:]
+    if theirs[0] - mine[-1] <= 2 * TREND_PAIRS + 1:
+        return False
+    return bool(seen_again(*_end(time_s[mine], path[mine]), *_end(time_s[theirs][::-1], path[theirs][::-1])))
 
 
 def _stepped(time_s: np.ndarray, path: np.ndarray, mine: np.ndarray, last: int, first: int) -> bool:
@@ -192,7 +203,7 @@ def _stepped(time_s: np.ndarray, path: np.ndarray, mine: np.ndarray, last: int, 
     k = np.flatnonzero(mine[:last + 1])[-2 * TREND_PAIRS:]
     te, de, ve = _end(time_s[k], path[k])
     dt = time_s[first] - te
-    return bool(abs(path[first] - (de + ve * dt)) > STEP_M + 0.5 * ACCEL_MAX * dt * dt)
+    return bool(_off(path[first], de, ve, dt) > _reach(dt))
 
 
 def across(parts: list[SceneObject], t1: np.ndarray, t0: np.ndarray, asked: Asked) -> np.ndarray:
