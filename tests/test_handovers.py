@@ -244,3 +244,38 @@ def test_the_chain_after_a_gap_is_the_verified_pairs_own(seed):
     track.sweep_distance_dechirped_m[2 * 500:2 * 505:2] += 1.5e-3        # peaks apart: on no chain
     before, after = handovers.handovers(track)
     assert T[399] not in before.tolist()
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_a_turn_onto_a_crossing_echo_holds_two_bodies(seed):
+    """Two legs crossing 0.5 mm apart at +0.41 and -0.80 m/s, unverified (movers.py seed
+    15, capture 20): the tracker goes on along the other leg, a kink between chains and
+    no step, verified on it 4 ms on, where one body's motion could join the pairs either
+    side. No body turns by 1.2 m/s in the 1.1 ms between the chains' slopes: a pass."""
+    k = np.arange(N)
+    leg = 0.20 + 0.41 * (T - T[560])
+    other = 0.2005 - 0.80 * (T - T[560])
+    path = np.where(k < 560, leg, other)
+    valid = (k < 520) | (k >= 640)
+    track = _track(path, np.where(k < 560, 0.41, -0.80), valid, seed)
+    assert objects.seen_again(T[519], path[519], 0.41, T[640], path[640], -0.80)
+    before, after = handovers.handovers(track)
+    assert before.tolist() == [T[519]] and after.tolist() == [T[640]]
+
+
+def test_a_landing_in_noise_is_no_turn():
+    """A foot landing at -4.8 m/s and slowing at 450 m/s^2 through a fade of 10 pairs,
+    its path 0.1 mm noisy (its 16-pair slopes 0.1 m/s, its ends' medians 0.2): where the
+    noise keeps its chains apart, their slopes still agree within what the noise and
+    the slowing allow. No pass on any of ten seeds (the ends' medians against
+    KINK_MPS + ACCEL_MAX dt made one on seed 7)."""
+    k = np.arange(N)
+    slow = np.maximum(T - T[300], 0.0)
+    foot = 0.30 - 4.8 * (T - T[300]) + 225.0 * slow ** 2
+    foot = np.where(k < 700, foot, foot[700])
+    velocity = np.where(k < 700, -4.8 + 450.0 * slow, 0.0)
+    valid = (k < 540) | (k >= 600)
+    for seed in range(1, 11):
+        path = foot + 1e-4 * np.random.default_rng(seed).standard_normal(N)
+        path[560:570] = np.nan
+        assert handovers.handovers(_track(path, velocity, valid, seed))[0].size == 0, seed
