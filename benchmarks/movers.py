@@ -1,6 +1,6 @@
 """Random scenes of two movers hunted for valid pairs on the other object (a line each).
 
-    python benchmarks/movers.py [--seed K] [--count N] [--only I ...] [--out DIR]
+    python benchmarks/movers.py [--seed K] [--count N] [--only I ...] [--why] [--out DIR]
 
 Each capture holds two movers whose ranges cross within it: two jumps 10-80 ms apart
 (the second foot's ground within 10 mm), a rail's start against a glide, the jump and a
@@ -12,7 +12,10 @@ three in four, else clean; each on its own seed. Default options, the default ba
 (`evaluate.object_scores`); the lines that have any end in "<<<<"; "best" is each
 mover's best object's share of its visible periods; a capture that fails to convert
 says why. Reproducible: the draws follow
---seed, and `--only 7 24` converts those captures of the draw alone.
+--seed, and `--only 7 24` converts those captures of the draw alone. `--why` adds a line
+per capture: where each mover's visible periods went (`evaluate.untracked`, in %: held
+by its best object / beside the other mover / held by another object / outside every
+band / unverified / missed), and the sums over the captures at the end.
 """
 
 from dataclasses import replace
@@ -24,7 +27,7 @@ from fmcw_cl.backend import make_processor
 from fmcw_cl.capture import Capture
 from fmcw_cl.engine import process
 from fmcw_cl.errors import FmcwError
-from fmcw_cl.evaluate import object_scores
+from fmcw_cl.evaluate import UNTRACKED, object_scores, untracked
 from fmcw_cl.simulator.scene import Trajectory, glide, jump, rail, sway
 from fmcw_cl.simulator.several import LAB_SCENE
 from fmcw_cl.simulator.writer import Mover, SimulationConfig, simulate_capture
@@ -102,9 +105,11 @@ def around_a_crossing(a: Trajectory, b: Trajectory, rng) -> tuple[float, float] 
 
 
 args, out, rng = draws(__doc__, "fmcw-movers-", 1, 40,
-                       ("--only", dict(type=int, nargs="*", help="convert these captures of the draw alone")))
+                       ("--only", dict(type=int, nargs="*", help="convert these captures of the draw alone")),
+                       ("--why", dict(action="store_true", help="where each mover's untracked periods went")))
 be = make_processor("auto")
 total = failed = 0
+went = np.zeros(len(UNTRACKED))      # periods, summed over the movers of every capture
 for i in range(args.count):
     kind = KINDS[i % len(KINDS)]
     while (drawn := movers(kind, rng)) and (span := around_a_crossing(*drawn, rng)) is None:
@@ -134,5 +139,12 @@ for i in range(args.count):
     total += bad
     print(f"{head} objects {len(t.objects or [])} wrong {bad} best {[round(100 * b) for b in best]} %"
           f"{'  <<<<' if bad else ''}", flush=True)
+    if args.why:
+        rows = untracked(t, truths)
+        went += [sum(r[k] * r["periods"] for r in rows) for k in UNTRACKED]
+        print("    why", " ".join("/".join(f"{100 * r[k]:.0f}" for k in UNTRACKED) for r in rows), flush=True)
 print("valid pairs > 2 mm off their object's truth, all captures:", total)
 print("captures that failed to convert:", failed)
+if args.why and went.sum():
+    print("movers' visible periods, all captures:", ", ".join(
+        f"{k} {100 * x / went.sum():.1f} %" for k, x in zip(UNTRACKED, went, strict=True)))

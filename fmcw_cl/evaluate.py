@@ -174,3 +174,41 @@ def objects_cell(track: Track, truths: list[Truth]) -> str:
     if n > 1 and len(truths) < 2:
         return f"{n} (?)"
     return f"{n} ({sum(s['wrong'] for s in object_scores(track, truths))})"
+
+
+UNTRACKED = ("held", "beside", "elsewhere", "outside", "unverified", "missed")
+
+
+def untracked(track: Track, truths: list[Truth], gate_m: float = 0.01) -> list[dict]:
+    """Where each truth object's visible periods (the whole pair, as `periods_tracked`)
+    went, as shares of them, each period counted under the first of UNTRACKED that
+    holds: its best object held a valid pair within WRONG_M ("held"); another truth lay
+    within `gate_m` (m; the two cannot be told apart, "beside"); another object held
+    it ("elsewhere": one body in two ids); no object's band (attribute target_band_m)
+    held its distance ("outside"); an object's path (the mean of its pair's de-chirped
+    peaks) lay within WRONG_M, unverified or ambiguous ("unverified"); none did
+    ("missed": every tracker elsewhere). One dict per truth, also "periods"."""
+    from .objects import per_pair
+
+    objs = [o.track for o in track.objects] if track.objects else [track]
+    t = track.time_s
+    half = 0.5 * (track.period_s or 50e-6)
+    where = [truth_at(tr, t)[0] for tr in truths]
+    near = np.array([[o.valid & (np.abs(o.distance_m - d) <= WRONG_M) for o in objs] for d in where])
+    paths = [np.mean(per_pair(o, "sweep_distance_dechirped_m"), axis=0) for o in objs]
+    bands = [np.nan_to_num(np.asarray(o.attrs.get("target_band_m", (0.0, np.inf)), float), nan=np.inf)
+             for o in objs]
+    out = []
+    for k, (tr, d) in enumerate(zip(truths, where, strict=True)):
+        seen = truth_visible(tr, t - half) & truth_visible(tr, t + half)
+        best = int(np.argmax(near[k].sum(axis=1)))
+        beside = np.any([np.abs(d - e) < gate_m for j, e in enumerate(where) if j != k] + [t < t[0]], axis=0)
+        steps = [near[k][best], beside, near[k].any(axis=0),
+                 ~np.any([(d >= b[0]) & (d <= b[1]) for b in bands], axis=0),
+                 np.any([np.abs(p - d) <= WRONG_M for p in paths], axis=0), np.ones(t.size, bool)]
+        left, row = seen.copy(), {"periods": int(seen.sum())}
+        for name, hit in zip(UNTRACKED, steps, strict=True):
+            row[name] = float(np.sum(left & hit) / max(1, seen.sum()))
+            left &= ~hit
+        out.append(row)
+    return out

@@ -91,6 +91,39 @@ def test_scene_truth_lists_every_object(tmp_path):
     assert truth_at(hand, np.array([0.045]))[0][0] == pytest.approx(0.185, abs=2e-3)
 
 
+
+def test_a_movers_untracked_periods_are_told_by_where_they_went():
+    """`evaluate.untracked` gives each of a glide's periods one place: its object held it
+    (300), lost it to noise elsewhere (100: missed), held it unverified (430), beside a
+    body at rest within 10 mm (120: the rest's pairs within 2 mm of it among them),
+    beyond every object's band (180), held by another object (70); the body at rest is
+    held throughout, beside or not."""
+    from fmcw_cl.capture_format import Truth
+    from fmcw_cl.evaluate import UNTRACKED, untracked
+
+    n, k = 1200, np.arange(1200)
+    t = PERIOD * (k + 0.5)
+    glide = 0.10 + (0.2 / 0.06) * t
+    tt = np.linspace(0.0, 0.07, 701)
+    still = np.zeros(tt.size)
+    truths = [Truth(tt, 0.10 + (0.2 / 0.06) * tt, np.full(tt.size, 0.2 / 0.06), still),
+              Truth(tt, np.full(tt.size, 0.20), still, still)]
+
+    def held(path, valid, band):
+        sweeps = np.repeat(path, 2)
+        return replace(_track(path, valid=valid), sweep_distance_dechirped_m=sweeps,
+                       sweep_time_s=np.repeat(t, 2), sweep_rising=np.tile([True, False], n),
+                       attrs={"target_band_m": np.array(band)})
+
+    one = held(np.where((k >= 300) & (k < 400), 0.05, glide), k < 300, (0.03, 0.25))
+    two = held(np.where(k >= 1080, glide, np.nan), (k >= 1080) & (k < 1150), (0.28, np.nan))
+    rest = held(np.full(n, 0.20), k >= 0, (0.15, 0.22))
+    parts = (one, two, rest)
+    scene = replace(one, objects=[objects.SceneObject(i + 1, i < 2, x) for i, x in enumerate(parts)])
+    got = untracked(scene, truths)
+    assert [round(got[0][name] * n) for name in UNTRACKED] == [300, 120, 70, 180, 430, 100]
+    assert got[0]["periods"] == n and got[1]["held"] == 1.0
+
 # ---------------------------------------------------------------- the rules on tracks
 
 def test_parts_of_splits_two_echoes_held_at_once():
