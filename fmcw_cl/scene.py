@@ -12,7 +12,18 @@ from dataclasses import replace
 
 import numpy as np
 
-from . import coherence, conversions, crossings, exchanges, fixed_echoes, identities, objects, rests, target
+from . import (
+    coherence,
+    conversions,
+    crossings,
+    exchanges,
+    fixed_echoes,
+    identities,
+    moving_echoes,
+    objects,
+    rests,
+    target,
+)
 from .capture import Capture
 from .conversions import Converted, First
 from .handovers import Asked
@@ -36,6 +47,8 @@ def objects_of(cap: Capture, first: First, choice: target.Choice, own: Converted
     band = options.band_m
     spans = sorted(fixed_echoes.moving_spans(tr.time_s, tr.distance_m, tr.velocity_mps, tr.valid,
                                              fixed_echoes.smeared(tr.echoes, band)) + list(first.beside))
+    m = first.plan.model
+    spans = sorted(spans + moving_echoes.unheld(tr.echoes, m.k_rise, m.k_fall, tr, band, spans))
     made: dict[tuple, list[ChunkMeasurements]] = {first.plan.options.band_m: first.parts,
                                                  own.plan.options.band_m: own.parts}
     extra: list[tuple[float, float]] = []

@@ -1,0 +1,150 @@
+"""Moving echoes no tracker held: lines of the echo table (fmcw_cl.echoes).
+
+A second mover that the first conversion's tracker never held, and that stays nowhere
+long enough to be a persistent echo of a slice (a glide at 1 m/s crosses a 2 mm bin in
+2 ms), still leaves its plain peaks among each half-sweep's CFAR detections, shifted by
+its Doppler term k v (k: `DopplerModel.k_rise`, `k_fall`, opposite in the two
+directions). In each direction the detections that are not the tracked peak are
+linked into `lines`: each detection goes on the line whose last ones, moved on at
+their velocity, reach it within LINK_M + ACCEL_MAX dt^2 / 2, across at most GAP_S.
+A line of MIN_DETECTIONS over MIN_SPAN_S is an echo's. A rising and a falling line at
+once give an echo's distance and its Doppler velocity (the two equations d = R + k v);
+where that velocity is the distance's own slope, they are one moving body's (noise
+lines, one direction's sidelobes, or two echoes' lines are not), unless it lies on
+the tracked target (within fixed_echoes.APART_M: the target's own peak split, smeared)
+or on its harmonics (two and three times its distance). `unheld` gives each such
+echo's span (those that overlap, one), for objects.candidates.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import echoes
+from .coherence import slope
+from .fixed_echoes import APART_M, MIN_TRAVEL_M, MOVING_MPS
+from .stages.verification import ACCEL_MAX, KINEMATIC_S
+from .track import Track
+
+LINK_M = 1e-3          # a detection this far from where its line's velocity carries it goes on it
+GAP_S = KINEMATIC_S    # ... after at most this without one (a fade)
+START_S = 2e-4         # a line of one detection takes the next within this (its velocity unknown) ...
+START_MPS = 10.0       # ... as fast as this
+TREND = 16             # a line's velocity over its last this many detections
+MIN_DETECTIONS = 20    # a line of this many detections ...
+MIN_SPAN_S = 2e-3      # ... over this long is an echo's
+REACH_S = 5e-4         # an echo's slope: least squares within this either side
+AGREE_MPS = 0.2        # a rising and a falling line whose Doppler velocity is their echo's slope
+                       # within this are one echo ...
+OVERLAP_S = 1e-3       # ... over at least this of time together
+STEP_S = 2.5e-4        # ... taken at times this far apart
+HARMONICS = (2, 3)     # a line this many times the tracked distance is its harmonic
+
+
+def lines(time_s: np.ndarray, distance_m: np.ndarray) -> list[np.ndarray]:
+    """The lines (indices into the arrays, in time order) of one direction's detections
+    at `time_s` (s, sorted) and `distance_m` (m) of MIN_DETECTIONS or more over
+    MIN_SPAN_S or more. A line's velocity is its last detection's distance less its
+    TREND'th last's over their time (its first's while shorter)."""
+    open_: list[list[int]] = []
+    out: list[list[int]] = []
+    starts = np.r_[0, np.flatnonzero(np.diff(time_s) > 0) + 1, time_s.size]
+    for a, b in zip(starts[:-1], starts[1:], strict=True):
+        now = float(time_s[a])
+        going = [now - time_s[x[-1]] <= (GAP_S if len(x) > 1 else START_S) for x in open_]
+        out += [x for x, g in zip(open_, going, strict=True) if not g and len(x) > 1]
+        open_ = [x for x, g in zip(open_, going, strict=True) if g]
+        if not open_:
+            open_ = [[i] for i in range(a, b)]
+            continue
+        last = np.array([x[-1] for x in open_])
+        back = np.array([x[-TREND] if len(x) >= TREND else x[0] for x in open_])
+        dt = now - time_s[last]
+        span = time_s[last] - time_s[back]
+        single = span <= 0
+        v = np.where(single, 0.0, (distance_m[last] - distance_m[back]) / np.where(single, 1.0, span))
+        at = distance_m[last] + v * dt
+        reach = np.where(single, np.where(dt <= START_S, LINK_M + START_MPS * dt, -1.0),
+                         LINK_M + 0.5 * ACCEL_MAX * dt * dt)
+        miss = np.abs(distance_m[a:b, None] - at[None, :])             # (detections, lines)
+        miss[miss > reach[None, :]] = np.inf
+        taken = np.zeros(b - a, bool)
+        while np.isfinite(miss).any():                  # nearest first, one detection a line
+            i, n = np.unravel_index(np.argmin(miss), miss.shape)
+            open_[n].append(a + int(i))
+            taken[i] = True
+            miss[i, :] = np.inf
+            miss[:, n] = np.inf
+        open_ += [[a + int(i)] for i in np.flatnonzero(~taken)]
+    out += open_
+    return [np.asarray(x) for x in out
+            if len(x) >= MIN_DETECTIONS and time_s[x[-1]] - time_s[x[0]] >= MIN_SPAN_S]
+
+
+def unheld(e: echoes.Echoes, k_rise: float, k_fall: float, track: Track, band: tuple[float, float | None],
+           known: list[tuple[float, float]]) -> list[tuple[float, float]]:
+    """(lo, hi) m of each moving echo of the echo table `e` that `track`'s tracker did
+    not hold, inside `band` (m) and centred beyond APART_M of the `known` spans (m).
+    A rising and a falling line (`lines`, of the detections neither at the tracked peak
+    nor within APART_M of a known span) together for OVERLAP_S are one echo at
+    R = (k_f d_r - k_r d_f) / (k_f - k_r) moving at (d_f - d_r) / (k_f - k_r) (d_r =
+    R + k_r v, d_f = R + k_f v; `k_rise`, `k_fall`: s, the Doppler model's) where that
+    velocity is R's own slope within AGREE_MPS (noise lines, or a line and another
+    echo's, are not one body's motion), it moves (median speed MOVING_MPS or more),
+    travels MIN_TRAVEL_M and lies off the verified pairs and their harmonics."""
+    free = ~e.tracked
+    for a, b in known:                  # the known echoes' detections (a sway's: most of a table's)
+        free &= (e.distance_m < a - APART_M) | (e.distance_m > b + APART_M)
+    way = []
+    for rising in (True, False):
+        idx = np.flatnonzero(free & (e.rising == rising))
+        t, d = e.time_s[idx], e.distance_m[idx]         # in time order, as the table
+        way.append([(t[x], d[x]) for x in lines(t, d)])
+    ok = track.valid & np.isfinite(track.distance_m)
+    held_t, held_d = track.time_s[ok], track.distance_m[ok]
+    lo, hi = band[0], band[1] or np.inf
+    out = []
+    for tr, dr in way[0]:
+        for tf, df in way[1]:
+            a, b = max(tr[0], tf[0]), min(tr[-1], tf[-1])
+            if b - a < OVERLAP_S:
+                continue
+            grid = np.arange(a, b, STEP_S)
+            r, f = np.interp(grid, tr, dr), np.interp(grid, tf, df)
+            at = (k_fall * r - k_rise * f) / (k_fall - k_rise)
+            v = (f - r) / (k_fall - k_rise)
+            if np.median(np.abs(v - slope(grid, at, grid, REACH_S))) > AGREE_MPS:
+                continue
+            if np.median(np.abs(v)) < MOVING_MPS or np.ptp(at) < MIN_TRAVEL_M:
+                continue
+            if held_t.size and _on(grid, at, held_t, held_d):
+                continue
+            span = (float(np.percentile(at, 1)), float(np.percentile(at, 99)))
+            mid = 0.5 * (span[0] + span[1])
+            inside = any(a - APART_M <= mid <= b + APART_M for a, b in known)
+            if span[1] >= lo and span[0] < hi and not inside:
+                out.append(span)
+    return _merged(out)
+
+
+def _merged(spans: list[tuple[float, float]]) -> list[tuple[float, float]]:
+    """`spans` (m), those that overlap one (a line broken by a fade pairs with the
+    other direction's twice), nearest first."""
+    out: list[tuple[float, float]] = []
+    for lo, hi in sorted(spans):
+        if out and lo <= out[-1][1]:
+            out[-1] = (out[-1][0], max(out[-1][1], hi))
+        else:
+            out.append((lo, hi))
+    return out
+
+
+def _on(t: np.ndarray, c: np.ndarray, held_t: np.ndarray, held_d: np.ndarray) -> bool:
+    """Whether most of a line's distances `c` (m, at `t` s) lie within APART_M of the
+    verified pairs nearest in time, or of two or three times their distance."""
+    near = np.interp(t, held_t, held_d)
+    close = np.abs(t - held_t[np.clip(np.searchsorted(held_t, t), 0, held_t.size - 1)]) <= GAP_S
+    on = np.zeros(t.size, bool)
+    for m in (1, *HARMONICS):
+        on |= close & (np.abs(c - m * near) <= APART_M)
+    return bool(np.mean(on) > 0.5)

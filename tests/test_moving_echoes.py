@@ -1,0 +1,92 @@
+"""Moving echoes that no tracker held, found as lines of the echo table
+(fmcw_cl.moving_echoes): a glide's two directions' Doppler-shifted detections agree as
+one echo; noise, one direction alone, the target's own peak and its harmonic do not."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from fmcw_cl import moving_echoes
+from fmcw_cl.echoes import Echoes
+from fmcw_cl.track import Track
+
+PERIOD = 50e-6
+N = 2000                       # 100 ms
+T = PERIOD * (np.arange(N) + 0.5)
+K = 0.029                      # the Doppler model's k (s): -K rising, +K falling
+
+
+def _table(rng, lines: list[tuple[np.ndarray, float | np.ndarray, bool]], share: float = 0.3,
+           noise: int = 200) -> Echoes:
+    """An echo table of `lines` ((distance, velocity per period m, m/s; tracked)), each
+    heard in `share` of its half-sweeps (10 um of noise), plus `noise` detections
+    anywhere in 0.03-0.45 m."""
+    t, d, rising, tracked = [], [], [], []
+    for dist, v, held in lines:
+        for way, k in ((True, -K), (False, K)):
+            seen = rng.random(N) < share
+            at = T[seen] + (-0.25 if way else 0.25) * PERIOD
+            t.append(at)
+            d.append(dist[seen] + k * np.broadcast_to(v, N)[seen] + 1e-5 * rng.standard_normal(seen.sum()))
+            rising.append(np.full(seen.sum(), way))
+            tracked.append(np.full(seen.sum(), held))
+    way = rng.random(noise) < 0.5
+    t.append(np.round(rng.uniform(0, N, noise)) * PERIOD + PERIOD / 2 + np.where(way, -0.25, 0.25) * PERIOD)
+    d.append(rng.uniform(0.03, 0.45, noise))
+    rising.append(way)
+    tracked.append(np.zeros(noise, bool))
+    t, d, rising, tracked = map(np.concatenate, (t, d, rising, tracked))
+    order = np.argsort(t, kind="stable")
+    return Echoes(t[order], d[order], np.full(t.size, 15.0), rising[order], tracked[order], {})
+
+
+def _target(dist: np.ndarray) -> Track:
+    """A track whose verified pairs lie at `dist` (m)."""
+    ok = np.ones(N, bool)
+    return Track(np.zeros(0), np.zeros(0, bool), np.zeros(0), np.zeros(0), T, dist, np.zeros(N), np.zeros(N),
+                 ok, {}, period_s=PERIOD)
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_a_glide_no_tracker_held_is_a_moving_echo(seed):
+    """A glide from 0.35 m at -0.6 m/s speeding up at 8 m/s^2 (heard in 30 % of its
+    half-sweeps, each direction's detections 35-81 mm apart by their Doppler terms; each
+    line's slope off its velocity by k a, 0.23 m/s) beside a sway the tracker held and
+    200 noise detections: lines a direction that hold 90 % of its detections
+    (a fade of 2 ms or more parts them), and one moving echo whose span is the glide's
+    own (within 1 mm), not its Doppler-shifted peaks'."""
+    rng = np.random.default_rng(seed)
+    glide = 0.35 - 0.6 * T - 4.0 * T ** 2
+    sway = 0.25 + 0.02 * np.sin(2 * np.pi * 4 * T)
+    e = _table(rng, [(glide, -0.6 - 8.0 * T, False), (sway, 0.0, True)])
+    for way in (True, False):
+        free = np.flatnonzero(~e.tracked & (e.rising == way))
+        got = moving_echoes.lines(e.time_s[free], e.distance_m[free])
+        assert 1 <= len(got) <= 3 and sum(x.size for x in got) >= 0.9 * 0.3 * N
+    spans = moving_echoes.unheld(e, -K, K, _target(sway), (0.03, None), [])
+    assert len(spans) == 1
+    lo, hi = spans[0]
+    assert abs(lo - np.percentile(glide, 1)) < 1e-3 and abs(hi - np.percentile(glide, 99)) < 1e-3
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_noise_one_direction_the_target_and_its_harmonic_are_no_moving_echo(seed):
+    """No span from: noise alone (2000 detections); a glide heard in one direction only;
+    the tracked target's own peak split beside it (its untracked detections 0.5 mm
+    off); its second harmonic; a glide whose span centres inside a known one."""
+    rng = np.random.default_rng(seed)
+    target = 0.15 - 0.8 * T
+    assert moving_echoes.unheld(_table(rng, [], noise=2000), -K, K, _target(target), (0.03, None), []) == []
+    glide = 0.35 - 1.2 * T
+    e = _table(rng, [(glide, -1.2, False)])
+    on = np.abs(e.distance_m - glide[np.minimum((e.time_s / PERIOD).astype(int), N - 1)]) <= 0.05
+    one = ~e.rising | ~on
+    lone = Echoes(e.time_s[one], e.distance_m[one], e.snr_db[one], e.rising[one], e.tracked[one], {})
+    assert moving_echoes.unheld(lone, -K, K, _target(target), (0.03, None), []) == []
+    for beside in (target + 5e-4, 2 * target):
+        e = _table(rng, [(beside, -0.8 * (beside[1] - beside[0]) / (target[1] - target[0]), False)])
+        assert moving_echoes.unheld(e, -K, K, _target(target), (0.03, None), []) == []
+    e = _table(rng, [(glide, -1.2, False)])
+    assert moving_echoes.unheld(e, -K, K, _target(target), (0.03, None), [(0.2, 0.4)]) == []
+    assert len(moving_echoes.unheld(e, -K, K, _target(target), (0.03, None), [])) == 1
