@@ -2,7 +2,8 @@
 
 The first conversion's tables list the scene's echoes (fmcw_cl.target): fixed echoes
 (walls, windows, a target at rest) and moving spans (a leg, a swaying cable), with the
-echoes its mean spectra hold and the verified pairs found elsewhere. Each is a
+echoes its mean spectra hold, the verified pairs found elsewhere and the moving echoes
+no tracker held (fmcw_cl.moving_echoes: a slow glide's lines). Each is a
 *candidate*; each is converted in a band of its own, the others' nearer ends left out
 (`target.choose` with `near_m`), so that its tracker cannot follow another, and its
 pairs are verified as the target's are. Then:
