@@ -48,6 +48,8 @@ def lines(time_s: np.ndarray, distance_m: np.ndarray) -> list[np.ndarray]:
     TREND'th last's over their time (its first's while shorter)."""
     open_: list[list[int]] = []
     out: list[list[int]] = []
+    if not time_s.size:
+        return []
     starts = np.r_[0, np.flatnonzero(np.diff(time_s) > 0) + 1, time_s.size]
     for a, b in zip(starts[:-1], starts[1:], strict=True):
         now = float(time_s[a])
@@ -106,10 +108,10 @@ def unheld(e: echoes.Echoes, k_rise: float, k_fall: float, track: Track, band: t
     out = []
     for tr, dr in way[0]:
         for tf, df in way[1]:
-            a, b = max(tr[0], tf[0]), min(tr[-1], tf[-1])
-            if b - a < OVERLAP_S:
+            start, end = max(tr[0], tf[0]), min(tr[-1], tf[-1])
+            if end - start < OVERLAP_S:
                 continue
-            grid = np.arange(a, b, STEP_S)
+            grid = np.arange(start, end, STEP_S)
             r, f = np.interp(grid, tr, dr), np.interp(grid, tf, df)
             at = (k_fall * r - k_rise * f) / (k_fall - k_rise)
             v = (f - r) / (k_fall - k_rise)

@@ -72,12 +72,15 @@ def test_a_glide_no_tracker_held_is_a_moving_echo(seed):
 
 @pytest.mark.parametrize("seed", [1, 2, 3])
 def test_noise_one_direction_the_target_and_its_harmonic_are_no_moving_echo(seed):
-    """No span from: noise alone (2000 detections); a glide heard in one direction only;
+    """No span from: noise alone (2000 detections); a table of the tracked peaks alone
+    (a static target's: no detection free); a glide heard in one direction only;
     the tracked target's own peak split beside it (its untracked detections 0.5 mm
     off); its second harmonic; a glide whose span centres inside a known one."""
     rng = np.random.default_rng(seed)
     target = 0.15 - 0.8 * T
     assert moving_echoes.unheld(_table(rng, [], noise=2000), -K, K, _target(target), (0.03, None), []) == []
+    held = _table(rng, [(target, -0.8, True)], noise=0)        # every detection the target's: none free
+    assert moving_echoes.unheld(held, -K, K, _target(target), (0.03, None), []) == []
     glide = 0.35 - 1.2 * T
     e = _table(rng, [(glide, -1.2, False)])
     on = np.abs(e.distance_m - glide[np.minimum((e.time_s / PERIOD).astype(int), N - 1)]) <= 0.05
