@@ -12,8 +12,9 @@ once give an echo's distance and its Doppler velocity (the two equations d = R +
 where that velocity is the distance's own slope, they are one moving body's (noise
 lines, one direction's sidelobes, or two echoes' lines are not), unless it lies on
 the tracked target (within fixed_echoes.APART_M: the target's own peak split, smeared)
-or on its harmonics (two and three times its distance). `unheld` gives each such
-echo's span (those that overlap, one), for objects.candidates.
+or on its harmonics (two and three times its distance), and only where the tracker
+held verified pairs at once (else it may be the target's own echo lost). `unheld`
+gives each such echo's span (those that overlap, one), for objects.candidates.
 """
 
 from __future__ import annotations
@@ -23,6 +24,8 @@ import numpy as np
 from . import echoes
 from .coherence import slope
 from .fixed_echoes import APART_M, MIN_TRAVEL_M, MOVING_MPS
+from .numeric import runs
+from .objects import seen_again
 from .stages.verification import ACCEL_MAX, KINEMATIC_S
 from .track import Track
 
@@ -93,7 +96,7 @@ def unheld(e: echoes.Echoes, k_rise: float, k_fall: float, track: Track, band: t
     R + k_r v, d_f = R + k_f v; `k_rise`, `k_fall`: s, the Doppler model's) where that
     velocity is R's own slope within AGREE_MPS (noise lines, or a line and another
     echo's, are not one body's motion), it moves (median speed MOVING_MPS or more),
-    travels MIN_TRAVEL_M and lies off the verified pairs and their harmonics."""
+    travels MIN_TRAVEL_M and lies beside the verified pairs (`_beside`)."""
     free = ~e.tracked
     for a, b in known:                  # the known echoes' detections (a sway's: most of a table's)
         free &= (e.distance_m < a - APART_M) | (e.distance_m > b + APART_M)
@@ -119,7 +122,7 @@ def unheld(e: echoes.Echoes, k_rise: float, k_fall: float, track: Track, band: t
                 continue
             if np.median(np.abs(v)) < MOVING_MPS or np.ptp(at) < MIN_TRAVEL_M:
                 continue
-            if held_t.size and _on(grid, at, held_t, held_d):
+            if not _beside(grid, at, held_t, held_d) or _goes_on(grid, at, v, track):
                 continue
             span = (float(np.percentile(at, 1)), float(np.percentile(at, 99)))
             mid = 0.5 * (span[0] + span[1])
@@ -141,12 +144,35 @@ def _merged(spans: list[tuple[float, float]]) -> list[tuple[float, float]]:
     return out
 
 
-def _on(t: np.ndarray, c: np.ndarray, held_t: np.ndarray, held_d: np.ndarray) -> bool:
-    """Whether most of a line's distances `c` (m, at `t` s) lie within APART_M of the
-    verified pairs nearest in time, or of two or three times their distance."""
+def _beside(t: np.ndarray, c: np.ndarray, held_t: np.ndarray, held_d: np.ndarray) -> bool:
+    """Whether most of a line's distances `c` (m, at `t` s) lie beside the verified pairs
+    (`held_t`, `held_d`): one within GAP_S, and more than APART_M from it and from two
+    and three times its distance. Where the tracker held no verified pair, the line may
+    be its own echo lost (a rail's last 16 mm, slowing, found beyond its verified pairs:
+    its band cut there, its own conversion lost them)."""
+    if not held_t.size:
+        return False
+    after = np.clip(np.searchsorted(held_t, t), 0, held_t.size - 1)
+    before = np.maximum(after - 1, 0)
+    off = np.minimum(np.abs(t - held_t[before]), np.abs(t - held_t[after])) <= GAP_S
     near = np.interp(t, held_t, held_d)
-    close = np.abs(t - held_t[np.clip(np.searchsorted(held_t, t), 0, held_t.size - 1)]) <= GAP_S
-    on = np.zeros(t.size, bool)
     for m in (1, *HARMONICS):
-        on |= close & (np.abs(c - m * near) <= APART_M)
-    return bool(np.mean(on) > 0.5)
+        off &= np.abs(c - m * near) > APART_M
+    return bool(np.mean(off) > 0.5)
+
+
+def _goes_on(t: np.ndarray, c: np.ndarray, v: np.ndarray, track: Track) -> bool:
+    """Whether the echo (distances `c` m, velocities `v` m/s at `t` s) can be the body of
+    a run of `track`'s verified pairs that ends before it, or starts after it, seen
+    again (objects.seen_again): the tracker's own echo where it lost it (a rail's last
+    16 mm, its tracker on a glide since: found as another echo, it cut the rail's band
+    there, 85 -> 44 %, movers.py seed 9, capture 26)."""
+    ok = track.valid & np.isfinite(track.distance_m) & np.isfinite(track.velocity_mps)
+    ts, d, u = track.time_s, track.distance_m, track.velocity_mps
+    for a, b in runs(ok):
+        z = b - 1
+        if ts[z] < t[0] and seen_again(ts[z], d[z], u[z], t[0], c[0], v[0]):
+            return True
+        if ts[a] > t[-1] and seen_again(t[-1], c[-1], v[-1], ts[a], d[a], u[a]):
+            return True
+    return False
