@@ -202,7 +202,9 @@ def untracked(track: Track, truths: list[Truth], gate_m: float = 0.01) -> list[d
     for k, (tr, d) in enumerate(zip(truths, where, strict=True)):
         seen = truth_visible(tr, t - half) & truth_visible(tr, t + half)
         best = int(np.argmax(near[k].sum(axis=1)))
-        beside = np.any([np.abs(d - e) < gate_m for j, e in enumerate(where) if j != k] + [t < t[0]], axis=0)
+        beside = np.zeros(t.size, bool)
+        for j, e in enumerate(where):
+            beside |= (j != k) & (np.abs(d - e) < gate_m)
         steps = [near[k][best], beside, near[k].any(axis=0),
                  ~np.any([(d >= b[0]) & (d <= b[1]) for b in bands], axis=0),
                  np.any([np.abs(p - d) <= WRONG_M for p in paths], axis=0), np.ones(t.size, bool)]

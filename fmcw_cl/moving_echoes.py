@@ -24,7 +24,7 @@ import numpy as np
 from . import echoes
 from .coherence import slope
 from .fixed_echoes import APART_M, MIN_TRAVEL_M, MOVING_MPS
-from .numeric import runs
+from .numeric import nearest, runs
 from .objects import seen_again
 from .stages.verification import ACCEL_MAX, KINEMATIC_S
 from .track import Track
@@ -107,6 +107,7 @@ def unheld(e: echoes.Echoes, k_rise: float, k_fall: float, track: Track, band: t
         way.append([(t[x], d[x]) for x in lines(t, d)])
     ok = track.valid & np.isfinite(track.distance_m)
     held_t, held_d = track.time_s[ok], track.distance_m[ok]
+    ends = _run_ends(track)
     lo, hi = band[0], band[1] or np.inf
     out = []
     for tr, dr in way[0]:
@@ -122,7 +123,7 @@ def unheld(e: echoes.Echoes, k_rise: float, k_fall: float, track: Track, band: t
                 continue
             if np.median(np.abs(v)) < MOVING_MPS or np.ptp(at) < MIN_TRAVEL_M:
                 continue
-            if not _beside(grid, at, held_t, held_d) or _goes_on(grid, at, v, track):
+            if not _beside(grid, at, held_t, held_d) or _goes_on(grid, at, v, ends):
                 continue
             span = (float(np.percentile(at, 1)), float(np.percentile(at, 99)))
             mid = 0.5 * (span[0] + span[1])
@@ -152,27 +153,30 @@ def _beside(t: np.ndarray, c: np.ndarray, held_t: np.ndarray, held_d: np.ndarray
     its band cut there, its own conversion lost them)."""
     if not held_t.size:
         return False
-    after = np.clip(np.searchsorted(held_t, t), 0, held_t.size - 1)
-    before = np.maximum(after - 1, 0)
-    off = np.minimum(np.abs(t - held_t[before]), np.abs(t - held_t[after])) <= GAP_S
+    off = np.abs(t - held_t[nearest(held_t, t)]) <= GAP_S
     near = np.interp(t, held_t, held_d)
     for m in (1, *HARMONICS):
         off &= np.abs(c - m * near) > APART_M
     return bool(np.mean(off) > 0.5)
 
 
-def _goes_on(t: np.ndarray, c: np.ndarray, v: np.ndarray, track: Track) -> bool:
+def _run_ends(track: Track) -> tuple[np.ndarray, np.ndarray]:
+    """The first and the last pair (time s, distance m, velocity m/s; rows of a (3, R)
+    array each) of each run of `track`'s verified pairs."""
+    ok = track.valid & np.isfinite(track.distance_m) & np.isfinite(track.velocity_mps)
+    at = np.vstack([track.time_s, track.distance_m, track.velocity_mps])
+    r = runs(ok)
+    return at[:, r[:, 0]], at[:, r[:, 1] - 1]
+
+
+def _goes_on(t: np.ndarray, c: np.ndarray, v: np.ndarray, ends: tuple[np.ndarray, np.ndarray]) -> bool:
     """Whether the echo (distances `c` m, velocities `v` m/s at `t` s) can be the body of
-    a run of `track`'s verified pairs that ends before it, or starts after it, seen
+    a run of verified pairs (`_run_ends`) that ends before it, or starts after it, seen
     again (objects.seen_again): the tracker's own echo where it lost it (a rail's last
     16 mm, its tracker on a glide since: found as another echo, it cut the rail's band
     there, 85 -> 44 %, movers.py seed 9, capture 26)."""
-    ok = track.valid & np.isfinite(track.distance_m) & np.isfinite(track.velocity_mps)
-    ts, d, u = track.time_s, track.distance_m, track.velocity_mps
-    for a, b in runs(ok):
-        z = b - 1
-        if ts[z] < t[0] and seen_again(ts[z], d[z], u[z], t[0], c[0], v[0]):
-            return True
-        if ts[a] > t[-1] and seen_again(t[-1], c[-1], v[-1], ts[a], d[a], u[a]):
-            return True
-    return False
+    first, last = ends
+    ended = last[0] < t[0]
+    later = first[0] > t[-1]
+    return bool(np.any(ended & seen_again(*last, t[0], c[0], v[0]))
+                or np.any(later & seen_again(t[-1], c[-1], v[-1], *first)))
