@@ -63,6 +63,12 @@ def _found(e: echoes.Echoes) -> list[tuple[float, float]]:
     return sorted([*_sharp(e), *_averaged(e)])
 
 
+def beside_span(x: float, spans) -> bool:
+    """Whether `x` (m) lies within APART_M of one of `spans` ((lo, hi) m): the same echo
+    as the span's, its peak split or smeared."""
+    return any(a - APART_M <= x <= b + APART_M for a, b in spans)
+
+
 def harmonic(d: np.ndarray, level: np.ndarray, unambiguous_m: float) -> np.ndarray:
     """Which echoes (distances `d` m, levels dB) lie within HARMONIC_M of 2..HARMONICS
     times the distance of one at least HARMONIC_DB stronger, folded into [0,

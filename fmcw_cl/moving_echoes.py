@@ -14,7 +14,9 @@ lines, one direction's sidelobes, or two echoes' lines are not), unless it lies 
 the tracked target (within fixed_echoes.APART_M: the target's own peak split, smeared)
 or on its harmonics (two and three times its distance), and only where the tracker
 held verified pairs at once (else it may be the target's own echo lost). `unheld`
-gives each such echo's span (those that overlap, one), for objects.candidates.
+gives each such echo's span (those that overlap, one), for objects.candidates; an
+echo that a body known only by its smeared energy reaches, or leaves from, widens that
+body's span instead (its slower stretch: `joined`).
 """
 
 from __future__ import annotations
@@ -23,7 +25,7 @@ import numpy as np
 
 from . import echoes
 from .coherence import slope
-from .fixed_echoes import APART_M, MIN_TRAVEL_M, MOVING_MPS
+from .fixed_echoes import APART_M, MIN_TRAVEL_M, MOVING_MPS, beside_span
 from .numeric import nearest, runs
 from .objects import seen_again
 from .stages.verification import ACCEL_MAX, KINEMATIC_S
@@ -96,7 +98,9 @@ def unheld(e: echoes.Echoes, k_rise: float, k_fall: float, track: Track, band: t
     R + k_r v, d_f = R + k_f v; `k_rise`, `k_fall`: s, the Doppler model's) where that
     velocity is R's own slope within AGREE_MPS (noise lines, or a line and another
     echo's, are not one body's motion), it moves (median speed MOVING_MPS or more),
-    travels MIN_TRAVEL_M and lies beside the verified pairs (`_beside`)."""
+    travels MIN_TRAVEL_M and lies beside the verified pairs (`_beside`). Where it goes on
+    to a slice of a known span that holds no moving verified pair, or comes from one
+    (`_smeared`, `_continues`), that span widened to hold it is given instead."""
     free = ~e.tracked
     for a, b in known:                  # the known echoes' detections (a sway's: most of a table's)
         free &= (e.distance_m < a - APART_M) | (e.distance_m > b + APART_M)
@@ -108,6 +112,7 @@ def unheld(e: echoes.Echoes, k_rise: float, k_fall: float, track: Track, band: t
     ok = track.valid & np.isfinite(track.distance_m)
     held_t, held_d = track.time_s[ok], track.distance_m[ok]
     ends = _run_ends(track)
+    smeared = _smeared(e, track, known)
     lo, hi = band[0], band[1] or np.inf
     out = []
     for tr, dr in way[0]:
@@ -126,11 +131,48 @@ def unheld(e: echoes.Echoes, k_rise: float, k_fall: float, track: Track, band: t
             if not _beside(grid, at, held_t, held_d) or _goes_on(grid, at, v, ends):
                 continue
             span = (float(np.percentile(at, 1)), float(np.percentile(at, 99)))
-            mid = 0.5 * (span[0] + span[1])
-            inside = any(a - APART_M <= mid <= b + APART_M for a, b in known)
-            if span[1] >= lo and span[0] < hi and not inside:
+            on = [k for k in smeared if _continues(grid, at, v, smeared[k])]
+            if on:                      # a smeared span's own body, before or after its smear
+                out.append((min(span[0], *(k[0] for k in on)), max(span[1], *(k[1] for k in on))))
+            elif span[1] >= lo and span[0] < hi and not beside_span(0.5 * (span[0] + span[1]), known):
                 out.append(span)
     return _merged(out)
+
+
+def joined(known: list[tuple[float, float]], found: list[tuple[float, float]]) -> list[tuple[float, float]]:
+    """The `known` moving spans (m) and the `found` ones (`unheld`), nearest first; a
+    known span that a found one holds and shares an end with (a smeared span widened by
+    its body's own line) left out."""
+    def widened(k: tuple[float, float]) -> bool:
+        return any(a <= k[0] and k[1] <= b and (a == k[0] or b == k[1]) for a, b in found)
+
+    return sorted([k for k in known if not widened(k)] + found)
+
+
+def _smeared(e: echoes.Echoes, track: Track, known: list[tuple[float, float]]) -> dict:
+    """The slices (time s, distance m; the echo table's diffuse persistent echoes) of
+    each `known` span (m, within APART_M: its ends are percentiles) that holds no moving
+    verified pair of `track`: a body known
+    only by its Doppler-smeared energy, whose slower stretches may be lines."""
+    p = e.persistent
+    fast = track.valid & np.isfinite(track.distance_m) & (np.abs(track.velocity_mps) >= MOVING_MPS)
+    d = track.distance_m[fast]
+    out = {}
+    for a, b in known:
+        at = p["diffuse"] & (p["distance_m"] >= a - APART_M) & (p["distance_m"] <= b + APART_M)
+        if at.any() and not np.any((d >= a) & (d <= b)):
+            out[(a, b)] = (p["time_s"][at], p["distance_m"][at])
+    return out
+
+
+def _continues(t: np.ndarray, c: np.ndarray, v: np.ndarray, slices: tuple[np.ndarray, np.ndarray]) -> bool:
+    """Whether the echo (distances `c` m, velocities `v` m/s at `t` s) reaches, at its
+    ends' velocities, one of the smeared `slices` (time s, distance m) after it, or
+    comes from one before it (objects.seen_again: the slices carry no velocity)."""
+    ts, ds = slices
+    after, before = ts > t[-1], ts < t[0]
+    return bool(np.any(after & seen_again(t[-1], c[-1], v[-1], ts, ds, v[-1]))
+                or np.any(before & seen_again(ts, ds, v[0], t[0], c[0], v[0])))
 
 
 def _merged(spans: list[tuple[float, float]]) -> list[tuple[float, float]]:

@@ -131,14 +131,13 @@ def candidates(fixed: fixed_echoes.Fixed, spans: list[tuple[float, float]], choi
     lo, hi = band[0], band[1] or np.inf
     out = [Candidate(a, b, True) for a, b in spans]
     for f, own in zip(fixed.distance_m, fixed.objects, strict=True):
-        inside = any(a - fixed_echoes.APART_M <= f <= b + fixed_echoes.APART_M for a, b in spans)
-        if lo <= f < hi and (own or not inside):
+        if lo <= f < hi and (own or not fixed_echoes.beside_span(f, spans)):
             out.append(Candidate(float(f), float(f), False, True))
     for f in choice.ambiguous_m:
         if lo <= f < hi and all(abs(f - c.centre_m) >= fixed_echoes.APART_M for c in out if c.fixed):
             out.append(Candidate(float(f), float(f), False))
     for a, b in np.asarray(choice.ambiguous_spans_m).reshape(-1, 2):
-        if not any(c.lo - fixed_echoes.APART_M <= 0.5 * (a + b) <= c.hi + fixed_echoes.APART_M for c in out):
+        if not fixed_echoes.beside_span(0.5 * (a + b), [(c.lo, c.hi) for c in out]):
             out.append(Candidate(float(a), float(b), True))
     return sorted(out, key=lambda c: (c.lo, c.hi))[:MAX_OBJECTS]
 

@@ -48,7 +48,7 @@ def objects_of(cap: Capture, first: First, choice: target.Choice, own: Converted
     spans = sorted(fixed_echoes.moving_spans(tr.time_s, tr.distance_m, tr.velocity_mps, tr.valid,
                                              fixed_echoes.smeared(tr.echoes, band)) + list(first.beside))
     m = first.plan.model
-    spans = sorted(spans + moving_echoes.unheld(tr.echoes, m.k_rise, m.k_fall, tr, band, spans))
+    spans = moving_echoes.joined(spans, moving_echoes.unheld(tr.echoes, m.k_rise, m.k_fall, tr, band, spans))
     made: dict[tuple, list[ChunkMeasurements]] = {first.plan.options.band_m: first.parts,
                                                  own.plan.options.band_m: own.parts}
     extra: list[tuple[float, float]] = []
@@ -79,9 +79,9 @@ def objects_of(cap: Capture, first: First, choice: target.Choice, own: Converted
         # a fixed object's measurements without its rest's bounds: what else its band holds
         loose = {id(d.track): conversions.again(d, replace(d.choice, at_rest_m=None), processor, seconds)
                  for d in done if d.choice.at_rest_m is not None}
+        movers = [(c.lo, c.hi) for c in cands if c.moving]
         found = [s for d in done for s in objects.parts_of(d.track) + _passing(d, loose.get(id(d.track)))
-                 if not any(c.lo - fixed_echoes.APART_M <= 0.5 * (s[0] + s[1]) <= c.hi + fixed_echoes.APART_M
-                            and c.moving for c in cands)]
+                 if not fixed_echoes.beside_span(0.5 * (s[0] + s[1]), movers)]
         if not found or extra:
             break
         extra = found

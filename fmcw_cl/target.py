@@ -65,19 +65,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import echoes, numeric
-from .fixed_echoes import (
-    APART_M,
-    GATE_M,
-    MOVING_MPS,
-    OTHERS_SHARE,
-    Fixed,
-    are_objects,
-    capture_peaks,
-    fixed_of,
-    moving_spans,
-    smeared,
-)
+from . import echoes, fixed_echoes, numeric
+from .fixed_echoes import APART_M, GATE_M, MOVING_MPS, OTHERS_SHARE, Fixed, are_objects, fixed_of, smeared
 from .numeric import drift, nearest
 from .options import RANGE_GAP_M, said
 from .rivals import besides, directions_apart, elsewhere, others_share
@@ -225,9 +214,10 @@ def _choose(rule: str, near_m: float | None, time_s, distance_m, velocity_mps, v
     inband = (fixed >= band[0]) & (fixed < (band[1] or np.inf))
     fixed, extent, objects = fixed[inband], extent[inband], objects[inband]
     diffuse = smeared(e, band)
-    spans = sorted(moving_spans(time_s, distance_m, velocity_mps, valid, diffuse) + (beside or []))
+    spans = sorted(fixed_echoes.moving_spans(time_s, distance_m, velocity_mps, valid, diffuse)
+                   + (beside or []))
     if fixed.size == 0 and not spans:   # none at a slice's or a block's level: those the capture's show
-        fixed = capture_peaks(e, band)
+        fixed = fixed_echoes.capture_peaks(e, band)
         extent = np.c_[fixed, fixed]
         objects = are_objects(fixed, time_s, distance_m, velocity_mps, valid, e)
     name = rule if near_m is None else f"near {near_m:g} m"
@@ -313,8 +303,9 @@ def _choose(rule: str, near_m: float | None, time_s, distance_m, velocity_mps, v
                       note="no echo found, fixed or moving: the verified pairs in motion stand")
     (lo, hi), moving = target
     outside = (extent[:, 1] < lo - APART_M) | (extent[:, 0] > hi + APART_M)
-    # the other moving echoes bound the band by their nearer ends
-    others = [a if a > hi else b for a, b in spans if (a, b) != (lo, hi)]
+    # the other moving echoes bound the band by their nearer ends (one nested in a moving target's: its body)
+    others = [a if a > hi else b for a, b in spans
+              if (a, b) != (lo, hi) and not (moving and (a <= lo and hi <= b or lo <= a and b <= hi))]
     inner = ~outside & objects if moving else np.zeros(fixed.size, bool)
     within = fixed[inner]
     what = (f"the moving echo at {lo:.3f}-{hi:.3f} m" if moving else f"the echo at {lo:.3f} m")

@@ -387,6 +387,28 @@ def test_a_wall_that_held_the_first_conversion_is_left_out_of_a_smeared_span():
     assert followed.band_m[0] < 0.1 and np.isclose(followed.ambiguous_m, 0.187).any(), followed.note
 
 
+def test_a_span_holding_the_targets_own_does_not_cut_its_band():
+    """Movers seed 9, capture 37: a hand found by its smeared energy alone (0.043-0.234 m)
+    and its slow start as a line of the echo table (0.287-0.304 m), one span
+    (moving_echoes.unheld: 0.043-0.304 m). The span the smear alone gives, nested in it,
+    is the hand's body seen narrower: it bounds no band, and the hand's band holds its
+    start (the band cut at 0.274 m left 18 % of its periods outside, 83 -> 61 %)."""
+    from fmcw_cl import target
+
+    t = np.arange(1000) * 50e-6 + 25e-6
+    foot = (t, np.full(t.size, 0.07), np.zeros(t.size), np.ones(t.size, bool))
+    table = wall_table(0.07, [0.10, 0.15, 0.20, 0.234])
+    (lo, hi), = fixed_echoes.moving_spans(*foot, fixed_echoes.smeared(table, (0.03, None)))
+    for wide in [(lo, 0.304), (0.08, hi)]:
+        choice = target.choose("auto", 0.5 * sum(wide), *foot, table, 0.468, (0.03, None), [wide],
+                               moving=True, sides=True)
+        assert choice.band_m[1] is None or choice.band_m[1] >= wide[1], (wide, choice.band_m)
+    # another mover beyond the span still bounds it
+    choice = target.choose("auto", 0.17, *foot, table, 0.468, (0.03, None), [(0.10, 0.234), (0.30, 0.36)],
+                           moving=True, sides=True)
+    assert 0.234 < choice.band_m[1] < 0.30, choice.band_m
+
+
 def test_a_target_at_rest_near_twice_a_walls_distance_is_no_harmonic(tmp_path):
     """Speckle, a target at rest at 0.36 m, a wall at 0.176 m about as strong: the target
     lies 8.6 mm from twice the wall's distance. Taken for the wall's harmonic, the wall
