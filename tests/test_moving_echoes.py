@@ -147,3 +147,20 @@ def test_a_slow_start_before_a_smeared_span_is_that_spans_body(seed):
     assert got == alone and moving_echoes.joined(far, got) == sorted(far + alone)
     # a span found apart that holds a known one keeps it (neither end is the known one's)
     assert moving_echoes.joined([(0.11, 0.13)], [(0.10, 0.40)]) == [(0.10, 0.40), (0.11, 0.13)]
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_a_slow_end_after_a_smeared_span_is_that_spans_body(seed):
+    """The other way in time: a body leaving at 1.5 m/s, known by its smeared energy
+    (slices at 5-25 ms), slowing to 0.5 m/s as lines from 55 ms on: the line comes from
+    the last slice at its start's velocity (found apart on e6b4966), one span."""
+    rng = np.random.default_rng(seed)
+    body = 0.12 + 1.5 * T - 5.0 * T ** 2
+    e = _table(rng, [(np.where(T >= 0.055, body, np.nan), 1.5 - 10.0 * T, False)])
+    foot = _target(np.full(N, 0.05))            # its harmonics clear of the line
+    ts = np.arange(0.005, 0.03, 0.01)
+    on = np.interp(ts, T, body)
+    known = fixed_echoes.moving_spans(foot.time_s, foot.distance_m, foot.velocity_mps, foot.valid, on)
+    found = moving_echoes.unheld(replace(e, persistent=_smear(ts, on)), -K, K, foot, (0.03, None), known)
+    assert len(found) == 1 and found[0][0] == known[0][0], (found, known)
+    assert abs(found[0][1] - np.percentile(body[T >= 0.055], 99)) < 1e-3
