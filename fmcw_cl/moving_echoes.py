@@ -152,8 +152,8 @@ def joined(known: list[tuple[float, float]], found: list[tuple[float, float]]) -
 def _smeared(e: echoes.Echoes, track: Track, known: list[tuple[float, float]]) -> dict:
     """The slices (time s, distance m; the echo table's diffuse persistent echoes) of
     each `known` span (m, within APART_M: its ends are percentiles) that holds no moving
-    verified pair of `track`: a body known
-    only by its Doppler-smeared energy, whose slower stretches may be lines."""
+    verified pair of `track`: a body known only by its Doppler-smeared energy, whose
+    slower stretches may be lines."""
     p = e.persistent
     fast = track.valid & np.isfinite(track.distance_m) & (np.abs(track.velocity_mps) >= MOVING_MPS)
     d = track.distance_m[fast]
@@ -168,11 +168,17 @@ def _smeared(e: echoes.Echoes, track: Track, known: list[tuple[float, float]]) -
 def _continues(t: np.ndarray, c: np.ndarray, v: np.ndarray, slices: tuple[np.ndarray, np.ndarray]) -> bool:
     """Whether the echo (distances `c` m, velocities `v` m/s at `t` s) reaches, at its
     ends' velocities, one of the smeared `slices` (time s, distance m) after it, or
-    comes from one before it (objects.seen_again: the slices carry no velocity)."""
+    comes from one before it (the slices carry no velocity)."""
     ts, ds = slices
-    after, before = ts > t[-1], ts < t[0]
-    return bool(np.any(after & seen_again(t[-1], c[-1], v[-1], ts, ds, v[-1]))
-                or np.any(before & seen_again(ts, ds, v[0], t[0], c[0], v[0])))
+    return _meets(t, c, v, (ts, ds, v[0]), (ts, ds, v[-1]))
+
+
+def _meets(t: np.ndarray, c: np.ndarray, v: np.ndarray, last: tuple, first: tuple) -> bool:
+    """Whether a body last seen at one of `last` (time s, distance m, velocity m/s;
+    arrays) before the echo (distances `c` m, velocities `v` m/s at `t` s) is seen
+    again as it, or the echo is seen again at one of `first` after it (objects.seen_again)."""
+    return bool(np.any((last[0] < t[0]) & seen_again(*last, t[0], c[0], v[0]))
+                or np.any((first[0] > t[-1]) & seen_again(t[-1], c[-1], v[-1], *first)))
 
 
 def _merged(spans: list[tuple[float, float]]) -> list[tuple[float, float]]:
@@ -218,7 +224,4 @@ def _goes_on(t: np.ndarray, c: np.ndarray, v: np.ndarray, ends: tuple[np.ndarray
     16 mm, its tracker on a glide since: found as another echo, it cut the rail's band
     there, 85 -> 44 %, movers.py seed 9, capture 26)."""
     first, last = ends
-    ended = last[0] < t[0]
-    later = first[0] > t[-1]
-    return bool(np.any(ended & seen_again(*last, t[0], c[0], v[0]))
-                or np.any(later & seen_again(t[-1], c[-1], v[-1], *first)))
+    return _meets(t, c, v, last, first)
