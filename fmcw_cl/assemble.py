@@ -81,7 +81,7 @@ def assemble(plan: Plan, parts: list[ChunkMeasurements], processor: ChunkProcess
         imaged = wall_images.confused(dechirped_at, (res["dechirped_rise"], res["dechirped_fall"]),
                                       (res["dechirped_snr_rise"], res["dechirped_snr_fall"]), choice.walls_m,
                                       choice.walls_db, plan.model, plan.window, reason_owned == faults.OK)
-        imaged |= at_band_edge((res["dechirped_rise"], res["dechirped_fall"]), plan)
+        imaged |= at_band_edge((res["dechirped_rise"], res["dechirped_fall"]), plan, (t_r, t_f))
         snr = (res["dechirped_snr_rise"], res["dechirped_snr_fall"])
         sigma_v = uncertainty.velocity_crb(snr, options.points, plan.lut.bandwidth_hz, info.refractive_index,
                                            t_f - t_r + plan.model.k_fall - plan.model.k_rise)
@@ -250,16 +250,18 @@ def assemble(plan: Plan, parts: list[ChunkMeasurements], processor: ChunkProcess
         integrated=integrated if varies else None, period_s=period_s, chirp=plan.chirp)
 
 
-def at_band_edge(peaks_m: tuple, plan: Plan) -> np.ndarray:
+def at_band_edge(peaks_m: tuple, plan: Plan, times: tuple) -> np.ndarray:
     """Which pairs have a half-sweep whose de-chirped peak (`peaks_m`: rising, falling;
-    m) lies within EDGE_BINS of an edge of the plan's band (not the spectrum's end):
-    the band's strongest bin there may be the slope of an echo beyond the edge (a
-    band cut beside a window held the slope of a pane's two surfaces at its first bin
-    for 2.5 ms, the pairs 10-13 mm off the foot beneath it)."""
-    mpb, search = plan.model.metres_per_bin, plan.search
-    lo = (search.lo + EDGE_BINS) * mpb
-    hi = (search.hi - 1 - EDGE_BINS) * mpb if search.hi < plan.model.nfft // 2 else np.inf
+    m) lies within EDGE_BINS of an edge of the pair's band (the plan's, or its own along
+    the plan's course at its half-sweeps' `times`, s; not the spectrum's end): the
+    band's strongest bin there may be the slope of an echo beyond the edge (a band cut
+    beside a window held the slope of a pane's two surfaces at its first bin for 2.5 ms,
+    the pairs 10-13 mm off the foot beneath it)."""
+    mpb, half = plan.model.metres_per_bin, plan.model.nfft // 2
+    search = plan.searched(pairing.Times(*times))
     out = np.zeros(np.size(peaks_m[0]), bool)
-    for p in peaks_m:
-        out |= (p < lo) | (p > hi)          # NaN: False
+    for j, p in enumerate(peaks_m):
+        lo, hi = search.band(j)
+        top = np.where(np.asarray(hi) < half, (np.asarray(hi) - 1 - EDGE_BINS) * mpb, np.inf)
+        out |= (p < (np.asarray(lo) + EDGE_BINS) * mpb) | (p > top)          # NaN: False
     return out

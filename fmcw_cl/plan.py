@@ -16,6 +16,7 @@ import numpy as np
 from .capture import Capture
 from .capture_format import CaptureInfo
 from .chirp import Chirp, check_chirp, chirp_lut, read_chirp
+from .course import Course, searched
 from .errors import CaptureError, FmcwError
 from .motion import SMOOTH, Motion
 from .options import Options, said
@@ -63,6 +64,12 @@ class Plan:
     motion: Motion = SMOOTH      # the windows the pairs are fitted over (fmcw_cl.motion; `refine` chooses)
     still_half: int = 0          # pairs each side of the running mean taken from the rows (stages.clutter;
                                  # 0: none): an object that moves among fixed ones (fmcw_cl.scene)
+    course: Course | None = None  # each pair's own band along an object's course (None: `search`'s)
+
+    def searched(self, times) -> Search:
+        """The search of the pairs of `times` (stages.pairing.Times): each pair's band
+        along the plan's course, where it has one."""
+        return searched(self.search, self.course, times.rise, times.fall, self.model.metres_per_bin)
 
     def with_band(self, band: tuple[float, float | None]) -> Plan:
         """The plan with the peak search in `band` (m)."""

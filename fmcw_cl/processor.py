@@ -198,7 +198,7 @@ class ChunkProcessor(spectrum_ops.SpectrumOps):
 
             self._meanwhile = launch_next
         self.ride(*(() if landed is None else (landed,)))
-        res = pairing.track_pairs(xr, xf, times, plan.model, plan.search, plan.options.iterations,
+        res = pairing.track_pairs(xr, xf, times, plan.model, plan.searched(times), plan.options.iterations,
                                   plan.options.dechirp, self, plan.options.integrate)
         self.meanwhile()
         done = [] if before is None else [self._finished(before, landed.get())]
@@ -266,7 +266,7 @@ class ChunkProcessor(spectrum_ops.SpectrumOps):
         times = pairing.Times(np.concatenate(rise), np.concatenate(fall), np.array(groups))
         rows, times = self.resample_pairs(held.beat, jobs, plan.window, times)
         xr, xf = self._moving_only(rows)
-        res = pairing.track_pairs(xr, xf, times, plan.model, plan.search, plan.options.iterations,
+        res = pairing.track_pairs(xr, xf, times, plan.model, plan.searched(times), plan.options.iterations,
                                   plan.options.dechirp, self, k or 1)
         out, slices = [], iter(group_slices(times.groups, times.rise.size))
         for (chunk, prepared, lag), got in zip(items, found, strict=True):

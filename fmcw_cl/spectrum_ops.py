@@ -26,13 +26,16 @@ class SpectrumOps:
     backend swaps in its own (opencl.processor.OpenCLProcessor), with the same arguments
     and results."""
 
-    def measure(self, x, beta, v, model: DopplerModel, search: Search, rows=None) -> tuple:
-        return measure(x, beta, v, model, search, rows)
+    def measure(self, x, beta, v, model: DopplerModel, search: Search, rows=None,
+                direction: int = 0) -> tuple:
+        return measure(x, beta, v, model, search, rows, direction)
 
     def measure_each(self, xs, betas, v, model: DopplerModel, search: Search, rows=None) -> list[tuple]:
-        """`measure` of each x of `xs` (a pair's rising and falling half-sweeps) with its
-        beta of `betas`, the same velocities and rows (a backend: in one round trip)."""
-        return [self.measure(x, beta, v, model, search, rows) for x, beta in zip(xs, betas, strict=True)]
+        """`measure` of each x of `xs` (a pair's rising and falling half-sweeps, in that
+        direction's bands) with its beta of `betas`, the same velocities and rows (a
+        backend: in one round trip)."""
+        return [self.measure(x, beta, v, model, search, rows, j)
+                for j, (x, beta) in enumerate(zip(xs, betas, strict=True))]
 
     def track(self, rows: tuple, times: Times, model: DopplerModel, search: Search, iterations: int,
               single: bool) -> tuple[tuple, Passes | None]:
@@ -92,10 +95,11 @@ class SpectrumOps:
         return store
 
     def integrated_peaks(self, store, disp: np.ndarray, k: int, search: Search,
-                         bounds: np.ndarray | None = None) -> tuple:
+                         bounds: np.ndarray | None = None, direction: int = 0) -> tuple:
         """(bin, SNR dB, count) of the K-window integrated spectra (stages.integrate;
-        `bounds`: each row's group's first and last row, None: one group)."""
-        return integrate.peaks(store, disp, k, search, bounds)
+        `bounds`: each row's group's first and last row, None: one group) in
+        `direction`'s bands (0: rising, 1: falling)."""
+        return integrate.peaks(store, disp, k, search, bounds, direction)
 
     def survey(self, x, beta, v, nfft: int, rows, lo: int, tracked_bin, plain_bin, others) -> tuple:
         """echoes.hidden of the rows `rows` of x: (ratio, centroid, found) from their plain

@@ -116,15 +116,18 @@ int plain_transform(const int g, __global const int *first, const int groups, co
 }
 
 // A launch measures one job or two (a pair's rising and falling half-sweeps): the second
-// job's rows, Doppler basis and outputs, taken by work-group row 1 (both spectrum kernels).
+// job's rows, Doppler basis, bands and outputs, taken by work-group row 1 (both spectrum
+// kernels).
 #define SECOND_JOB                                                                      \
-    __global const float *x_b, __global const float *beta_b, __global float *bin_b,    \
+    __global const float *x_b, __global const float *beta_b, __global const int *band_b, \
+    __global float *bin_b,                                                              \
     __global float *snr_b, __global float *power_b, __global float *echo_bin_b,        \
     __global float *echo_snr_b, __global int *echo_count_b
 #define TO_SECOND_JOB                                                                   \
     if (get_group_id(1)) {                                                              \
         x = x_b;                                                                        \
         beta = beta_b;                                                                  \
+        band = band_b;                                                                  \
         bin = bin_b;                                                                    \
         snr = snr_b;                                                                    \
         power = power_b;                                                                \
@@ -149,6 +152,8 @@ __kernel void spectrum_peak(__global const float *x,          // (rows, points)
                             const int nfft,
                             const int lo,
                             const int hi,
+                            __global const int *band,         // banded: [lo, hi) of each row
+                            const int banded,
                             const int guard,
                             __global float *bin,              // (sweeps,)
                             __global float *snr,              // (sweeps,)
@@ -217,8 +222,10 @@ __kernel void spectrum_peak(__global const float *x,          // (rows, points)
                 if (keep_power) out[k] = e;
             }
             barrier(CLK_LOCAL_MEM_FENCE);
-            local_peak(pw, half_n, lo, hi, guard, scratch, (__local int *)(scratch + lsz),
-                       scratch + 2 * lsz, bin + s + r, snr + s + r);
+            // the row's own band where the search has one (a pair's along its object)
+            const int row = (indexed ? index[s] : s) + r;
+            local_peak(pw, half_n, banded ? band[2 * row] : lo, banded ? band[2 * row + 1] : hi, guard, scratch,
+                       (__local int *)(scratch + lsz), scratch + 2 * lsz, bin + s + r, snr + s + r);
             if (echoes) {
                 const size_t e = (size_t)(s + r) * max_echoes;
                 // every echo above the minimum range, the band's top (--max-range) aside

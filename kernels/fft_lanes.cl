@@ -76,26 +76,36 @@ float peak_position_lane(__local const floatL *pw, const int half_n, const int k
     return peak_position_strided((__local const float *)pw + l, LANES, half_n, kk);
 }
 
-// local_peak (peak.cl) of every lane: the band's arg-max (ties: the lowest bin), then
-// the floor as the mean of the band outside +-guard of it, summed apart (no
-// difference of two large sums).
-void lanes_peak(__local const floatL *pw, const int half_n, const int lo, const int hi, const int guard,
+// local_peak (peak.cl) of every lane, each in its band [lo[l], hi[l]): the band's arg-max
+// (ties: the lowest bin), then the floor as the mean of the band outside +-guard of it,
+// summed apart (no difference of two large sums).
+void lanes_peak(__local const floatL *pw, const int half_n, const int *lo, const int *hi, const int guard,
                 const int *sweep, __global float *bin, __global float *snr)
 {
+    int k0 = half_n, k1 = 0;                       // the lanes' bands' union
+    for (int l = 0; l < LANES; ++l) {
+        k0 = IMIN(k0, lo[l]);
+        k1 = IMAX(k1, hi[l]);
+    }
+    const intL vlo = VLOADL(0, lo), vhi = VLOADL(0, hi);
     floatL best = -1.0f, total = 0.0f;
-    intL arg = (intL)lo;
-    for (int k = lo; k < hi; ++k) {
+    intL arg = vlo;
+    for (int k = k0; k < k1; ++k) {
         const floatL p = pw[k];
-        const intL gt = p > best;
+        const intL in = ((intL)k >= vlo) & ((intL)k < vhi);
+        const intL gt = in & (p > best);
         best = gt ? p : best;
         arg = gt ? (intL)k : arg;
-        total += p;
+        total += in ? p : (floatL)0.0f;
     }
     intL kk = arg < 1 ? (intL)1 : arg;
     kk = kk > half_n - 2 ? (intL)(half_n - 2) : kk;
     const intL g0 = kk - guard, g1 = kk + guard;
     floatL outside = 0.0f;
-    for (int k = lo; k < hi; ++k) outside += (((intL)k < g0) | ((intL)k > g1)) ? pw[k] : (floatL)0.0f;
+    for (int k = k0; k < k1; ++k) {
+        const intL in = ((intL)k >= vlo) & ((intL)k < vhi);
+        outside += (in & (((intL)k < g0) | ((intL)k > g1))) ? pw[k] : (floatL)0.0f;
+    }
     float o[LANES], t[LANES];
     int c[LANES];
     VSTOREL(outside, 0, o);
@@ -103,9 +113,9 @@ void lanes_peak(__local const floatL *pw, const int half_n, const int lo, const 
     VSTOREL(kk, 0, c);
     for (int l = 0; l < LANES; ++l) {
         if (sweep[l] < 0) continue;
-        const int a = IMAX(c[l] - guard, lo), b = IMIN(c[l] + guard, hi - 1);
-        const int n_out = (hi - lo) - (b - a + 1);
-        const float floor_level = n_out > 0 ? o[l] / (float)n_out : t[l] / (float)(hi - lo);
+        const int a = IMAX(c[l] - guard, lo[l]), b = IMIN(c[l] + guard, hi[l] - 1);
+        const int n_out = (hi[l] - lo[l]) - (b - a + 1);
+        const float floor_level = n_out > 0 ? o[l] / (float)n_out : t[l] / (float)(hi[l] - lo[l]);
         bin[sweep[l]] = peak_position_lane(pw, half_n, c[l], l);
         snr[sweep[l]] = 10.0f * log10(lane(pw, c[l], l) / (floor_level > 1.0e-30f ? floor_level : 1.0e-30f));
     }
@@ -254,6 +264,7 @@ __kernel void spectrum_lanes(__global const float *x, const int sweeps, const in
                              __global const float *beta, __global const float *velocity, const int dechirp,
                              __global const float *tw_re, __global const float *tw_im,
                              __global const int *perm, const int nfft, const int lo, const int hi,
+                             __global const int *band, const int banded,
                              const int guard, __global float *bin, __global float *snr,
                              __global float *power, const int keep_power, const int scatter,
                              const int echoes, const int cfar_guard, const int train,
@@ -377,7 +388,14 @@ __kernel void spectrum_lanes(__global const float *x, const int sweeps, const in
                     for (int k = 0; k < half_n; ++k) out[k] = lane(p_r, k, l);
                 }
             }
-            lanes_peak(p_r, half_n, lo, hi, guard, sweep, bin, snr);
+            // each lane's row's own band where the search has one (a pair's along its object)
+            int lo_l[LANES], hi_l[LANES];
+            for (int l = 0; l < LANES; ++l) {
+                const int row = sweep[l] < 0 ? -1 : (indexed ? index[first[l]] : first[l]) + r;
+                lo_l[l] = banded && row >= 0 ? band[2 * row] : lo;
+                hi_l[l] = banded && row >= 0 ? band[2 * row + 1] : hi;
+            }
+            lanes_peak(p_r, half_n, lo_l, hi_l, guard, sweep, bin, snr);
             if (echoes) {
                 lanes_cfar(p_r, half_n, lo, cfar_guard, train, scale, max_echoes, re, im, sweep,
                            echo_bin, echo_snr, echo_count);

@@ -22,19 +22,22 @@
     const int after,                                                                             \
     const int lo,                                                                                \
     const int hi,                                                                                \
+    __global const int *band,      /* banded: [lo, hi) of each row */                            \
+    const int banded,                                                                            \
     const int guard,                                                                             \
     __global float *bin,           /* (rows,) */                                                 \
     __global float *snr,           /* (rows,) */                                                 \
     __global int *count,           /* (rows,) */                                                 \
     __global const int *state,     /* state[1] set: the tracker's passes stopped, nothing to do */ \
     /* the second job (get_group_id(1) = 1: the pair's other direction), the same rows */        \
-    __global const float *power_b, __global float *bin_b, __global float *snr_b,                \
-    __global int *count_b
+    __global const float *power_b, __global const int *band_b, __global float *bin_b,           \
+    __global float *snr_b, __global int *count_b
 
 // The second job's buffers for the work-groups of row 1 of the launch.
 #define TO_SECOND_JOB      \
     if (get_group_id(1)) { \
         power = power_b;   \
+        band = band_b;     \
         bin = bin_b;       \
         snr = snr_b;       \
         count = count_b;   \
@@ -68,7 +71,7 @@ __kernel void integrate_peak(INTEGRATE_PARAMS,
         pw[b] = acc * inv;
     }
     barrier(CLK_LOCAL_MEM_FENCE);
-    local_peak(pw, half_n, lo, hi, guard, scratch, (__local int *)(scratch + lsz), scratch + 2 * lsz,
-               bin + i, snr + i);
+    local_peak(pw, half_n, banded ? band[2 * i] : lo, banded ? band[2 * i + 1] : hi, guard, scratch,
+               (__local int *)(scratch + lsz), scratch + 2 * lsz, bin + i, snr + i);
     if (lid == 0) count[i] = j1 - j0 + 1;
 }

@@ -79,6 +79,6 @@ __kernel void integrate_lanes(INTEGRATE_PARAMS,        // half_n % 8 == 0
     }
     const float inv = 1.0f / (float)(j1 - j0 + 1);
     for (int q = 0; q < blocks; ++q) acc[q] *= inv;
-    row_peak(acc, half_n, lo, hi, guard, bin + i, snr + i);
+    row_peak(acc, half_n, banded ? band[2 * i] : lo, banded ? band[2 * i + 1] : hi, guard, bin + i, snr + i);
     count[i] = j1 - j0 + 1;
 }

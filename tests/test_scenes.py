@@ -973,19 +973,34 @@ def test_runs_at_rest_are_found_and_nothing_else():
 
 def test_a_peak_at_a_bands_edge_is_no_peak():
     """assemble.at_band_edge: a half-sweep's de-chirped peak within a bin of either edge
-    of the band (not the spectrum's end) flags its pair; NaN (no peak) does not."""
+    of the band (not the spectrum's end) flags its pair; NaN (no peak) does not. Along
+    a course (fmcw_cl.course), each pair's own band's edges in each direction."""
     from types import SimpleNamespace
 
     from fmcw_cl.assemble import at_band_edge
+    from fmcw_cl.course import Course, searched
     from fmcw_cl.stages.spectrum import Search
 
+    def plan_of(search, course=None):
+        return SimpleNamespace(model=model, search=search, searched=lambda times: searched(
+            search, course, times.rise, times.fall, model.metres_per_bin))
+
     model = SimpleNamespace(metres_per_bin=0.5e-3, nfft=2048)
-    plan = SimpleNamespace(model=model, search=Search(130, 212))        # 0.065-0.106 m
+    plan = plan_of(Search(130, 212))        # 0.065-0.106 m
     rise = np.array([0.0652, 0.0656, 0.080, 0.1048, 0.1052, np.nan])
     fall = np.array([0.080, 0.080, 0.0651, 0.080, 0.080, 0.080])
-    assert at_band_edge((rise, fall), plan).tolist() == [True, False, True, False, True, False]
-    open_top = SimpleNamespace(model=model, search=Search(130, 1024))
-    assert not at_band_edge((np.array([0.511]), np.array([0.511])), open_top).any()
+    t = np.arange(6) * 50e-6
+    assert at_band_edge((rise, fall), plan, (t, t + 25e-6)).tolist() == [True, False, True, False, True, False]
+    open_top = plan_of(Search(130, 1024))
+    assert not at_band_edge((np.array([0.511]), np.array([0.511])), open_top, (t[:1], t[:1])).any()
+    # along a course: the rising band 0.0700-0.0900 m (bins 140-181), the falling one the search's
+    course = Course(np.array([0.0, 1.0]), np.array([[0.07, 0.07], [0.0, 0.0]]), np.array([[0.0899, 0.0899],
+                                                                                        [1.0, 1.0]]))
+    along = plan_of(Search(130, 212), course)
+    rise = np.array([0.0702, 0.0706, 0.0898, 0.0893, 0.0652])
+    fall = np.full(5, 0.080)
+    assert at_band_edge((rise, fall), along, (t[:5], t[:5] + 25e-6)).tolist() == [True, False, True, False,
+                                                                                  True]
 
 
 def test_a_brief_still_part_of_a_moving_track_is_no_body():

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import functools
 from collections.abc import Callable
+from dataclasses import replace
 
 import numpy as np
 
@@ -212,7 +213,9 @@ class OpenCLProcessor(ChunkProcessor):
     def clip_counts(self, codes, block, full_scale):
         return k_faults.clip_counts(self.rt, self.bufs, codes, block, full_scale)
 
-    def measure(self, x, beta, v, model, search, rows=None):
+    def measure(self, x, beta, v, model, search, rows=None, direction=0):
+        if search.bands is not None:        # the one direction's bands, as a pair's first
+            search = replace(search, bands=search.bands[direction: direction + 1])
         return self.measure_each([x], [beta], v, model, search, rows)[0]
 
     def measure_each(self, xs, betas, v, model, search, rows=None, riders: tuple = (), times=None,
@@ -226,7 +229,8 @@ class OpenCLProcessor(ChunkProcessor):
         groups, device = (None, None) if times is None else (times.groups, times.device)
         got = k_spectrum.measure_each(self.rt, self.bufs, jobs, v, model.nfft, search.lo, search.hi,
                                       index=rows, echoes=search.echoes, riders=riders, groups=groups,
-                                      d_groups=None if device is None else device[3], meanwhile=meanwhile)
+                                      d_groups=None if device is None else device[3], meanwhile=meanwhile,
+                                      bands=k_spectrum.band_buffers(self.bufs, search, tuple(range(len(xs)))))
         return _measured(got, model, search)
 
     def track(self, rows, times, model, search, iterations, single):
@@ -378,10 +382,10 @@ class OpenCLProcessor(ChunkProcessor):
 
         return out, read
 
-    def integrated_peaks(self, store, disp, k, search, bounds=None):
+    def integrated_peaks(self, store, disp, k, search, bounds=None, direction=0):
         if not self._fits(2 * store.shape[1]):       # (pairs, nfft / 2) power spectra
-            return NUMPY.integrated_peaks(store, disp, k, search, bounds)
-        return k_integrate.peaks(self.rt, self.bufs, store, disp, k, search, bounds)
+            return NUMPY.integrated_peaks(store, disp, k, search, bounds, direction)
+        return k_integrate.peaks(self.rt, self.bufs, store, disp, k, search, bounds, direction)
 
 
 def _riding(packed: Packed, make: Callable[[list], object]) -> Later:

@@ -102,7 +102,8 @@ def measure_each(rt: Runtime, bufs: Buffers, jobs: list, velocity: np.ndarray | 
                  hi: int | None = None, keep_power: bool = False, index: np.ndarray | None = None,
                  echoes: bool = False, scatter: bool = True, picked: tuple | None = None,
                  out: Packed | None = None, first: int = 0, listed=None, riders: tuple = (),
-                 groups: np.ndarray | None = None, d_groups=None, meanwhile=None) -> list[tuple] | None:
+                 groups: np.ndarray | None = None, d_groups=None, meanwhile=None, bands: tuple | None = None
+                 ) -> list[tuple] | None:
     """`measure` of each (rows, beta, store) of `jobs` (rows of one shape: a pair's
     rising and falling half-sweeps) with the same picked rows, velocities and band: the
     picked rows and velocities go up once (`picked`: their device buffers, already up,
@@ -114,7 +115,9 @@ def measure_each(rt: Runtime, bufs: Buffers, jobs: list, velocity: np.ndarray | 
     (buffers.Rider) come down with the results. `groups`: the first row of each group
     of rows whose plain spectra are taken as if alone (None: one group; `d_groups`: its
     int32 copy on the device, where already up). `meanwhile`: host work run once the
-    launches and the download are queued, before it is waited for."""
+    launches and the download are queued, before it is waited for. `bands`: each job's
+    rows' own bands (device buffers of (rows, 2) int32 [lo, hi), `band_buffers`; None:
+    [lo, hi) for every row)."""
     up = {id(rows): as_device(bufs, rows) for rows, _, _ in jobs}      # a host array goes up once
     rows_of = [up[id(rows)] for rows, _, _ in jobs]
     sweeps, points = rows_of[0].shape
@@ -152,9 +155,11 @@ def measure_each(rt: Runtime, bufs: Buffers, jobs: list, velocity: np.ndarray | 
         d_groups = bufs.upload("groups", np.asarray(groups, np.int32))
     # each job's own buffers: rows, Doppler basis, peak, SNR, power, echoes (bin, SNR, count)
     own = []
+    none = bufs.constant("index0", zeros(1), np.int32)
     for i, (rows, (_, beta, store)) in enumerate(zip(rows_of, jobs, strict=True)):
         d_bin, d_snr, d_ebin, d_esnr, d_ecount, d_own = out.buffers[first + 6 * i: first + 6 * i + 6]
-        own.append((rows.buffer, bufs.constant("beta", beta if dechirp else zeros(points)), d_bin, d_snr,
+        own.append((rows.buffer, bufs.constant("beta", beta if dechirp else zeros(points)),
+                    none if bands is None else bands[i], d_bin, d_snr,
                     store.buffer if store is not None else d_own, d_ebin, d_esnr, d_ecount))
     # two consecutive jobs that differ only in those buffers (a pair's rising and falling
     # half-sweeps) go in one launch, a job a row of work-groups: half the launches of the
@@ -176,12 +181,14 @@ def measure_each(rt: Runtime, bufs: Buffers, jobs: list, velocity: np.ndarray | 
         local = [cl.LocalMemory(4 * nfft), cl.LocalMemory(4 * nfft), cl.LocalMemory(4 * half),
                  cl.LocalMemory(12 * lsz), cl.LocalMemory(half if echoes else 1)]
     for group in launches:
-        (x, beta, d_bin, d_snr, d_power, d_ebin, d_esnr, d_ecount), second = own[group[0]], own[group[-1]]
+        (x, beta, d_band, d_bin, d_snr, d_power, d_ebin, d_esnr, d_ecount) = own[group[0]]
+        second = own[group[-1]]
         kept = stored[group[0]]
         args = (x, np.int32(sweeps), np.int32(points), d_index, np.int32(indexed), beta, d_v,
                 np.int32(dechirp), bufs.constant("tw_re", twr), bufs.constant("tw_im", twi),
-                bufs.constant("perm", perm, np.int32), np.int32(nfft), np.int32(lo), np.int32(hi),
-                np.int32(GUARD_BINS), d_bin, d_snr, d_power, np.int32(keep_power or kept),
+                bufs.constant("perm", perm, np.int32), np.int32(nfft), np.int32(lo), np.int32(hi), d_band,
+                np.int32(bands is not None), np.int32(GUARD_BINS), d_bin, d_snr, d_power,
+                np.int32(keep_power or kept),
                 np.int32(kept and indexed and scatter),
                 np.int32(echoes), np.int32(cfar.GUARD), np.int32(cfar.TRAIN),
                 bufs.constant("cfar_scale", cfar_scales()), np.int32(m),
@@ -197,6 +204,15 @@ def measure_each(rt: Runtime, bufs: Buffers, jobs: list, velocity: np.ndarray | 
     if all(store is not None for _, _, store in jobs):      # the spectra stay for the next kernel
         return [(None, None, None)] * len(jobs)
     return results(out.download(meanwhile), jobs, sweeps, nfft, echoes, keep_power)
+
+
+def band_buffers(bufs: Buffers, search, directions: tuple = (0, 1)) -> tuple | None:
+    """The device copies of `search`'s bands of `directions` (Search.bands, each
+    (pairs, 2) int32), by one upload; None where the search has none."""
+    if search.bands is None:
+        return None
+    own = [np.ascontiguousarray(search.bands[j], np.int32).ravel() for j in directions]
+    return tuple(Packed(bufs, "bands", [(np.int32, a.size) for a in own]).upload(*own))
 
 
 def plain_transforms(groups: np.ndarray | None, sweeps: int) -> int:

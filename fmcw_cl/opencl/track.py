@@ -70,8 +70,9 @@ def track(rt: Runtime, bufs: Buffers, rows: tuple[DeviceRows, DeviceRows], times
     out = Packed(bufs, "tracked", [*head, *_state_parts(pairs), _phasor_part(pairs)], riders)
     times = _times_here(bufs, times)
     band = (model.nfft, search.lo, search.hi)
+    bands = k_spectrum.band_buffers(bufs, search)
     k_spectrum.measure_each(rt, bufs, plain, None, *band, echoes=search.echoes, out=out, groups=times.groups,
-                            d_groups=times.device[3])
+                            d_groups=times.device[3], bands=bands)
     dechirp = [(rows[0], model.beta_rise, None), (rows[1], model.beta_fall, None)]
     again = Packed(bufs, "track_pass", k_spectrum.parts(dechirp, pairs, model.nfft))
     run = _Passes(rt, bufs, pairs, times, model, search.reach, out.buffers[len(head):-1])
@@ -79,7 +80,7 @@ def track(rt: Runtime, bufs: Buffers, rows: tuple[DeviceRows, DeviceRows], times
         got = (out if it == 0 else again).buffers      # each direction's peaks: parts 0, 1 and 6, 7
         run.launch(it, iterations, [got[i] for i in (0, 1, 6, 7)])
         k_spectrum.measure_each(rt, bufs, dechirp, None, *band, picked=run.listed, listed=run.state,
-                                out=again)
+                                out=again, bands=bands)
     run.launch(iterations, iterations, [again.buffers[i] for i in (0, 1, 6, 7)])
     run.verdict()
     k_phase.launch_state(rt, bufs, rows, model, run.vel, run.d_r, run.d_f, out.buffers[-1])
@@ -105,6 +106,7 @@ def integrated(rt: Runtime, bufs: Buffers, rows: tuple[DeviceRows, DeviceRows], 
     d_bounds = times.device[2]
     stores = [DeviceRows(bufs, pairs, half) for _ in rows]
     band = (model.nfft, search.lo, search.hi)
+    bands = k_spectrum.band_buffers(bufs, search)
     k_spectrum.measure_each(rt, bufs, [(x, None, store) for x, store in zip(rows, stores, strict=True)],
                             None, *band)
     dechirp = [(x, beta, store) for x, beta, store in zip(rows, (model.beta_rise, model.beta_fall), stores,
@@ -118,11 +120,11 @@ def integrated(rt: Runtime, bufs: Buffers, rows: tuple[DeviceRows, DeviceRows], 
     run = _Passes(rt, bufs, pairs, times, model, search.reach, out.buffers[:-2],
                   (got[5], bufs.constant("floors", floors(k), np.float64), disp))
     rt.kernel("track", "track_start")(rt.queue, *rt.items(pairs), np.int32(pairs), run.vd, disp, run.state)
-    k_integrate.launch(rt, bufs, jobs, disp, d_bounds, k, search, run.state)
+    k_integrate.launch(rt, bufs, jobs, disp, d_bounds, k, search, run.state, bands)
     for it in range(iterations):
         run.launch(it, iterations, measured)       # the displacement of the moved velocities too
         k_spectrum.measure_each(rt, bufs, dechirp, None, *band, picked=run.listed, listed=run.state)
-        k_integrate.launch(rt, bufs, jobs, disp, d_bounds, k, search, run.state)
+        k_integrate.launch(rt, bufs, jobs, disp, d_bounds, k, search, run.state, bands)
     run.launch(iterations, iterations, measured)
     run.verdict()
     k_phase.launch_state(rt, bufs, rows, model, run.vel, run.d_r, run.d_f, out.buffers[-1])

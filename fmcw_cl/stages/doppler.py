@@ -83,13 +83,14 @@ def power(x: np.ndarray, beta: np.ndarray | None, v: np.ndarray | None, nfft: in
 
 
 def measure(x: np.ndarray, beta: np.ndarray, v: np.ndarray | None, model: DopplerModel,
-            search: Search, rows: np.ndarray | None = None) -> tuple:
+            search: Search, rows: np.ndarray | None = None, direction: int = 0) -> tuple:
     """Apparent distance (m) and SNR (dB) of half-sweeps de-chirped at velocities v
     (plain spectra when v is None), of the rows `rows` of x only when given; with
     `search.echoes`, every echo above the band's start (cfar.Detections; beyond its
-    end too: a wall behind --max-range stays visible) as a third item."""
+    end too: a wall behind --max-range stays visible) as a third item. `direction`
+    (0: rising, 1: falling) picks the rows' own bands where the search has them."""
     spec = power(x, beta, v, model.nfft, rows)
-    pk = find_peaks(spec, search.lo, search.hi)
+    pk = find_peaks(spec, *search.band(direction, rows))
     got = (pk.bin * model.metres_per_bin, pk.snr_db)
     return (*got, cfar.detect(spec, search.lo)) if search.echoes else got
 

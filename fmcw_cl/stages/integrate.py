@@ -182,12 +182,14 @@ def integrate(power: np.ndarray, disp: np.ndarray, k: int, bounds: np.ndarray | 
     return acc / count[:, None], count
 
 
-def peaks(power: np.ndarray, disp: np.ndarray, k: int, search: Search, bounds: np.ndarray | None = None
-          ) -> tuple:
+def peaks(power: np.ndarray, disp: np.ndarray, k: int, search: Search, bounds: np.ndarray | None = None,
+          direction: int = 0) -> tuple:
     """(bin, SNR dB, count) of the tracked peak of each row's integrated spectrum
-    (`integrate`; `bounds`: windows cut at each row's group's ends)."""
+    (`integrate`; `bounds`: windows cut at each row's group's ends), in `direction`'s
+    bands (0: rising, 1: falling) where the search has them."""
     # the band and a bin either side (the peak's parabola) are all find_peaks reads
     first, end = max(search.lo - 1, 0), min(search.hi + 1, power.shape[1])
     spec, count = integrate(power, disp, k, bounds, (first, end))
-    pk = find_peaks(spec, search.lo - first, search.hi - first)
+    lo, hi = search.band(direction)
+    pk = find_peaks(spec, lo - first, hi - first)
     return pk.bin + first, pk.snr_db, count

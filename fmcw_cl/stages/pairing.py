@@ -111,8 +111,8 @@ class _Windows:
             disp = _each(self.groups, lambda g: numeric.travelled(self.t[g], vd[g]), vd.size)
         disp = disp / m.metres_per_bin
         out = []
-        for store in self.stores:
-            b, snr, count = self.ops.integrated_peaks(store, disp, self.k, self.search, self.bounds)
+        for j, store in enumerate(self.stores):
+            b, snr, count = self.ops.integrated_peaks(store, disp, self.k, self.search, self.bounds, j)
             out += [b * m.metres_per_bin, snr]
         return (*out, count)
 

@@ -11,7 +11,7 @@ level; a median would need a selection the OpenCL peak kernel cannot do cheaply)
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -30,12 +30,24 @@ class Search:
         plain first pass).
     reach : the half-width (pairs) of the tracker's velocity median, its continuity
         prior (stages.pairing; fmcw_cl.motion chooses it).
+    bands : each pair's own band, (2, pairs, 2) int: [lo, hi) of its rising (0) and
+        falling (1) half-sweep, inside [lo, hi) (fmcw_cl.course: an object's band that
+        follows it in time); None: [lo, hi) for every pair.
     """
 
     lo: int
     hi: int
     echoes: bool = False
     reach: int = 8
+    bands: np.ndarray | None = field(default=None, compare=False, repr=False)
+
+    def band(self, direction: int, rows: np.ndarray | None = None) -> tuple:
+        """The band [lo, hi) of the pairs `rows` (all when None) in `direction` (0:
+        rising, 1: falling): ints, or an int array each where the pairs have bands."""
+        if self.bands is None:
+            return self.lo, self.hi
+        own = self.bands[direction] if rows is None else self.bands[direction][rows]
+        return own[:, 0], own[:, 1]
 
 
 def fft_length(points: int) -> int:
@@ -80,12 +92,15 @@ def interpolate(power: np.ndarray, rows: np.ndarray, kk: np.ndarray) -> np.ndarr
     return kk + np.clip(delta, -0.5, 0.5)
 
 
-def find_peaks(power: np.ndarray, lo: int, hi: int | None = None) -> Peaks:
-    """Largest peak of each row in bins [lo, hi), interpolated, with its SNR.
+def find_peaks(power: np.ndarray, lo, hi=None) -> Peaks:
+    """Largest peak of each row in bins [lo, hi), interpolated, with its SNR; `lo` and
+    `hi` ints, or int arrays of a band per row (`row_peaks`).
 
     The SNR is the peak power over the noise floor: the mean power of the band
     outside +-GUARD_BINS of the peak.
     """
+    if np.ndim(lo) or np.ndim(hi):
+        return row_peaks(power, np.asarray(lo), np.asarray(hi))
     hi = power.shape[1] if hi is None else hi
     band = power[:, lo:hi]
     k = np.argmax(band, axis=1) + lo
@@ -97,6 +112,27 @@ def find_peaks(power: np.ndarray, lo: int, hi: int | None = None) -> Peaks:
     # a band narrower than the guard has no outside: use the whole band's mean
     floor = np.where(count > 0, np.sum(band * outside, axis=1) / np.maximum(count, 1),
                      band.mean(axis=1))
+    with np.errstate(divide="ignore"):
+        snr = 10 * np.log10(power[rows, kk] / np.maximum(floor, np.finfo(np.float64).tiny))
+    return Peaks(interpolate(power, rows, kk), snr.astype(np.float32))
+
+
+def row_peaks(power: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> Peaks:
+    """`find_peaks` with each row's own band [lo[i], hi[i]) (hi > lo)."""
+    rows = np.arange(power.shape[0])
+    if rows.size == 0:
+        return Peaks(np.zeros(0), np.zeros(0, np.float32))
+    a, b = int(lo.min()), int(hi.max())
+    band = power[:, a:b]
+    cols = np.arange(a, b)
+    inside = (cols[None, :] >= lo[:, None]) & (cols[None, :] < hi[:, None])
+    # power is never negative: -1 outside never wins, ties go to the lowest bin
+    k = np.argmax(np.where(inside, band, -1.0), axis=1) + a
+    kk = np.clip(k, 1, power.shape[1] - 2)
+    outside = inside & (np.abs(cols[None, :] - kk[:, None]) > GUARD_BINS)
+    count = outside.sum(axis=1)
+    floor = np.where(count > 0, np.sum(band * outside, axis=1) / np.maximum(count, 1),
+                     np.sum(band * inside, axis=1) / inside.sum(axis=1))
     with np.errstate(divide="ignore"):
         snr = 10 * np.log10(power[rows, kk] / np.maximum(floor, np.finfo(np.float64).tiny))
     return Peaks(interpolate(power, rows, kk), snr.astype(np.float32))
