@@ -15,7 +15,7 @@ import numpy as np
 from . import fixed_echoes
 from .coherence import slope
 from .numeric import follows
-from .objects import GATE_M, level, per_pair
+from .objects import GATE_M, SAME_M, level, per_pair
 from .stages import faults
 from .stages.clutter import STILL_S
 from .stages.verification import ACCEL_MAX, KINEMATIC_S
@@ -136,11 +136,16 @@ def conflicts(tracks: list[Track], fixed: list[bool] | None = None,
     rail had left its band). Not where (i, j) is `unseen`: track i's rows hold nothing
     of object j (a still one, taken out of a mover's rows: fmcw_cl.scene)."""
     fixed = fixed or [False] * len(tracks)
-    paths = [path(t) if f else heard(t) for t, f in zip(tracks, fixed, strict=True)]
+    own = [path(t) for t in tracks]
+    paths = [p if f else heard(t) for t, p, f in zip(tracks, own, fixed, strict=True)]
     out = [np.zeros(t.pairs, bool) for t in tracks]
     for i in range(len(tracks)):
         for j in range(i + 1, len(tracks)):
             close = np.abs(paths[i] - paths[j]) <= GATE_M      # NaN: False
+            # an ambiguous pair's peaks where the other's own verified pair lies: that
+            # echo seen by a second tracker, not a second echo beside it
+            echo = np.isnan(own[i]) ^ np.isnan(own[j])
+            close &= ~(echo & (np.abs(paths[i] - paths[j]) <= SAME_M))
             for a, b in ((i, j), (j, i)):
                 if fixed[b] and tracks[b].valid.any():
                     close |= _within_span(tracks[b], paths[a])

@@ -673,6 +673,28 @@ def test_conflicts_count_another_objects_ambiguous_pairs():
         assert not crossings.conflicts([wall, mover], [True, True])[0].any()
 
 
+def test_an_echo_another_tracker_held_as_ambiguous_is_no_second_echo():
+    """Another mover's `ambiguous` pairs whose peaks lie where an object's own verified
+    pairs do (within SAME_M) are that echo seen by a second tracker: no conflict (a
+    candidate in the whole band held a sway's echo as ambiguous pairs, and so took 1694
+    of the sway's 3170 verified pairs; glide through a sway, seed 3). A few mm off, a
+    second echo: a conflict on both; the other's verified pairs there too."""
+    n = 400
+    rng = np.random.default_rng(3)
+    sway = 0.19 + 0.03 * np.sin(np.linspace(0, 6, n))
+    a = _track(sway, np.gradient(sway, PERIOD))
+    for off, hit in ((0.0002, False), (0.003, True)):
+        seen = sway + off * rng.choice([-1, 1], n)
+        b = _track(seen, np.full(n, 0.5), valid=np.zeros(n, bool))
+        b.reason[:] = faults.AMBIGUOUS
+        b.sweep_time_s = np.repeat(b.time_s, 2) + np.tile([-PERIOD / 4, PERIOD / 4], n)
+        b.sweep_distance_dechirped_m = np.repeat(seen, 2)
+        hit_a, _ = crossings.conflicts([a, b])
+        assert hit_a.all() == hit and hit_a.any() == hit
+    verified = _track(sway + 0.0002, np.gradient(sway, PERIOD))
+    assert crossings.conflicts([a, verified])[0].all()       # two trackers' verified pairs: both
+
+
 def test_returns_and_joined():
     """An object hidden and seen again within RETURN_M is one; its pairs come from the
     conversion that verified them."""
