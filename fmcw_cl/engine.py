@@ -91,9 +91,14 @@ def process(path, options: Options | None = None, processor: ChunkProcessor | No
                 # its rest sought on the whole conversion, not on one body's part of it
                 whole = track if own.whole is None else own.whole
             # such a mover holds no rest: the tuning is read on the still echo the first
-            # conversion held (a hand moving throughout read peaks 8.7 times too wide)
-            ratio = check_tuning(cap, *((was.plan, first) if looked else (plan, whole)), processor)
-            track.attrs.update({k: (first if looked else whole).attrs[k] for k in TUNING_ATTRS})
+            # conversion held (a hand moving throughout read peaks 8.7 times too wide); so
+            # is a mover's converted along its course (fmcw_cl.along), whose plan searches
+            # the whole band (a glide's: a stronger swaying object's peaks, de-chirped at
+            # the glide's velocity, read 1.6 times too wide, and the scene became one object
+            # without a valid pair; movers.py seed 1, capture 9)
+            elsewhere = looked or plan.course is not None
+            ratio = check_tuning(cap, *((was.plan, first) if elsewhere else (plan, whole)), processor)
+            track.attrs.update({k: (first if elsewhere else whole).attrs[k] for k in TUNING_ATTRS})
             if ratio > UNCALIBRATED_RATIO and plan.options.dechirp:
                 track = calibrated_on_rest(cap, plan, whole, processor, choice, started, progress)
                 # its pairs may still be two movers' (a glide through a swaying object, the

@@ -72,10 +72,10 @@ class Plan:
         return searched(self.search, self.course, times.rise, times.fall, self.model.metres_per_bin)
 
     def with_band(self, band: tuple[float, float | None]) -> Plan:
-        """The plan with the peak search in `band` (m)."""
+        """The plan with the peak search in `band` (m), the same for every pair (no course)."""
         options = replace(self.options, min_range=band[0], max_range=band[1])
         search = replace(make_search(options, self.lut, self.model), reach=self.motion.reach)
-        return replace(self, options=options, search=search)
+        return replace(self, options=options, search=search, course=None)
 
     def with_motion(self, motion: Motion) -> Plan:
         """The plan fitting its pairs over `motion`'s windows (the tracker's among them)."""

@@ -13,6 +13,7 @@ from dataclasses import replace
 import numpy as np
 
 from . import (
+    along,
     coherence,
     conversions,
     crossings,
@@ -87,6 +88,7 @@ def objects_of(cap: Capture, first: First, choice: target.Choice, own: Converted
         extra = found
     done = _at_rest(cap, done, loose, first, made, processor, seconds, progress)
     done = _distinct(done, first, seconds, processor)
+    done = along.converted_along(cap, first, done, [_moving(d) for d in done], processor, seconds, progress)
     unseen = {(i, j) for i, d in enumerate(done) for j in _unseen(d, done, first)}
     done = _unveiled(done, unseen, seconds, processor)
     done = _exclusive(done, unseen, first, seconds, processor)

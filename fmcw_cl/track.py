@@ -165,7 +165,7 @@ def _read_pairs(t: h5py.Group, attrs: dict, period_s: float | None) -> Track:
 
 # an object's track attributes written beside its own (fmcw_cl.objects.SceneObject.attrs)
 OBJECT_TRACK_ATTRS = ("target_band_m", "target_choice", "time_resolution_s", "target_tracked_m",
-                      "still_echoes_removed_s", "object_bands_m",
+                      "still_echoes_removed_s", "object_bands_m", "band_along_course",
                       *(f"invalid_{name}" for code, name in REASONS.items() if code))
 OPTIONAL_PAIR_DATASETS = ("velocity_valid", "acceleration_valid", "distance_uncertainty_m",
                           "velocity_uncertainty_mps", "acceleration_uncertainty_mps2", "displacement_m",

@@ -1,0 +1,175 @@
+"""Each mover converted again along its own course: a band per pair (fmcw_cl.course).
+
+A candidate's band is fixed in range, so two movers whose ranges cross share it and its
+tracker holds the stronger of them wherever both are in it (a glide through a swaying
+object: its candidate's band ended at the sway's, and its lower stretch, in the sway's
+band, was the sway tracker's to lose). Once the scene's conversions are made, each
+mover's verified pairs say where it is; between them (gaps of up to GAP_S) and beyond
+its ends (END_S) a body can only have moved so far (ACCEL_MPS2). So each pair's band in
+each direction is the mover's interval there, from its distance to its plain peak
+(Doppler-shifted by k v; the de-chirped peak lies at the distance), widened by WIDTH_M
+and by what an acceleration could have moved it since its nearest verified pair (at
+most MAX_WIDTH_M), and cut half way to every other object's interval there (its plain
+peak and its image de-chirped at the mover's velocity) that lies wholly on one side.
+Where nothing is known of the mover, or the others overlap it (the two cannot be told
+apart; their pairs end `ambiguous`, fmcw_cl.crossings), the candidate's own band stands.
+The runs of RUN_PAIRS or more new verified pairs join the mover's old track
+(objects.joined); a few new pairs in a crossing would move its parts' ends, which the
+scene's rules read (identities). Those rules then judge it as any.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from . import conversions, objects
+from .capture import Capture
+from .chunks import capture_parts
+from .conversions import Converted, First
+from .course import Course
+from .processor import ChunkProcessor
+from .stages.spectrum import GUARD_BINS
+from .track import Track
+
+GAP_S = 0.02          # a gap of a mover's verified pairs this long or shorter is bridged
+END_S = 0.005         # its course goes on this long beyond its first and last verified pairs
+WIDTH_M = 0.006       # the band's half-width about the course at a verified pair
+ACCEL_MPS2 = 500.0    # what a body can have moved since its nearest verified pair: a t^2 / 2
+MAX_WIDTH_M = 0.03    # beyond this, the course is not known: the candidate's own band
+OTHER_GAP_S = 0.005   # another object is where its verified pairs say, across gaps this long
+FLOOR_BINS = 16       # bins of a peak's noise floor beyond its guard on each side, where nothing is cut
+RUN_PAIRS = 40        # a run of new verified pairs this long (2 ms) is the mover's own stretch
+COURSE_ATTR = "band_along_course"     # a track's attribute: 1 where pairs were taken from its course
+
+
+def course_of(track: Track, others: list[tuple[Track, bool]], k: tuple[float, float],
+              band_m: tuple[float, float | None], room_m: float) -> tuple[Course, np.ndarray] | None:
+    """The course of the mover of `track` (its verified pairs) at each of its pairs'
+    times, in each direction of Doppler factors `k` (m per m/s: rising, falling), at
+    least `room_m` (m) either side (the peak's noise floor lies beyond its guard), cut
+    half way to each of `others` (track, moving) wholly on one side of it; `band_m` (m)
+    where it is not known. With which pairs it knows (None: it knows none)."""
+    t, ok = track.time_s, track.valid
+    if ok.sum() < 2:
+        return None
+    r, v, width, known = _bridged(t, track.distance_m[ok], track.velocity_mps[ok], t[ok])
+    if not known.any():
+        return None
+    present = [_where(o, t, moving) for o, moving in others]
+    lo_m, hi_m = np.empty((2, t.size)), np.empty((2, t.size))
+    for j, kj in enumerate(k):
+        a, b = np.minimum(r, r + kj * v), np.maximum(r, r + kj * v)
+        lo, hi = a - np.maximum(width, room_m), b + np.maximum(width, room_m)
+        for seen, r_o, v_o in present:
+            p, i = r_o + kj * v_o, r_o + kj * (v_o - v)         # plain peak, image at the mover's velocity
+            oa, ob = np.minimum(p, i), np.maximum(p, i)
+            lo = np.where(seen & (ob < a), np.maximum(lo, 0.5 * (ob + a)), lo)
+            hi = np.where(seen & (oa > b), np.minimum(hi, 0.5 * (oa + b)), hi)
+        lo_m[j] = np.where(known, lo, band_m[0])
+        hi_m[j] = np.where(known, hi, np.inf if band_m[1] is None else band_m[1])
+    return Course(t, lo_m, np.minimum(hi_m, 1e3)), known
+
+
+def _bridged(t: np.ndarray, r_ok: np.ndarray, v_ok: np.ndarray, t_ok: np.ndarray) -> tuple:
+    """Distance, velocity and half-width at times `t` from verified pairs (t_ok, r_ok,
+    v_ok): a cubic (Hermite) across gaps of up to GAP_S, straight on at the end's velocity
+    for END_S beyond the ends; and whether each time is known (the width at most
+    MAX_WIDTH_M)."""
+    n = t_ok.size
+    b = np.clip(np.searchsorted(t_ok, t), 1, n - 1)      # the verified pairs about each time
+    a = b - 1
+    ta, tb = t_ok[a], t_ok[b]
+    h = np.maximum(tb - ta, 1e-12)
+    s = np.clip((t - ta) / h, 0.0, 1.0)
+    h00, h10, h01, h11 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s, -2 * s**3 + 3 * s**2, s**3 - s**2
+    r = h00 * r_ok[a] + h10 * h * v_ok[a] + h01 * r_ok[b] + h11 * h * v_ok[b]
+    v = ((6 * s**2 - 6 * s) * r_ok[a] + (3 * s**2 - 4 * s + 1) * h * v_ok[a]
+         + (-6 * s**2 + 6 * s) * r_ok[b] + (3 * s**2 - 2 * s) * h * v_ok[b]) / h
+    width = WIDTH_M + 0.5 * ACCEL_MPS2 * (t - ta) * (tb - t)
+    inside = (t >= t_ok[0]) & (t <= t_ok[-1]) & (h <= GAP_S)
+    before, after = t < t_ok[0], t > t_ok[-1]
+    for end, side in ((0, before), (n - 1, after)):
+        dt = t[side] - t_ok[end]
+        r[side] = r_ok[end] + v_ok[end] * dt
+        v[side] = v_ok[end]
+        width[side] = WIDTH_M + 0.5 * ACCEL_MPS2 * dt**2
+    known = (inside | ((before | after) & (np.minimum(np.abs(t - t_ok[0]), np.abs(t - t_ok[-1])) <= END_S))
+             ) & (width <= MAX_WIDTH_M)
+    return r, v, width, known
+
+
+def _where(track: Track, t: np.ndarray, moving: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Where another object is at times `t`: (seen, distance m, velocity m/s). A mover
+    where its verified pairs lie within OTHER_GAP_S of each other about the time
+    (interpolated); a fixed object all along, at the median of its verified distances."""
+    ok = track.valid
+    if not ok.any():
+        return np.zeros(t.size, bool), np.zeros(t.size), np.zeros(t.size)
+    if not moving:
+        return np.ones(t.size, bool), np.full(t.size, np.median(track.distance_m[ok])), np.zeros(t.size)
+    t_ok = track.time_s[ok]
+    b = np.clip(np.searchsorted(t_ok, t), 0, t_ok.size - 1)
+    a = np.clip(b - 1, 0, t_ok.size - 1)
+    near = np.minimum(np.abs(t - t_ok[a]), np.abs(t - t_ok[b]))
+    seen = (near <= OTHER_GAP_S) | ((t >= t_ok[a]) & (t <= t_ok[b]) & (t_ok[b] - t_ok[a] <= OTHER_GAP_S))
+    return (seen, np.interp(t, t_ok, track.distance_m[ok]), np.interp(t, t_ok, track.velocity_mps[ok]))
+
+
+def converted_along(cap: Capture, first: First, done: list[Converted], moving: list[bool],
+                    processor: ChunkProcessor, seconds, progress) -> list[Converted]:
+    """`done` with each mover (`moving`; not a track joined of several conversions)
+    that another object's path enters converted again along its course (`course_of`),
+    in the user's band, on its own kind of rows (Plan.still_half), and joined with the
+    runs of RUN_PAIRS or more verified pairs that gives where its track had none."""
+    if len(done) < 2:
+        return done
+    m = first.plan.model
+    user = first.plan.options.band_m
+    room = (GUARD_BINS + FLOOR_BINS) * m.metres_per_bin
+    out = list(done)
+    for i, d in enumerate(done):
+        if not moving[i] or d.joined or not d.track.valid.any():
+            continue
+        others = [(o.track, mv) for o, mv in zip(done, moving, strict=True) if o is not d]
+        got = course_of(d.track, others, (m.k_rise, m.k_fall), d.choice.band_m, room)
+        if got is None or not _entered(d.track, others, got[0], got[1], d.choice.band_m):
+            continue
+        plan = replace(d.plan.with_band(user), course=got[0])
+        if not conversions.searchable(plan, user):
+            continue
+        parts = capture_parts(cap, plan, processor, progress=progress)
+        track = conversions.assembled(plan, parts, processor, seconds, replace(d.choice, band_m=user), None)
+        gained = _runs(track.valid & ~d.track.valid, RUN_PAIRS)
+        if gained.any():
+            joined = objects.joined(d.track, objects.invalidated(track, track.valid & ~gained))
+            joined.attrs[COURSE_ATTR] = 1
+            out[i] = replace(d, plan=plan, parts=parts, track=joined, joined=True)
+    return out
+
+
+def _runs(new: np.ndarray, pairs: int) -> np.ndarray:
+    """The pairs of `new` in runs of at least `pairs` consecutive ones."""
+    edges = np.flatnonzero(np.diff(np.r_[0, new.astype(np.int8), 0]))
+    out = np.zeros(new.size, bool)
+    for a, b in zip(edges[::2], edges[1::2], strict=True):
+        if b - a >= pairs:
+            out[a:b] = True
+    return out
+
+
+def _entered(track: Track, others: list[tuple[Track, bool]], course: Course, known: np.ndarray,
+             band_m: tuple[float, float | None]) -> bool:
+    """Whether the course reaches where its band does not (beyond the candidate's band)
+    or another object's verified pairs lie inside the candidate's band (the band is
+    shared)."""
+    hi = np.inf if band_m[1] is None else band_m[1]
+    beyond = known & ((course.lo_m.min(axis=0) < band_m[0]) | (course.hi_m.max(axis=0) > hi))
+    if beyond.any():
+        return True
+    for o, _ in others:
+        d = o.distance_m[o.valid]
+        if np.any((d >= band_m[0]) & (d < hi)):
+            return True
+    return False
