@@ -38,6 +38,8 @@ END_S = 0.005         # its course goes on this long beyond its first and last v
 WIDTH_M = 0.006       # the band's half-width about the course at a verified pair
 ACCEL_MPS2 = 500.0    # what a body can have moved since its nearest verified pair: a t^2 / 2
 MAX_WIDTH_M = 0.03    # beyond this, the course is not known: the candidate's own band
+MAX_SPEED_MPS = 10.0  # ... nor where it runs faster than a robot's leg (a pair of two bodies)
+ONE_BODY_M = 0.001    # a gap is bridged where one body can have crossed it (fmcw_cl.stages.verification)
 OTHER_GAP_S = 0.005   # another object is where its verified pairs say, across gaps this long
 FLOOR_BINS = 16       # bins of a peak's noise floor beyond its guard on each side, where nothing is cut
 RUN_PAIRS = 40        # a run of new verified pairs this long (2 ms) is the mover's own stretch
@@ -45,12 +47,13 @@ COURSE_ATTR = "band_along_course"     # a track's attribute: 1 where pairs were 
 
 
 def course_of(track: Track, others: list[tuple[Track, bool]], k: tuple[float, float],
-              band_m: tuple[float, float | None], room_m: float) -> tuple[Course, np.ndarray] | None:
+              band_m: tuple[float, float | None], room_m: float) -> tuple | None:
     """The course of the mover of `track` (its verified pairs) at each of its pairs'
     times, in each direction of Doppler factors `k` (m per m/s: rising, falling), at
     least `room_m` (m) either side (the peak's noise floor lies beyond its guard), cut
     half way to each of `others` (track, moving) wholly on one side of it; `band_m` (m)
-    where it is not known. With which pairs it knows (None: it knows none)."""
+    where it is not known. With which pairs it knows, and where the mover can be there
+    (its distance and the half-width about it, m); None where it knows none."""
     t, ok = track.time_s, track.valid
     if ok.sum() < 2:
         return None
@@ -69,7 +72,7 @@ def course_of(track: Track, others: list[tuple[Track, bool]], k: tuple[float, fl
             hi = np.where(seen & (oa > b), np.minimum(hi, 0.5 * (oa + b)), hi)
         lo_m[j] = np.where(known, lo, band_m[0])
         hi_m[j] = np.where(known, hi, np.inf if band_m[1] is None else band_m[1])
-    return Course(t, lo_m, np.minimum(hi_m, 1e3)), known
+    return Course(t, lo_m, np.minimum(hi_m, 1e3)), known, (r, width)
 
 
 def _bridged(t: np.ndarray, r_ok: np.ndarray, v_ok: np.ndarray, t_ok: np.ndarray) -> tuple:
@@ -88,7 +91,9 @@ def _bridged(t: np.ndarray, r_ok: np.ndarray, v_ok: np.ndarray, t_ok: np.ndarray
     v = ((6 * s**2 - 6 * s) * r_ok[a] + (3 * s**2 - 4 * s + 1) * h * v_ok[a]
          + (-6 * s**2 + 6 * s) * r_ok[b] + (3 * s**2 - 2 * s) * h * v_ok[b]) / h
     width = WIDTH_M + 0.5 * ACCEL_MPS2 * (t - ta) * (tb - t)
-    inside = (t >= t_ok[0]) & (t <= t_ok[-1]) & (h <= GAP_S)
+    # one body across the gap: its ends' trapezoid within the verification's bound
+    one = np.abs(r_ok[b] - r_ok[a] - 0.5 * (v_ok[a] + v_ok[b]) * h) <= ONE_BODY_M + ACCEL_MPS2 * h**2 / 8
+    inside = (t >= t_ok[0]) & (t <= t_ok[-1]) & (h <= GAP_S) & one
     before, after = t < t_ok[0], t > t_ok[-1]
     for end, side in ((0, before), (n - 1, after)):
         dt = t[side] - t_ok[end]
@@ -96,20 +101,22 @@ def _bridged(t: np.ndarray, r_ok: np.ndarray, v_ok: np.ndarray, t_ok: np.ndarray
         v[side] = v_ok[end]
         width[side] = WIDTH_M + 0.5 * ACCEL_MPS2 * dt**2
     known = (inside | ((before | after) & (np.minimum(np.abs(t - t_ok[0]), np.abs(t - t_ok[-1])) <= END_S))
-             ) & (width <= MAX_WIDTH_M)
+             ) & (width <= MAX_WIDTH_M) & (np.abs(v) <= MAX_SPEED_MPS)
     return r, v, width, known
 
 
 def _where(track: Track, t: np.ndarray, moving: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Where another object is at times `t`: (seen, distance m, velocity m/s). A mover
-    where its verified pairs lie within OTHER_GAP_S of each other about the time
-    (interpolated); a fixed object all along, at the median of its verified distances."""
+    """Where another object is at times `t`: (seen, distance m, velocity m/s), as its
+    verified pairs say (interpolated, held beyond its ends): a mover where they lie
+    within OTHER_GAP_S of each other about the time; a fixed object all along (its
+    band may hold a foot at rest that sets off: it moves there)."""
     ok = track.valid
     if not ok.any():
         return np.zeros(t.size, bool), np.zeros(t.size), np.zeros(t.size)
-    if not moving:
-        return np.ones(t.size, bool), np.full(t.size, np.median(track.distance_m[ok])), np.zeros(t.size)
     t_ok = track.time_s[ok]
+    if not moving:
+        return (np.ones(t.size, bool), np.interp(t, t_ok, track.distance_m[ok]),
+                np.interp(t, t_ok, track.velocity_mps[ok]))
     b = np.clip(np.searchsorted(t_ok, t), 0, t_ok.size - 1)
     a = np.clip(b - 1, 0, t_ok.size - 1)
     near = np.minimum(np.abs(t - t_ok[a]), np.abs(t - t_ok[b]))
@@ -141,11 +148,26 @@ def converted_along(cap: Capture, first: First, done: list[Converted], moving: l
             continue
         parts = capture_parts(cap, plan, processor, progress=progress)
         track = conversions.assembled(plan, parts, processor, seconds, replace(d.choice, band_m=user), None)
-        gained = _runs(track.valid & ~d.track.valid, RUN_PAIRS)
+        # where the course is not known its band is the candidate's own: its own verdict
+        # stands; a pair further off than the mover can be is another's, not its; one
+        # beside another object is a crossing's, which the parts' ends tell (identities)
+        r, width = got[2]
+        near = got[1] & (np.abs(track.distance_m - r) <= width) & _apart(track, others)
+        gained = _runs(track.valid & ~d.track.valid & near, RUN_PAIRS)
         if gained.any():
             joined = objects.joined(d.track, objects.invalidated(track, track.valid & ~gained))
             joined.attrs[COURSE_ATTR] = 1
             out[i] = replace(d, plan=plan, parts=parts, track=joined, joined=True)
+    return out
+
+
+def _apart(track: Track, others: list[tuple[Track, bool]]) -> np.ndarray:
+    """Which pairs of `track` lie more than objects.GATE_M from every other object where
+    it is (`_where`)."""
+    out = np.ones(track.pairs, bool)
+    for o, moving in others:
+        seen, r_o, _ = _where(o, track.time_s, moving)
+        out &= ~(seen & (np.abs(track.distance_m - r_o) <= objects.GATE_M))
     return out
 
 
