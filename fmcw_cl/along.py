@@ -24,7 +24,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from . import conversions, objects
+from . import conversions, numeric, objects
 from .capture import Capture
 from .chunks import capture_parts
 from .conversions import Converted, First
@@ -173,9 +173,8 @@ def _apart(track: Track, others: list[tuple[Track, bool]]) -> np.ndarray:
 
 def _runs(new: np.ndarray, pairs: int) -> np.ndarray:
     """The pairs of `new` in runs of at least `pairs` consecutive ones."""
-    edges = np.flatnonzero(np.diff(np.r_[0, new.astype(np.int8), 0]))
     out = np.zeros(new.size, bool)
-    for a, b in zip(edges[::2], edges[1::2], strict=True):
+    for a, b in numeric.runs(new):
         if b - a >= pairs:
             out[a:b] = True
     return out

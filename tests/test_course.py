@@ -8,10 +8,11 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from conftest import bent_lut
 
 from fmcw_cl.course import MIN_BINS, Course, searched
-from fmcw_cl.stages import doppler, integrate, pairing, resample
-from fmcw_cl.stages.spectrum import Search, find_peaks, row_peaks
+from fmcw_cl.stages import doppler, integrate, pairing
+from fmcw_cl.stages.spectrum import Search, find_peaks
 
 
 @pytest.fixture(scope="module")
@@ -32,9 +33,10 @@ def _bands(rng, pairs: int, half: int, lo: int = 3) -> np.ndarray:
     return out
 
 
-def test_row_peaks_are_each_rows_own_band_search():
-    """row_peaks against find_peaks of each row with its band: the arg-max (a peak just
-    outside the band, ties), the floor, a band narrower than the guard."""
+def test_each_rows_own_band_is_searched_as_that_row_alone():
+    """find_peaks with a band per row against find_peaks of each row alone with its
+    band: the arg-max (a peak just outside the band, ties), the floor, a band narrower
+    than the guard."""
     rng = np.random.default_rng(1)
     half, rows = 1024, 60
     power = rng.exponential(1.0, (rows, half)) * 50
@@ -42,7 +44,7 @@ def test_row_peaks_are_each_rows_own_band_search():
     power[np.arange(rows), np.minimum(bands[:, 1], half - 1)] = 1e6    # just past the band's top
     power[np.arange(rows), np.maximum(bands[:, 0] - 1, 0)] = 1e6        # just before its start
     power[5, bands[5, 0]: bands[5, 0] + 2] = 1e5                       # a tie: the lower bin
-    got = row_peaks(power, bands[:, 0], bands[:, 1])
+    got = find_peaks(power, bands[:, 0], bands[:, 1])
     for i in range(rows):
         want = find_peaks(power[i: i + 1], int(bands[i, 0]), int(bands[i, 1]))
         np.testing.assert_allclose(got.bin[i], want.bin[0], rtol=0, atol=1e-12)
@@ -85,12 +87,9 @@ def _two_echoes(pairs: int, seed: int, weak: float = 0.3):
     echo lies beyond the mover's bands (`_course_of`) in its plain spectra and in those
     de-chirped at the mover's velocities (its de-chirped image moves by -k v)."""
     from fmcw_cl.physics import C
-    from fmcw_cl.stages.lut import build_lut
 
     rng = np.random.default_rng(seed)
-    cur = np.linspace(0.16, 0.48, 50)
-    lut = build_lut(cur, 190e12 + 160e9 * ((cur - 0.16) / 0.32) ** 1.3, 0.16, 0.48, 500, 1.0)
-    win = resample.window(500)
+    lut, win = bent_lut()
     half_s = 25e-6
     model = doppler.doppler_model(lut, half_s, 1024, win)
     t_mid = 0.01 + np.arange(pairs) * 50e-6

@@ -94,45 +94,33 @@ def interpolate(power: np.ndarray, rows: np.ndarray, kk: np.ndarray) -> np.ndarr
 
 def find_peaks(power: np.ndarray, lo, hi=None) -> Peaks:
     """Largest peak of each row in bins [lo, hi), interpolated, with its SNR; `lo` and
-    `hi` ints, or int arrays of a band per row (`row_peaks`).
+    `hi` ints, or int arrays of each row's own band [lo[i], hi[i]) (hi > lo).
 
     The SNR is the peak power over the noise floor: the mean power of the band
     outside +-GUARD_BINS of the peak.
     """
-    if np.ndim(lo) or np.ndim(hi):
-        return row_peaks(power, np.asarray(lo), np.asarray(hi))
-    hi = power.shape[1] if hi is None else hi
-    band = power[:, lo:hi]
-    k = np.argmax(band, axis=1) + lo
     rows = np.arange(power.shape[0])
-    kk = np.clip(k, 1, power.shape[1] - 2)
-    cols = np.arange(lo, hi)
-    outside = np.abs(cols[None, :] - kk[:, None]) > GUARD_BINS
-    count = outside.sum(axis=1)
-    # a band narrower than the guard has no outside: use the whole band's mean
-    floor = np.where(count > 0, np.sum(band * outside, axis=1) / np.maximum(count, 1),
-                     band.mean(axis=1))
-    with np.errstate(divide="ignore"):
-        snr = 10 * np.log10(power[rows, kk] / np.maximum(floor, np.finfo(np.float64).tiny))
-    return Peaks(interpolate(power, rows, kk), snr.astype(np.float32))
-
-
-def row_peaks(power: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> Peaks:
-    """`find_peaks` with each row's own band [lo[i], hi[i]) (hi > lo)."""
-    rows = np.arange(power.shape[0])
-    if rows.size == 0:
+    own = bool(np.ndim(lo) or np.ndim(hi))
+    if own and rows.size == 0:
         return Peaks(np.zeros(0), np.zeros(0, np.float32))
-    a, b = int(lo.min()), int(hi.max())
+    if own:
+        lo, hi = np.asarray(lo), np.asarray(hi)
+        a, b = int(lo.min()), int(hi.max())          # the rows' bands' union
+    else:
+        a, b = lo, power.shape[1] if hi is None else hi
     band = power[:, a:b]
     cols = np.arange(a, b)
-    inside = (cols[None, :] >= lo[:, None]) & (cols[None, :] < hi[:, None])
-    # power is never negative: -1 outside never wins, ties go to the lowest bin
-    k = np.argmax(np.where(inside, band, -1.0), axis=1) + a
+    inside = (cols[None, :] >= lo[:, None]) & (cols[None, :] < hi[:, None]) if own else None
+    # power is never negative: -1 outside a row's band never wins, ties go to the lowest bin
+    k = np.argmax(band if inside is None else np.where(inside, band, -1.0), axis=1) + a
     kk = np.clip(k, 1, power.shape[1] - 2)
-    outside = inside & (np.abs(cols[None, :] - kk[:, None]) > GUARD_BINS)
+    outside = np.abs(cols[None, :] - kk[:, None]) > GUARD_BINS
+    if inside is not None:
+        outside &= inside
     count = outside.sum(axis=1)
-    floor = np.where(count > 0, np.sum(band * outside, axis=1) / np.maximum(count, 1),
-                     np.sum(band * inside, axis=1) / inside.sum(axis=1))
+    # a band narrower than the guard has no outside: use the whole band's mean
+    whole = band.mean(axis=1) if inside is None else np.sum(band * inside, axis=1) / inside.sum(axis=1)
+    floor = np.where(count > 0, np.sum(band * outside, axis=1) / np.maximum(count, 1), whole)
     with np.errstate(divide="ignore"):
         snr = 10 * np.log10(power[rows, kk] / np.maximum(floor, np.finfo(np.float64).tiny))
     return Peaks(interpolate(power, rows, kk), snr.astype(np.float32))
