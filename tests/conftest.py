@@ -39,6 +39,19 @@ def scene_of(track, path) -> list[dict]:
     return scores
 
 
+def bent_lut():
+    """A 500-interval LUT of a 160 GHz sweep over 160-480 mA bent as ((I - 0.16) /
+    0.32)^1.3, and its window: the kernels' and the tracker's test sweep."""
+    import numpy as np
+
+    from fmcw_cl.stages import resample
+    from fmcw_cl.stages.lut import build_lut
+
+    cur = np.linspace(0.16, 0.48, 50)
+    lut = build_lut(cur, 190e12 + 160e9 * ((cur - 0.16) / 0.32) ** 1.3, 0.16, 0.48, 500, 1.0)
+    return lut, resample.window(500)
+
+
 def run_cli(*args, check=True) -> subprocess.CompletedProcess:
     """`fmcw-cl ARGS` in a subprocess, as a user runs it; asserts success unless told."""
     proc = subprocess.run([sys.executable, "-m", "fmcw_cl.cli.main", *map(str, args)],

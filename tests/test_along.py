@@ -80,6 +80,28 @@ def test_a_course_is_cut_half_way_to_another_object_wholly_on_one_side():
     np.testing.assert_allclose(course2.hi_m[0][:200], course.hi_m[0][:200])
 
 
+def _drawn(path, target, other, amplitude: float, lab: bool, seed: int, start: float, span: float):
+    """A capture of benchmarks/movers.py's draw (the target's trajectory, the other
+    mover's at `amplitude` codes, a lab's SNR or clean) converted as a user does, and its
+    objects' scores (conftest.scene_of: no valid pair off its own object)."""
+    from dataclasses import replace
+
+    from conftest import process, scene_of
+
+    from fmcw_cl.simulator.several import LAB_SCENE
+    from fmcw_cl.simulator.writer import Mover, SimulationConfig, simulate_capture
+
+    cfg = replace(LAB_SCENE if lab else SimulationConfig(), movers=(Mover(other, amplitude),))
+    simulate_capture(path, target, span, seed=seed, config=cfg, start_s=start)
+    track = process(path)
+    return track, scene_of(track, path)
+
+
+def _best(scores: list[dict]) -> list[float]:
+    """Each of the two truths' best object's share of its visible periods."""
+    return [max((s["tracked"] for s in scores if s["truth"] == k), default=0.0) for k in range(2)]
+
+
 @pytest.mark.parametrize("seed", [1, 2, 3])
 def test_a_glide_through_a_sway_is_held_along_its_course(tmp_path, seed):
     """Glide through a sway (several.SCENES, lab SNR): the glide crosses the sway's span
@@ -89,20 +111,14 @@ def test_a_glide_through_a_sway_is_held_along_its_course(tmp_path, seed):
     each is one object, the sway held in 90 % of its periods or more, the glide in
     65 % (66-74 %; 16-69 % before; 58-69 % with that rule of the conflicts alone), no
     valid pair off its truth."""
-    from conftest import process
+    from conftest import process, scene_of
 
-    from fmcw_cl.capture import Capture
-    from fmcw_cl.evaluate import object_scores
     from fmcw_cl.simulator import several
 
     path = tmp_path / "glide.h5"
     several.write("glide through a sway", path, seed)
     track = process(path)
-    with Capture(path) as cap:
-        truths = cap.truth_objects()
-    scores = object_scores(track, truths)
-    assert sum(s["wrong"] for s in scores) == 0
-    best = [max((s["tracked"] for s in scores if s["truth"] == k), default=0.0) for k in range(2)]
+    best = _best(scene_of(track, path))
     assert best[0] >= 0.9 and best[1] >= 0.65, best
 
 
@@ -112,25 +128,15 @@ def test_a_target_converted_along_its_course_reads_the_tuning_elsewhere(tmp_path
     band, where the sway's peaks de-chirped at the glide's velocity read 1.6 times too
     wide, and the scene became one object without a valid pair. The tuning is read on
     the first conversion, as for a mover only a second look found: both objects stay."""
-    from conftest import process
-
-    from fmcw_cl.capture import Capture
-    from fmcw_cl.evaluate import object_scores
     from fmcw_cl.simulator.scene import glide, sway
-    from fmcw_cl.simulator.writer import Mover, SimulationConfig, simulate_capture
 
-    path = tmp_path / "sway_glide.h5"
     other = glide(0.7, 0.37392563067580786, 0.07718346448342278, 0.24903529752965697, 0.6490352975296569)
-    cfg = SimulationConfig(movers=(Mover(other, 357.80950711808214),))            # -2.9 dB
-    simulate_capture(path, sway(0.7, 0.26115722188162704, 0.03156133743887031, 5.336602528210996,
-                                3.971822082429291), 0.11421686680677569, seed=173, config=cfg,
-                     start_s=0.3352788724952623)
-    track = process(path)
-    with Capture(path) as cap:
-        scores = object_scores(track, cap.truth_objects())
-    best = [max((s["tracked"] for s in scores if s["truth"] == k), default=0.0) for k in range(2)]
+    track, scores = _drawn(tmp_path / "sway_glide.h5",
+                           sway(0.7, 0.26115722188162704, 0.03156133743887031, 5.336602528210996,
+                                3.971822082429291), other, 357.80950711808214, False, 173,      # -2.9 dB
+                           0.3352788724952623, 0.11421686680677569)
+    best = _best(scores)
     assert len(track.objects) == 2 and best[0] >= 0.95 and best[1] >= 0.4, best
-    assert sum(s["wrong"] for s in scores) == 0
     assert track.attrs["tuning_matches"]
 
 
@@ -140,28 +146,15 @@ def test_a_few_new_pairs_in_a_crossing_are_not_taken(tmp_path):
     crossing; taken whole, they moved the parts' ends and both tracks were cut (five
     objects, the sway 96 -> 71 %). Only runs of RUN_PAIRS or more join: two objects,
     as before."""
-    from dataclasses import replace
-
-    from conftest import process
-
-    from fmcw_cl.capture import Capture
-    from fmcw_cl.evaluate import object_scores
     from fmcw_cl.simulator.scene import glide, sway
-    from fmcw_cl.simulator.several import LAB_SCENE
-    from fmcw_cl.simulator.writer import Mover, simulate_capture
 
-    path = tmp_path / "sway_glide_lab.h5"
     other = glide(0.7, 0.36998028238775066, 0.095481650504221, 0.014858716358975621, 0.15684524038511358)
-    cfg = replace(LAB_SCENE, movers=(Mover(other, 273.7691724175363),))         # -5.2 dB
-    simulate_capture(path, sway(0.7, 0.17515368964933714, 0.020494326287420313, 3.202522593743488,
-                                1.8994280695090804), 0.19075579581397695, seed=87, config=cfg,
-                     start_s=0.07406044805341043)
-    track = process(path)
-    with Capture(path) as cap:
-        scores = object_scores(track, cap.truth_objects())
-    best = [max((s["tracked"] for s in scores if s["truth"] == k), default=0.0) for k in range(2)]
+    track, scores = _drawn(tmp_path / "sway_glide_lab.h5",
+                           sway(0.7, 0.17515368964933714, 0.020494326287420313, 3.202522593743488,
+                                1.8994280695090804), other, 273.7691724175363, True, 87,        # -5.2 dB
+                           0.07406044805341043, 0.19075579581397695)
+    best = _best(scores)
     assert len(track.objects) == 2 and best[0] >= 0.95 and best[1] >= 0.65, (len(track.objects), best)
-    assert sum(s["wrong"] for s in scores) == 0
 
 
 @pytest.mark.parametrize("seed, start, span, glided, db, lab", [
@@ -178,21 +171,8 @@ def test_a_course_takes_no_pair_of_another_body(tmp_path, seed, start, span, gli
     phantom 50 mm from either (37 valid pairs); a foot setting off, taken as still at
     its median, moved the cut 14 mm and the hand's band held pairs 6 mm off it, which
     joined to the foot's rest made 48 wrong. New pairs are taken only where the course
-    is known, near it and apart from the others, each other as its pairs say: 0 wrong."""
-    from dataclasses import replace
-
-    from conftest import process
-
-    from fmcw_cl.capture import Capture
-    from fmcw_cl.evaluate import object_scores
+    is known, near it and apart from the others, each other as its pairs say: 0 wrong
+    (`_drawn` asserts it)."""
     from fmcw_cl.simulator.scene import glide, jump
-    from fmcw_cl.simulator.several import LAB_SCENE
-    from fmcw_cl.simulator.writer import Mover, SimulationConfig, simulate_capture
 
-    path = tmp_path / "jump_hand.h5"
-    cfg = replace(LAB_SCENE if lab else SimulationConfig(), movers=(Mover(glide(0.7, *glided), db),))
-    simulate_capture(path, jump(0.7), span, seed=seed, config=cfg, start_s=start)
-    track = process(path)
-    with Capture(path) as cap:
-        scores = object_scores(track, cap.truth_objects())
-    assert sum(s["wrong"] for s in scores) == 0, scores
+    _drawn(tmp_path / "jump_hand.h5", jump(0.7), glide(0.7, *glided), db, lab, seed, start, span)

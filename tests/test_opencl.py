@@ -7,6 +7,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from conftest import bent_lut
 
 from fmcw_cl import echoes
 from fmcw_cl.backend import make_processor
@@ -132,13 +133,10 @@ def test_both_directions_in_one_trip_equal_each_alone(backend, kernel_variant, s
     positions up in one copy, all results down in one): bit for bit each direction
     alone, plain (every echo listed) and de-chirped at picked rows."""
     from fmcw_cl.stages import doppler
-    from fmcw_cl.stages.lut import build_lut
 
     rng = np.random.default_rng(sweeps)
     codes = rng.integers(-3000, 3000, 200_003).astype(np.int16)
-    cur = np.linspace(0.16, 0.48, 50)
-    lut = build_lut(cur, 190e12 + 160e9 * ((cur - 0.16) / 0.32) ** 1.3, 0.16, 0.48, 500, 1.0)
-    win = resample.window(500)
+    lut, win = bent_lut()
     jobs = [(rng.uniform(10, 190_000, sweeps), np.full(sweeps, 2500.0) + rng.uniform(-1, 1, sweeps), u)
             for u in (lut.u_rise, lut.u_fall)]
     both = backend.resample_each(codes, jobs, win)
@@ -166,13 +164,10 @@ def test_runs_and_groups_of_rows_equal_each_alone(backend, kernel_variant):
     in groups (two rows a transform, within a group only) give each run's and group's
     rows bit for bit as alone, whatever is beside them: runs and groups of odd sizes,
     one of a single row, one empty; the rows within float32 of numpy's."""
-    from fmcw_cl.stages.lut import build_lut
 
     rng = np.random.default_rng(5)
     codes = rng.integers(-3000, 3000, 200_003).astype(np.int16)
-    cur = np.linspace(0.16, 0.48, 50)
-    lut = build_lut(cur, 190e12 + 160e9 * ((cur - 0.16) / 0.32) ** 1.3, 0.16, 0.48, 500, 1.0)
-    win = resample.window(500)
+    lut, win = bent_lut()
     runs = [71, 0, 120, 1, 51]
     lengths = np.concatenate([2500.0 + 3.3 * k + rng.uniform(-1, 1, n) for k, n in enumerate(runs)])
     starts = rng.uniform(10, 190_000, lengths.size)
@@ -1106,12 +1101,9 @@ def _tracker_scene(backend, scene: str, pairs: int, iterations: int, groups, amp
     fade; its times (in `groups` tracked apart), Doppler model and search band."""
     from fmcw_cl.physics import C
     from fmcw_cl.stages import doppler, pairing
-    from fmcw_cl.stages.lut import build_lut
 
     rng = np.random.default_rng(pairs + iterations)
-    cur = np.linspace(0.16, 0.48, 50)
-    lut = build_lut(cur, 190e12 + 160e9 * ((cur - 0.16) / 0.32) ** 1.3, 0.16, 0.48, 500, 1.0)
-    win = resample.window(500)
+    lut, win = bent_lut()
     half_s = 25e-6
     model = doppler.doppler_model(lut, half_s, 1024, win)
     t_mid = 0.01 + np.arange(pairs) * 50e-6
