@@ -20,7 +20,9 @@ motions are not: a rail at +1.9 m/s continues at +2.5 m/s, not at -2.9 m/s. So:
   kind seen between them, or while one of them is seen and within that bound, could be
   either instead; contests wherever the parts hold two movers), and only where a body
   can move so (verification.reachable's bounds), the cheapest first; else the parts stay
-  objects of their own (fewer periods tracked, none on the wrong object). Parts of one
+  objects of their own (fewer periods tracked, none on the wrong object). There a
+  conversion's fixed and moving parts join too where one body's steady course crosses
+  the gap (a sway's turn, 20 ms under 0.3 m/s, between its swings). Parts of one
   object cut at crossings alone that are all joined again are that object as it was.
 """
 
@@ -246,12 +248,16 @@ def rejoined(scene: list[SceneObject], contests: bool = False,
     (a swaying cable that a rail passed, the rail beyond it). Two parts of one track
     joined again are still parts of it (`whole`): its tuning and its rest are that
     conversion's. With `contests` (several movers), the least acceleration's join first,
-    and only where not `contested` and, between two moving ends, reachable."""
+    and only where not `contested` and, between two moving ends, reachable; and parts of
+    one conversion of either kind where one body's steady course crosses the gap
+    (`least_acceleration` within ACCEL_FLOOR: a sway's turn, too slow to move, between
+    its swings, which the other sway's parts cut; not a leg's part seen 33 ms later 10
+    mm off the trapezoid as the other leg's slow part)."""
     scene = list(scene)
     ends = [_Ends.row(o) for o in scene]
     asked = asked or handovers.Asked()
     while len(scene) > 1:
-        e = _Ends(ends, scene, asked)
+        e = _Ends(ends, scene, asked, contests)
         i, j = np.nonzero(np.triu(e.returns, 1))                 # (i, j) in order, i < j
         if contests:
             keep = np.isfinite(e.cost[i, j])
@@ -265,7 +271,7 @@ def rejoined(scene: list[SceneObject], contests: bool = False,
             break
         i, j = int(i[first]), int(j[first])
         a, b = scene[i], scene.pop(j)
-        moved = a.moving or abs(np.nanmedian(a.track.distance_m)
+        moved = a.moving or b.moving or abs(np.nanmedian(a.track.distance_m)
                                 - np.nanmedian(b.track.distance_m)) > objects.GATE_M
         scene[i] = SceneObject(0, moved, objects.joined(a.track, b.track), f"{a.note}; seen again: {b.note}",
                                a.whole if a.whole is not None and a.whole is b.whole else None)
@@ -286,11 +292,13 @@ def _uncontested(e: _Ends, i: np.ndarray, j: np.ndarray) -> int | None:
 
 class _Ends:
     """Every part's first and last verified pair, and from them every two parts' joins
-    at once: whether the later is the earlier seen again (objects.returns, of one kind:
-    `returns`; symmetric), the join's `_cost` (`cost`; symmetric, inf where no body moves
-    so) and the parts' verified times (for `contested`)."""
+    at once: whether the later is the earlier seen again (objects.returns, of one kind,
+    or `across_kinds` of one conversion on a steady course: `returns`; symmetric), the
+    join's `_cost` (`cost`; symmetric, inf where no body moves so) and the parts'
+    verified times (for `contested`)."""
 
-    def __init__(self, rows: list[tuple], scene: list[SceneObject], asked: handovers.Asked):
+    def __init__(self, rows: list[tuple], scene: list[SceneObject], asked: handovers.Asked,
+                 across_kinds: bool = False):
         self.moving, i0, i1, *pairs = (np.array(c) for c in zip(*rows, strict=True))
         self.t0, self.d0, self.v0, self.t1, self.d1, self.v1, self.a1 = pairs
         has = i0 >= 0
@@ -301,8 +309,13 @@ class _Ends:
         self.seen = objects.seen_again(*span)
         self.goes = self.later & goes_on(*span[:3], self.a1[:, None], *span[3:])
         back = self.later & self.seen
-        self.returns = (back | back.T) & (self.moving[:, None] == self.moving[None, :]) & ~handovers.across(
-            scene, self.t1, self.t0, asked)
+        kind = self.moving[:, None] == self.moving[None, :]
+        if across_kinds:
+            # one conversion's parts, one body's course across the gap: a sway's turn
+            whole = np.array([id(o.whole) if o.whole is not None else -1 - k for k, o in enumerate(scene)])
+            steady = least_acceleration(*span) <= ACCEL_FLOOR
+            kind |= (whole[:, None] == whole[None, :]) & np.where(self.later, steady, steady.T)
+        self.returns = (back | back.T) & kind & ~handovers.across(scene, self.t1, self.t0, asked)
         cost = _costs(*span)
         self.cost = np.where(self.later, cost, cost.T)
         # every part's verified times in one sorted array: part k's shifted by k wide spans

@@ -104,9 +104,11 @@ def _told_apart(found: list[objects.SceneObject], done: list[Converted], own: Co
     be), numbered in the order they were seen, the target chosen by the user's rule.
     Each object's pairs are `ambiguous` where another's course passes within
     objects.GATE_M (crossings.passing); a `lone` candidate's, whose one tracker held one
-    echo at a time, also where another's path does, a fixed one's span there all along
-    (crossings.conflicts, as `_exclusive` for several conversions: two legs landing 0.3
-    mm apart, the tracker passing from one to the other, 183 valid pairs on the other);
+    echo at a time, also where another's path does (crossings.conflicts, as `_exclusive`
+    for several conversions: two legs landing 0.3 mm apart, the tracker passing from one
+    to the other, 183 valid pairs on the other), a still part's only while it is seen (a
+    body at rest while held, not a fixed echo there all along: two sways' turns so
+    taken spanned the other's path);
     and where its pairs' phases do not move as one body's (coherence.two_bodies: a rail's
     Doppler-shifted peak in one direction, a glide's in the other, made 74 valid pairs
     46 mm from both as they crossed); and where a half-sweep's peak could be another
@@ -126,7 +128,7 @@ def _told_apart(found: list[objects.SceneObject], done: list[Converted], own: Co
     image = crossings.images(tracks, own.plan.model, own.plan.window, _calm_unseen(scene, of, own))
     clash = [c | m | r for c, m, r in zip(clash, image, crossings.read_moving(tracks, moving), strict=True)]
     if lone:
-        paths = crossings.conflicts(tracks, [not m for m in moving])
+        paths = crossings.conflicts(tracks)
         clash = [c | p for c, p in zip(clash, paths, strict=True)]
     clash = [c | _brief_rest(o, c | w) for o, c, w in zip(scene, clash, two, strict=True)]
     movers = [o.track for o in scene if o.moving]
