@@ -161,6 +161,17 @@ def converted_along(cap: Capture, first: First, done: list[Converted], moving: l
     return out
 
 
+def objects_along(cap: Capture, first: First, own: Converted, scene: list[objects.SceneObject],
+                  processor: ChunkProcessor, seconds, progress) -> list[objects.SceneObject]:
+    """A lone candidate's objects (the parts of `own`, its one conversion, told apart and
+    joined: identities.untangled), each mover converted again along its course as
+    several candidates' conversions are (`converted_along`), after the identities: a
+    run gained inside a crossing would move its parts' ends, which they read."""
+    done = [replace(own, track=o.track, joined=False, whole=None) for o in scene]
+    done = converted_along(cap, first, done, [o.moving for o in scene], processor, seconds, progress)
+    return [replace(o, track=d.track) for o, d in zip(scene, done, strict=True)]
+
+
 def _apart(track: Track, others: list[tuple[Track, bool]]) -> np.ndarray:
     """Which pairs of `track` lie more than objects.GATE_M from every other object where
     it is (`_where`)."""

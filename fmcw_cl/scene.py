@@ -69,7 +69,10 @@ def objects_of(cap: Capture, first: First, choice: target.Choice, own: Converted
             # one candidate, two bodies or more: its parts are the objects, as two
             # candidates' are, its tuning and its rest still the conversion's (`whole`)
             found = [objects.SceneObject(0, moving, own.track, f"{own.choice.note}: two bodies or more")]
-            return _told_apart(found, [own], own, options, True, lone=True)
+            def courses(scene: list[objects.SceneObject]) -> list[objects.SceneObject]:
+                return along.objects_along(cap, first, own, scene, processor, seconds, progress)
+
+            return _told_apart(found, [own], own, options, True, lone=True, courses=courses)
         # the target's conversion stands for the candidate it holds, unless it held two echoes
         share = [objects.holds(own.track, c) for c in cands]
         held = int(np.argmax(share)) if share and max(share) >= 0.5 and not two else None
@@ -98,11 +101,14 @@ def objects_of(cap: Capture, first: First, choice: target.Choice, own: Converted
 
 
 def _told_apart(found: list[objects.SceneObject], done: list[Converted], own: Converted, options,
-                several: bool, lone: bool = False) -> tuple[list[objects.SceneObject], int, Converted]:
+                several: bool, lone: bool = False,
+                courses: Callable[[list[objects.SceneObject]], list[objects.SceneObject]] | None = None
+                ) -> tuple[list[objects.SceneObject], int, Converted]:
     """`objects_of`'s objects from the conversions `done` (`found`: an object each):
     bodies told apart (identities.untangled, by contests where `several` movers may
-    be), numbered in the order they were seen, the target chosen by the user's rule.
-    Each object's pairs are `ambiguous` where another's course passes within
+    be), with pairs along their `courses` where given (a lone candidate's parts: along.
+    objects_along), numbered in the order they were seen, the target chosen by the
+    user's rule. Each object's pairs are `ambiguous` where another's course passes within
     objects.GATE_M (crossings.passing); a `lone` candidate's, whose one tracker held one
     echo at a time, also where another's path does (crossings.conflicts, as `_exclusive`
     for several conversions: two legs landing 0.3 mm apart, the tracker passing from one
@@ -118,6 +124,8 @@ def _told_apart(found: list[objects.SceneObject], done: list[Converted], own: Co
     of = {id(d.track): d for d in done}
     scene = exchanges.apart(rests.rests_parted(identities.untangled(found, several)),
                            [o.track for o in found if not o.moving])
+    if courses is not None:       # pairs along a body's course, once its identity is told
+        scene = courses(scene)
     tracks, moving = [o.track for o in scene], [o.moving for o in scene]
     rad_per_m = phase.radians_per_metre(own.plan.lut.nu_hz, own.plan.info.refractive_index)
     two = [coherence.two_bodies(t, rad_per_m) for t in tracks]
