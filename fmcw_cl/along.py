@@ -125,17 +125,20 @@ def _where(track: Track, t: np.ndarray, moving: bool) -> tuple[np.ndarray, np.nd
 
 
 def converted_along(cap: Capture, first: First, done: list[Converted], moving: list[bool],
-                    processor: ChunkProcessor, seconds, progress) -> list[Converted]:
+                    processor: ChunkProcessor, seconds, progress, packed: bool = False) -> list[Converted]:
     """`done` with each mover (`moving`; not a track joined of several conversions)
     that another object's path enters converted again along its course (`course_of`),
     in the user's band, on its own kind of rows (Plan.still_half), and joined with the
-    runs of RUN_PAIRS or more verified pairs that gives where its track had none."""
+    runs of RUN_PAIRS or more verified pairs that gives where its track had none.
+    `packed` (one conversion's plan and choice for all): movers whose courses are
+    known at other times share a conversion (`_lanes`), each pair in the course
+    known there."""
     if len(done) < 2:
         return done
     m = first.plan.model
     user = first.plan.options.band_m
     room = (GUARD_BINS + FLOOR_BINS) * m.metres_per_bin
-    out = list(done)
+    wanted = []
     for i, d in enumerate(done):
         if not moving[i] or d.joined or not d.track.valid.any():
             continue
@@ -143,22 +146,54 @@ def converted_along(cap: Capture, first: First, done: list[Converted], moving: l
         got = course_of(d.track, others, (m.k_rise, m.k_fall), d.choice.band_m, room)
         if got is None or not _entered(d.track, others, got[0], got[1], d.choice.band_m):
             continue
-        plan = replace(d.plan.with_band(user), course=got[0])
-        if not conversions.searchable(plan, user):
-            continue
+        if conversions.searchable(replace(d.plan.with_band(user), course=got[0]), user):
+            wanted.append((i, others, got))
+    out = list(done)
+    for lane in _lanes([got[1] for _, _, got in wanted]) if packed else [[k] for k in range(len(wanted))]:
+        d = done[wanted[lane[0]][0]]
+        plan = replace(d.plan.with_band(user), course=_merged([wanted[k][2] for k in lane]))
         parts = capture_parts(cap, plan, processor, progress=progress)
         track = conversions.assembled(plan, parts, processor, seconds, replace(d.choice, band_m=user), None)
-        # where the course is not known its band is the candidate's own: its own verdict
-        # stands; a pair further off than the mover can be is another's, not its; one
-        # beside another object is a crossing's, which the parts' ends tell (identities)
-        r, width = got[2]
-        near = got[1] & (np.abs(track.distance_m - r) <= width) & _apart(track, others)
-        gained = _runs(track.valid & ~d.track.valid & near, RUN_PAIRS)
-        if gained.any():
-            joined = objects.joined(d.track, objects.invalidated(track, track.valid & ~gained))
-            joined.attrs[COURSE_ATTR] = 1
-            out[i] = replace(d, plan=plan, parts=parts, track=joined, joined=True)
+        for i, others, got in (wanted[k] for k in lane):
+            # where the course is not known its band is the candidate's own: its own verdict
+            # stands; a pair further off than the mover can be is another's, not its; one
+            # beside another object is a crossing's, which the parts' ends tell (identities)
+            r, width = got[2]
+            near = got[1] & (np.abs(track.distance_m - r) <= width) & _apart(track, others)
+            gained = _runs(track.valid & ~done[i].track.valid & near, RUN_PAIRS)
+            if gained.any():
+                joined = objects.joined(done[i].track, objects.invalidated(track, track.valid & ~gained))
+                joined.attrs[COURSE_ATTR] = 1
+                out[i] = replace(done[i], plan=plan, parts=parts, track=joined, joined=True)
     return out
+
+
+def _lanes(known: list[np.ndarray]) -> list[list[int]]:
+    """The courses (their `known` pairs) in lanes, each a conversion: a course joins the
+    first lane none of whose courses is known within RUN_PAIRS pairs of its own, the
+    earliest known first."""
+    wide = [np.convolve(k, np.ones(2 * RUN_PAIRS + 1), "same") > 0 for k in known]
+    lanes: list[list[int]] = []
+    used: list[np.ndarray] = []
+    for k in sorted(range(len(known)), key=lambda k: int(np.argmax(known[k]))):
+        free = next((n for n, u in enumerate(used) if not (u & known[k]).any()), None)
+        if free is None:
+            lanes.append([k])
+            used.append(wide[k].copy())
+        else:
+            lanes[free].append(k)
+            used[free] |= wide[k]
+    return lanes
+
+
+def _merged(got: list[tuple]) -> Course:
+    """One course of courses (`course_of`'s) known at other times: each pair's band the
+    course's known there, else the first's (the candidate's own band)."""
+    course, known, _ = got[0]
+    lo, hi = course.lo_m.copy(), course.hi_m.copy()
+    for c, k, _ in got[1:]:
+        lo[:, k], hi[:, k] = c.lo_m[:, k], c.hi_m[:, k]
+    return Course(course.t_s, lo, hi)
 
 
 def objects_along(cap: Capture, first: First, own: Converted, scene: list[objects.SceneObject],
@@ -168,7 +203,8 @@ def objects_along(cap: Capture, first: First, own: Converted, scene: list[object
     several candidates' conversions are (`converted_along`), after the identities: a
     run gained inside a crossing would move its parts' ends, which they read."""
     done = [replace(own, track=o.track, joined=False, whole=None) for o in scene]
-    done = converted_along(cap, first, done, [o.moving for o in scene], processor, seconds, progress)
+    done = converted_along(cap, first, done, [o.moving for o in scene], processor, seconds, progress,
+                           packed=True)
     return [replace(o, track=d.track) for o, d in zip(scene, done, strict=True)]
 
 
