@@ -20,9 +20,8 @@ motions are not: a rail at +1.9 m/s continues at +2.5 m/s, not at -2.9 m/s. So:
   kind seen between them, or while one of them is seen and within that bound, could be
   either instead; contests wherever the parts hold two movers), and only where a body
   can move so (verification.reachable's bounds), the cheapest first; else the parts stay
-  objects of their own (fewer periods tracked, none on the wrong object). There a
-  conversion's fixed and moving parts join too where one body's steady course crosses
-  the gap (a sway's turn, 20 ms under 0.3 m/s, between its swings). Parts of one
+  objects of their own (fewer periods tracked, none on the wrong object); then a
+  conversion's parts across kinds on one body's steady course (a sway's turn). Parts of one
   object cut at crossings alone that are all joined again are that object as it was.
 """
 
@@ -248,35 +247,36 @@ def rejoined(scene: list[SceneObject], contests: bool = False,
     (a swaying cable that a rail passed, the rail beyond it). Two parts of one track
     joined again are still parts of it (`whole`): its tuning and its rest are that
     conversion's. With `contests` (several movers), the least acceleration's join first,
-    and only where not `contested` and, between two moving ends, reachable; and parts of
-    one conversion of either kind where one body's steady course crosses the gap
+    and only where not `contested` and, between two moving ends, reachable; then parts of
+    one conversion across kinds where one body's steady course crosses the gap
     (`least_acceleration` within ACCEL_FLOOR: a sway's turn, too slow to move, between
-    its swings, which the other sway's parts cut; not a leg's part seen 33 ms later 10
-    mm off the trapezoid as the other leg's slow part)."""
-    scene = list(scene)
-    ends = [_Ends.row(o) for o in scene]
+    its swings; not a leg's part 33 ms later 10 mm off the trapezoid). Joined first, a
+    glide's rest would have started before a later part's contest: the other glide's
+    part 90 ms before took a part of it."""
     asked = asked or handovers.Asked()
-    while len(scene) > 1:
-        e = _Ends(ends, scene, asked, contests)
-        i, j = np.nonzero(np.triu(e.returns, 1))                 # (i, j) in order, i < j
-        if contests:
-            keep = np.isfinite(e.cost[i, j])
-            i, j = i[keep], j[keep]
-            order = np.argsort(e.cost[i, j], kind="stable")      # the cheapest join first
-            i, j = i[order], j[order]
-            first = _uncontested(e, i, j)
-        else:
-            first = 0 if i.size else None
-        if first is None:
-            break
-        i, j = int(i[first]), int(j[first])
-        a, b = scene[i], scene.pop(j)
-        moved = a.moving or b.moving or abs(np.nanmedian(a.track.distance_m)
-                                - np.nanmedian(b.track.distance_m)) > objects.GATE_M
-        scene[i] = SceneObject(0, moved, objects.joined(a.track, b.track), f"{a.note}; seen again: {b.note}",
-                               a.whole if a.whole is not None and a.whole is b.whole else None)
-        ends.pop(j)
-        ends[i] = _Ends.row(scene[i])
+    scene = list(scene)
+    for across_kinds in (False, True) if contests else (False,):
+        ends = [_Ends.row(o) for o in scene]
+        while len(scene) > 1:
+            e = _Ends(ends, scene, asked, across_kinds)
+            i, j = np.nonzero(np.triu(e.returns, 1))                 # (i, j) in order, i < j
+            if contests:
+                keep = np.isfinite(e.cost[i, j])
+                i, j = i[keep], j[keep]
+                order = np.argsort(e.cost[i, j], kind="stable")      # the cheapest join first
+                i, j = i[order], j[order]
+                first = _uncontested(e, i, j)
+            else:
+                first = 0 if i.size else None
+            if first is None:
+                break
+            i, j = int(i[first]), int(j[first])
+            a, b = scene[i], scene.pop(j)
+            far = abs(np.nanmedian(a.track.distance_m) - np.nanmedian(b.track.distance_m)) > objects.GATE_M
+            scene[i] = SceneObject(0, a.moving or b.moving or far, objects.joined(a.track, b.track),
+                                   f"{a.note}; seen again: {b.note}", a.whole if a.whole is b.whole else None)
+            ends.pop(j)
+            ends[i] = _Ends.row(scene[i])
     return scene
 
 
@@ -293,7 +293,7 @@ def _uncontested(e: _Ends, i: np.ndarray, j: np.ndarray) -> int | None:
 class _Ends:
     """Every part's first and last verified pair, and from them every two parts' joins
     at once: whether the later is the earlier seen again (objects.returns, of one kind,
-    or `across_kinds` of one conversion on a steady course: `returns`; symmetric), the
+    or `across_kinds` alone, of one conversion on a steady course: `returns`; symmetric), the
     join's `_cost` (`cost`; symmetric, inf where no body moves so) and the parts'
     verified times (for `contested`)."""
 
@@ -314,7 +314,7 @@ class _Ends:
             # one conversion's parts, one body's course across the gap: a sway's turn
             whole = np.array([id(o.whole) if o.whole is not None else -1 - k for k, o in enumerate(scene)])
             steady = least_acceleration(*span) <= ACCEL_FLOOR
-            kind |= (whole[:, None] == whole[None, :]) & np.where(self.later, steady, steady.T)
+            kind = (whole[:, None] == whole[None, :]) & np.where(self.later, steady, steady.T)
         self.returns = (back | back.T) & kind & ~handovers.across(scene, self.t1, self.t0, asked)
         cost = _costs(*span)
         self.cost = np.where(self.later, cost, cost.T)

@@ -631,6 +631,27 @@ def test_a_legs_motion_is_not_the_other_legs_slow_part_seen_later(tmp_path):
     scene_of(process(path), path)
 
 
+def test_joins_across_kinds_wait_for_every_join_of_one_kind(tmp_path):
+    """Two glides one way (0.333 -> 0.105 m and 0.384 -> 0.110 m, the second 2.1 dB
+    weaker), lab (movers.py seed 4, capture 33). The first one's rest at 0.333 m (a
+    fixed part) joined to its start at once began before the second one's part at
+    59-73 ms, which then no longer contested that part's join to a part of the first
+    90 ms later: 49 valid pairs 17 mm off the second glide. Joined across kinds only
+    once every join of one kind is made: none off its glide."""
+    from conftest import scene_of
+
+    from fmcw_cl.simulator.scene import glide
+    from fmcw_cl.simulator.writer import Mover, simulate_capture
+
+    other = glide(0.7, 0.38401153536320387, 0.11042073666633352, 0.07824894920199021, 0.20339793045628124)
+    config = replace(several.LAB_SCENE, movers=(Mover(other, 390.9863902434856),))        # -2.1 dB
+    path = tmp_path / "glides.h5"
+    simulate_capture(path, glide(0.7, 0.333266033210497, 0.10545053875512347, 0.10968861048406228,
+                                 0.23988118110286571), 0.2109438103449096, seed=26, config=config,
+                     start_s=0.04117984320325543)
+    scene_of(process(path), path)
+
+
 def test_a_part_the_tracker_handed_over_to_is_not_joined_elsewhere():
     """Two legs landing (a lone tracker): one leg's landing ends at 36.2 ms (0.0767 m,
     -1.34 m/s); the tracker follows the other leg's landing until 73.6 ms, ending on the
