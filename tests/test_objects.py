@@ -586,10 +586,10 @@ def test_a_sways_turn_joins_its_own_conversions_moving_parts():
     """A sway (0.20 +- 0.05 m at 4 Hz) that one lone tracker held between two others:
     its turn at 0.25 m (55-70 ms, under 0.3 m/s: too slow to move, a fixed part) and
     its swings before and after, parts of one conversion. Of one kind only, the turn
-    stood alone and contested the swings' join (two sways crossing: 16 % of the
-    stronger one's periods on one object, 36 % so joined). Joined across kinds, they
-    are one object, a mover; a turn of another conversion (a still echo the tracker
-    did not hold) is not joined to them."""
+    stood alone and contested the swings' join (two sways crossing, seed 1: 16 % of
+    the stronger one's periods on one object, 36 % so joined, 39 % along the courses).
+    Joined across kinds, they are one object, a mover; a turn of another conversion (a
+    still echo the tracker did not hold) is not joined to them."""
     n = 2000
     t = PERIOD * (np.arange(n) + 0.5)
     d = 0.20 + 0.05 * np.sin(2 * np.pi * 4 * t)
