@@ -24,7 +24,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from . import conversions, numeric, objects
+from . import conversions, moving_echoes, numeric, objects
 from .capture import Capture
 from .chunks import capture_parts
 from .conversions import Converted, First
@@ -43,21 +43,31 @@ ONE_BODY_M = 0.001    # a gap is bridged where one body can have crossed it (fmc
 OTHER_GAP_S = 0.005   # another object is where its verified pairs say, across gaps this long
 FLOOR_BINS = 16       # bins of a peak's noise floor beyond its guard on each side, where nothing is cut
 RUN_PAIRS = 40        # a run of new verified pairs this long (2 ms) is the mover's own stretch
+MATCH_S = 1e-3        # a body of the echo table on a mover's verified pairs this long ...
+MATCH_M = 0.0015      # ... within this of them (median) is its; it says its course ...
+BEYOND_S = 1e-3       # ... this far from every one of them (where the tracker held another echo)
 COURSE_ATTR = "band_along_course"     # a track's attribute: 1 where pairs were taken from its course
 
 
 def course_of(track: Track, others: list[tuple[Track, bool]], k: tuple[float, float],
-              band_m: tuple[float, float | None], room_m: float) -> tuple | None:
-    """The course of the mover of `track` (its verified pairs) at each of its pairs'
-    times, in each direction of Doppler factors `k` (m per m/s: rising, falling), at
-    least `room_m` (m) either side (the peak's noise floor lies beyond its guard), cut
-    half way to each of `others` (track, moving) wholly on one side of it; `band_m` (m)
-    where it is not known. With which pairs it knows, and where the mover can be there
-    (its distance and the half-width about it, m); None where it knows none."""
+              band_m: tuple[float, float | None], room_m: float,
+              lines: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> tuple | None:
+    """The course of the mover of `track` (its verified pairs, and where it has none
+    the points (time s, distance m, velocity m/s) of the echo table's `lines` that go on
+    as it: `continuing`) at each of its pairs' times, in each direction of Doppler
+    factors `k` (m per m/s: rising, falling), at least `room_m` (m) either side (the
+    peak's noise floor lies beyond its guard), cut half way to each of `others` (track,
+    moving) wholly on one side of it; `band_m` (m) where it is not known. With which
+    pairs it knows, and where the mover can be there (its distance and the half-width
+    about it, m); None where it knows none."""
     t, ok = track.time_s, track.valid
     if ok.sum() < 2:
         return None
-    r, v, width, known = _bridged(t, track.distance_m[ok], track.velocity_mps[ok], t[ok])
+    at = [t[ok], track.distance_m[ok], track.velocity_mps[ok]]
+    if lines is not None and lines[0].size:
+        order = np.argsort(np.r_[at[0], lines[0]], kind="stable")
+        at = [np.r_[a, b][order] for a, b in zip(at, lines, strict=True)]
+    r, v, width, known = _bridged(t, at[1], at[2], at[0])
     if not known.any():
         return None
     present = [_where(o, t, moving) for o, moving in others]
@@ -125,25 +135,32 @@ def _where(track: Track, t: np.ndarray, moving: bool) -> tuple[np.ndarray, np.nd
 
 
 def converted_along(cap: Capture, first: First, done: list[Converted], moving: list[bool],
-                    processor: ChunkProcessor, seconds, progress, packed: bool = False) -> list[Converted]:
+                    processor: ChunkProcessor, seconds, progress, packed: bool = False,
+                    lined: bool = False, found: list | None = None) -> list[Converted]:
     """`done` with each mover (`moving`; not a track joined of several conversions)
-    that another object's path enters converted again along its course (`course_of`),
-    in the user's band, on its own kind of rows (Plan.still_half), and joined with the
-    runs of RUN_PAIRS or more verified pairs that gives where its track had none.
-    `packed` (one conversion's plan and choice for all): movers whose courses are
-    known at other times share a conversion (`_lanes`), each pair in the course
-    known there."""
-    if len(done) < 2:
+    that another object's path enters converted again along its course (`course_of`;
+    with the echo table's lines that go on as it, `continuing`), in the user's band, on
+    its own kind of rows (Plan.still_half), and joined with the runs of RUN_PAIRS or
+    more verified pairs that gives where its track had none. `packed` (one
+    conversion's plan and choice for all): movers whose courses are known at other
+    times share a conversion (`_lanes`), each pair in the course known there. `lined`:
+    only the movers that lines go on as. `found`: the table's bodies (`bodies_of`),
+    where already known."""
+    if len(done) < 2 and not lined:
         return done
     m = first.plan.model
     user = first.plan.options.band_m
     room = (GUARD_BINS + FLOOR_BINS) * m.metres_per_bin
+    mine = [moving[i] and not d.joined and d.track.valid.any() for i, d in enumerate(done)]
+    if found is None:
+        found = bodies_of(first) if any(mine) else []
+    lines = continuing([d.track if w else None for d, w in zip(done, mine, strict=True)], found)
     wanted = []
     for i, d in enumerate(done):
-        if not moving[i] or d.joined or not d.track.valid.any():
+        if not mine[i] or (lined and lines[i] is None):
             continue
         others = [(o.track, mv) for o, mv in zip(done, moving, strict=True) if o is not d]
-        got = course_of(d.track, others, (m.k_rise, m.k_fall), d.choice.band_m, room)
+        got = course_of(d.track, others, (m.k_rise, m.k_fall), d.choice.band_m, room, lines[i])
         if got is None or not _entered(d.track, others, got[0], got[1], d.choice.band_m):
             continue
         if conversions.searchable(replace(d.plan.with_band(user), course=got[0]), user):
@@ -165,6 +182,51 @@ def converted_along(cap: Capture, first: First, done: list[Converted], moving: l
                 joined = objects.joined(done[i].track, objects.invalidated(track, track.valid & ~gained))
                 joined.attrs[COURSE_ATTR] = 1
                 out[i] = replace(done[i], plan=plan, parts=parts, track=joined, joined=True)
+    return out
+
+
+def bodies_of(first: First) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """The bodies (moving_echoes.bodies) of the first conversion's echo table, off its
+    tracked peaks."""
+    e, m = first.track.echoes, first.plan.model
+    return [] if e is None else moving_echoes.bodies(e, m.k_rise, m.k_fall, ~e.tracked)
+
+
+def continuing(tracks: list[Track | None], found: list[tuple[np.ndarray, np.ndarray, np.ndarray]]
+               ) -> list[tuple[np.ndarray, np.ndarray, np.ndarray] | None]:
+    """Per track (None: none wanted), the points (time s, distance m, velocity m/s) of
+    the bodies `found` (moving_echoes.bodies) that go on as it, more than BEYOND_S from
+    each of its verified pairs: a body is the track's whose verified pairs it lies on
+    for MATCH_S, within MATCH_M (median) and their velocity within
+    moving_echoes.AGREE_MPS, and of those the nearest's (median). One body's course
+    where its tracker held another echo (a weaker mover the lone candidate's tracker
+    left once the stronger came into its band)."""
+    near = np.full((len(found), len(tracks)), np.inf)
+    for j, track in enumerate(tracks):
+        ok = track.valid & np.isfinite(track.distance_m) & np.isfinite(track.velocity_mps) \
+            if track is not None else None
+        if ok is None or not ok.any():
+            continue
+        t_ok, d_ok, v_ok = track.time_s[ok], track.distance_m[ok], track.velocity_mps[ok]
+        for n, (grid, at, v) in enumerate(found):
+            i = numeric.nearest(t_ok, grid)
+            on = np.abs(t_ok[i] - grid) <= 2 * (track.period_s or 50e-6)
+            if on.sum() * moving_echoes.STEP_S < MATCH_S:
+                continue
+            miss = float(np.median(np.abs(at[on] - d_ok[i[on]])))
+            if miss <= MATCH_M and np.median(np.abs(v[on] - v_ok[i[on]])) <= moving_echoes.AGREE_MPS:
+                near[n, j] = miss
+    out: list[tuple[np.ndarray, np.ndarray, np.ndarray] | None] = [None] * len(tracks)
+    for n, (grid, at, v) in enumerate(found):
+        if not np.isfinite(near[n]).any():
+            continue
+        j = int(np.argmin(near[n]))
+        track = tracks[j]
+        t_ok = track.time_s[track.valid]
+        off = np.abs(t_ok[numeric.nearest(t_ok, grid)] - grid) > BEYOND_S
+        if off.any():
+            got = out[j] or (np.zeros(0), np.zeros(0), np.zeros(0))
+            out[j] = tuple(np.r_[a, b[off]] for a, b in zip(got, (grid, at, v), strict=True))
     return out
 
 
@@ -196,15 +258,18 @@ def _merged(got: list[tuple]) -> Course:
     return Course(course.t_s, lo, hi)
 
 
-def objects_along(cap: Capture, first: First, own: Converted, scene: list[objects.SceneObject],
-                  processor: ChunkProcessor, seconds, progress) -> list[objects.SceneObject]:
-    """A lone candidate's objects (the parts of `own`, its one conversion, told apart and
-    joined: identities.untangled), each mover converted again along its course as
-    several candidates' conversions are (`converted_along`), after the identities: a
-    run gained inside a crossing would move its parts' ends, which they read."""
-    done = [replace(own, track=o.track, joined=False, whole=None) for o in scene]
+def objects_along(cap: Capture, first: First, own: list[Converted], scene: list[objects.SceneObject],
+                  processor: ChunkProcessor, seconds, progress, lined: bool = False,
+                  found: list | None = None) -> list[objects.SceneObject]:
+    """The objects told apart and joined (identities.untangled; `own`: the conversion of
+    each), each mover converted again along its course as several candidates'
+    conversions are (`converted_along`; `lined`: only those the echo table's lines go
+    on as), after the identities: a run gained inside a crossing would move its parts'
+    ends, which they read. A lone candidate's parts share one conversion's plan: packed.
+    `found`: as `converted_along`'s."""
+    done = [replace(d, track=o.track, joined=False, whole=None) for o, d in zip(scene, own, strict=True)]
     done = converted_along(cap, first, done, [o.moving for o in scene], processor, seconds, progress,
-                           packed=True)
+                           packed=len({id(d) for d in own}) == 1, lined=lined, found=found)
     return [replace(o, track=d.track) for o, d in zip(scene, done, strict=True)]
 
 

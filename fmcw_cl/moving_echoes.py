@@ -9,11 +9,12 @@ linked into `lines`: each detection goes on the line whose last ones, moved on a
 their velocity, reach it within LINK_M + ACCEL_MAX dt^2 / 2, across at most GAP_S.
 A line of MIN_DETECTIONS over MIN_SPAN_S is an echo's. A rising and a falling line at
 once give an echo's distance and its Doppler velocity (the two equations d = R + k v);
-where that velocity is the distance's own slope, they are one moving body's (noise
-lines, one direction's sidelobes, or two echoes' lines are not), unless it lies on
-the tracked target (within fixed_echoes.APART_M: the target's own peak split, smeared)
-or on its harmonics (two and three times its distance), and only where the tracker
-held verified pairs at once (else it may be the target's own echo lost). `unheld`
+where that velocity is the distance's own slope, they are one moving body's (`bodies`,
+which along.continuing reads too; noise lines, one direction's sidelobes, or two
+echoes' lines are not), unless it lies on the tracked target (within
+fixed_echoes.APART_M: the target's own peak split, smeared) or on its harmonics (two
+and three times its distance), and only where the tracker held verified pairs at once
+(else it may be the target's own echo lost). `unheld`
 gives each such echo's span (those that overlap, one), for objects.candidates; an
 echo that a body known only by its smeared energy reaches, or leaves from, widens that
 body's span instead (its slower stretch: `joined`).
@@ -92,28 +93,47 @@ def unheld(e: echoes.Echoes, k_rise: float, k_fall: float, track: Track, band: t
            known: list[tuple[float, float]]) -> list[tuple[float, float]]:
     """(lo, hi) m of each moving echo of the echo table `e` that `track`'s tracker did
     not hold, inside `band` (m) and centred beyond APART_M of the `known` spans (m).
-    A rising and a falling line (`lines`, of the detections neither at the tracked peak
-    nor within APART_M of a known span) together for OVERLAP_S are one echo at
-    R = (k_f d_r - k_r d_f) / (k_f - k_r) moving at (d_f - d_r) / (k_f - k_r) (d_r =
-    R + k_r v, d_f = R + k_f v; `k_rise`, `k_fall`: s, the Doppler model's) where that
-    velocity is R's own slope within AGREE_MPS (noise lines, or a line and another
-    echo's, are not one body's motion), it moves (median speed MOVING_MPS or more),
+    Each body (`bodies`) of the detections neither at the tracked peak nor within
+    APART_M of a known span that moves (median speed MOVING_MPS or more),
     travels MIN_TRAVEL_M and lies beside the verified pairs (`_beside`). Where it goes on
     to a slice of a known span that holds no moving verified pair, or comes from one
     (`_smeared`, `_continues`), that span widened to hold it is given instead."""
     free = ~e.tracked
     for a, b in known:                  # the known echoes' detections (a sway's: most of a table's)
         free &= (e.distance_m < a - APART_M) | (e.distance_m > b + APART_M)
-    way = []
-    for rising in (True, False):
-        idx = np.flatnonzero(free & (e.rising == rising))
-        t, d = e.time_s[idx], e.distance_m[idx]         # in time order, as the table
-        way.append([(t[x], d[x]) for x in lines(t, d)])
     ok = track.valid & np.isfinite(track.distance_m)
     held_t, held_d = track.time_s[ok], track.distance_m[ok]
     ends = _run_ends(track)
     smeared = _smeared(e, track, known)
     lo, hi = band[0], band[1] or np.inf
+    out = []
+    for grid, at, v in bodies(e, k_rise, k_fall, free):
+        if np.median(np.abs(v)) < MOVING_MPS or np.ptp(at) < MIN_TRAVEL_M:
+            continue
+        if not _beside(grid, at, held_t, held_d) or _goes_on(grid, at, v, ends):
+            continue
+        span = (float(np.percentile(at, 1)), float(np.percentile(at, 99)))
+        on = [k for k in smeared if _continues(grid, at, v, smeared[k])]
+        if on:                      # a smeared span's own body, before or after its smear
+            out.append((min(span[0], *(k[0] for k in on)), max(span[1], *(k[1] for k in on))))
+        elif span[1] >= lo and span[0] < hi and not beside_span(0.5 * (span[0] + span[1]), known):
+            out.append(span)
+    return _merged(out)
+
+
+def bodies(e: echoes.Echoes, k_rise: float, k_fall: float, free: np.ndarray
+           ) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """(times s, distances m, velocities m/s) of each body the `free` detections of the
+    echo table `e` show: a rising and a falling line (`lines`) together for OVERLAP_S,
+    at STEP_S steps, are one echo at R = (k_f d_r - k_r d_f) / (k_f - k_r) moving at
+    (d_f - d_r) / (k_f - k_r) (d_r = R + k_r v, d_f = R + k_f v; `k_rise`, `k_fall`: m
+    per m/s, the Doppler model's) where that velocity is R's own slope within AGREE_MPS
+    (noise lines, or a line and another echo's, are not one body's motion)."""
+    way = []
+    for rising in (True, False):
+        idx = np.flatnonzero(free & (e.rising == rising))
+        t, d = e.time_s[idx], e.distance_m[idx]         # in time order, as the table
+        way.append([(t[x], d[x]) for x in lines(t, d)])
     out = []
     for tr, dr in way[0]:
         for tf, df in way[1]:
@@ -124,19 +144,9 @@ def unheld(e: echoes.Echoes, k_rise: float, k_fall: float, track: Track, band: t
             r, f = np.interp(grid, tr, dr), np.interp(grid, tf, df)
             at = (k_fall * r - k_rise * f) / (k_fall - k_rise)
             v = (f - r) / (k_fall - k_rise)
-            if np.median(np.abs(v - slope(grid, at, grid, REACH_S))) > AGREE_MPS:
-                continue
-            if np.median(np.abs(v)) < MOVING_MPS or np.ptp(at) < MIN_TRAVEL_M:
-                continue
-            if not _beside(grid, at, held_t, held_d) or _goes_on(grid, at, v, ends):
-                continue
-            span = (float(np.percentile(at, 1)), float(np.percentile(at, 99)))
-            on = [k for k in smeared if _continues(grid, at, v, smeared[k])]
-            if on:                      # a smeared span's own body, before or after its smear
-                out.append((min(span[0], *(k[0] for k in on)), max(span[1], *(k[1] for k in on))))
-            elif span[1] >= lo and span[0] < hi and not beside_span(0.5 * (span[0] + span[1]), known):
-                out.append(span)
-    return _merged(out)
+            if np.median(np.abs(v - slope(grid, at, grid, REACH_S))) <= AGREE_MPS:
+                out.append((grid, at, v))
+    return out
 
 
 def joined(known: list[tuple[float, float]], found: list[tuple[float, float]]) -> list[tuple[float, float]]:

@@ -70,7 +70,8 @@ def objects_of(cap: Capture, first: First, choice: target.Choice, own: Converted
             # candidates' are, its tuning and its rest still the conversion's (`whole`)
             found = [objects.SceneObject(0, moving, own.track, f"{own.choice.note}: two bodies or more")]
             def courses(scene: list[objects.SceneObject]) -> list[objects.SceneObject]:
-                return along.objects_along(cap, first, own, scene, processor, seconds, progress)
+                return along.objects_along(cap, first, [own] * len(scene), scene, processor, seconds,
+                                           progress)
 
             return _told_apart(found, [own], own, options, True, lone=True, courses=courses)
         # the target's conversion stands for the candidate it holds, unless it held two echoes
@@ -91,13 +92,22 @@ def objects_of(cap: Capture, first: First, choice: target.Choice, own: Converted
         extra = found
     done = _at_rest(cap, done, loose, first, made, processor, seconds, progress)
     done = _distinct(done, first, seconds, processor)
-    done = along.converted_along(cap, first, done, [_moving(d) for d in done], processor, seconds, progress)
+    lines = along.bodies_of(first) if any(_moving(d) for d in done) else []
+    done = along.converted_along(cap, first, done, [_moving(d) for d in done], processor, seconds, progress,
+                                 found=lines)
     unseen = {(i, j) for i, d in enumerate(done) for j in _unseen(d, done, first)}
     done = _unveiled(done, unseen, seconds, processor)
     done = _exclusive(done, unseen, first, seconds, processor)
     found = [objects.SceneObject(0, _moving(d), d.track, d.choice.note) for d in done]
     several = sum(o.moving and o.track.valid.any() for o in found) >= 2
-    return _told_apart(found, done, own, options, several)
+    of = {id(d.track): d for d in done}
+
+    def lined(scene: list[objects.SceneObject]) -> list[objects.SceneObject]:
+        conv = [of.get(id(o.track if o.whole is None else o.whole), own) for o in scene]
+        return along.objects_along(cap, first, conv, scene, processor, seconds, progress, lined=True,
+                                   found=lines)
+
+    return _told_apart(found, done, own, options, several, courses=lined)
 
 
 def _told_apart(found: list[objects.SceneObject], done: list[Converted], own: Converted, options,
@@ -106,8 +116,9 @@ def _told_apart(found: list[objects.SceneObject], done: list[Converted], own: Co
                 ) -> tuple[list[objects.SceneObject], int, Converted]:
     """`objects_of`'s objects from the conversions `done` (`found`: an object each):
     bodies told apart (identities.untangled, by contests where `several` movers may
-    be), with pairs along their `courses` where given (a lone candidate's parts: along.
-    objects_along), numbered in the order they were seen, the target chosen by the
+    be), with pairs along their `courses` where given (along.objects_along: a lone
+    candidate's parts; several conversions' movers the echo table's lines go on as),
+    numbered in the order they were seen, the target chosen by the
     user's rule. Each object's pairs are `ambiguous` where another's course passes within
     objects.GATE_M (crossings.passing); a `lone` candidate's, whose one tracker held one
     echo at a time, also where another's path does (crossings.conflicts, as `_exclusive`

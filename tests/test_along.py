@@ -51,6 +51,34 @@ def test_a_course_is_known_where_a_body_can_only_have_moved_so_far():
     assert course.lo_m[0][2400] == 0.03 and course.hi_m[0][2400] == 1e3      # unknown: the candidate's band
 
 
+def test_a_line_of_the_echo_table_goes_on_as_the_mover_it_lies_on():
+    """A mover verified for 20 ms at 0.5 m/s, then lost (its tracker held another
+    echo): a body of the echo table's lines (moving_echoes.bodies) on its last 5 ms and
+    20 ms beyond is its course there (`continuing`: only the points more than BEYOND_S
+    from its verified pairs), and the course is known where the pairs alone left it
+    unknown; a body 5 mm off its pairs, or at another velocity, is not its; a body on
+    two movers' pairs goes on as the nearer's alone."""
+    n = 1000
+    t = PERIOD * (np.arange(n) + 0.5)
+    d, v = 0.2 + 0.5 * t, np.full(n, 0.5)
+    ok = t < 0.02
+    grid = np.arange(0.015, 0.04, 2.5e-4)
+    on = (grid, 0.2 + 0.5 * grid + 3e-4, np.full(grid.size, 0.5))
+    mover, beside = _track(d, v, ok), _track(d + 1e-3, v, ok)
+    off = (grid, on[1] + 5e-3, on[2])
+    fast = (grid, on[1], on[2] + 1.0)
+    got = along.continuing([mover, None], [on, off, fast])
+    assert got[1] is None
+    tg, rg, vg = got[0]
+    assert tg.size and tg.min() > 0.02 + along.BEYOND_S - 3e-4 and np.all(np.isin(tg, grid))
+    np.testing.assert_allclose(rg, 0.2 + 0.5 * tg + 3e-4)
+    two = along.continuing([beside, mover], [on])
+    assert two[0] is None and two[1] is not None
+    alone = along.course_of(mover, [], K, (0.03, None), room_m=0.0)[1]
+    lined = along.course_of(mover, [], K, (0.03, None), 0.0, got[0])[1]
+    assert not alone[int(0.03 / PERIOD)] and lined[int(0.02 / PERIOD):int(0.04 / PERIOD) - 2].all()
+
+
 def test_a_course_is_cut_half_way_to_another_object_wholly_on_one_side():
     """A still object 40 mm above a slow mover: each band's top lies half way between
     the mover's interval and the other's (its plain peak and its image de-chirped at the
@@ -157,6 +185,24 @@ def test_a_few_new_pairs_in_a_crossing_are_not_taken(tmp_path):
     assert len(track.objects) == 2 and best[0] >= 0.95 and best[1] >= 0.65, (len(track.objects), best)
 
 
+def test_a_mover_goes_on_along_the_echo_tables_line(tmp_path):
+    """A glide (the target) through a sway 5.2 dB weaker, lab (movers.py seed 3,
+    capture 14): where the glide came into the sway's band its tracker held the glide,
+    and the sway's object ended there, while the sway's plain peaks still stood in the
+    echo table as lines. Its course goes on along them (along.continuing) and its
+    conversion along that course holds the sway in 73 % of its periods (57 % without
+    the lines); no pair off its own object."""
+    from fmcw_cl.simulator.scene import glide, sway
+
+    other = sway(0.7, 0.30040154702251953, 0.05999015141425991, 1.7181847317384276, 3.3759411677027393)
+    track, scores = _drawn(tmp_path / "glide_sway.h5",
+                           glide(0.7, 0.3537120772400895, 0.0794146577927896, 0.1919575655413572,
+                                 0.5919575655413573), other, 273.8546990331117, True, 916,       # -5.2 dB
+                           0.12900358270247264, 0.1845720481651698)
+    best = _best(scores)
+    assert best[1] >= 0.65, best
+
+
 @pytest.mark.parametrize("seed, start, span, glided, db, lab", [
     (860, 0.03995592544239468, 0.12532345194763778,
      (0.048849247650100694, 0.3557869815641674, 0.027927106999362017, 0.1940635537431153), 393.9575722558127,
@@ -197,7 +243,7 @@ def test_a_lone_candidates_movers_gain_pairs_along_their_courses(tmp_path, monke
     track = process(path)
     after = _best(scene_of(track, path))
     assert any(o.track.attrs.get(along.COURSE_ATTR) for o in track.objects)
-    monkeypatch.setattr(along, "objects_along", lambda cap, first, own, scene, *rest: scene)
+    monkeypatch.setattr(along, "objects_along", lambda cap, first, own, scene, *rest, **kw: scene)
     before = _best(scene_of(process(path), path))
     assert sum(after) >= sum(before) + 0.05, (before, after)
     assert min(a - b for a, b in zip(after, before, strict=True)) >= -0.02, (before, after)
