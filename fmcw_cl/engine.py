@@ -180,12 +180,12 @@ TUNING_ATTRS = ("tuning_peak_width_ratio", "tuning_matches", "uncalibrated_ratio
 
 
 def check_tuning(cap: Capture, plan: Plan, track: Track, processor: ChunkProcessor) -> float:
-    """Record how much wider than the window's own the peaks of the stillest stretch
-    are (`tuning_peak_width_ratio`, returned; `tuning_matches` is false beyond
+    """Record how much wider than the window's own the track's peaks of its stillest
+    stretch are (`tuning_peak_width_ratio`, returned; `tuning_matches` is false beyond
     WIDTH_LIMIT): the sign that the laser's real chirp has left its G(I) table or its
     calibration."""
     ratio = peak_width_ratio(cap, plan, stillest(track.time_s, track.velocity_mps),
-                             track.time_s, track.velocity_mps, processor)
+                             track.time_s, track.velocity_mps, processor, track.distance_m)
     track.attrs.update(dict(zip(TUNING_ATTRS, (ratio, bool(not ratio > WIDTH_LIMIT), UNCALIBRATED_RATIO),
                                 strict=True)))
     return ratio

@@ -312,6 +312,8 @@ MOVING_SPREAD_M = 1e-3
 
 
 WIDTH_REACH = 32          # bins either side of a peak searched first for its half-power points
+OWN_BINS = 24             # bins either side of the track's own peak its width is measured in (another
+                          # mover's smeared peak in the band read 2.2x: no pair kept, movers.py seed 10 #12)
 
 
 def _widths(power: np.ndarray, lo: int, hi: int | None = None) -> np.ndarray:
@@ -359,7 +361,7 @@ def stillest(time_s: np.ndarray, velocity_mps: np.ndarray, pairs: int = WIDTH_PE
 
 
 def peak_width_ratio(cap: Capture, plan, t0_s: float, time_s: np.ndarray | None,
-                     velocity_mps: np.ndarray | None, backend) -> float:
+                     velocity_mps: np.ndarray | None, backend, distance_m: np.ndarray | None = None) -> float:
     """Median half-power width of the peaks of WIDTH_PERIODS periods from `t0_s`, over
     that of the window's own peak: about 1 when the LUT matches the laser's real chirp,
     more when the tuning has moved away from the table or calibration.
@@ -368,7 +370,10 @@ def peak_width_ratio(cap: Capture, plan, t0_s: float, time_s: np.ndarray | None,
     stretch moves (median |v| over STILL_MPS in the track given by `time_s`,
     `velocity_mps`: a capture of a take-off alone), each half-sweep is de-chirped at its
     pair's velocity first, so that the Doppler term does not widen its peak; a tuning
-    error still does, a little less where it has biased the velocity itself.
+    error still does, a little less where it has biased the velocity itself. Where the
+    track's `distance_m` is given, each row's peak is its own, within OWN_BINS of where
+    the track puts it (its distance, plus k v in plain spectra): not another echo's in
+    the band (another mover's, smeared by its Doppler term, is no sign of the tuning).
     `backend`: the stages'.
     """
     info = cap.info
@@ -384,7 +389,7 @@ def peak_width_ratio(cap: Capture, plan, t0_s: float, time_s: np.ndarray | None,
         if not span.any() or np.median(np.abs(velocity_mps[span])) <= STILL_MPS:
             known = None
     nfft = plan.model.nfft
-    jobs = []
+    jobs, own = [], []
     directions = (True, False)
     sels = [fits & (hs.rising == rising) for rising in directions]
     rows = backend.resample_each(beat, [(hs.start[s], hs.length[s], plan.lut.u(up))
@@ -393,23 +398,32 @@ def peak_width_ratio(cap: Capture, plan, t0_s: float, time_s: np.ndarray | None,
         if not sel.any():
             continue
         beta = v = None
+        t = (a + hs.centre[sel]) / info.sample_rate_hz
         if known is not None and known.any():
-            t = (a + hs.centre[sel]) / info.sample_rate_hz
             v = np.interp(t, time_s[known], velocity_mps[known])
             beta = plan.model.beta_rise if rising else plan.model.beta_fall
         jobs.append((x, beta, v))
+        own.append(_own_peak(plan.model, rising, t, time_s, distance_m, velocity_mps, v is None))
     if not jobs:
         return float("nan")
     # in the target's band: a wall left out of it is not the target's peak
     powers = backend.power_each(jobs, nfft)
-    widths = np.concatenate([_strong_widths(power, plan.search.lo, plan.search.hi) for power in powers])
+    each = [_strong_widths(_around(power, c), plan.search.lo, plan.search.hi, power)
+            for power, c in zip(powers, own, strict=True)]
+    widths = np.concatenate(each)
     if not np.isfinite(widths).sum() >= WIDTH_HEARD * widths.size:
         return float("nan")             # noise's peaks (no target in the band) say nothing of the tuning
     if known is None:
         spread = max(_spread(p[:, plan.search.lo: plan.search.hi]) for p in powers)
         if spread * plan.model.metres_per_bin > MOVING_SPREAD_M and spread > np.nanmedian(widths):
             return float("nan")         # plain peaks of a target moving at no known velocity: smeared
-    return float(np.nanmedian(widths) / own_width(plan.lut.points, nfft))
+    # a tuning error widens the peaks of both directions; an echo's image beside a
+    # de-chirped peak lies in one (its Doppler term moves it opposite ways in the two):
+    # the narrower direction's (a foot at rest 3 mm from a hand's peaks de-chirped at
+    # -0.5 m/s read 1.6x, movers.py seed 8, capture 37)
+    heard = [w for w in each if np.isfinite(w).sum() >= WIDTH_HEARD * w.size] if known is not None else []
+    return float(min((np.nanmedian(w) for w in heard), default=np.nanmedian(widths))
+                 / own_width(plan.lut.points, nfft))
 
 
 def _spread(band: np.ndarray) -> float:
@@ -418,13 +432,41 @@ def _spread(band: np.ndarray) -> float:
     return float(q3 - q1)
 
 
-def _strong_widths(power: np.ndarray, lo: int, hi: int | None) -> np.ndarray:
+def _strong_widths(power: np.ndarray, lo: int, hi: int | None, whole: np.ndarray | None = None
+                   ) -> np.ndarray:
     """`_widths` of the rows whose highest peak stands WIDTH_SNR over the band's median
-    power (NaN elsewhere): the highest of a thousand bins of noise reaches about 10 times
-    their median, and its width is the noise's."""
+    power (NaN elsewhere; the median of `whole`'s band where given: `power` is its
+    peaks' surroundings alone): the highest of a thousand bins of noise reaches about 10
+    times their median, and its width is the noise's."""
     band = power[:, lo:hi]
-    strong = band.max(axis=1, initial=0.0) >= WIDTH_SNR * np.median(band, axis=1)
+    floor = np.median((power if whole is None else whole)[:, lo:hi], axis=1)
+    strong = band.max(axis=1, initial=0.0) >= WIDTH_SNR * floor
     return np.where(strong, _widths(power, lo, hi), np.nan)
+
+
+def _own_peak(model, rising: bool, t: np.ndarray, time_s: np.ndarray | None, distance_m: np.ndarray | None,
+              velocity_mps: np.ndarray | None, plain: bool) -> np.ndarray | None:
+    """The padded bin of the track's peak at each half-sweep's time `t` (s): its
+    distance (m, interpolated over its finite ones), in `plain` spectra shifted by its
+    Doppler term k v; None without a track's distances."""
+    if time_s is None or distance_m is None or velocity_mps is None:
+        return None
+    ok = np.isfinite(distance_m) & np.isfinite(velocity_mps)
+    if not ok.any():
+        return None
+    d = np.interp(t, time_s[ok], distance_m[ok])
+    if plain:
+        d = d + (model.k_rise if rising else model.k_fall) * np.interp(t, time_s[ok], velocity_mps[ok])
+    return d / model.metres_per_bin
+
+
+def _around(power: np.ndarray, centre: np.ndarray | None) -> np.ndarray:
+    """`power` with each row's bins beyond OWN_BINS of its `centre` (bin) set to 0 (as
+    it is without one)."""
+    if centre is None:
+        return power
+    cols = np.arange(power.shape[1])
+    return np.where(np.abs(cols[None, :] - centre[:, None]) <= OWN_BINS, power, 0.0)
 
 
 @functools.lru_cache(maxsize=8)
