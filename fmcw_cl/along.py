@@ -206,9 +206,10 @@ def continuing(tracks: list[Track | None], found: list[tuple[np.ndarray, np.ndar
     left once the stronger came into its band)."""
     near = np.full((len(found), len(tracks)), np.inf)
     for j, track in enumerate(tracks):
-        ok = track.valid & np.isfinite(track.distance_m) & np.isfinite(track.velocity_mps) \
-            if track is not None else None
-        if ok is None or not ok.any():
+        if track is None:
+            continue
+        ok = track.valid & np.isfinite(track.distance_m) & np.isfinite(track.velocity_mps)
+        if not ok.any():
             continue
         t_ok, d_ok, v_ok = track.time_s[ok], track.distance_m[ok], track.velocity_mps[ok]
         for n, (grid, at, v) in enumerate(found):
