@@ -27,10 +27,11 @@ from .errors import CaptureError
 from .options import Options
 from .plan import TABLE, Plan, fit_chunks, make_plan
 from .processor import ChunkMeasurements, ChunkProcessor, NumpyProcessor
-from .refine import WIDTH_LIMIT, peak_width_ratio, refine_lag, stillest
+from .refine import refine_lag
 from .second_look import moving_beside
 from .stages import clutter, faults
 from .track import Track
+from .tuning import WIDTH_LIMIT, peak_width_ratio, stillest
 
 # peaks this much wider than the window's own: the chirp is so far from its table that no
 # distance is vouched for (a jump under 5 us of thermal lag: 2.24, distances to 96 mm off;

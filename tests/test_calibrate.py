@@ -307,9 +307,9 @@ def test_rest_and_scale_estimates():
 @pytest.mark.parametrize("sigma", [0.8, 3.0, 20.0, 60.0])
 def test_peak_widths_near_and_far(sigma):
     """The half-power width of Gaussian peaks (2.3548 sigma) whether its half-power
-    points lie within refine.WIDTH_REACH bins of the peak or beyond (the whole band
+    points lie within tuning.WIDTH_REACH bins of the peak or beyond (the whole band
     searched); none where a side never falls to half in the band."""
-    from fmcw_cl.refine import WIDTH_REACH, _widths
+    from fmcw_cl.tuning import WIDTH_REACH, _widths
 
     x = np.arange(1024.0)
     centres = np.array([100.3, 500.0, 900.7])
@@ -355,7 +355,7 @@ def test_another_movers_peaks_are_no_sign_of_the_tuning(tmp_path, glided, amplit
     stillest stretch is the hand's, de-chirped at its velocity, where the foot's
     smeared image lies 3 mm from the hand's peak in one direction, and the strongest
     peak of the band was read: 1.6 and 2.2x the window's width, no rest to calibrate
-    on, no valid pair of either. Each row's own peak (refine.OWN_BINS about the
+    on, no valid pair of either. Each row's own peak (tuning.OWN_BINS about the
     track's), in the narrower direction: the tuning matches; both objects are held."""
     from conftest import scene_of
 

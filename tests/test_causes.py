@@ -13,9 +13,9 @@ import h5py
 import numpy as np
 import pytest
 
-from fmcw_cl.refine import WIDTH_LIMIT
 from fmcw_cl.simulator import SimulationConfig, simulate_capture, static
 from fmcw_cl.simulator.scene import Trajectory
+from fmcw_cl.tuning import WIDTH_LIMIT
 
 MISMATCH = "does not match the G(I) table"
 
