@@ -1455,28 +1455,3 @@ def test_a_fixed_objects_blends_are_ambiguous_its_sway_is_not(seed):
     swing = 0.058 + 0.008 * np.sin(2 * np.pi * 4.0 * t) + rng.normal(0, 5e-5, n)
     speed = 2 * np.pi * 4.0 * 0.008 * np.cos(2 * np.pi * 4.0 * t) + rng.normal(0, 0.003, n)
     assert not np.any(code(swing, speed) == faults.AMBIGUOUS)
-
-
-def test_a_rest_beside_a_movers_span_is_no_band_edge(tmp_path):
-    """Two glides opposite ways, lab (movers.py seed 3, capture 8): the first ends at rest
-    at 0.371 m, 2.6 mm beyond where the second one's span ends (its own rest, 0.368 m).
-    The rest's band was cut half way, 0.2 mm below its peak, and every pair of the rest
-    was `ambiguous` (a peak at its band's edge): the first glide held in 15 % of its
-    periods. A fixed echo's band keeps target.ROOM_M about it: 44 %, none wrong."""
-    from conftest import scene_of
-
-    from fmcw_cl import target
-    from fmcw_cl.simulator.writer import Mover, simulate_capture
-
-    assert target._room((0.3704, None), 0.3706, (0.03, None)) == (0.3706 - target.ROOM_M, None)
-    assert target._room((0.2, 0.3), 0.25, (0.03, 0.31)) == (0.2, 0.3)          # room enough: as it was
-    assert target._room((0.2, 0.2505), 0.25, (0.03, 0.252)) == (0.2, 0.252)      # within the user's band
-    other = glide(0.7, 0.3679884167224071, 0.07577972845973567, 0.10042999217124976, 0.2931835196522886)
-    path = tmp_path / "glides.h5"
-    config = replace(several.LAB_SCENE, movers=(Mover(other, 539.2777023974596),))          # +0.7 dB
-    simulate_capture(path, glide(0.7, 0.08814878770206028, 0.3705959042986887, 0.007782379158993774,
-                                 0.19743924099695803), 0.21728187403648397, seed=37, config=config,
-                     start_s=0.07223317400012078)
-    scores = scene_of(process(path), path)
-    best = max(s["tracked"] for s in scores if s["truth"] == 0)
-    assert best >= 0.35, scores
