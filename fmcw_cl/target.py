@@ -77,7 +77,6 @@ from .swing import REST_APART_M, SMEAR_M, doppler_reach, rests, swinging
 RULES = ("auto", "moving", "nearest", "strongest")
 WALL_MARGIN_M = 0.03  # a band edge lies this far inside a left-out fixed echo where the gap allows
 MIN_GAP_M = 0.004     # a band edge lies at least half this inside a left-out fixed echo
-ROOM_M = 0.004        # a fixed target's band edges lie at least this far from it (its peak no edge's)
 REST_SIGMAS = 6.0     # a fixed object's pair further than this many robust sigmas from its median ...
 REST_M = 2.5e-4       # ... and than this is a blend with another echo beside it (a foot at rest 5 mm from
                       # a window read the window 3 mm off)
@@ -159,13 +158,6 @@ def _gap(span: tuple[float, float], fixed: np.ndarray, band) -> tuple[float, flo
         edge = f - _margin(f - span[1])
         hi = edge if hi is None else min(hi, edge)
     return lo, hi
-
-
-def _room(new: tuple[float, float | None], at: float, band) -> tuple[float, float | None]:
-    """`new` (m) widened within the user's `band` to ROOM_M about the fixed echo at `at` (m): an
-    edge at its own peak makes its pairs `ambiguous` (assemble.at_band_edge; movers.py seed 3, #8)."""
-    lo, hi = min(new[0], max(band[0], at - ROOM_M)), None if new[1] is None else max(new[1], at + ROOM_M)
-    return lo, (hi if hi is None or band[1] is None else min(hi, band[1]))
 
 
 def _margin(gap: float) -> float:
@@ -334,7 +326,6 @@ def _choose(rule: str, near_m: float | None, time_s, distance_m, velocity_mps, v
             outside |= objects & ((extent[:, 1] < new[0]) | (extent[:, 0] >= (new[1] or np.inf)))
             what += " (one side of the fixed echoes inside it tracked: they would hold the tracker)"
             within = np.zeros(0)
-    new = new if moving else _room(new, lo, band)   # a mover's span 2.6 mm below: an edge 0.2 mm off
     left = fixed[outside]
     note = what + (f", fixed echoes at {_list(left)} left out" if left.size else "")
     return Choice(name, fixed, objects, (lo, hi), moving, new, within, note + passes(within))
