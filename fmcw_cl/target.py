@@ -145,17 +145,22 @@ class Choice:
                 "target_choice": self.note}
 
 
-def _gap(span: tuple[float, float], fixed: np.ndarray, band) -> tuple[float, float | None]:
+def _gap(span: tuple[float, float], fixed: np.ndarray, band, fair: bool = False
+         ) -> tuple[float, float | None]:
     """The band around `span` that leaves out the echoes whose (lo, hi) (m) are the rows
-    of `fixed` (all outside it)."""
+    of `fixed` (all outside it). `fair` (a fixed target): half way to an echo left out
+    MIN_GAP_M / 2 to MIN_GAP_M away, where MIN_GAP_M / 2 inside the echo lies nearer the
+    target (resolved from it: 2 range resolutions or more; nearer, the echo's end is the
+    target's own arrival or departure: as before)."""
     lo, hi = band
     below, above = fixed[fixed[:, 1] < span[0], 1], fixed[fixed[:, 0] > span[1], 0]
+    margin = (lambda gap: gap / 2 if MIN_GAP_M / 2 <= gap < MIN_GAP_M else _margin(gap)) if fair else _margin
     if below.size:
         f = below.max()
-        lo = max(lo, f + _margin(span[0] - f))
+        lo = max(lo, f + margin(span[0] - f))
     if above.size:
         f = above.min()
-        edge = f - _margin(f - span[1])
+        edge = f - margin(f - span[1])
         hi = edge if hi is None else min(hi, edge)
     return lo, hi
 
@@ -310,7 +315,8 @@ def _choose(rule: str, near_m: float | None, time_s, distance_m, velocity_mps, v
     within = fixed[inner]
     what = (f"the moving echo at {lo:.3f}-{hi:.3f} m" if moving else f"the echo at {lo:.3f} m")
     bounds = np.concatenate([extent[outside], np.c_[others, others]])
-    new = _gap((lo, hi), bounds, band)
+    # a rest 2.6 mm from another's span end: the middle, not 0.2 mm off its peak (at_band_edge: ambiguous)
+    new = _gap((lo, hi), bounds, band, fair=not moving)
     on = np.zeros(valid.shape, bool)
     for a, b in extent[inner]:
         on |= (distance_m >= a - GATE_M) & (distance_m <= b + GATE_M)

@@ -39,6 +39,26 @@ def scene_of(track, path) -> list[dict]:
     return scores
 
 
+def two_movers(path, target, other, amplitude: float, lab: bool, seed: int, start: float, span: float):
+    """A capture of benchmarks/movers.py's draw (the target's trajectory, the other
+    mover's at `amplitude` codes, a lab's SNR or clean) converted as a user does, and its
+    objects' scores (`scene_of`: no valid pair off its own object)."""
+    from dataclasses import replace
+
+    from fmcw_cl.simulator.several import LAB_SCENE
+    from fmcw_cl.simulator.writer import Mover
+
+    cfg = replace(LAB_SCENE if lab else SimulationConfig(), movers=(Mover(other, amplitude),))
+    simulate_capture(path, target, span, seed=seed, config=cfg, start_s=start)
+    track = process(path)
+    return track, scene_of(track, path)
+
+
+def best_held(scores: list[dict], truths: int = 2) -> list[float]:
+    """Each truth's best object's share of its visible periods (`scene_of`'s scores)."""
+    return [max((s["tracked"] for s in scores if s["truth"] == k), default=0.0) for k in range(truths)]
+
+
 def bent_lut():
     """A 500-interval LUT of a 160 GHz sweep over 160-480 mA bent as ((I - 0.16) /
     0.32)^1.3, and its window: the kernels' and the tracker's test sweep."""

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import best_held, process, scene_of, two_movers
 
 from fmcw_cl import along
 from fmcw_cl.stages import faults
@@ -108,28 +109,6 @@ def test_a_course_is_cut_half_way_to_another_object_wholly_on_one_side():
     np.testing.assert_allclose(course2.hi_m[0][:200], course.hi_m[0][:200])
 
 
-def _drawn(path, target, other, amplitude: float, lab: bool, seed: int, start: float, span: float):
-    """A capture of benchmarks/movers.py's draw (the target's trajectory, the other
-    mover's at `amplitude` codes, a lab's SNR or clean) converted as a user does, and its
-    objects' scores (conftest.scene_of: no valid pair off its own object)."""
-    from dataclasses import replace
-
-    from conftest import process, scene_of
-
-    from fmcw_cl.simulator.several import LAB_SCENE
-    from fmcw_cl.simulator.writer import Mover, SimulationConfig, simulate_capture
-
-    cfg = replace(LAB_SCENE if lab else SimulationConfig(), movers=(Mover(other, amplitude),))
-    simulate_capture(path, target, span, seed=seed, config=cfg, start_s=start)
-    track = process(path)
-    return track, scene_of(track, path)
-
-
-def _best(scores: list[dict]) -> list[float]:
-    """Each of the two truths' best object's share of its visible periods."""
-    return [max((s["tracked"] for s in scores if s["truth"] == k), default=0.0) for k in range(2)]
-
-
 @pytest.mark.parametrize("seed", [1, 2, 3])
 def test_a_glide_through_a_sway_is_held_along_its_course(tmp_path, seed):
     """Glide through a sway (several.SCENES, lab SNR): the glide crosses the sway's span
@@ -139,14 +118,13 @@ def test_a_glide_through_a_sway_is_held_along_its_course(tmp_path, seed):
     each is one object, the sway held in 90 % of its periods or more, the glide in
     65 % (66-74 %; 16-69 % before; 58-69 % with that rule of the conflicts alone), no
     valid pair off its truth."""
-    from conftest import process, scene_of
 
     from fmcw_cl.simulator import several
 
     path = tmp_path / "glide.h5"
     several.write("glide through a sway", path, seed)
     track = process(path)
-    best = _best(scene_of(track, path))
+    best = best_held(scene_of(track, path))
     assert best[0] >= 0.9 and best[1] >= 0.65, best
 
 
@@ -159,11 +137,11 @@ def test_a_target_converted_along_its_course_reads_the_tuning_elsewhere(tmp_path
     from fmcw_cl.simulator.scene import glide, sway
 
     other = glide(0.7, 0.37392563067580786, 0.07718346448342278, 0.24903529752965697, 0.6490352975296569)
-    track, scores = _drawn(tmp_path / "sway_glide.h5",
+    track, scores = two_movers(tmp_path / "sway_glide.h5",
                            sway(0.7, 0.26115722188162704, 0.03156133743887031, 5.336602528210996,
                                 3.971822082429291), other, 357.80950711808214, False, 173,      # -2.9 dB
                            0.3352788724952623, 0.11421686680677569)
-    best = _best(scores)
+    best = best_held(scores)
     assert len(track.objects) == 2 and best[0] >= 0.95 and best[1] >= 0.4, best
     assert track.attrs["tuning_matches"]
 
@@ -177,11 +155,11 @@ def test_a_few_new_pairs_in_a_crossing_are_not_taken(tmp_path):
     from fmcw_cl.simulator.scene import glide, sway
 
     other = glide(0.7, 0.36998028238775066, 0.095481650504221, 0.014858716358975621, 0.15684524038511358)
-    track, scores = _drawn(tmp_path / "sway_glide_lab.h5",
+    track, scores = two_movers(tmp_path / "sway_glide_lab.h5",
                            sway(0.7, 0.17515368964933714, 0.020494326287420313, 3.202522593743488,
                                 1.8994280695090804), other, 273.7691724175363, True, 87,        # -5.2 dB
                            0.07406044805341043, 0.19075579581397695)
-    best = _best(scores)
+    best = best_held(scores)
     assert len(track.objects) == 2 and best[0] >= 0.95 and best[1] >= 0.65, (len(track.objects), best)
 
 
@@ -195,11 +173,11 @@ def test_a_mover_goes_on_along_the_echo_tables_line(tmp_path):
     from fmcw_cl.simulator.scene import glide, sway
 
     other = sway(0.7, 0.30040154702251953, 0.05999015141425991, 1.7181847317384276, 3.3759411677027393)
-    track, scores = _drawn(tmp_path / "glide_sway.h5",
+    track, scores = two_movers(tmp_path / "glide_sway.h5",
                            glide(0.7, 0.3537120772400895, 0.0794146577927896, 0.1919575655413572,
                                  0.5919575655413573), other, 273.8546990331117, True, 916,       # -5.2 dB
                            0.12900358270247264, 0.1845720481651698)
-    best = _best(scores)
+    best = best_held(scores)
     assert best[1] >= 0.65, best
 
 
@@ -218,10 +196,10 @@ def test_a_course_takes_no_pair_of_another_body(tmp_path, seed, start, span, gli
     its median, moved the cut 14 mm and the hand's band held pairs 6 mm off it, which
     joined to the foot's rest made 48 wrong. New pairs are taken only where the course
     is known, near it and apart from the others, each other as its pairs say: 0 wrong
-    (`_drawn` asserts it)."""
+    (`two_movers` asserts it)."""
     from fmcw_cl.simulator.scene import glide, jump
 
-    _drawn(tmp_path / "jump_hand.h5", jump(0.7), glide(0.7, *glided), db, lab, seed, start, span)
+    two_movers(tmp_path / "jump_hand.h5", jump(0.7), glide(0.7, *glided), db, lab, seed, start, span)
 
 
 @pytest.mark.parametrize("name, seed", [("hand down through a jump", 1), ("hand down through a jump", 2),
@@ -234,17 +212,16 @@ def test_a_lone_candidates_movers_gain_pairs_along_their_courses(tmp_path, monke
     the hand through the jump 35 / 27 -> 44 / 36 % on seeds 1-2, the weaker sway on seed
     4 13 -> 22 %; neither truth's best object loses more than 2 points, none holds a
     pair off its own."""
-    from conftest import process, scene_of
 
     from fmcw_cl.simulator import several
 
     path = tmp_path / "lone.h5"
     several.write(name, path, seed)
     track = process(path)
-    after = _best(scene_of(track, path))
+    after = best_held(scene_of(track, path))
     assert any(o.track.attrs.get(along.COURSE_ATTR) for o in track.objects)
     monkeypatch.setattr(along, "objects_along", lambda cap, first, own, scene, *rest, **kw: scene)
-    before = _best(scene_of(process(path), path))
+    before = best_held(scene_of(process(path), path))
     assert sum(after) >= sum(before) + 0.05, (before, after)
     assert min(a - b for a, b in zip(after, before, strict=True)) >= -0.02, (before, after)
 

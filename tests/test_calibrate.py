@@ -7,7 +7,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from conftest import process
+from conftest import best_held, process, two_movers
 
 import fmcw_cl
 from fmcw_cl.calibration import measure_chirp
@@ -357,17 +357,10 @@ def test_another_movers_peaks_are_no_sign_of_the_tuning(tmp_path, glided, amplit
     peak of the band was read: 1.6 and 2.2x the window's width, no rest to calibrate
     on, no valid pair of either. Each row's own peak (tuning.OWN_BINS about the
     track's), in the narrower direction: the tuning matches; both objects are held."""
-    from conftest import scene_of
-
     from fmcw_cl.simulator.scene import glide
-    from fmcw_cl.simulator.several import LAB_SCENE
-    from fmcw_cl.simulator.writer import Mover
 
-    path = tmp_path / "jump_hand.h5"
-    cfg = replace(LAB_SCENE if lab else SimulationConfig(), movers=(Mover(glide(0.7, *glided), amplitude),))
-    simulate_capture(path, jump(0.7), span, seed=seed, config=cfg, start_s=start)
-    track = process(path)
+    track, scores = two_movers(tmp_path / "jump_hand.h5", jump(0.7), glide(0.7, *glided), amplitude, lab,
+                               seed, start, span)
     assert track.attrs["tuning_matches"] and track.attrs["tuning_peak_width_ratio"] < 1.1
-    scores = scene_of(track, path)
-    best = [max((s["tracked"] for s in scores if s["truth"] == k), default=0.0) for k in range(2)]
+    best = best_held(scores)
     assert min(best) >= 0.6, best

@@ -7,7 +7,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from conftest import process
+from conftest import best_held, process, two_movers
 
 from fmcw_cl import crossings, exchanges, identities, objects, rests
 from fmcw_cl.capture import Capture
@@ -1026,6 +1026,37 @@ def test_two_movers_crossing_as_two_candidates_hold_no_pair_of_the_other(scenes,
     assert sum(s["wrong"] for s in scores) == 0, scores
     if name == "rail against a glide":
         assert _best(scores, 0) >= 0.8 and _best(scores, 1) >= 0.8, scores
+
+
+def test_a_band_is_cut_half_way_to_a_span_end_beside_a_rest():
+    """A fixed target's band edge lies half way to a moving span's end resolved from it
+    (MIN_GAP_M / 2 to MIN_GAP_M away): MIN_GAP_M / 2 inside that end put it 0.2 mm from
+    the rest's peak, and every pair of the rest was ambiguous. Nearer, the end is the
+    rest's own arrival (a glide coming to rest 1.5 mm on): the band as before."""
+    from fmcw_cl.target import MIN_GAP_M, _gap
+
+    rest, band = np.array([0.3706, 0.3706]), (0.03, None)
+    for gap in (0.0026, 0.0015, 0.010):
+        ends = np.array([[rest[0] - gap, rest[0] - gap], [0.40, 0.40]])
+        lo, hi = _gap(rest, ends, band, fair=True)
+        was = _gap(rest, ends, band)
+        assert hi == was[1]
+        if MIN_GAP_M / 2 <= gap < MIN_GAP_M:
+            assert lo == pytest.approx(rest[0] - gap / 2) and was[0] > rest[0] - gap / 2
+        else:
+            assert lo == was[0]
+
+
+def test_a_glide_at_rest_beside_where_the_other_set_off_is_held(tmp_path):
+    """Two glides at a lab's SNR (benchmarks/movers.py seed 3, capture 8): the first
+    comes to rest at 0.3706 m, 2.6 mm beyond where the second sets off. Its band's edge
+    lay 0.2 mm from its peak, every pair of its rest ambiguous: 15 % of its periods
+    held; half way to the other's end, 44 %."""
+    first = glide(0.7, 0.08814878770206028, 0.3705959042986887, 0.007782379158993774, 0.19743924099695803)
+    second = glide(0.7, 0.3679884167224071, 0.07577972845973567, 0.10042999217124976, 0.2931835196522886)
+    _, scores = two_movers(tmp_path / "two_glides.h5", first, second, 539.2777023974596, True, 37,
+                           0.07223317400012078, 0.21728187403648397)
+    assert best_held(scores)[0] >= 0.35
 
 
 @pytest.mark.parametrize("seed", [604, 886])
