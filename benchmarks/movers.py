@@ -27,7 +27,7 @@ from fmcw_cl.backend import make_processor
 from fmcw_cl.capture import Capture
 from fmcw_cl.engine import process
 from fmcw_cl.errors import FmcwError
-from fmcw_cl.evaluate import UNTRACKED, object_scores, untracked
+from fmcw_cl.evaluate import UNTRACKED, best_held, object_scores, untracked
 from fmcw_cl.simulator.scene import Trajectory, glide, jump, rail, sway
 from fmcw_cl.simulator.several import LAB_SCENE
 from fmcw_cl.simulator.writer import Mover, SimulationConfig, simulate_capture
@@ -135,7 +135,7 @@ for i in range(args.count):
         truths = cap.truth_objects()
     scores = object_scores(t, truths)
     bad = sum(s["wrong"] for s in scores)
-    best = [max((s["tracked"] for s in scores if s["truth"] == k), default=0.0) for k in range(len(truths))]
+    best = best_held(scores, len(truths))
     total += bad
     print(f"{head} objects {len(t.objects or [])} wrong {bad} best {[round(100 * b) for b in best]} %"
           f"{'  <<<<' if bad else ''}", flush=True)

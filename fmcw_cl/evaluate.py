@@ -166,6 +166,12 @@ def object_scores(track: Track, truths: list[Truth]) -> list[dict]:
     return out
 
 
+def best_held(scores: list[dict], truths: int) -> list[float]:
+    """Per truth (0 .. `truths` - 1), the largest share of its visible periods one object
+    holds (`object_scores`' "tracked" of the objects that follow it; 0 where none does)."""
+    return [max((s["tracked"] for s in scores if s["truth"] == k), default=0.0) for k in range(truths)]
+
+
 def objects_cell(track: Track, truths: list[Truth]) -> str:
     """A benchmark's cell for the scene: the objects found and, in brackets, their valid
     pairs off the truth each follows (`object_scores`; "?" where the capture holds no

@@ -148,27 +148,28 @@ class Choice:
 def _gap(span: tuple[float, float], fixed: np.ndarray, band, fair: bool = False
          ) -> tuple[float, float | None]:
     """The band around `span` that leaves out the echoes whose (lo, hi) (m) are the rows
-    of `fixed` (all outside it). `fair` (a fixed target): half way to an echo left out
-    MIN_GAP_M / 2 to MIN_GAP_M away, where MIN_GAP_M / 2 inside the echo lies nearer the
-    target (resolved from it: 2 range resolutions or more; nearer, the echo's end is the
-    target's own arrival or departure: as before)."""
+    of `fixed` (all outside it), its edges `_margin` (`fair`: a fixed target's) inside them."""
     lo, hi = band
     below, above = fixed[fixed[:, 1] < span[0], 1], fixed[fixed[:, 0] > span[1], 0]
-    margin = (lambda gap: gap / 2 if MIN_GAP_M / 2 <= gap < MIN_GAP_M else _margin(gap)) if fair else _margin
     if below.size:
         f = below.max()
-        lo = max(lo, f + margin(span[0] - f))
+        lo = max(lo, f + _margin(span[0] - f, fair))
     if above.size:
         f = above.min()
-        edge = f - margin(f - span[1])
+        edge = f - _margin(f - span[1], fair)
         hi = edge if hi is None else min(hi, edge)
     return lo, hi
 
 
-def _margin(gap: float) -> float:
+def _margin(gap: float, fair: bool = False) -> float:
     """How far inside a left-out fixed echo a band edge lies, `gap` m from the target's
     span: WALL_MARGIN_M (its lobes stay out), less where the gap is narrow (half of it,
-    at least MIN_GAP_M / 2)."""
+    at least MIN_GAP_M / 2). `fair` (a fixed target): half of it where that minimum would
+    bring the edge nearer the target than half way (MIN_GAP_M / 2 to MIN_GAP_M: resolved
+    from it, 2 range resolutions or more; nearer, the echo's end is the target's own
+    arrival or departure: the minimum)."""
+    if fair and MIN_GAP_M / 2 <= gap < MIN_GAP_M:
+        return gap / 2
     return min(WALL_MARGIN_M, max(MIN_GAP_M / 2, gap / 2))
 
 

@@ -54,11 +54,6 @@ def two_movers(path, target, other, amplitude: float, lab: bool, seed: int, star
     return track, scene_of(track, path)
 
 
-def best_held(scores: list[dict], truths: int = 2) -> list[float]:
-    """Each truth's best object's share of its visible periods (`scene_of`'s scores)."""
-    return [max((s["tracked"] for s in scores if s["truth"] == k), default=0.0) for k in range(truths)]
-
-
 def bent_lut():
     """A 500-interval LUT of a 160 GHz sweep over 160-480 mA bent as ((I - 0.16) /
     0.32)^1.3, and its window: the kernels' and the tracker's test sweep."""
