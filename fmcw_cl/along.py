@@ -24,7 +24,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from . import conversions, moving_echoes, numeric, objects
+from . import conversions, fast_echoes, moving_echoes, numeric, objects
 from .capture import Capture
 from .chunks import capture_parts
 from .conversions import Converted, First
@@ -61,7 +61,7 @@ def course_of(track: Track, others: list[tuple[Track, bool]], k: tuple[float, fl
     pairs it knows, and where the mover can be there (its distance and the half-width
     about it, m); None where it knows none."""
     t, ok = track.time_s, track.valid
-    if ok.sum() < 2:
+    if ok.sum() + (0 if lines is None else lines[0].size) < 2:
         return None
     at = [t[ok], track.distance_m[ok], track.velocity_mps[ok]]
     if lines is not None and lines[0].size:
@@ -145,23 +145,30 @@ def converted_along(cap: Capture, first: First, done: list[Converted], moving: l
     conversion's plan and choice for all): movers whose courses are known at other
     times share a conversion (`_lanes`), each pair in the course known there. `lined`:
     only the movers that lines go on as. `found`: the table's bodies (`bodies_of`),
-    where already known."""
+    where already known. A mover that no tracker held (no verified pair) is converted
+    along the course of the velocity bank's bodies its band holds (`_untracked`)."""
     if len(done) < 2 and not lined:
         return done
     m = first.plan.model
     user = first.plan.options.band_m
     room = (GUARD_BINS + FLOOR_BINS) * m.metres_per_bin
     mine = [moving[i] and not d.joined and d.track.valid.any() for i, d in enumerate(done)]
+    bare = [moving[i] and not d.joined and not d.track.valid.any() for i, d in enumerate(done)]
     if found is None:
         found = bodies_of(first) if any(mine) else []
     lines = continuing([d.track if w else None for d, w in zip(done, mine, strict=True)], found)
+    if any(bare) and not lined and first.track.echoes is not None:
+        fast = fast_echoes.bodies(first.track.echoes.fast)
+        held = [d.track for d in done if d.track.valid.any()]
+        for i in np.flatnonzero(bare):
+            lines[i] = _untracked(fast, held, done[i].choice.band_m)
     wanted = []
     for i, d in enumerate(done):
-        if not mine[i] or (lined and lines[i] is None):
+        if not (mine[i] or (bare[i] and lines[i] is not None)) or (lined and lines[i] is None):
             continue
         others = [(o.track, mv) for o, mv in zip(done, moving, strict=True) if o is not d]
         got = course_of(d.track, others, (m.k_rise, m.k_fall), d.choice.band_m, room, lines[i])
-        if got is None or not _entered(d.track, others, got[0], got[1], d.choice.band_m):
+        if got is None or not (bare[i] or _entered(d.track, others, got[0], got[1], d.choice.band_m)):
             continue
         if conversions.searchable(replace(d.plan.with_band(user), course=got[0]), user):
             wanted.append((i, others, got))
@@ -185,14 +192,63 @@ def converted_along(cap: Capture, first: First, done: list[Converted], moving: l
     return out
 
 
-def bodies_of(first: First) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+def bodies_of(first: First, fast: bool = True) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
     """The bodies (moving_echoes.bodies) of every detection of the first conversion's
     echo table, its tracked peaks too: a body's line then runs through the stretch its
     object holds and on beyond it (off them, a line began only where the first tracker
     left it, and seldom lay on the object for MATCH_S: two glides, movers.py seed 3,
-    capture 3, the second 20 -> 46 %)."""
+    capture 3, the second 20 -> 46 %); with `fast`, the velocity bank's bodies too
+    (fast_echoes.bodies: movers too fast for a plain peak)."""
     e, m = first.track.echoes, first.plan.model
-    return [] if e is None else moving_echoes.bodies(e, m.k_rise, m.k_fall, np.ones(e.time_s.size, bool))
+    if e is None:
+        return []
+    lined = moving_echoes.bodies(e, m.k_rise, m.k_fall, np.ones(e.time_s.size, bool))
+    return lined + fast_echoes.bodies(e.fast) if fast else lined
+
+
+def _untracked(fast: list[tuple[np.ndarray, np.ndarray, np.ndarray]], held: list[Track],
+               band_m: tuple[float, float | None]) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """The points (time s, distance m, velocity m/s) of the velocity bank's bodies `fast`
+    (fast_echoes.bodies) that a mover's `band_m` (m) holds (most of each) and that lie
+    on none of the `held` tracks (most of each more than objects.GATE_M from their
+    verified pairs, where those lie within OTHER_GAP_S), none two at once (the longer
+    kept), with those beyond the band that go on as them (objects.seen_again): the course
+    of a candidate that no tracker held (its plain peaks smeared, or shifted out of its
+    band by their Doppler term). None where there are none."""
+    hi = np.inf if band_m[1] is None else band_m[1]
+
+    def free(grid: np.ndarray, at: np.ndarray) -> bool:
+        on = np.zeros(grid.size, bool)
+        for track in held:
+            seen, r, _ = _where(track, grid, True)
+            on |= seen & (np.abs(at - r) <= objects.GATE_M)
+        return bool(on.mean() < 0.5)
+
+    left = [b for b in sorted(fast, key=lambda b: -b[0].size) if free(b[0], b[1])]
+    mine: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+    for grid, at, v in left:
+        if np.mean((at >= band_m[0]) & (at <= hi)) >= 0.8 and not any(
+                g[0] <= grid[-1] and grid[0] <= g[-1] for g, _, _ in mine):
+            mine.append((grid, at, v))
+    if not mine:
+        return None
+    grew = True
+    while grew:             # and the bodies that go on as them beyond the band (one body seen again)
+        grew = False
+        first, last = min(mine, key=lambda b: b[0][0]), max(mine, key=lambda b: b[0][-1])
+        for b in left:
+            if any(b is c for c in mine):
+                continue
+            if (b[0][-1] < first[0][0] and objects.seen_again(b[0][-1], b[1][-1], b[2][-1], first[0][0],
+                                                              first[1][0], first[2][0])) or (
+                    b[0][0] > last[0][-1] and objects.seen_again(last[0][-1], last[1][-1], last[2][-1],
+                                                                  b[0][0], b[1][0], b[2][0])):
+                mine.append(b)
+                grew = True
+                break
+    t, d, v = (np.concatenate(x) for x in zip(*mine, strict=True))
+    order = np.argsort(t, kind="stable")
+    return t[order], d[order], v[order]
 
 
 def continuing(tracks: list[Track | None], found: list[tuple[np.ndarray, np.ndarray, np.ndarray]]
@@ -201,10 +257,13 @@ def continuing(tracks: list[Track | None], found: list[tuple[np.ndarray, np.ndar
     the bodies `found` (moving_echoes.bodies) that go on as it, more than BEYOND_S from
     each of its verified pairs: a body is the track's whose verified pairs it lies on
     for MATCH_S, within MATCH_M (median) and their velocity within
-    moving_echoes.AGREE_MPS, and of those the nearest's (median). One body's course
+    moving_echoes.AGREE_MPS, and of those the one it lies on longest (a rail's fast body
+    lay on a glide's conversion's few pairs of the rail as closely as on the rail's own,
+    and carried the glide's course onto the rail), then the nearest's (median). One body's course
     where its tracker held another echo (a weaker mover the lone candidate's tracker
     left once the stronger came into its band)."""
     near = np.full((len(found), len(tracks)), np.inf)
+    along = np.zeros((len(found), len(tracks)))          # how long it lies on each (steps)
     for j, track in enumerate(tracks):
         if track is None:
             continue
@@ -219,12 +278,13 @@ def continuing(tracks: list[Track | None], found: list[tuple[np.ndarray, np.ndar
                 continue
             miss = float(np.median(np.abs(at[on] - d_ok[i[on]])))
             if miss <= MATCH_M and np.median(np.abs(v[on] - v_ok[i[on]])) <= moving_echoes.AGREE_MPS:
-                near[n, j] = miss
+                near[n, j], along[n, j] = miss, on.sum()
     out: list[tuple[np.ndarray, np.ndarray, np.ndarray] | None] = [None] * len(tracks)
     for n, (grid, at, v) in enumerate(found):
         if not np.isfinite(near[n]).any():
             continue
-        j = int(np.argmin(near[n]))
+        # the track it lies on longest (another's few stray pairs on it are no claim), then nearest
+        j = int(np.argmax(np.where(np.isfinite(near[n]), along[n] - 0.5 * near[n] / MATCH_M, -np.inf)))
         track = tracks[j]
         t_ok = track.time_s[track.valid]
         off = np.abs(t_ok[numeric.nearest(t_ok, grid)] - grid) > BEYOND_S

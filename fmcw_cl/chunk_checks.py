@@ -1,6 +1,7 @@
 """A chunk's pairs after the tracker: which of them the chunk owns (`owned`), the
 2N-point range check of the owned ones (`RangeCheck`) and the survey of their hidden
-echoes (`Survey`; `no_survey` where nothing was surveyed).
+echoes (`Survey`; `no_survey` where nothing was surveyed), with the velocity bank's
+points of the first conversion (stages.bank).
 """
 
 from __future__ import annotations
@@ -10,10 +11,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import echoes
-from .stages import doppler, faults, pairing
+from .stages import bank, doppler, faults, pairing
 from .stages.spectrum import Search
 
-SURVEY_KEYS = ("time_s", "rising", "ratio", "distance_m", "found", *echoes.MEAN_KEYS)
+SURVEY_KEYS = ("time_s", "rising", "ratio", "distance_m", "found", *echoes.MEAN_KEYS, *bank.POINT_KEYS)
 
 
 def owned(first: np.ndarray, start: int, stop: int) -> slice | np.ndarray:
@@ -55,10 +56,26 @@ class RangeCheck:
 @dataclass(frozen=True)
 class Survey:
     """The survey of a chunk's hidden echoes: the surveyed pairs `idx` and `survey_each`'s
-    arguments for them."""
+    arguments for them; `bank`: the pairs of them that go through the velocity bank
+    (None: none)."""
 
     idx: np.ndarray
     args: tuple
+    bank: np.ndarray | None = None
+
+    @property
+    def bank_args(self) -> tuple:
+        """`bank_each`'s arguments: both directions' rows and bases, the picked pairs,
+        the FFT length and the first bin."""
+        xs, betas, _, nfft, _, lo, *_ = self.args
+        return xs, betas, self.bank, nfft, lo
+
+    def points(self, got: tuple | None, times: tuple, model: doppler.DopplerModel) -> dict:
+        """The bank's points (stages.bank.points) from `bank_each`'s echoes `got` (None:
+        no bank), the pairs' rising and falling times (s) `times`."""
+        if got is None or self.bank is None:
+            return bank.no_points()
+        return bank.points(got, times[0][self.bank], times[1][self.bank], model)
 
     def table(self, got: list, times: tuple, model: doppler.DopplerModel) -> dict:
         """The survey's columns (SURVEY_KEYS) from survey_each's results `got`, the pairs'
@@ -76,7 +93,8 @@ class Survey:
                 "ratio": np.concatenate([g[0] for g in got]),
                 "distance_m": np.concatenate([g[1] * model.metres_per_bin for g in got]),
                 "found": np.concatenate([g[2] for g in got]),
-                **dict(zip(echoes.MEAN_KEYS, map(np.concatenate, zip(*means, strict=True)), strict=True))}
+                **dict(zip(echoes.MEAN_KEYS, map(np.concatenate, zip(*means, strict=True)), strict=True)),
+                **bank.no_points()}
 
     def spectrum(self, got: list) -> tuple[np.ndarray, int]:
         """The surveyed half-sweeps' plain power spectra summed per direction (rising,

@@ -34,7 +34,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .numeric import group_median, neighbour_sums, ragged
-from .stages import cfar
+from .stages import bank, cfar
 from .stages.cfar import Detections
 from .stages.spectrum import interpolate
 
@@ -86,6 +86,9 @@ class Echoes:
     spectrum : (2, nfft/2) the surveyed half-sweeps' mean plain power spectrum over the
         capture, rising then falling ((2, 0) without a survey); `spectrum_rows` the
         half-sweeps of a direction in it, `metres_per_bin` its bins' distance (m).
+    fast : dict of arrays (stages.bank.POINT_KEYS): the velocity bank's points, movers too
+        fast for a plain peak (time s, distance m, velocity m/s, SNR dB; empty where no
+        bank ran: every conversion but the first).
     """
 
     time_s: np.ndarray
@@ -98,6 +101,7 @@ class Echoes:
     spectrum: np.ndarray = field(default_factory=lambda: np.zeros((2, 0)))
     spectrum_rows: int = 0
     metres_per_bin: float = float("nan")
+    fast: dict = field(default_factory=lambda: bank.no_points())
 
     def masked(self, lo_m: float, hi_m: float) -> np.ndarray:
         """The distances (m) of the echoes beside louder ones in either direction's
@@ -165,8 +169,9 @@ def table(t_sweep: np.ndarray, rising: np.ndarray, tracked_m: np.ndarray, level_
     pers["in_band"] = pers["distance_m"] < max_range_m
     means = no_means() if survey is None else {k: np.asarray(survey[k]) for k in MEAN_KEYS}
     total, count = spectrum if spectrum is not None and spectrum[1] else (np.zeros((2, 0)), 0)
+    fast = bank.no_points() if survey is None else {k: np.asarray(survey[k]) for k in bank.POINT_KEYS}
     return Echoes(t_sweep[rows], dist, snr.astype(np.float32), rising[rows], tracked, pers, means,
-                  total / max(count, 1), count, metres_per_bin)
+                  total / max(count, 1), count, metres_per_bin, fast)
 
 
 def no_means() -> dict:

@@ -63,7 +63,9 @@ def process(path, options: Options | None = None, processor: ChunkProcessor | No
             # while the first chunk is read (the 0.3 s jump: 19 ms of the device's idle time)
             with read_chunks(cap, fit_chunks(options, cap.info, processor)) as ahead:
                 plan = make_plan(cap, options, processor=processor)
-                parts = capture_parts(cap, plan, processor, progress=progress, ahead=ahead)
+                # the first conversion's echo table lists the fast movers too (stages.bank)
+                parts = capture_parts(cap, replace(plan, bank=True), processor, progress=progress,
+                                      ahead=ahead)
             first = assemble(plan, parts, processor, time.perf_counter() - started)
             choice, fixed, beside = chosen(cap, plan, processor, first)
             was = conversions.First(plan, parts, first, fixed, beside)

@@ -90,10 +90,11 @@ def lines(time_s: np.ndarray, distance_m: np.ndarray) -> list[np.ndarray]:
 
 
 def unheld(e: echoes.Echoes, k_rise: float, k_fall: float, track: Track, band: tuple[float, float | None],
-           known: list[tuple[float, float]]) -> list[tuple[float, float]]:
+           known: list[tuple[float, float]], fast: list | None = None) -> list[tuple[float, float]]:
     """(lo, hi) m of each moving echo of the echo table `e` that `track`'s tracker did
     not hold, inside `band` (m) and centred beyond APART_M of the `known` spans (m).
-    Each body (`bodies`) of the detections neither at the tracked peak nor within
+    Each body (`bodies`, and those of the velocity bank `fast`, fast_echoes.bodies, in
+    its form) of the detections neither at the tracked peak nor within
     APART_M of a known span that moves (median speed MOVING_MPS or more),
     travels MIN_TRAVEL_M and lies beside the verified pairs (`_beside`). Where it goes on
     to a slice of a known span that holds no moving verified pair, or comes from one
@@ -107,7 +108,7 @@ def unheld(e: echoes.Echoes, k_rise: float, k_fall: float, track: Track, band: t
     smeared = _smeared(e, track, known)
     lo, hi = band[0], band[1] or np.inf
     out = []
-    for grid, at, v in bodies(e, k_rise, k_fall, free):
+    for grid, at, v in bodies(e, k_rise, k_fall, free) + list(fast or []):
         if np.median(np.abs(v)) < MOVING_MPS or np.ptp(at) < MIN_TRAVEL_M:
             continue
         if not _beside(grid, at, held_t, held_d) or _goes_on(grid, at, v, ends):

@@ -50,6 +50,7 @@ class Plan:
     lag_misfit: float   # rms misfit of those periods' triangles (clean: < 0.2)
     check: tuple | None = None   # (LUT, window, model) at 2N points for the range check
     survey: bool = True          # survey hidden echoes (a trial conversion of `refine` does not)
+    bank: bool = False           # ... and the fast movers (stages.bank): the first conversion's
     lag_refined: bool = False    # moved to kinematic consistency (refine)
     lag_mismatch_mps: float = float("nan")   # what remains of the inconsistency there
     lag_sigma_samples: float = float("nan")  # the refined delay's standard uncertainty

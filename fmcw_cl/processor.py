@@ -26,7 +26,7 @@ from . import echoes, spectrum_ops
 from .chunk_checks import RangeCheck, Survey, no_survey, owned
 from .chunk_state import Ahead, Held, Later, Pending, Prepared, clipping
 from .errors import FmcwError
-from .stages import clutter, delay, faults, integrate, lpf, pairing, resample, sync
+from .stages import bank, clutter, delay, faults, integrate, lpf, pairing, resample, sync
 from .stages.groups import group_slices
 from .stages.spectrum import Search
 
@@ -278,7 +278,8 @@ class ChunkProcessor(spectrum_ops.SpectrumOps):
             if one is None:
                 out.append([])
                 continue
-            out.append([self._finished(self._owned(chunk, prepared, got, one, None, lag), (None, None))])
+            none = (None, None, None)       # no range check, survey or bank
+            out.append([self._finished(self._owned(chunk, prepared, got, one, None, lag), none)])
         return out
 
     def _alone(self, chunk: Chunk, prepared: Prepared, lag: float) -> list[ChunkMeasurements]:
@@ -332,12 +333,13 @@ class ChunkProcessor(spectrum_ops.SpectrumOps):
     def _finished(self, chunk: Pending, got: tuple) -> ChunkMeasurements:
         """The measurements of a `chunk` whose range check and survey gave `got`."""
         plan = self.plan
-        checked, surveyed = got
+        checked, surveyed, banked = got
         sel, check, survey = chunk.result, chunk.check, chunk.survey
         alias = np.zeros(sel.distance.size, bool) if check is None else check.beyond(checked, sel, plan.lut)
         reason = faults.reasons(sel.valid, sel.heard, chunk.clip, alias, sel.continuous)
         sel.valid[:] = reason == faults.OK
-        table = no_survey() if surveyed is None else survey.table(surveyed, chunk.times, plan.model)
+        table = no_survey() if surveyed is None else {**survey.table(surveyed, chunk.times, plan.model),
+                                                      **survey.points(banked, chunk.times, plan.model)}
         spectrum = (None, 0) if surveyed is None else survey.spectrum(surveyed)
         t_r, t_f = chunk.times
         return ChunkMeasurements(t_r[chunk.own], t_f[chunk.own], sel, reason, table, chunk.clipped_codes,
@@ -363,15 +365,19 @@ class ChunkProcessor(spectrum_ops.SpectrumOps):
         its results riding on the tracker's next download)."""
         return Later(self.check_and_survey(chunk))
 
-    def check_and_survey(self, chunk: Pending) -> tuple[list | None, list | None]:
+    def check_and_survey(self, chunk: Pending) -> tuple[list | None, list | None, tuple | None]:
         """The range check's peaks of a measured `chunk`, (distance, SNR) of each side
-        (measure_each), and the survey's (ratio, centroid, found, sums) of each direction
-        (survey_each); None for the one not asked (a device: one trip each way)."""
-        checked, check = None, chunk.check
+        (measure_each), the survey's (ratio, centroid, found, sums) of each direction
+        (survey_each) and the velocity bank's echoes (bank_each); None for those not
+        asked (a device: one trip each way)."""
+        checked, check, survey = None, chunk.check, chunk.survey
         if check is not None:
             xs = self.resample_each(chunk.beat, check.jobs, check.window)
             checked = self.measure_each(xs, (None, None), None, check.model, check.search)
-        return checked, None if chunk.survey is None else self.survey_each(*chunk.survey.args)
+        if survey is None:
+            return checked, None, None
+        return (checked, self.survey_each(*survey.args),
+                None if survey.bank is None else self.bank_each(*survey.bank_args))
 
     def _survey(self, rows: tuple, res: pairing.PairResult, own: np.ndarray) -> Survey | None:
         """The survey of hidden echoes (echoes.hidden) in both half-sweeps of every
@@ -390,7 +396,8 @@ class ChunkProcessor(spectrum_ops.SpectrumOps):
             others.append(o)
         return Survey(idx, (rows, (m.beta_rise, m.beta_fall), res.velocity[idx], m.nfft, idx, plan.search.lo,
                             [d[idx] / m.metres_per_bin for d in (res.dechirped_rise, res.dechirped_fall)],
-                            [d[idx] / m.metres_per_bin for d in dists], others))
+                            [d[idx] / m.metres_per_bin for d in dists], others),
+                      idx[:: bank.BANK_STRIDE] if plan.bank else None)
 
     def _range_check(self, hs, r: np.ndarray, f: np.ndarray, res: pairing.PairResult) -> RangeCheck:
         """The 2N-point range check of pairs (r, f) with the tracker's results `res`, on

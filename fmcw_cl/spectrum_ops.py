@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .stages import integrate, phase
+from .stages import bank, integrate, phase
 from .stages.doppler import DopplerModel, measure, power
 from .stages.spectrum import Search
 
@@ -109,6 +109,12 @@ class SpectrumOps:
         plain = power(x, None, None, nfft, rows)
         return (*hidden(plain, power(x, beta, v, nfft, rows), lo, tracked_bin, plain_bin, others),
                 block_sums(plain))
+
+    def bank_each(self, xs, betas, rows, nfft: int, lo: int) -> tuple:
+        """stages.bank.detect of the rows `rows` of each x of `xs` (a pair's two
+        directions) with its beta of `betas`: the CFAR echoes (from bin `lo`) of each
+        row de-chirped at each trial velocity (a backend: one trip)."""
+        return tuple(bank.detect(x, beta, rows, nfft, lo) for x, beta in zip(xs, betas, strict=True))
 
     def phasors_each(self, xs, betas, v, bins, nfft: int) -> list[np.ndarray]:
         """stages.phase.phasors of each x of `xs` (a pair's two directions) with its beta

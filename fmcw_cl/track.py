@@ -12,6 +12,7 @@ import numpy as np
 from .atomic import atomic_hdf5
 from .chirp import Chirp, read_directions, write_directions
 from .echoes import MEAN_KEYS, Echoes, no_means
+from .stages.bank import POINT_KEYS, no_points
 from .stages.faults import REASONS
 
 FORMAT = "track"
@@ -186,13 +187,18 @@ def _write_echoes(g, e: Echoes) -> None:
     m = g.create_group("means")
     for name in MEAN_KEYS:
         m.create_dataset(name, data=e.means[name])
+    f = g.create_group("fast")
+    for name in POINT_KEYS:
+        f.create_dataset(name.removeprefix("fast_"), data=np.asarray(e.fast[name], np.float64))
 
 
 def _read_echoes(g) -> Echoes:
     cols = [g[name][()] for name, _ in ECHO_COLUMNS]
     means = {name: g["means"][name][()] for name in MEAN_KEYS} if "means" in g else no_means()
+    fast = ({name: g["fast"][name.removeprefix("fast_")][()] for name in POINT_KEYS} if "fast" in g
+            else no_points())
     return Echoes(*cols, {name: g["persistent"][name][()] for name in PERSISTENT_COLUMNS
-                          if name in g["persistent"]}, means)
+                          if name in g["persistent"]}, means, fast=fast)
 
 
 def _read_objects(g: h5py.Group, period_s: float | None) -> list:

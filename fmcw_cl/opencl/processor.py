@@ -23,7 +23,7 @@ from .. import pool
 from ..chunk_state import Later, Prepared, clipping
 from ..processor import ChunkProcessor
 from ..spectrum_ops import NUMPY
-from ..stages import sync, verification
+from ..stages import bank, sync, verification
 from ..stages.spectrum import fft_length
 from . import clutter as k_clutter
 from . import delay as k_delay
@@ -340,6 +340,16 @@ class OpenCLProcessor(ChunkProcessor):
         per = [(*sp, *b) for sp, b in zip(spectra, bins, strict=True)]
         return k_survey.hidden_each(self.rt, self.bufs, per, lo, d_in[2:], out, first)
 
+    def bank_each(self, xs, betas, rows, nfft, lo):
+        """Twin: spectrum_ops.SpectrumOps.bank_each; the picks go up in one copy, every
+        echo comes back in one."""
+        if not self._fits(nfft):
+            return NUMPY.bank_each(xs, betas, rows, nfft, lo)
+        idx, v = bank.picks(rows)
+        jobs = [(x, b, None) for x, b in zip(xs, betas, strict=True)]
+        got = k_spectrum.measure_each(self.rt, self.bufs, jobs, v, nfft, lo, index=idx, echoes=True)
+        return tuple(det for _, _, det in got)
+
     def check_and_survey(self, chunk):
         """ChunkProcessor.check_and_survey in one trip each way: the survey's inputs go up
         with the check's resampling positions; both results come down by one copy."""
@@ -365,20 +375,34 @@ class OpenCLProcessor(ChunkProcessor):
         survey = chunk.survey
         rest = [] if survey is None else k_survey.parts([np.size(survey.args[4])] * len(survey.args[0]),
                                                          survey.args[3] // 2)
-        out = Packed(self.bufs, "check_survey", first + rest)
+        banked = survey is not None and survey.bank is not None
+        if banked:          # the velocity bank's echoes, after the survey's parts
+            xs, betas, picked, nfft, lo = survey.bank_args
+            idx, trial = bank.picks(picked)
+            bank_jobs = [(x, b, None) for x, b in zip(xs, betas, strict=True)]
+            bank_parts = k_spectrum.parts(bank_jobs, idx.size, nfft, echoes=True)
+        at = len(first) + len(rest)
+        out = Packed(self.bufs, "check_survey", first + rest + (bank_parts if banked else []))
         if checked is not None:
             k_spectrum.measure_each(self.rt, self.bufs, jobs, None, nfft2, check.search.lo, check.search.hi,
                                     out=out)
         if survey is not None:
             xs, betas, v, nfft, rows, lo, *_ = survey.args
             self._surveyed(xs, betas, v, nfft, rows, lo, _bins(survey), inputs, out, len(first))
+        if banked:
+            k_spectrum.measure_each(self.rt, self.bufs, bank_jobs, trial, nfft, lo, index=idx, echoes=True,
+                                    out=out, first=at)
 
         def read(views: list) -> tuple:
             got = None
             if checked is not None:
                 got = _measured(k_spectrum.results(views[: len(first)], jobs, sweeps, nfft2), check.model,
                                 check.search)
-            return got, None if survey is None else k_survey.results(views[len(first):])
+            if survey is None:
+                return got, None, None
+            dets = None if not banked else tuple(
+                det for _, _, det in k_spectrum.results(views[at:], bank_jobs, idx.size, nfft, echoes=True))
+            return got, k_survey.results(views[len(first): at]), dets
 
         return out, read
 

@@ -1,0 +1,95 @@
+"""Movers too fast for a plain peak: the velocity bank's echoes as bodies.
+
+A mover faster than about 1 m/s leaves no CFAR echo in the plain spectra (its Doppler
+chirp smears it), so no line of the echo table carries it (fmcw_cl.moving_echoes). The
+first conversion's surveyed half-sweeps, every BANK_STRIDE-th of them (32 periods, 1.6
+ms apart at 20 kHz), are de-chirped at each trial velocity (stages.bank) and their CFAR
+echoes listed. At one trial velocity u a mover at v shows in the rising half-sweep at
+d_r = R + k_r (v - u) and in the falling one at d_f = R + k_f (v - u), sharp where
+|v - u| is small: each rising echo with each falling echo of the pair at u solves for R
+and v (doppler.solve_pair), kept where v lies within ACCEPT_MPS of u (beyond it the
+echo is smeared there and another trial shows it sharper) and is MIN_MPS or faster (a
+still wall solves to 0 m/s at every trial; the slower movers are the lines'). Of the
+points of a pair within SAME_M of each other, the strongest stands (`points`).
+
+`bodies` links the points in time: a point goes on the chain whose last point, moved on
+at the mean of its velocity and the point's, reaches it within LINK_M + ACCEL_MAX dt^2
+/ 8, its velocity within AGREE_MPS + ACCEL_MAX dt, across at most GAP_S; a chain of
+MIN_POINTS or more over MIN_SPAN_S whose velocities are its distances' slope (within
+AGREE_MPS, the median) is a body, in moving_echoes.bodies' form (its points at
+moving_echoes.STEP_S steps): two bodies' echoes paired, or noise, do not run so.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .coherence import slope
+from .moving_echoes import AGREE_MPS, STEP_S
+from .stages.bank import POINT_KEYS
+from .stages.verification import ACCEL_MAX
+
+LINK_M = 0.001             # a point this far from where its chain's motion carries it goes on it
+GAP_S = 0.005              # ... after at most this without one
+MIN_POINTS = 6             # a chain of this many points ...
+MIN_SPAN_S = 0.006         # ... over this long is a body's
+SLOPE_S = 0.004            # a chain's distance slope: least squares within this either side (5 picks)
+
+
+def bodies(pts: dict) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """(times s, distances m, velocities m/s) at moving_echoes.STEP_S steps of each body
+    the points `pts` (`points`, in time order) show."""
+    t, d, v = (np.asarray(pts[k]) for k in POINT_KEYS[:3])
+    order = np.argsort(t, kind="stable")
+    t, d, v = t[order], d[order], v[order]
+    chains = _chains(t, d, v)
+    out = []
+    for c in chains:
+        tc, dc, vc = t[c], d[c], v[c]
+        if c.size < MIN_POINTS or tc[-1] - tc[0] < MIN_SPAN_S:
+            continue
+        if np.median(np.abs(vc - slope(tc, dc, tc, SLOPE_S))) > AGREE_MPS:
+            continue
+        grid = np.arange(tc[0], tc[-1], STEP_S)
+        out.append((grid, np.interp(grid, tc, dc), np.interp(grid, tc, vc)))
+    return out
+
+
+def _chains(t: np.ndarray, d: np.ndarray, v: np.ndarray) -> list[np.ndarray]:
+    """The points (time s, distance m, velocity m/s; in time order) linked into chains,
+    nearest first, one point a chain at each time."""
+    open_: list[list[int]] = []
+    out: list[list[int]] = []
+    starts = np.r_[0, np.flatnonzero(np.diff(t) > 0) + 1, t.size] if t.size else np.zeros(1, int)
+    for a, b in zip(starts[:-1], starts[1:], strict=True):
+        now = float(t[a])
+        going = [now - t[c[-1]] <= GAP_S for c in open_]
+        out += [c for c, g in zip(open_, going, strict=True) if not g]
+        open_ = [c for c, g in zip(open_, going, strict=True) if g]
+        taken = np.zeros(b - a, bool)
+        if open_:
+            last = np.array([c[-1] for c in open_])
+            dt = now - t[last]
+            at = d[last][None, :] + 0.5 * (v[last][None, :] + v[a:b, None]) * dt[None, :]
+            miss = np.abs(d[a:b, None] - at)
+            fits = (miss <= LINK_M + ACCEL_MAX * dt * dt / 8) & (
+                np.abs(v[a:b, None] - v[last][None, :]) <= AGREE_MPS + ACCEL_MAX * dt)
+            miss[~fits] = np.inf
+            while np.isfinite(miss).any():
+                i, n = np.unravel_index(np.argmin(miss), miss.shape)
+                open_[n].append(a + int(i))
+                taken[i] = True
+                miss[i, :] = np.inf
+                miss[:, n] = np.inf
+        open_ += [[a + int(i)] for i in np.flatnonzero(~taken)]
+    return [np.asarray(c) for c in out + open_]
+
+
+def outside(pts: dict, spans: list[tuple[float, float]], apart_m: float) -> dict:
+    """The points `pts` more than `apart_m` (m) from every one of `spans` (m): those
+    beside no known moving echo (fmcw_cl.moving_echoes.unheld's detections)."""
+    d = np.asarray(pts[POINT_KEYS[1]])
+    keep = np.ones(d.size, bool)
+    for a, b in spans:
+        keep &= (d < a - apart_m) | (d > b + apart_m)
+    return {k: np.asarray(x)[keep] for k, x in pts.items()}
