@@ -144,9 +144,10 @@ def converted_along(cap: Capture, first: First, done: list[Converted], moving: l
     more verified pairs that gives where its track had none. `packed` (one
     conversion's plan and choice for all): movers whose courses are known at other
     times share a conversion (`_lanes`), each pair in the course known there. `lined`:
-    only the movers that lines go on as. `found`: the table's bodies (`bodies_of`),
-    where already known. A mover that no tracker held (no verified pair) is converted
-    along the course of the velocity bank's bodies its band holds (`_untracked`)."""
+    only the movers that lines go on as. `found`: the table's bodies (`bodies_of`,
+    with `fast_bodies_of`), where already known. A mover that no tracker held (no
+    verified pair) is converted along the course of the velocity bank's bodies its band
+    holds (`_untracked`)."""
     if len(done) < 2 and not lined:
         return done
     m = first.plan.model
@@ -155,10 +156,10 @@ def converted_along(cap: Capture, first: First, done: list[Converted], moving: l
     mine = [moving[i] and not d.joined and d.track.valid.any() for i, d in enumerate(done)]
     bare = [moving[i] and not d.joined and not d.track.valid.any() for i, d in enumerate(done)]
     if found is None:
-        found = bodies_of(first) if any(mine) else []
+        found = bodies_of(first) + fast_bodies_of(first) if any(mine) else []
     lines = continuing([d.track if w else None for d, w in zip(done, mine, strict=True)], found)
-    if any(bare) and not lined and first.track.echoes is not None:
-        fast = fast_echoes.bodies(first.track.echoes.fast)
+    if any(bare) and not lined:
+        fast = fast_bodies_of(first)
         held = [d.track for d in done if d.track.valid.any()]
         for i in np.flatnonzero(bare):
             lines[i] = _untracked(fast, held, done[i].choice.band_m)
@@ -192,18 +193,21 @@ def converted_along(cap: Capture, first: First, done: list[Converted], moving: l
     return out
 
 
-def bodies_of(first: First, fast: bool = True) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+def bodies_of(first: First) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
     """The bodies (moving_echoes.bodies) of every detection of the first conversion's
     echo table, its tracked peaks too: a body's line then runs through the stretch its
     object holds and on beyond it (off them, a line began only where the first tracker
     left it, and seldom lay on the object for MATCH_S: two glides, movers.py seed 3,
-    capture 3, the second 20 -> 46 %); with `fast`, the velocity bank's bodies too
-    (fast_echoes.bodies: movers too fast for a plain peak)."""
+    capture 3, the second 20 -> 46 %)."""
     e, m = first.track.echoes, first.plan.model
-    if e is None:
-        return []
-    lined = moving_echoes.bodies(e, m.k_rise, m.k_fall, np.ones(e.time_s.size, bool))
-    return lined + fast_echoes.bodies(e.fast) if fast else lined
+    return [] if e is None else moving_echoes.bodies(e, m.k_rise, m.k_fall, np.ones(e.time_s.size, bool))
+
+
+def fast_bodies_of(first: First) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """The velocity bank's bodies of the first conversion's echo table
+    (fast_echoes.bodies: movers too fast for a plain peak)."""
+    e = first.track.echoes
+    return [] if e is None else fast_echoes.bodies(e.fast)
 
 
 def _untracked(fast: list[tuple[np.ndarray, np.ndarray, np.ndarray]], held: list[Track],

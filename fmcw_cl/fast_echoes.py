@@ -25,7 +25,8 @@ from __future__ import annotations
 import numpy as np
 
 from .coherence import slope
-from .moving_echoes import AGREE_MPS, STEP_S
+from .moving_echoes import AGREE_MPS, STEP_S, off_spans
+from .numeric import nearest_first
 from .stages.bank import POINT_KEYS
 from .stages.verification import ACCEL_MAX
 
@@ -75,21 +76,15 @@ def _chains(t: np.ndarray, d: np.ndarray, v: np.ndarray) -> list[np.ndarray]:
             fits = (miss <= LINK_M + ACCEL_MAX * dt * dt / 8) & (
                 np.abs(v[a:b, None] - v[last][None, :]) <= AGREE_MPS + ACCEL_MAX * dt)
             miss[~fits] = np.inf
-            while np.isfinite(miss).any():
-                i, n = np.unravel_index(np.argmin(miss), miss.shape)
-                open_[n].append(a + int(i))
+            for i, n in nearest_first(miss):
+                open_[n].append(a + i)
                 taken[i] = True
-                miss[i, :] = np.inf
-                miss[:, n] = np.inf
         open_ += [[a + int(i)] for i in np.flatnonzero(~taken)]
     return [np.asarray(c) for c in out + open_]
 
 
-def outside(pts: dict, spans: list[tuple[float, float]], apart_m: float) -> dict:
-    """The points `pts` more than `apart_m` (m) from every one of `spans` (m): those
-    beside no known moving echo (fmcw_cl.moving_echoes.unheld's detections)."""
-    d = np.asarray(pts[POINT_KEYS[1]])
-    keep = np.ones(d.size, bool)
-    for a, b in spans:
-        keep &= (d < a - apart_m) | (d > b + apart_m)
+def outside(pts: dict, spans: list[tuple[float, float]]) -> dict:
+    """The points `pts` beside no known moving echo of `spans` (m; moving_echoes.off_spans,
+    as unheld's detections)."""
+    keep = off_spans(np.asarray(pts[POINT_KEYS[1]]), spans)
     return {k: np.asarray(x)[keep] for k, x in pts.items()}

@@ -27,7 +27,7 @@ import numpy as np
 from . import echoes
 from .coherence import slope
 from .fixed_echoes import APART_M, MIN_TRAVEL_M, MOVING_MPS, beside_span
-from .numeric import nearest, runs
+from .numeric import nearest, nearest_first, runs
 from .objects import seen_again
 from .stages.verification import ACCEL_MAX, KINEMATIC_S
 from .track import Track
@@ -77,12 +77,9 @@ def lines(time_s: np.ndarray, distance_m: np.ndarray) -> list[np.ndarray]:
         miss = np.abs(distance_m[a:b, None] - at[None, :])             # (detections, lines)
         miss[miss > reach[None, :]] = np.inf
         taken = np.zeros(b - a, bool)
-        while np.isfinite(miss).any():                  # nearest first, one detection a line
-            i, n = np.unravel_index(np.argmin(miss), miss.shape)
-            open_[n].append(a + int(i))
+        for i, n in nearest_first(miss):                # one detection a line
+            open_[n].append(a + i)
             taken[i] = True
-            miss[i, :] = np.inf
-            miss[:, n] = np.inf
         open_ += [[a + int(i)] for i in np.flatnonzero(~taken)]
     out += open_
     return [np.asarray(x) for x in out
@@ -99,9 +96,8 @@ def unheld(e: echoes.Echoes, k_rise: float, k_fall: float, track: Track, band: t
     travels MIN_TRAVEL_M and lies beside the verified pairs (`_beside`). Where it goes on
     to a slice of a known span that holds no moving verified pair, or comes from one
     (`_smeared`, `_continues`), that span widened to hold it is given instead."""
-    free = ~e.tracked
-    for a, b in known:                  # the known echoes' detections (a sway's: most of a table's)
-        free &= (e.distance_m < a - APART_M) | (e.distance_m > b + APART_M)
+    # not the known echoes' detections (a sway's: most of a table's)
+    free = ~e.tracked & off_spans(e.distance_m, known)
     ok = track.valid & np.isfinite(track.distance_m)
     held_t, held_d = track.time_s[ok], track.distance_m[ok]
     ends = _run_ends(track)
@@ -120,6 +116,14 @@ def unheld(e: echoes.Echoes, k_rise: float, k_fall: float, track: Track, band: t
         elif span[1] >= lo and span[0] < hi and not beside_span(0.5 * (span[0] + span[1]), known):
             out.append(span)
     return _merged(out)
+
+
+def off_spans(distance_m: np.ndarray, spans: list[tuple[float, float]]) -> np.ndarray:
+    """Which distances (m) lie more than APART_M from every one of `spans` (m)."""
+    keep = np.ones(np.shape(distance_m), bool)
+    for a, b in spans:
+        keep &= (distance_m < a - APART_M) | (distance_m > b + APART_M)
+    return keep
 
 
 def bodies(e: echoes.Echoes, k_rise: float, k_fall: float, free: np.ndarray

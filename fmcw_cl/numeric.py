@@ -294,6 +294,19 @@ def drifts(t: np.ndarray, d: np.ndarray, v: np.ndarray, sizes: np.ndarray, block
     return slope, np.where(jack > error, jack, error)      # NaN: the white residuals'
 
 
+def nearest_first(miss: np.ndarray) -> list[tuple[int, int]]:
+    """(row, column) of `miss` (a cost matrix, inf: not allowed) matched nearest first,
+    each row and each column at most once."""
+    miss = miss.copy()
+    out = []
+    while np.isfinite(miss).any():
+        i, n = np.unravel_index(np.argmin(miss), miss.shape)
+        out.append((int(i), int(n)))
+        miss[i, :] = np.inf
+        miss[:, n] = np.inf
+    return out
+
+
 def nearest(sorted_a: np.ndarray, x: np.ndarray) -> np.ndarray:
     """Index of the element of `sorted_a` (ascending, not empty) nearest to each of
     `x`; on a tie the lower one."""

@@ -50,7 +50,7 @@ def objects_of(cap: Capture, first: First, choice: target.Choice, own: Converted
     spans = sorted(fixed_echoes.moving_spans(tr.time_s, tr.distance_m, tr.velocity_mps, tr.valid,
                                              fixed_echoes.smeared(tr.echoes, band)) + list(first.beside))
     m = first.plan.model
-    fast = fast_echoes.bodies(fast_echoes.outside(tr.echoes.fast, spans, fixed_echoes.APART_M))
+    fast = fast_echoes.bodies(fast_echoes.outside(tr.echoes.fast, spans))
     spans = moving_echoes.joined(spans, moving_echoes.unheld(tr.echoes, m.k_rise, m.k_fall, tr, band, spans,
                                                              fast))
     made: dict[tuple, list[ChunkMeasurements]] = {first.plan.options.band_m: first.parts,
@@ -95,12 +95,15 @@ def objects_of(cap: Capture, first: First, choice: target.Choice, own: Converted
         extra = found
     done = _at_rest(cap, done, loose, first, made, processor, seconds, progress)
     done = _distinct(done, first, seconds, processor)
-    lines = along.bodies_of(first, fast=False) if any(_moving(d) for d in done) else []
+    moving = any(_moving(d) for d in done)
+    plain = along.bodies_of(first) if moving else []
     done = along.converted_along(cap, first, done, [_moving(d) for d in done], processor, seconds, progress,
-                                 found=lines)
+                                 found=plain)
     # the velocity bank's bodies carry courses once the identities are told: before, the
     # pairs they gained moved the parts' ends that the joins read (a glide split in two)
-    lines = along.bodies_of(first) if lines or any(_moving(d) for d in done) else []
+    lines = []
+    if plain or any(_moving(d) for d in done):
+        lines = (plain if moving else along.bodies_of(first)) + along.fast_bodies_of(first)
     unseen = {(i, j) for i, d in enumerate(done) for j in _unseen(d, done, first)}
     done = _unveiled(done, unseen, seconds, processor)
     done = _exclusive(done, unseen, first, seconds, processor)
