@@ -30,6 +30,7 @@ from .chunks import capture_parts
 from .conversions import Converted, First
 from .course import Course
 from .processor import ChunkProcessor
+from .stages import bank
 from .stages.spectrum import GUARD_BINS
 from .track import Track
 
@@ -46,6 +47,7 @@ RUN_PAIRS = 40        # a run of new verified pairs this long (2 ms) is the move
 MATCH_S = 1e-3        # a body of the echo table on a mover's verified pairs this long ...
 MATCH_M = 0.0015      # ... within this of them (median) is its; it says its course ...
 BEYOND_S = 1e-3       # ... this far from every one of them (where the tracker held another echo)
+SEED_MPS = bank.MIN_MPS  # a course this fast is first measured de-chirped at its velocity (course.Course)
 COURSE_ATTR = "band_along_course"     # a track's attribute: 1 where pairs were taken from its course
 
 
@@ -82,7 +84,9 @@ def course_of(track: Track, others: list[tuple[Track, bool]], k: tuple[float, fl
             hi = np.where(seen & (oa > b), np.minimum(hi, 0.5 * (oa + b)), hi)
         lo_m[j] = np.where(known, lo, band_m[0])
         hi_m[j] = np.where(known, hi, np.inf if band_m[1] is None else band_m[1])
-    return Course(t, lo_m, np.minimum(hi_m, 1e3)), known, (r, width)
+    # a mover fast enough to smear its plain peak is first measured de-chirped at its velocity
+    seed = np.where(known & (np.abs(v) >= SEED_MPS), v, 0.0)
+    return Course(t, lo_m, np.minimum(hi_m, 1e3), seed), known, (r, width)
 
 
 def _bridged(t: np.ndarray, r_ok: np.ndarray, v_ok: np.ndarray, t_ok: np.ndarray) -> tuple:
@@ -157,7 +161,8 @@ def converted_along(cap: Capture, first: First, done: list[Converted], moving: l
     bare = [moving[i] and not d.joined and not d.track.valid.any() for i, d in enumerate(done)]
     if found is None:
         found = bodies_of(first) + fast_bodies_of(first) if any(mine) else []
-    lines = continuing([d.track if w else None for d, w in zip(done, mine, strict=True)], found)
+    lines = continuing([d.track if w else None for d, w in zip(done, mine, strict=True)], found,
+                       [d.track for d in done])
     if any(bare) and not lined:
         fast = fast_bodies_of(first)
         held = [d.track for d in done if d.track.valid.any()]
@@ -178,7 +183,10 @@ def converted_along(cap: Capture, first: First, done: list[Converted], moving: l
         d = done[wanted[lane[0]][0]]
         plan = replace(d.plan.with_band(user), course=_merged([wanted[k][2] for k in lane]))
         parts = capture_parts(cap, plan, processor, progress=progress)
-        track = conversions.assembled(plan, parts, processor, seconds, replace(d.choice, band_m=user), None)
+        # one object's course: the moving spans the target's rule could not choose among
+        # (Choice.ambiguous_spans_m) are not its to avoid; the others' paths are cut (`_apart`)
+        choice = replace(d.choice, band_m=user, ambiguous_spans_m=np.zeros((0, 2)))
+        track = conversions.assembled(plan, parts, processor, seconds, choice, None)
         for i, others, got in (wanted[k] for k in lane):
             # where the course is not known its band is the candidate's own: its own verdict
             # stands; a pair further off than the mover can be is another's, not its; one
@@ -236,27 +244,43 @@ def _untracked(fast: list[tuple[np.ndarray, np.ndarray, np.ndarray]], held: list
             mine.append((grid, at, v))
     if not mine:
         return None
-    grew = True
-    while grew:             # and the bodies that go on as them beyond the band (one body seen again)
-        grew = False
-        first, last = min(mine, key=lambda b: b[0][0]), max(mine, key=lambda b: b[0][-1])
-        for b in left:
-            if any(b is c for c in mine):
-                continue
-            if (b[0][-1] < first[0][0] and objects.seen_again(b[0][-1], b[1][-1], b[2][-1], first[0][0],
-                                                              first[1][0], first[2][0])) or (
-                    b[0][0] > last[0][-1] and objects.seen_again(last[0][-1], last[1][-1], last[2][-1],
-                                                                  b[0][0], b[1][0], b[2][0])):
-                mine.append(b)
-                grew = True
-                break
+    mine += _going_on(mine, [b for b in left if not any(b is c for c in mine)])
     t, d, v = (np.concatenate(x) for x in zip(*mine, strict=True))
     order = np.argsort(t, kind="stable")
     return t[order], d[order], v[order]
 
 
-def continuing(tracks: list[Track | None], found: list[tuple[np.ndarray, np.ndarray, np.ndarray]]
-               ) -> list[tuple[np.ndarray, np.ndarray, np.ndarray] | None]:
+def _going_on(mine: list[tuple[np.ndarray, np.ndarray, np.ndarray]],
+              left: list[tuple[np.ndarray, np.ndarray, np.ndarray]], ends: tuple | None = None,
+              within_s: float = np.inf) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """The bodies of `left` (time s, distance m, velocity m/s each) that go on as the
+    bodies `mine` before the first of them or after the last, and those that go on as
+    those in turn, the nearest in time first (a body seen again far off passes over the
+    ones between), then the nearest in place: one body seen again (objects.seen_again)
+    or, with `ends` ((first, last) points (t, d, v) of the object beyond its bodies: its
+    verified pairs'), one body's motion across a gap of `within_s` at most (`_one_body`)."""
+    got: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+    pool = list(left)
+    while pool:
+        firsts = [(b[0][0], b[1][0], b[2][0]) for b in mine + got] + ([ends[0]] if ends else [])
+        lasts = [(b[0][-1], b[1][-1], b[2][-1]) for b in mine + got] + ([ends[1]] if ends else [])
+        first, last = min(firsts, key=lambda p: p[0]), max(lasts, key=lambda p: p[0])
+        # (gap s, miss m) of each body seen again before the first or after the last
+        keys = [(np.inf, np.inf)] * len(pool)
+        for n, b in enumerate(pool):
+            a, z = ((b[0][-1], b[1][-1], b[2][-1]), first) if b[0][-1] < first[0] else (
+                (last, (b[0][0], b[1][0], b[2][0])) if b[0][0] > last[0] else (None, None))
+            if a is not None and (_one_body(a, z) if ends else objects.seen_again(*a, *z)):
+                keys[n] = (z[0] - a[0], abs(z[1] - a[1] - 0.5 * (a[2] + z[2]) * (z[0] - a[0])))
+        n = min(range(len(pool)), key=lambda n: keys[n])        # the nearest in time, then in place
+        if not keys[n][0] <= within_s:
+            break
+        got.append(pool.pop(n))
+    return got
+
+
+def continuing(tracks: list[Track | None], found: list[tuple[np.ndarray, np.ndarray, np.ndarray]],
+               held: list[Track] = ()) -> list[tuple[np.ndarray, np.ndarray, np.ndarray] | None]:
     """Per track (None: none wanted), the points (time s, distance m, velocity m/s) of
     the bodies `found` (moving_echoes.bodies) that go on as it, more than BEYOND_S from
     each of its verified pairs: a body is the track's whose verified pairs it lies on
@@ -265,7 +289,9 @@ def continuing(tracks: list[Track | None], found: list[tuple[np.ndarray, np.ndar
     lay on a glide's conversion's few pairs of the rail as closely as on the rail's own,
     and carried the glide's course onto the rail), then the nearest's (median). One body's course
     where its tracker held another echo (a weaker mover the lone candidate's tracker
-    left once the stronger came into its band)."""
+    left once the stronger came into its band). With them, the bodies no track holds
+    that go on as them beyond the track's verified pairs (`_going_on`, gaps of GAP_S at
+    most) and lie clear of every other object of `held` (`_clear`)."""
     near = np.full((len(found), len(tracks)), np.inf)
     along = np.zeros((len(found), len(tracks)))          # how long it lies on each (steps)
     for j, track in enumerate(tracks):
@@ -283,19 +309,59 @@ def continuing(tracks: list[Track | None], found: list[tuple[np.ndarray, np.ndar
             miss = float(np.median(np.abs(at[on] - d_ok[i[on]])))
             if miss <= MATCH_M and np.median(np.abs(v[on] - v_ok[i[on]])) <= moving_echoes.AGREE_MPS:
                 near[n, j], along[n, j] = miss, on.sum()
+    owned: list[list[tuple[np.ndarray, np.ndarray, np.ndarray]]] = [[] for _ in tracks]
+    for n, body in enumerate(found):
+        if np.isfinite(near[n]).any():
+            # the track it lies on longest (another's few stray pairs on it are no claim), then nearest
+            owned[int(np.argmax(np.where(np.isfinite(near[n]), along[n] - 0.5 * near[n] / MATCH_M,
+                                         -np.inf)))].append(body)
+    left = [b for n, b in enumerate(found) if not np.isfinite(near[n]).any()]
     out: list[tuple[np.ndarray, np.ndarray, np.ndarray] | None] = [None] * len(tracks)
-    for n, (grid, at, v) in enumerate(found):
-        if not np.isfinite(near[n]).any():
+    for j, track in enumerate(tracks):
+        if not owned[j]:
             continue
-        # the track it lies on longest (another's few stray pairs on it are no claim), then nearest
-        j = int(np.argmax(np.where(np.isfinite(near[n]), along[n] - 0.5 * near[n] / MATCH_M, -np.inf)))
-        track = tracks[j]
-        t_ok = track.time_s[track.valid]
-        off = np.abs(t_ok[numeric.nearest(t_ok, grid)] - grid) > BEYOND_S
-        if off.any():
-            got = out[j] or (np.zeros(0), np.zeros(0), np.zeros(0))
-            out[j] = tuple(np.r_[a, b[off]] for a, b in zip(got, (grid, at, v), strict=True))
+        ok = track.valid
+        t_ok, d_ok, v_ok = track.time_s[ok], track.distance_m[ok], track.velocity_mps[ok]
+        ends = ((t_ok[0], d_ok[0], v_ok[0]), (t_ok[-1], d_ok[-1], v_ok[-1]))
+        # and the bodies no track holds that go on as them beyond its ends (a fast glide's
+        # earlier stretches, between which it passed a stronger object's peaks)
+        others = [h for h in held if h is not track]
+        gone = _going_on(owned[j], [b for b in left if _clear(b[0], b[1], others)], ends, GAP_S)
+        left = [b for b in left if not any(b is g for g in gone)]
+        for grid, at, v in owned[j] + gone:
+            off = np.abs(t_ok[numeric.nearest(t_ok, grid)] - grid) > BEYOND_S
+            if off.any():
+                got = out[j] or (np.zeros(0), np.zeros(0), np.zeros(0))
+                out[j] = tuple(np.r_[a, b[off]] for a, b in zip(got, (grid, at, v), strict=True))
     return out
+
+
+def _one_body(a: tuple, z: tuple) -> bool:
+    """Whether one body last seen at `a` can be the one seen at `z` ((t s, d m, v m/s)):
+    the trapezoid of their velocities within ONE_BODY_M + ACCEL_MPS2 dt^2 / 8, as across a
+    course's gaps (`_bridged`), their velocities within moving_echoes.AGREE_MPS +
+    ACCEL_MPS2 dt (a body 6 mm off a rail's end 4 ms on, objects.seen_again's 40 mm
+    allowed: a wall's, 73 valid pairs on it; tests/test_scenes.py, hunt seed 9)."""
+    dt = z[0] - a[0]
+    return bool(abs(z[1] - a[1] - 0.5 * (a[2] + z[2]) * dt) <= ONE_BODY_M + ACCEL_MPS2 * dt * dt / 8
+                and abs(z[2] - a[2]) <= moving_echoes.AGREE_MPS + ACCEL_MPS2 * dt)
+
+
+def _clear(grid: np.ndarray, at: np.ndarray, others: list[Track]) -> bool:
+    """Whether a body (times s, distances m) lies mostly more than objects.GATE_M from
+    each of `others`' verified pairs nearest in time, those within GAP_S of it: an object
+    unverified a while is still there (a foot at rest 2 mm from the other landing foot,
+    whose body went on as the other's course: 165 valid pairs on it, movers.py seed 1,
+    capture 30)."""
+    on = np.zeros(grid.size, bool)
+    for track in others:
+        ok = track.valid
+        if not ok.any():
+            continue
+        t_ok, d_ok = track.time_s[ok], track.distance_m[ok]
+        i = numeric.nearest(t_ok, grid)
+        on |= (np.abs(t_ok[i] - grid) <= GAP_S) & (np.abs(at - d_ok[i]) <= objects.GATE_M)
+    return bool(on.mean() < 0.5)
 
 
 def _lanes(known: list[np.ndarray]) -> list[list[int]]:
@@ -321,9 +387,11 @@ def _merged(got: list[tuple]) -> Course:
     course's known there, else the first's (the candidate's own band)."""
     course, known, _ = got[0]
     lo, hi = course.lo_m.copy(), course.hi_m.copy()
+    v = np.zeros(course.t_s.size) if course.v_mps is None else course.v_mps.copy()
     for c, k, _ in got[1:]:
         lo[:, k], hi[:, k] = c.lo_m[:, k], c.hi_m[:, k]
-    return Course(course.t_s, lo, hi)
+        v[k] = 0.0 if c.v_mps is None else c.v_mps[k]
+    return Course(course.t_s, lo, hi, v if v.any() else None)
 
 
 def objects_along(cap: Capture, first: First, own: list[Converted], scene: list[objects.SceneObject],

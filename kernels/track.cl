@@ -114,7 +114,8 @@ void displace(__global const double *t, __global const int *bounds, const double
     }
 }
 
-// One pass (`first`: the plain pass's, vd = 0; `last`: only the measurements into the
+// One pass (`first`: the plain pass's, vd = 0, or the pass `seeded` at the velocities
+// `seed`, vd = seed; `last`: only the measurements into the
 // state and the velocities' running median, for the verdict). A pair's measurement is
 // row `slot[i]` of the last one (the pairs listed), or row i on the first pass and with
 // `every` (integration: every pair measured each pass, read at the displacement `disp`
@@ -134,6 +135,8 @@ __kernel void track_pass(const int pairs, const int first, const int last, const
                          __global double *d_r, __global double *d_f,     // m
                          __global float *s_r, __global float *s_f,       // dB
                          __global double *vd,                 // m/s: each pair's de-chirp velocity
+                         __global const float *seed,          // m/s: the first pass's, where `seeded`
+                         const int seeded,
                          const int reach,                     // the median's half-width (pairs)
                          const float snr_min,
                          __global const int *count, __global const double *floors, const int counted,
@@ -156,7 +159,7 @@ __kernel void track_pass(const int pairs, const int first, const int last, const
         // the new measurements (doppler.solve_pair)
         for (int i = a; i < b; ++i) {
             const int g = first || every ? i : slot[i];
-            if (first) vd[i] = 0.0;
+            if (first) vd[i] = seeded ? (double)seed[i] : 0.0;
             if (g >= 0) {
                 d_r[i] = (double)bin_r[g] * metres_per_bin;
                 d_f[i] = (double)bin_f[g] * metres_per_bin;

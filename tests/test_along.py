@@ -81,6 +81,39 @@ def test_a_line_of_the_echo_table_goes_on_as_the_mover_it_lies_on():
     assert not alone[int(0.03 / PERIOD)] and lined[int(0.02 / PERIOD):int(0.04 / PERIOD) - 2].all()
 
 
+def test_bodies_that_go_on_as_a_movers_body_carry_its_course_on():
+    """A glide at 2 m/s verified for 10 ms, a body on its last 5 ms and 10 ms beyond, then
+    bodies of the same glide after gaps of 8 and 12 ms (it passed a stronger echo's
+    peaks): they go on as it (one body's motion across the gap, along._one_body), the
+    nearer in time first, so the far one joins too, and the course is known through
+    them; one 30 ms on (beyond GAP_S),
+    one on another line at once (30 mm off) and one on an object at rest
+    2 mm beside it, verified 12 ms earlier (a foot at rest: still there), do not."""
+    n = 2400
+    t = PERIOD * (np.arange(n) + 0.5)
+    d, v = 0.1 + 2.0 * t, np.full(n, 2.0)
+    ok = t < 0.01
+
+    def body(a: float, b: float, shift: float = 0.0):
+        grid = np.arange(a, b, 2.5e-4)
+        return grid, 0.1 + 2.0 * grid + shift, np.full(grid.size, 2.0)
+
+    on, near, far, late = body(0.005, 0.02), body(0.028, 0.034), body(0.046, 0.055), body(0.085, 0.1)
+    wrong = body(0.028, 0.034, 0.03)
+    got = along.continuing([_track(d, v, ok), None], [on, far, wrong, near, late])
+    tg = got[0][0]
+    assert np.isin(near[0], tg).all() and np.isin(far[0], tg).all()
+    beyond = np.sum(on[0] > 0.01 + along.BEYOND_S)         # the points of `on` off the verified pairs
+    assert not np.isin(late[0], tg).any() and tg.size == beyond + near[0].size + far[0].size
+    known = along.course_of(_track(d, v, ok), [], K, (0.03, None), 0.0, got[0])[1]
+    assert known[int(0.03 / PERIOD):int(0.05 / PERIOD)].all()
+    # an object at rest where the next body lies, last verified 12 ms before it
+    rest_ok = t < 0.016
+    rest = _track(np.full(n, 0.1 + 2.0 * 0.031 + 0.002), np.zeros(n), rest_ok)
+    held = along.continuing([_track(d, v, ok), None], [on, near, far], [_track(d, v, ok), rest])
+    assert not np.isin(near[0], held[0][0]).any() and not np.isin(far[0], held[0][0]).any()
+
+
 def test_a_course_is_cut_half_way_to_another_object_wholly_on_one_side():
     """A still object 40 mm above a slow mover: each band's top lies half way between
     the mover's interval and the other's (its plain peak and its image de-chirped at the
@@ -116,16 +149,18 @@ def test_a_glide_through_a_sway_is_held_along_its_course(tmp_path, seed):
     at about 1 m/s; its candidate's band was cut at the sway's, and the conversion in the
     whole band held the sway's echo as ambiguous pairs. Along its course (and with
     another tracker's ambiguous pairs on an echo no second echo: crossings.conflicts)
-    each is one object, the sway held in 90 % of its periods or more, the glide in
-    65 % (66-74 %; 16-69 % before; 58-69 % with that rule of the conflicts alone), no
-    valid pair off its truth."""
+    each is one object, the sway held in 88 % of its periods or more (89-92 %: where the
+    glide's course passes within objects.GATE_M its pairs are ambiguous, 91-93 % while
+    the glide was lost there), the glide in 85 % (87-90 %; 69-79 % before its course took
+    the velocity bank's bodies that go on as it and was first measured de-chirped at its
+    velocity; 16-69 % before the courses), no valid pair off its truth."""
     from fmcw_cl.simulator import several
 
     path = tmp_path / "glide.h5"
     several.write("glide through a sway", path, seed)
     track = process(path)
     best = best_held(scene_of(track, path), 2)
-    assert best[0] >= 0.9 and best[1] >= 0.65, best
+    assert best[0] >= 0.88 and best[1] >= 0.85, best
 
 
 def test_a_target_converted_along_its_course_reads_the_tuning_elsewhere(tmp_path):
@@ -133,7 +168,9 @@ def test_a_target_converted_along_its_course_reads_the_tuning_elsewhere(tmp_path
     course the glide travels furthest and is the target; its plan searches the whole
     band, where the sway's peaks de-chirped at the glide's velocity read 1.6 times too
     wide, and the scene became one object without a valid pair. The tuning is read on
-    the first conversion, as for a mover only a second look found: both objects stay."""
+    the first conversion, as for a mover only a second look found: both objects stay
+    (the sway 93 %, the glide 88 % of their periods; 96 / 63 % before the glide's course
+    took the bodies that go on as it, the sway's pairs in its crossing now ambiguous)."""
     from fmcw_cl.simulator.scene import glide, sway
 
     other = glide(0.7, 0.37392563067580786, 0.07718346448342278, 0.24903529752965697, 0.6490352975296569)
@@ -142,7 +179,7 @@ def test_a_target_converted_along_its_course_reads_the_tuning_elsewhere(tmp_path
                                     3.971822082429291), other, 357.80950711808214, False, 173,      # -2.9 dB
                                0.3352788724952623, 0.11421686680677569)
     best = best_held(scores, 2)
-    assert len(track.objects) == 2 and best[0] >= 0.95 and best[1] >= 0.4, best
+    assert len(track.objects) == 2 and best[0] >= 0.9 and best[1] >= 0.8, best
     assert track.attrs["tuning_matches"]
 
 

@@ -75,9 +75,17 @@ def track(rt: Runtime, bufs: Buffers, rows: tuple[DeviceRows, DeviceRows], times
                             d_groups=times.device[3], bands=bands)
     dechirp = [(rows[0], model.beta_rise, None), (rows[1], model.beta_fall, None)]
     again = Packed(bufs, "track_pass", k_spectrum.parts(dechirp, pairs, model.nfft))
-    run = _Passes(rt, bufs, pairs, times, model, search.reach, out.buffers[len(head):-1])
+    seeded = None
+    if search.velocity is not None:     # the first pass de-chirped at each pair's course velocity
+        seed = bufs.upload("track_seed", np.asarray(search.velocity, np.float32))
+        seeded = Packed(bufs, "track_seeded", k_spectrum.parts(dechirp, pairs, model.nfft))
+        k_spectrum.measure_each(rt, bufs, dechirp, search.velocity, *band, out=seeded, bands=bands,
+                                picked=(bufs.constant("index0", k_spectrum.zeros(1), np.int32), seed))
+    run = _Passes(rt, bufs, pairs, times, model, search.reach, out.buffers[len(head):-1],
+                  seed=None if seeded is None else seed)
     for it in range(iterations):
-        got = (out if it == 0 else again).buffers      # each direction's peaks: parts 0, 1 and 6, 7
+        # each direction's peaks: parts 0, 1 and 6, 7
+        got = (again if it else out if seeded is None else seeded).buffers
         run.launch(it, iterations, [got[i] for i in (0, 1, 6, 7)])
         k_spectrum.measure_each(rt, bufs, dechirp, None, *band, picked=run.listed, listed=run.state,
                                 out=again, bands=bands)
@@ -107,10 +115,16 @@ def integrated(rt: Runtime, bufs: Buffers, rows: tuple[DeviceRows, DeviceRows], 
     stores = [DeviceRows(bufs, pairs, half) for _ in rows]
     band = (model.nfft, search.lo, search.hi)
     bands = k_spectrum.band_buffers(bufs, search)
-    k_spectrum.measure_each(rt, bufs, [(x, None, store) for x, store in zip(rows, stores, strict=True)],
-                            None, *band)
     dechirp = [(x, beta, store) for x, beta, store in zip(rows, (model.beta_rise, model.beta_fall), stores,
                                                           strict=True)]
+    seed = None
+    if search.velocity is None:
+        k_spectrum.measure_each(rt, bufs, [(x, None, store) for x, store in zip(rows, stores, strict=True)],
+                                None, *band)
+    else:               # every spectrum first de-chirped at its pair's course velocity
+        seed = bufs.upload("track_seed", np.asarray(search.velocity, np.float32))
+        k_spectrum.measure_each(rt, bufs, dechirp, search.velocity, *band,
+                                picked=(bufs.constant("index0", k_spectrum.zeros(1), np.int32), seed))
     # each direction's (bin, SNR, count): the falling one's counts (the same) come down
     got = Packed(bufs, "integrated_peaks", [(np.float32, pairs), (np.float32, pairs), (np.int32, pairs)] * 2
                  ).buffers[:5] + out.buffers[-2:-1]
@@ -118,8 +132,11 @@ def integrated(rt: Runtime, bufs: Buffers, rows: tuple[DeviceRows, DeviceRows], 
     measured = [got[0], got[1], got[3], got[4]]
     disp = bufs.get("track_disp", 4 * pairs)
     run = _Passes(rt, bufs, pairs, times, model, search.reach, out.buffers[:-2],
-                  (got[5], bufs.constant("floors", floors(k), np.float64), disp))
+                  (got[5], bufs.constant("floors", floors(k), np.float64), disp), seed)
     rt.kernel("track", "track_start")(rt.queue, *rt.items(pairs), np.int32(pairs), run.vd, disp, run.state)
+    if search.velocity is not None:     # ... read at the displacement of those velocities
+        rt.copy(disp, pairing.displacement_bins(times.mid, times.groups, search.velocity,
+                                                model.metres_per_bin).astype(np.float32))
     k_integrate.launch(rt, bufs, jobs, disp, d_bounds, k, search, run.state, bands)
     for it in range(iterations):
         run.launch(it, iterations, measured)       # the displacement of the moved velocities too
@@ -171,14 +188,19 @@ def _times_here(bufs: Buffers, times: pairing.Times) -> pairing.Times:
 
 class _Passes:
     """kernels/track.cl's passes over `pairs` (their velocity median over `reach`,
-    Search.reach) and their verdict, into the device buffers `state` (`_state_parts`);
+    Search.reach) and their verdict, into the device buffers `state` (`_state_parts`),
+    the first from the de-chirp velocities `seed` (a device buffer of float32; None: 0);
     `counted`, with integration: the measurements' counts of spectra, the floors by
     count and the displacement (device buffers; None: every peak heard over
     SNR_MIN_DB, the measurements the pairs listed)."""
 
     def __init__(self, rt: Runtime, bufs: Buffers, pairs: int, times: pairing.Times,
-                 model: doppler.DopplerModel, reach: int, state: list, counted: tuple | None = None) -> None:
+                 model: doppler.DopplerModel, reach: int, state: list, counted: tuple | None = None,
+                 seed=None) -> None:
         self.rt, self.pairs, self.times, self.model, self.reach = rt, pairs, times, model, reach
+        # the first pass's de-chirp velocities (float32, Search.velocity; None: 0 m/s)
+        self.seed = ((bufs.constant("v0", k_spectrum.zeros(1)), np.int32(0)) if seed is None
+                     else (seed, np.int32(1)))
         self.d_r, self.s_r, self.d_f, self.s_f, self.vd, self.valid, self.resid = state
         self.state = bufs.get("track_state", 8)   # [pairs listed, passes stopped]: the first pass sets
         self.vel, self.med, self.nxt = (bufs.get(f"track_{n}", 8 * pairs) for n in ("vel", "med", "next"))
@@ -208,7 +230,7 @@ class _Passes:
         d_mid, d_half, d_bounds, _ = self.times.device
         self.kernel(self.rt.queue, (lsz,), (lsz,), i32(self.pairs), i32(it == 0), i32(it == iterations),
                     i32(self.every), *measured, self.slot, f64(m.metres_per_bin), d_mid, d_half, d_bounds,
-                    f64(m.k_rise), f64(m.k_fall), self.d_r, self.d_f, self.s_r, self.s_f, self.vd,
+                    f64(m.k_rise), f64(m.k_fall), self.d_r, self.d_f, self.s_r, self.s_f, self.vd, *self.seed,
                     i32(self.reach), f32(pairing.SNR_MIN_DB), *self.counted,
                     f64(verification.CONSISTENT_MPS), f64(pairing.PLAIN_SHARE if it == 0 else 0.0),
                     f64(pairing.STOP_MPS), self.vel, self.med,

@@ -105,16 +105,24 @@ class _Windows:
             every = None if moved.size == vd.size else moved
             self.stores = [self.ops.spectra(x, beta, vd[moved], m.nfft, every, store)
                            for x, beta, store in zip(self.rows, self.betas, self.stores, strict=True)]
-        if self.groups is None:
-            disp = numeric.travelled(self.t, vd)
-        else:
-            disp = _each(self.groups, lambda g: numeric.travelled(self.t[g], vd[g]), vd.size)
-        disp = disp / m.metres_per_bin
+        disp = displacement_bins(self.t, self.groups, vd, m.metres_per_bin)
         out = []
         for j, store in enumerate(self.stores):
             b, snr, count = self.ops.integrated_peaks(store, disp, self.k, self.search, self.bounds, j)
             out += [b * m.metres_per_bin, snr]
         return (*out, count)
+
+
+def displacement_bins(t: np.ndarray, groups: np.ndarray | None, vd: np.ndarray, metres_per_bin: float
+                      ) -> np.ndarray:
+    """The target's displacement (bins) at the pairs' centres `t` (s) from its group's
+    first pair (`groups`: Times.groups), at the de-chirp velocities `vd` (m/s): where
+    the K-window integration reads each spectrum (twin: kernels/track.cl `displace`)."""
+    if groups is None:
+        disp = numeric.travelled(t, vd)
+    else:
+        disp = _each(groups, lambda g: numeric.travelled(t[g], vd[g]), vd.size)
+    return disp / metres_per_bin
 
 
 def track_pairs(xr: np.ndarray, xf: np.ndarray, times: Times, model: DopplerModel, search: Search,
@@ -258,10 +266,16 @@ def passes(rows: tuple, times: Times, model: DopplerModel, search: Search, itera
     solve, until no pair's velocity moves by STOP_MPS or `iterations` are done."""
     xr, xf = rows
     half_gap, t_mid = times.half_gap, times.mid
-    vd = np.zeros(t_mid.size)          # the velocity each pair was last de-chirped with
+    seeded = search.velocity is not None
+    # the velocity each pair was last de-chirped with: its course's where it has one (Search.velocity)
+    vd = search.velocity.copy() if seeded else np.zeros(t_mid.size)
     windows = _Windows(ops, rows, model, search, k, times) if k > 1 else None
     if windows is not None:
-        d_r, s_r, d_f, s_f, count = windows.measure(vd)
+        d_r, s_r, d_f, s_f, count = windows.measure(vd, np.arange(vd.size) if seeded else None)
+    elif seeded:
+        (d_r, s_r), (d_f, s_f) = ops.measure_each((xr, xf), (model.beta_rise, model.beta_fall), vd, model,
+                                                  search)
+        count = np.ones(t_mid.size, np.int32)
     else:
         (d_r, s_r, *_), (d_f, s_f, *_) = first
         d_r, d_f, s_r, s_f = (a.copy() for a in (d_r, d_f, s_r, s_f))   # updated in place

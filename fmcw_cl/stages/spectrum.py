@@ -33,6 +33,9 @@ class Search:
     bands : each pair's own band, (2, pairs, 2) int: [lo, hi) of its rising (0) and
         falling (1) half-sweep, inside [lo, hi) (fmcw_cl.course: an object's band that
         follows it in time); None: [lo, hi) for every pair.
+    velocity : each pair's first de-chirp velocity (m/s, float32 values), where its
+        course says how fast its object moves (fmcw_cl.course); None: the plain pass's
+        (0 m/s) for every pair.
     """
 
     lo: int
@@ -40,6 +43,7 @@ class Search:
     echoes: bool = False
     reach: int = 8
     bands: np.ndarray | None = field(default=None, compare=False, repr=False)
+    velocity: np.ndarray | None = field(default=None, compare=False, repr=False)
 
     def band(self, direction: int, rows: np.ndarray | None = None) -> tuple:
         """The band [lo, hi) of the pairs `rows` (all when None) in `direction` (0:
