@@ -32,6 +32,7 @@ from .course import Course
 from .processor import ChunkProcessor
 from .stages import bank
 from .stages.spectrum import GUARD_BINS
+from .stages.verification import reachable
 from .track import Track
 
 GAP_S = 0.02          # a gap of a mover's verified pairs this long or shorter is bridged
@@ -338,13 +339,13 @@ def continuing(tracks: list[Track | None], found: list[tuple[np.ndarray, np.ndar
 
 def _one_body(a: tuple, z: tuple) -> bool:
     """Whether one body last seen at `a` can be the one seen at `z` ((t s, d m, v m/s)):
-    the trapezoid of their velocities within ONE_BODY_M + ACCEL_MPS2 dt^2 / 8, as across a
-    course's gaps (`_bridged`), their velocities within moving_echoes.AGREE_MPS +
-    ACCEL_MPS2 dt (a body 6 mm off a rail's end 4 ms on, objects.seen_again's 40 mm
-    allowed: a wall's, 73 valid pairs on it; tests/test_scenes.py, hunt seed 9)."""
+    the trapezoid of their velocities within the verification's bound
+    (verification.reachable, as across a course's gaps, `_bridged`), their velocities
+    within moving_echoes.AGREE_MPS + ACCEL_MPS2 dt (a body 6 mm off a rail's end 4 ms on,
+    objects.seen_again's 40 mm allowed: a wall's, 73 valid pairs on it;
+    tests/test_scenes.py, hunt seed 9)."""
     dt = z[0] - a[0]
-    return bool(abs(z[1] - a[1] - 0.5 * (a[2] + z[2]) * dt) <= ONE_BODY_M + ACCEL_MPS2 * dt * dt / 8
-                and abs(z[2] - a[2]) <= moving_echoes.AGREE_MPS + ACCEL_MPS2 * dt)
+    return bool(reachable(*a, *z) and abs(z[2] - a[2]) <= moving_echoes.AGREE_MPS + ACCEL_MPS2 * dt)
 
 
 def _clear(grid: np.ndarray, at: np.ndarray, others: list[Track]) -> bool:

@@ -75,14 +75,11 @@ def track(rt: Runtime, bufs: Buffers, rows: tuple[DeviceRows, DeviceRows], times
                             d_groups=times.device[3], bands=bands)
     dechirp = [(rows[0], model.beta_rise, None), (rows[1], model.beta_fall, None)]
     again = Packed(bufs, "track_pass", k_spectrum.parts(dechirp, pairs, model.nfft))
-    seeded = None
+    seed = seeded = None
     if search.velocity is not None:     # the first pass de-chirped at each pair's course velocity
-        seed = bufs.upload("track_seed", np.asarray(search.velocity, np.float32))
         seeded = Packed(bufs, "track_seeded", k_spectrum.parts(dechirp, pairs, model.nfft))
-        k_spectrum.measure_each(rt, bufs, dechirp, search.velocity, *band, out=seeded, bands=bands,
-                                picked=(bufs.constant("index0", k_spectrum.zeros(1), np.int32), seed))
-    run = _Passes(rt, bufs, pairs, times, model, search.reach, out.buffers[len(head):-1],
-                  seed=None if seeded is None else seed)
+        seed = _at_course(rt, bufs, dechirp, search, band, bands, seeded)
+    run = _Passes(rt, bufs, pairs, times, model, search.reach, out.buffers[len(head):-1], seed=seed)
     for it in range(iterations):
         # each direction's peaks: parts 0, 1 and 6, 7
         got = (again if it else out if seeded is None else seeded).buffers
@@ -122,9 +119,7 @@ def integrated(rt: Runtime, bufs: Buffers, rows: tuple[DeviceRows, DeviceRows], 
         k_spectrum.measure_each(rt, bufs, [(x, None, store) for x, store in zip(rows, stores, strict=True)],
                                 None, *band)
     else:               # every spectrum first de-chirped at its pair's course velocity
-        seed = bufs.upload("track_seed", np.asarray(search.velocity, np.float32))
-        k_spectrum.measure_each(rt, bufs, dechirp, search.velocity, *band,
-                                picked=(bufs.constant("index0", k_spectrum.zeros(1), np.int32), seed))
+        seed = _at_course(rt, bufs, dechirp, search, band)
     # each direction's (bin, SNR, count): the falling one's counts (the same) come down
     got = Packed(bufs, "integrated_peaks", [(np.float32, pairs), (np.float32, pairs), (np.int32, pairs)] * 2
                  ).buffers[:5] + out.buffers[-2:-1]
@@ -147,6 +142,18 @@ def integrated(rt: Runtime, bufs: Buffers, rows: tuple[DeviceRows, DeviceRows], 
     k_phase.launch_state(rt, bufs, rows, model, run.vel, run.d_r, run.d_f, out.buffers[-1])
     views = out.download()
     return _passes(views[:-2], views[-2].copy(), k, views[-1])
+
+
+def _at_course(rt: Runtime, bufs: Buffers, jobs: list, search: Search, band: tuple,
+               bands: tuple | None = None, out: Packed | None = None):
+    """spectrum.measure_each of `jobs` (each direction's (rows, beta, store)) de-chirped
+    at each pair's course velocity (Search.velocity), in `band` (nfft, lo, hi) and
+    `bands`, into `out`: the passes' first measurement. Returns the velocities' device
+    buffer (float32), the passes' `seed`."""
+    seed = bufs.upload("track_seed", np.asarray(search.velocity, np.float32))
+    k_spectrum.measure_each(rt, bufs, jobs, search.velocity, *band, out=out, bands=bands,
+                            picked=(bufs.constant("index0", k_spectrum.zeros(1), np.int32), seed))
+    return seed
 
 
 def _state_parts(pairs: int) -> list[tuple]:

@@ -89,13 +89,16 @@ class _Windows:
     spectra are kept between the tracker's passes, re-made only for the rows whose
     de-chirp velocity moved."""
 
-    def __init__(self, ops, rows: tuple, model: DopplerModel, search: Search, k: int, times: Times):
+    def __init__(self, ops, rows: tuple, model: DopplerModel, search: Search, k: int, times: Times,
+                 vd: np.ndarray | None = None):
         self.ops, self.rows, self.model, self.search, self.k = ops, rows, model, search, k
         self.t, self.groups = times.mid, times.groups
         # each group's windows end at its ends, its displacement starts at its start
         self.bounds = None if times.groups is None else times.bounds
         self.betas = (model.beta_rise, model.beta_fall)
-        self.stores = [ops.spectra(x, None, None, model.nfft) for x in rows]
+        # plain, or de-chirped at the first velocities `vd` where given
+        self.stores = [ops.spectra(x, None if vd is None else beta, vd, model.nfft)
+                       for x, beta in zip(rows, self.betas, strict=True)]
 
     def measure(self, vd: np.ndarray, moved: np.ndarray | None = None) -> tuple:
         """(d_r, s_r, d_f, s_f, count) of every pair, after re-making the spectra of the
@@ -269,9 +272,9 @@ def passes(rows: tuple, times: Times, model: DopplerModel, search: Search, itera
     seeded = search.velocity is not None
     # the velocity each pair was last de-chirped with: its course's where it has one (Search.velocity)
     vd = search.velocity.copy() if seeded else np.zeros(t_mid.size)
-    windows = _Windows(ops, rows, model, search, k, times) if k > 1 else None
+    windows = _Windows(ops, rows, model, search, k, times, vd if seeded else None) if k > 1 else None
     if windows is not None:
-        d_r, s_r, d_f, s_f, count = windows.measure(vd, np.arange(vd.size) if seeded else None)
+        d_r, s_r, d_f, s_f, count = windows.measure(vd)
     elif seeded:
         (d_r, s_r), (d_f, s_f) = ops.measure_each((xr, xf), (model.beta_rise, model.beta_fall), vd, model,
                                                   search)
