@@ -21,6 +21,7 @@ from . import (
     fast_echoes,
     fixed_echoes,
     identities,
+    meeting,
     moving_echoes,
     objects,
     rests,
@@ -124,18 +125,18 @@ def _told_apart(found: list[objects.SceneObject], done: list[Converted], own: Co
                 courses: Callable[[list[objects.SceneObject]], list[objects.SceneObject]] | None = None
                 ) -> tuple[list[objects.SceneObject], int, Converted]:
     """`objects_of`'s objects from the conversions `done` (`found`: an object each):
-    bodies told apart (identities.untangled, by contests where `several` movers may
-    be), with pairs along their `courses` where given (along.objects_along: a lone
-    candidate's parts; several conversions' movers the echo table's lines go on as),
-    numbered in the order they were seen, the target chosen by the
-    user's rule. Each object's pairs are `ambiguous` where another's course passes within
-    objects.GATE_M (crossings.passing); a `lone` candidate's, whose one tracker held one
-    echo at a time, also where another's path does (crossings.conflicts, as `_exclusive`
-    for several conversions: two legs landing 0.3 mm apart, the tracker passing from one
-    to the other, 183 valid pairs on the other), a still part's only while it is seen (a
-    body at rest while held, not a fixed echo there all along: two sways' turns so
-    taken spanned the other's path);
-    and where its pairs' phases do not move as one body's (coherence.two_bodies: a rail's
+    bodies told apart (identities.untangled, by contests where `several` movers may be),
+    with pairs along their `courses` where given (along.objects_along: a lone
+    candidate's parts; several conversions' movers the echo table's lines go on as) and
+    the parts those carried to meet joined (meeting.met), numbered in the order they
+    were seen, the target chosen by the user's rule. Each object's pairs are `ambiguous`
+    where another's course passes within objects.GATE_M (crossings.passing); a `lone`
+    candidate's, whose one tracker held one echo at a time, also where another's path
+    does (crossings.conflicts, as `_exclusive` for several conversions: two legs landing
+    0.3 mm apart, the tracker passing from one to the other, 183 valid pairs on the
+    other), a still part's only while it is seen (a body at rest while held, not a fixed
+    echo there all along: two sways' turns so taken spanned the other's path); and where
+    its pairs' phases do not move as one body's (coherence.two_bodies: a rail's
     Doppler-shifted peak in one direction, a glide's in the other, made 74 valid pairs
     46 mm from both as they crossed); and where a half-sweep's peak could be another
     object's de-chirped image (crossings.images, as `_exclusive` across conversions, but
@@ -145,7 +146,7 @@ def _told_apart(found: list[objects.SceneObject], done: list[Converted], own: Co
     scene = exchanges.apart(rests.rests_parted(identities.untangled(found, several)),
                            [o.track for o in found if not o.moving])
     if courses is not None:       # pairs along a body's course, once its identity is told
-        scene = courses(scene)
+        scene = meeting.met(courses(scene))
     tracks, moving = [o.track for o in scene], [o.moving for o in scene]
     rad_per_m = phase.radians_per_metre(own.plan.lut.nu_hz, own.plan.info.refractive_index)
     two = [coherence.two_bodies(t, rad_per_m) for t in tracks]

@@ -1,0 +1,154 @@
+"""Parts of one body that their courses carried to meet, joined.
+
+The identities are told (fmcw_cl.identities) before the courses add their pairs
+(fmcw_cl.along): a mover lost at a crossing is two objects then, and its courses may
+carry both to within milliseconds of each other (a glide at -2.85 m/s, as two objects
+3.6 ms apart after a glide the other way crossed it). Two moving objects, the earlier's
+last verified pair before the later's first, are one where one body in motion the
+same way moves so across the gap (along's test for a course's bodies). A mover and a
+fixed object first seen after it are one where the mover's braking brings it to rest
+there in time (a rail slowing at 41 m/s^2, lost at +0.90 m/s 12 mm short of where it
+rests, 35 ms later); a fixed object and a mover seen after it, where the mover's
+acceleration sets it off from there. Neither where another object can be either's
+other part, lies on the course between them at that body's speed, or was at the
+rest's place before it came to rest or after it set off (`_contested`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import along, identities, objects
+from .numeric import centred_slope
+from .objects import SceneObject
+
+GAP_S = along.GAP_S         # a gap this long or shorter is joined across ...
+REST_GAP_S = 0.05           # ... this long between a mover and its rest (it may rest a while unseen)
+MOVING_MPS = along.SEED_MPS   # ends this fast: a body in motion, never two at rest side by side
+BRAKE_MPS2 = 10.0           # an end's acceleration this strong against (or with) its motion is braking
+REST_M = 3e-3               # the rest within this, or REST_SHARE of the way, of where the braking ends it
+REST_SHARE = 0.3
+
+
+def met(scene: list[SceneObject]) -> list[SceneObject]:
+    """`scene` with the objects that are one body's parts joined (objects.joined), the
+    cheapest join (identities._costs) first, one at a time (a new list; the objects
+    are kept in their order, a joined one at the earlier's place, moving)."""
+    scene = list(scene)
+    while True:
+        ends = [_ends(o) for o in scene]
+        joins = _joins(scene, ends)
+        free = [(c, i, j) for c, i, j in joins if not _contested(scene, ends, joins, i, j)]
+        if not free:
+            return scene
+        _, i, j = min(free)
+        a, b = scene[i], scene[j]
+        scene[i] = SceneObject(0, True, objects.joined(a.track, b.track), f"{a.note}; met: {b.note}",
+                               a.whole if a.whole is b.whole else None)
+        scene.pop(j)
+
+
+def _ends(o: SceneObject) -> tuple | None:
+    """`o`'s first and last verified pairs' (index, time s, distance m, velocity m/s,
+    acceleration m/s^2: its velocities' slope over identities.TREND_S from there on,
+    or up to there), as two tuples; None where it holds none."""
+    tr = o.track
+    k = np.flatnonzero(tr.valid)
+    if not k.size:
+        return None
+    t, d, v = identities.pairs_at(tr, k[[0, -1]])
+    first = k[tr.time_s[k] <= t[0] + identities.TREND_S]
+    start = centred_slope(tr.time_s[first], tr.velocity_mps[first])[0] if first.size >= 3 else 0.0
+    end = identities._trend(tr, k[[-1]])[0]
+    return (int(k[0]), t[0], d[0], v[0], start), (int(k[-1]), t[-1], d[-1], v[-1], end)
+
+
+def _goes_on(a: tuple, z: tuple) -> bool:
+    """Whether a moving body last seen at `a` (index, t, d, v, acc) is the moving one
+    first seen at `z`: later within GAP_S, in motion the same way at both (a rail
+    slowing to +0.90 m/s is not a glide setting off from beside it at -0.71 m/s 7.3 ms
+    later, although a body can turn so: movers.py seed 3, capture 26, 757 valid pairs
+    of the rail joined to the glide), one body's motion across (along._one_body)."""
+    dt = z[1] - a[1]
+    return bool(z[0] > a[0] and 0 < dt <= GAP_S and min(abs(a[3]), abs(z[3])) >= MOVING_MPS
+                and a[3] * z[3] > 0 and along._one_body(a[1:4], z[1:4]))
+
+
+def _rests(end: tuple, rest_m: float, dt: float) -> bool:
+    """Whether a body in motion at `end` (index, t, d, v, acc; its acceleration taken
+    against its motion: a mover's last pair, or a set-off's first with time reversed)
+    comes to rest at `rest_m` (m) within `dt` (s): braking, the rest ahead of it within
+    REST_M or REST_SHARE of where its braking ends it (a glide's braking eases as it
+    comes to rest: 8.0 and 10.0 mm forecast, 10.1 and 11.7 mm), in time at the least
+    braking that stops it there (2 s / |v|)."""
+    v, acc = end[3], end[4]
+    ahead = (rest_m - end[2]) * np.sign(v)
+    if abs(v) < MOVING_MPS or acc * v > -BRAKE_MPS2 * abs(v) or ahead <= 0 or not 0 < dt <= REST_GAP_S:
+        return False
+    stop = v * v / (2.0 * abs(acc))
+    return bool(abs(ahead - stop) <= max(REST_M, REST_SHARE * stop) and 2.0 * ahead / abs(v) <= dt)
+
+
+def _joins(scene: list[SceneObject], ends: list) -> list[tuple[float, int, int]]:
+    """(cost, i, j): object i's last verified pair goes on as object j's first (a
+    mover's as a mover's, `_goes_on`; a mover's as its rest, or a rest's as the mover
+    that set off from it, `_rests`)."""
+    out = []
+    for i, e in enumerate(ends):
+        for j, f in enumerate(ends):
+            if i == j or e is None or f is None or f[0][0] <= e[1][0]:
+                continue
+            a, z, dt = e[1], f[0], f[0][1] - e[1][1]
+            mi, mj = scene[i].moving, scene[j].moving
+            if mi and mj:
+                ok = _goes_on(a, z)
+            elif mi:
+                ok = _rests(a, _still_at(scene[j]), dt)
+            elif mj:        # time reversed: set off from rest is a rest come to backwards
+                ok = _rests((z[0], -z[1], z[2], -z[3], z[4]), _still_at(scene[i]), dt)
+            else:
+                ok = False
+            if ok:
+                out.append((float(identities._costs(*a[1:4], *z[1:4])), i, j))
+    return out
+
+
+def _still_at(o: SceneObject) -> float:
+    """A fixed object's distance (m): its verified pairs' median."""
+    return float(np.median(o.track.distance_m[o.track.valid]))
+
+
+def _contested(scene: list[SceneObject], ends: list, joins: list, i: int, j: int) -> bool:
+    """Whether another object could be i's or j's other part instead: another join of
+    either; between movers, another object's verified pairs from i's end to j's start
+    within objects.GATE_M of the course between them (the trapezoid of their
+    velocities) at a velocity as alike as one body's (objects.alike); at a rest,
+    another object's verified pairs within objects.GATE_M of it before it came to rest
+    (a wall there all along; the other foot at rest where one landed) or after it set
+    off."""
+    if any((p == i) != (q == j) for _, p, q in joins if (p == i) or (q == j)):
+        return True
+    (_, ta, da, va, _), (_, tb, _, vb, _) = ends[i][1], ends[j][0]
+    if not (scene[i].moving and scene[j].moving):
+        rest = j if scene[i].moving else i
+        at = _still_at(scene[rest])
+        for k, o in enumerate(scene):
+            tr = o.track
+            when = tr.time_s < tb if rest == j else tr.time_s > ta
+            if k not in (i, j) and np.any(tr.valid & when & (np.abs(tr.distance_m - at) <= objects.GATE_M)):
+                return True
+        return False
+    for k, o in enumerate(scene):
+        if k in (i, j):
+            continue
+        tr = o.track
+        at = tr.valid & (tr.time_s >= ta) & (tr.time_s <= tb)
+        if not at.any():
+            continue
+        u = (tr.time_s[at] - ta) / (tb - ta)
+        course = da + (tb - ta) * u * (va + 0.5 * u * (vb - va))
+        v = va + u * (vb - va)
+        if np.any((np.abs(tr.distance_m[at] - course) <= objects.GATE_M)
+                  & objects.alike(0.0, v, tr.velocity_mps[at])):
+            return True
+    return False
