@@ -26,6 +26,7 @@ from . import (
     objects,
     rests,
     target,
+    unheld_movers,
 )
 from .capture import Capture
 from .conversions import Converted, First
@@ -65,17 +66,25 @@ def objects_of(cap: Capture, first: First, choice: target.Choice, own: Converted
             # without the de-chirp (the paper's method) a mover's peaks smear over centimetres
             # and pass between bodies within one: the test is the de-chirped tracker's
             bodies, body = _bodies(own.track, moving) if options.dechirp else (1, own.track)
-            if body is own.track and bodies < 2:
+            # a mover its tracker never held, which the velocity bank saw (none on the paper's method)
+            bare = unheld_movers.unheld(first, [own.track], own.choice.band_m) if options.dechirp else None
+            if body is own.track and bodies < 2 and bare is None:
                 return [objects.SceneObject(1, moving, own.track, "the target: no other echo")], 0, own
-            if bodies < 2:                  # another echo held briefly: its pairs ambiguous
+            if bodies < 2 and bare is None:     # another echo held briefly: its pairs ambiguous
                 return ([objects.SceneObject(1, moving, body, "the target: another echo held at once "
                                              "is ambiguous")], 0, replace(own, track=body, whole=own.track))
             # one candidate, two bodies or more: its parts are the objects, as two
             # candidates' are, its tuning and its rest still the conversion's (`whole`)
-            found = [objects.SceneObject(0, moving, own.track, f"{own.choice.note}: two bodies or more")]
+            found = [objects.SceneObject(0, moving, own.track if bodies >= 2 else body,
+                                         f"{own.choice.note}: two bodies or more" if bodies >= 2
+                                         else own.choice.note)]
             def courses(scene: list[objects.SceneObject]) -> list[objects.SceneObject]:
-                return along.objects_along(cap, first, [own] * len(scene), scene, processor, seconds,
-                                           progress)
+                # the bank's bodies that go on as none of the parts told apart
+                bare = unheld_movers.unheld(first, [o.track for o in scene if o.track.valid.any()],
+                                            own.choice.band_m) if options.dechirp else None
+                scene = scene + ([bare] if bare else [])
+                out = along.objects_along(cap, first, [own] * len(scene), scene, processor, seconds, progress)
+                return unheld_movers.without_twin(out) if bare else out
 
             return _told_apart(found, [own], own, options, True, lone=True, courses=courses)
         # the target's conversion stands for the candidate it holds, unless it held two echoes

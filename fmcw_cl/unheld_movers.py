@@ -1,0 +1,62 @@
+"""A mover that shares a lone candidate's band but that no tracker held.
+
+Two movers within one moving span are one candidate (fmcw_cl.objects): its tracker
+follows one echo at a time, and a weaker mover it never held leaves no part to tell
+apart (a hand 3.3 dB under the jump at -1.5 to -2 m/s across it: one object, the hand
+in none of its periods). A mover faster than about 1 m/s leaves no plain peak, but the
+velocity bank (fmcw_cl.fast_echoes) sees it: its bodies that lie on no verified pair
+of the candidate's (along._untracked) are an object of their own, holding no pair yet,
+converted along their course once the identities are told, as a candidate no tracker
+held is (along.converted_along).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import along, objects
+from .conversions import First
+from .stages import faults
+from .track import Track
+
+
+def unheld(first: First, held: list[Track], band_m: tuple[float, float | None]) -> objects.SceneObject | None:
+    """A moving object holding no pair (`bare`) where the velocity bank's bodies of the
+    first conversion in `band_m` (m) lie on none of the `held` tracks, clear of them
+    (along._clear), and go on as none of them (along.continuing: a glide's own body
+    beyond its part's end, which its course then took, made a second object of it and
+    the crossing check left both `ambiguous` there: 96 -> 28 % of its periods,
+    movers.py seed 1, capture 16); else None."""
+    fast = [b for b in along.fast_bodies_of(first) if along._clear(b[0], b[1], held)]
+    taken = [c[0] for c in along.continuing(list(held), along.bodies_of(first) + fast, held) if c is not None]
+    if taken:
+        fast = [b for b in fast if np.mean(np.isin(b[0], np.concatenate(taken))) < 0.5]
+    if not held or along._untracked(fast, held, band_m) is None:
+        return None
+    return objects.SceneObject(0, True, bare(held[0]), "a mover no tracker held: the velocity bank's bodies")
+
+
+def without_twin(scene: list[objects.SceneObject]) -> list[objects.SceneObject]:
+    """`scene` without its last object (the bare one, once converted along its course)
+    where it holds no pair, or follows one echo with another (objects.same): a mover's
+    part whose course the bank's bodies before it carried on too (a glide's 123 pairs,
+    1871 along its course, 1123 of them on the bare object: the crossing check left both
+    `ambiguous` there, 57 -> 22 % of its periods; movers.py seed 1, capture 1)."""
+    *rest, last = scene
+    twin = any(objects.same(last.track, o.track) for o in rest)
+    return rest if twin or not last.track.valid.any() else scene
+
+
+def bare(track: Track) -> Track:
+    """A copy of `track` holding no pair: each one `no_echo`, without a value."""
+    out = objects.invalidated(track, track.valid, faults.NO_ECHO)
+    for name in ("distance_m", "velocity_mps", "acceleration_mps2", "distance_uncertainty_m",
+                 "velocity_uncertainty_mps", "acceleration_uncertainty_mps2"):
+        if getattr(out, name) is not None:
+            setattr(out, name, np.full(out.pairs, np.nan))
+    out.reason = np.full(out.pairs, faults.NO_ECHO, np.uint8)
+    if out.sweep_reason is not None:
+        out.sweep_reason = np.full(out.sweep_reason.size, faults.NO_ECHO, out.sweep_reason.dtype)
+    objects.no_displacement(out)
+    objects.recount(out)
+    return out
