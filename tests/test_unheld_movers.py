@@ -28,9 +28,9 @@ def test_a_bare_object_holds_no_pair(jump_track):
 
 
 def test_a_bare_object_that_took_a_held_movers_echo_is_dropped(jump_track):
-    """Converted along its course, a bare object that follows one echo with another
-    object (objects.same) is that object's twin, and one that gained no pair is none:
-    dropped, the others kept as they are."""
+    """Converted along its course, a bare object whose pairs lie within 10 mm of another
+    object's is that object's twin, and one that gained no pair is none: dropped, the
+    others kept as they are; 20 mm off, it stays."""
     track = read_track(jump_track)
     other = SceneObject(0, True, track, "the jump")
     twin = SceneObject(0, True, replace(track, attrs=dict(track.attrs)), "a mover no tracker held")
