@@ -18,7 +18,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from . import conversions, fixed_echoes, heap, objects, rest_calibration, scene, target
+from . import conversions, fixed_echoes, heap, lone_bodies, objects, rest_calibration, scene, target
 from .assemble import assemble
 from .band import echo_outside
 from .capture import Capture
@@ -106,7 +106,7 @@ def process(path, options: Options | None = None, processor: ChunkProcessor | No
                 track = calibrated_on_rest(cap, plan, whole, processor, choice, started, progress)
                 # its pairs may still be two movers' (a glide through a swaying object, the
                 # tracker passing 39 mm between them in 0.2 ms: 259 valid pairs on the glide)
-                track = scene.one_body(track, bool(choice.moving))
+                track = lone_bodies.one_body(track, bool(choice.moving))
                 found, pick = [objects.SceneObject(1, bool(choice.moving), track, "the target: objects not "
                                                    "sought on a chirp calibrated on its rest")], 0
             track = with_objects(found, pick)

@@ -66,6 +66,9 @@ RUN_M = 3e-3             # a part of a mover that runs this far as its velocitie
 STILL_ATTR = "still_echoes_removed_s"   # a track's attribute: its rows' running mean's span (s; 0: none)
 MAX_OBJECTS = 8          # candidates converted at most (the nearest first)
 KINDS = ("fixed", "moving")
+# a pair's values, NaN where it is not valid
+VALUES = ("distance_m", "velocity_mps", "acceleration_mps2", "distance_uncertainty_m",
+          "velocity_uncertainty_mps", "acceleration_uncertainty_mps2")
 
 
 @dataclass(frozen=True)
@@ -359,8 +362,7 @@ def invalidate(t: Track, where: np.ndarray, code: int = faults.AMBIGUOUS) -> Non
     t.valid = t.valid & ~hit
     for name in ("velocity_valid", "acceleration_valid"):
         setattr(t, name, getattr(t, name) & ~hit)
-    for name in ("distance_m", "velocity_mps", "acceleration_mps2", "distance_uncertainty_m",
-                 "velocity_uncertainty_mps", "acceleration_uncertainty_mps2"):
+    for name in VALUES:
         x = getattr(t, name)
         if x is not None:
             setattr(t, name, np.where(hit, np.nan, x))

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import replace
+from functools import cache
 
 import numpy as np
 
@@ -21,6 +22,7 @@ from . import (
     fast_echoes,
     fixed_echoes,
     identities,
+    lone_bodies,
     meeting,
     moving_echoes,
     objects,
@@ -30,13 +32,9 @@ from . import (
 )
 from .capture import Capture
 from .conversions import Converted, First
-from .handovers import Asked
 from .processor import ChunkMeasurements, ChunkProcessor
 from .stages import faults, phase
 from .track import Track
-
-# a part of a track this many verified pairs long (2 ms: fixed_echoes.TOGETHER_S) is a body's
-BODY_PAIRS = 40
 
 
 def objects_of(cap: Capture, first: First, choice: target.Choice, own: Converted, processor: ChunkProcessor,
@@ -62,31 +60,7 @@ def objects_of(cap: Capture, first: First, choice: target.Choice, own: Converted
     for _ in range(2):                   # once more where a tracker still held two echoes
         cands = objects.candidates(first.fixed, sorted(spans + extra), choice, band)
         if len(cands) <= 1 and not extra and not two:
-            moving = bool(choice.moving)
-            # without the de-chirp (the paper's method) a mover's peaks smear over centimetres
-            # and pass between bodies within one: the test is the de-chirped tracker's
-            bodies, body = _bodies(own.track, moving) if options.dechirp else (1, own.track)
-            # a mover its tracker never held, which the velocity bank saw (none on the paper's method)
-            bare = unheld_movers.unheld(first, [own.track], own.choice.band_m) if options.dechirp else None
-            if body is own.track and bodies < 2 and bare is None:
-                return [objects.SceneObject(1, moving, own.track, "the target: no other echo")], 0, own
-            if bodies < 2 and bare is None:     # another echo held briefly: its pairs ambiguous
-                return ([objects.SceneObject(1, moving, body, "the target: another echo held at once "
-                                             "is ambiguous")], 0, replace(own, track=body, whole=own.track))
-            # one candidate, two bodies or more: its parts are the objects, as two
-            # candidates' are, its tuning and its rest still the conversion's (`whole`)
-            found = [objects.SceneObject(0, moving, own.track if bodies >= 2 else body,
-                                         f"{own.choice.note}: two bodies or more" if bodies >= 2
-                                         else own.choice.note)]
-            def courses(scene: list[objects.SceneObject]) -> list[objects.SceneObject]:
-                # the bank's bodies that go on as none of the parts told apart
-                bare = unheld_movers.unheld(first, [o.track for o in scene if o.track.valid.any()],
-                                            own.choice.band_m) if options.dechirp else None
-                scene = scene + ([bare] if bare else [])
-                out = along.objects_along(cap, first, [own] * len(scene), scene, processor, seconds, progress)
-                return unheld_movers.without_twin(out) if bare else out
-
-            return _told_apart(found, [own], own, options, True, lone=True, courses=courses)
+            return _lone(cap, first, own, bool(choice.moving), processor, seconds, progress)
         # the target's conversion stands for the candidate it holds, unless it held two echoes
         share = [objects.holds(own.track, c) for c in cands]
         held = int(np.argmax(share)) if share and max(share) >= 0.5 and not two else None
@@ -127,6 +101,43 @@ def objects_of(cap: Capture, first: First, choice: target.Choice, own: Converted
                                    found=lines)
 
     return _told_apart(found, done, own, options, several, courses=lined)
+
+
+def _lone(cap: Capture, first: First, own: Converted, moving: bool, processor: ChunkProcessor,
+          seconds: Callable[[], float], progress) -> tuple[list[objects.SceneObject], int, Converted]:
+    """`objects_of` where the tables show one candidate, held by `own`: one object, or its
+    parts where its tracker held two bodies or more (lone_bodies), or a mover its tracker
+    never held (unheld_movers) beside it."""
+    options = first.plan.options
+    # without the de-chirp (the paper's method) a mover's peaks smear over centimetres
+    # and pass between bodies within one: the test is the de-chirped tracker's
+    bodies, body = lone_bodies.count(own.track, moving) if options.dechirp else (1, own.track)
+    # a mover its tracker never held, which the velocity bank saw (none on the paper's
+    # method); the echo table's bodies (a loop in Python, 0.1-0.4 s) sought once, if asked
+    fast, plain = along.fast_bodies_of(first), cache(lambda: along.bodies_of(first))
+    bare = unheld_movers.unheld(fast, plain, [own.track], own.choice.band_m) if options.dechirp else None
+    if body is own.track and bodies < 2 and bare is None:
+        return [objects.SceneObject(1, moving, own.track, "the target: no other echo")], 0, own
+    if bodies < 2 and bare is None:     # another echo held briefly: its pairs ambiguous
+        return ([objects.SceneObject(1, moving, body, "the target: another echo held at once "
+                                     "is ambiguous")], 0, replace(own, track=body, whole=own.track))
+    # one candidate, two bodies or more: its parts are the objects, as two
+    # candidates' are, its tuning and its rest still the conversion's (`whole`)
+    found = [objects.SceneObject(0, moving, own.track if bodies >= 2 else body,
+                                 f"{own.choice.note}: two bodies or more" if bodies >= 2
+                                 else own.choice.note)]
+
+    def courses(scene: list[objects.SceneObject]) -> list[objects.SceneObject]:
+        # the bank's bodies that go on as none of the parts told apart
+        bare = unheld_movers.unheld(fast, plain, [o.track for o in scene if o.track.valid.any()],
+                                    own.choice.band_m) if options.dechirp else None
+        scene = scene + ([bare] if bare else [])
+        held = any(o.moving and o.track.valid.any() for o in scene)    # as converted_along asks
+        out = along.objects_along(cap, first, [own] * len(scene), scene, processor, seconds, progress,
+                                  found=plain() + fast if held else [])
+        return unheld_movers.without_twin(out) if bare else out
+
+    return _told_apart(found, [own], own, options, True, lone=True, courses=courses)
 
 
 def _told_apart(found: list[objects.SceneObject], done: list[Converted], own: Converted, options,
@@ -236,52 +247,6 @@ def _taken(o: objects.SceneObject, clash: np.ndarray, two: np.ndarray,
         return [replace(o, track=track)]
     whole = replace(o, track=track, whole=o.track if o.whole is None else o.whole)
     return identities.split(whole, parts, "it held two bodies between its parts")
-
-
-def one_body(track: Track, moving: bool) -> Track:
-    """`track`, the one object of its scene, where one body can have made its verified
-    pairs; else (they make BODY_PAIRS or more of two bodies or more, identities.parted
-    and .rejoined: two movers whose spans overlap in range, the tracker passing from one
-    to the other where they come near) a copy with all of them `ambiguous`. Two sways
-    crossing in one span, one object: 1167 valid pairs on the other sway; a hand moved
-    down through a jump's path: 2109. Beside one body, parts its tracker passed onto at
-    once are another echo's (`_passed_onto`)."""
-    bodies, body = _bodies(track, moving)
-    if bodies < 2:
-        return body
-    out = objects.invalidated(track, track.valid.copy())
-    out.attrs["target_choice"] = (f"{track.attrs.get('target_choice', '')}: its verified pairs are two "
-                                  "bodies or more (no one body moves between them): cannot be told apart")
-    return out
-
-
-def _bodies(track: Track, moving: bool) -> tuple[int, Track]:
-    """How many parts of BODY_PAIRS verified pairs or more `track` holds, one body's
-    each (identities.parted and .rejoined), and beside one such, `track` with the parts
-    its tracker passed onto at once `ambiguous` (`_passed_onto`)."""
-    asked = Asked()             # the track's handovers read once for both
-    parts = identities.rejoined(identities.parted([objects.SceneObject(1, moving, track, "")], asked=asked),
-                                asked=asked)
-    big = [int(p.track.valid.sum()) >= BODY_PAIRS for p in parts]
-    if sum(big) != 1:
-        return sum(big), track
-    return 1, _passed_onto(track, [p.track for p, b in zip(parts, big, strict=True) if not b], asked(track))
-
-
-def _passed_onto(track: Track, small: list[Track], handed: tuple[np.ndarray, np.ndarray]) -> Track:
-    """`track` with the verified pairs of its `small` parts (beside one of BODY_PAIRS or
-    more) `ambiguous` where the tracker passed onto such a part or off it at once
-    (`handed`: the handovers' times before and after): another echo's, there while the
-    body was elsewhere. Two legs landing 5 mm apart: the tracker left the one for the
-    other for 2 ms and came back, 39 valid pairs of the other (movers.py seed 20,
-    capture 30)."""
-    before, after = handed
-    taken = np.zeros(track.pairs, bool)
-    for p in small:
-        t = p.time_s[p.valid]
-        if t.size and (np.isin(t[0], after) or np.isin(t[-1], before)):
-            taken |= p.valid
-    return objects.invalidated(track, taken) if taken.any() else track
 
 
 def _same_echo(a: Track, b: Track) -> int:

@@ -12,25 +12,29 @@ held is (along.converted_along).
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from . import along, objects
-from .conversions import First
 from .stages import faults
 from .track import Track
 
 
-def unheld(first: First, held: list[Track], band_m: tuple[float, float | None]) -> objects.SceneObject | None:
-    """A moving object holding no pair (`bare`) where the velocity bank's bodies of the
-    first conversion in `band_m` (m) lie on none of the `held` tracks, clear of them
-    (along._clear), and go on as none of them (along.continuing: a glide's own body
-    beyond its part's end, which its course then took, made a second object of it and
-    the crossing check left both `ambiguous` there: 96 -> 28 % of its periods,
-    movers.py seed 1, capture 16); else None."""
-    fast = [b for b in along.fast_bodies_of(first) if along._clear(b[0], b[1], held)] if held else []
+def unheld(fast: list[tuple[np.ndarray, np.ndarray, np.ndarray]],
+           plain: Callable[[], list[tuple[np.ndarray, np.ndarray, np.ndarray]]], held: list[Track],
+           band_m: tuple[float, float | None]) -> objects.SceneObject | None:
+    """A moving object holding no pair (`bare`) where the velocity bank's bodies `fast`
+    (along.fast_bodies_of) in `band_m` (m) lie on none of the `held` tracks, clear of
+    them (along._clear), and go on as none of them (along.continuing, with the echo
+    table's bodies `plain()`, along.bodies_of: a glide's own body beyond its part's end,
+    which its course then took, made a second object of it and the crossing check left
+    both `ambiguous` there: 96 -> 28 % of its periods, movers.py seed 1, capture 16);
+    else None."""
+    fast = [b for b in fast if along._clear(b[0], b[1], held)] if held else []
     if not fast:            # the common case: the echo table's bodies (a loop in Python) not sought
         return None
-    taken = [c[0] for c in along.continuing(list(held), along.bodies_of(first) + fast, held) if c is not None]
+    taken = [c[0] for c in along.continuing(list(held), plain() + fast, held) if c is not None]
     if taken:
         fast = [b for b in fast if np.mean(np.isin(b[0], np.concatenate(taken))) < 0.5]
     if along._untracked(fast, held, band_m) is None:
@@ -58,8 +62,7 @@ def without_twin(scene: list[objects.SceneObject]) -> list[objects.SceneObject]:
 def bare(track: Track) -> Track:
     """A copy of `track` holding no pair: each one `no_echo`, without a value."""
     out = objects.invalidated(track, track.valid, faults.NO_ECHO)
-    for name in ("distance_m", "velocity_mps", "acceleration_mps2", "distance_uncertainty_m",
-                 "velocity_uncertainty_mps", "acceleration_uncertainty_mps2"):
+    for name in objects.VALUES:
         if getattr(out, name) is not None:
             setattr(out, name, np.full(out.pairs, np.nan))
     out.reason = np.full(out.pairs, faults.NO_ECHO, np.uint8)

@@ -216,7 +216,7 @@ def test_a_lab_jump_far_from_its_table_finds_its_rest_in_sparse_pairs(tmp_path, 
 def test_a_rest_calibration_reads_the_whole_conversion_of_one_candidate(tmp_path):
     """The jump under 5 us of lag, seed 162: with the static table its bent distances
     pass from one body to another where no body moves, so the scene's one candidate is
-    two bodies and its pairs `ambiguous` (scene.one_body). The tuning check and the
+    two bodies and its pairs `ambiguous` (lone_bodies.one_body). The tuning check and the
     rest calibration still read the whole conversion: calibrated, every pair is valid
     (read on the ambiguous copy, no rest was found and none was valid)."""
     path = tmp_path / "lag5_162.h5"

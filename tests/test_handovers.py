@@ -213,8 +213,8 @@ def test_a_lone_tracks_brief_pass_onto_another_echo_is_ambiguous(seed):
     """movers.py seed 20, capture 30: two legs landing 5 mm apart, one object; its
     tracker left the one for the other for 39 pairs and came back. Those pairs are
     another echo's (`ambiguous`), the body's stay; held for BODY_PAIRS or more, the
-    track holds two bodies, every pair ambiguous (scene.one_body)."""
-    from fmcw_cl import scene
+    track holds two bodies, every pair ambiguous (lone_bodies.one_body)."""
+    from fmcw_cl import lone_bodies
 
     k = np.arange(N)
     body = 0.0765 - 0.14 * T
@@ -224,7 +224,7 @@ def test_a_lone_tracks_brief_pass_onto_another_echo_is_ambiguous(seed):
         velocity = np.where(other, -0.3, -0.14)
         valid = (k != 599) & (k != 600 + flip)           # the pairs at the steps unverified
         track = _track(path, velocity, valid, seed)
-        out = scene.one_body(track, True)
+        out = lone_bodies.one_body(track, True)
         assert int(out.valid.sum()) == left
         assert not out.valid[other].any() and np.all(out.reason[other & valid] == faults.AMBIGUOUS)
 

@@ -976,7 +976,7 @@ def test_two_movers_in_one_span_are_its_parts_not_one_track(scenes, name, seed):
     """Two movers whose spans overlap in range are one moving echo of the tables, one
     candidate: the tracker passes from one to the other where they come near, and its
     one object held both (1167 and 2109 valid pairs on the other). Its verified pairs
-    are then two bodies or more (scene.one_body): its parts are the objects, told apart
+    are then two bodies or more (lone_bodies.one_body): its parts are the objects, told apart
     as two candidates' are (identities.untangled; all `ambiguous` before), each mover
     held by one at least, none holding a pair of the other."""
     track, truths = scenes(name, seed)
