@@ -28,7 +28,7 @@ from . import conversions, fast_echoes, moving_echoes, numeric, objects
 from .capture import Capture
 from .chunks import capture_parts
 from .conversions import Converted, First
-from .course import Course
+from .course import Course, lanes, merged
 from .processor import ChunkProcessor
 from .stages import bank
 from .stages.spectrum import GUARD_BINS
@@ -148,7 +148,7 @@ def converted_along(cap: Capture, first: First, done: list[Converted], moving: l
     its own kind of rows (Plan.still_half), and joined with the runs of RUN_PAIRS or
     more verified pairs that gives where its track had none. `packed` (one
     conversion's plan and choice for all): movers whose courses are known at other
-    times share a conversion (`_lanes`), each pair in the course known there. `lined`:
+    times share a conversion (course.lanes), each pair in the course known there. `lined`:
     only the movers that lines go on as. `found`: the table's bodies (`bodies_of`,
     with `fast_bodies_of`), where already known. A mover that no tracker held (no
     verified pair) is converted along the course of the velocity bank's bodies its band
@@ -180,9 +180,10 @@ def converted_along(cap: Capture, first: First, done: list[Converted], moving: l
         if conversions.searchable(replace(d.plan.with_band(user), course=got[0]), user):
             wanted.append((i, others, got))
     out = list(done)
-    for lane in _lanes([got[1] for _, _, got in wanted]) if packed else [[k] for k in range(len(wanted))]:
+    one_each = [[k] for k in range(len(wanted))]
+    for lane in lanes([got[1] for _, _, got in wanted], RUN_PAIRS) if packed else one_each:
         d = done[wanted[lane[0]][0]]
-        plan = replace(d.plan.with_band(user), course=_merged([wanted[k][2] for k in lane]))
+        plan = replace(d.plan.with_band(user), course=merged([wanted[k][2][:2] for k in lane]))
         parts = capture_parts(cap, plan, processor, progress=progress)
         # one object's course: the moving spans the target's rule could not choose among
         # (Choice.ambiguous_spans_m) are not its to avoid; the others' paths are cut (`_apart`)
@@ -269,8 +270,7 @@ def _going_on(mine: list[tuple[np.ndarray, np.ndarray, np.ndarray]],
         # (gap s, miss m) of each body seen again before the first or after the last
         keys = [(np.inf, np.inf)] * len(pool)
         for n, b in enumerate(pool):
-            a, z = ((b[0][-1], b[1][-1], b[2][-1]), first) if b[0][-1] < first[0] else (
-                (last, (b[0][0], b[1][0], b[2][0])) if b[0][0] > last[0] else (None, None))
+            a, z = _across(b, first, last)
             if a is not None and (_one_body(a, z) if ends else objects.seen_again(*a, *z)):
                 keys[n] = (z[0] - a[0], abs(z[1] - a[1] - 0.5 * (a[2] + z[2]) * (z[0] - a[0])))
         n = min(range(len(pool)), key=lambda n: keys[n])        # the nearest in time, then in place
@@ -278,6 +278,23 @@ def _going_on(mine: list[tuple[np.ndarray, np.ndarray, np.ndarray]],
             break
         got.append(pool.pop(n))
     return got
+
+
+def _across(b: tuple[np.ndarray, np.ndarray, np.ndarray], first: tuple, last: tuple) -> tuple:
+    """The points (t s, d m, v m/s) either side of the gap between the body `b` and the
+    `first` point of what it may go on as, or its `last`: `b`'s last before `first`, or
+    its first after `last`; (None, None) where it lies on neither side. A body reaching
+    past the end by less than MATCH_S (too briefly to lie on it, `continuing`) counts
+    from its points beyond it (a rail's first 25 ms, its body 0.6 ms past the first
+    verified pair: movers.py seed 3, capture 11)."""
+    t = b[0]
+    if t[0] < first[0] and t[-1] < first[0] + MATCH_S:
+        k = int(np.searchsorted(t, first[0])) - 1
+        return (t[k], b[1][k], b[2][k]), first
+    if t[-1] > last[0] and t[0] > last[0] - MATCH_S:
+        k = int(np.searchsorted(t, last[0], "right"))
+        return last, (t[k], b[1][k], b[2][k])
+    return None, None
 
 
 def continuing(tracks: list[Track | None], found: list[tuple[np.ndarray, np.ndarray, np.ndarray]],
@@ -363,36 +380,6 @@ def _clear(grid: np.ndarray, at: np.ndarray, others: list[Track]) -> bool:
         i = numeric.nearest(t_ok, grid)
         on |= (np.abs(t_ok[i] - grid) <= GAP_S) & (np.abs(at - d_ok[i]) <= objects.GATE_M)
     return bool(on.mean() < 0.5)
-
-
-def _lanes(known: list[np.ndarray]) -> list[list[int]]:
-    """The courses (their `known` pairs) in lanes, each a conversion: a course joins the
-    first lane none of whose courses is known within RUN_PAIRS pairs of its own, the
-    earliest known first."""
-    wide = [np.convolve(k, np.ones(2 * RUN_PAIRS + 1), "same") > 0 for k in known]
-    lanes: list[list[int]] = []
-    used: list[np.ndarray] = []
-    for k in sorted(range(len(known)), key=lambda k: int(np.argmax(known[k]))):
-        free = next((n for n, u in enumerate(used) if not (u & known[k]).any()), None)
-        if free is None:
-            lanes.append([k])
-            used.append(wide[k].copy())
-        else:
-            lanes[free].append(k)
-            used[free] |= wide[k]
-    return lanes
-
-
-def _merged(got: list[tuple]) -> Course:
-    """One course of courses (`course_of`'s) known at other times: each pair's band the
-    course's known there, else the first's (the candidate's own band)."""
-    course, known, _ = got[0]
-    lo, hi = course.lo_m.copy(), course.hi_m.copy()
-    v = np.zeros(course.t_s.size) if course.v_mps is None else course.v_mps.copy()
-    for c, k, _ in got[1:]:
-        lo[:, k], hi[:, k] = c.lo_m[:, k], c.hi_m[:, k]
-        v[k] = 0.0 if c.v_mps is None else c.v_mps[k]
-    return Course(course.t_s, lo, hi, v if v.any() else None)
 
 
 def objects_along(cap: Capture, first: First, own: list[Converted], scene: list[objects.SceneObject],

@@ -72,3 +72,33 @@ def searched(search: Search, course: Course | None, t_rise: np.ndarray, t_fall: 
         return search
     return replace(search, bands=course.bands(t_rise, t_fall, search, metres_per_bin),
                    velocity=course.velocities(0.5 * (np.asarray(t_rise) + np.asarray(t_fall))))
+
+
+def lanes(known: list[np.ndarray], apart: int) -> list[list[int]]:
+    """The courses (their `known` pairs, bool per pair) in lanes, each a conversion: a
+    course joins the first lane none of whose courses is known within `apart` pairs of
+    its own, the earliest known first."""
+    wide = [np.convolve(k, np.ones(2 * apart + 1), "same") > 0 for k in known]
+    out: list[list[int]] = []
+    used: list[np.ndarray] = []
+    for k in sorted(range(len(known)), key=lambda k: int(np.argmax(known[k]))):
+        free = next((n for n, u in enumerate(used) if not (u & known[k]).any()), None)
+        if free is None:
+            out.append([k])
+            used.append(wide[k].copy())
+        else:
+            out[free].append(k)
+            used[free] |= wide[k]
+    return out
+
+
+def merged(got: list[tuple[Course, np.ndarray]]) -> Course:
+    """One course of courses known (bool per pair) at other times: each pair's band the
+    course's known there, else the first's (the candidate's own band)."""
+    course, _ = got[0]
+    lo, hi = course.lo_m.copy(), course.hi_m.copy()
+    v = np.zeros(course.t_s.size) if course.v_mps is None else course.v_mps.copy()
+    for c, k in got[1:]:
+        lo[:, k], hi[:, k] = c.lo_m[:, k], c.hi_m[:, k]
+        v[k] = 0.0 if c.v_mps is None else c.v_mps[k]
+    return Course(course.t_s, lo, hi, v if v.any() else None)

@@ -188,7 +188,10 @@ def test_a_few_new_pairs_in_a_crossing_are_not_taken(tmp_path):
     courses each conversion verifies 8 and 56 pairs more, in short stretches of the
     crossing; taken whole, they moved the parts' ends and both tracks were cut (five
     objects, the sway 96 -> 71 %). Only runs of RUN_PAIRS or more join: two objects,
-    as before."""
+    as before. The glide's body reaching 0.6 ms past its first verified pair goes on as
+    it (along._across): the glide 69 -> 83 %, and the sway's pairs where the glide's
+    plain peak lay on its own (crossings.images, 85-105 mm apart at -3.8 m/s) are
+    `ambiguous`: 96 -> 91 %."""
     from fmcw_cl.simulator.scene import glide, sway
 
     other = glide(0.7, 0.36998028238775066, 0.095481650504221, 0.014858716358975621, 0.15684524038511358)
@@ -197,7 +200,7 @@ def test_a_few_new_pairs_in_a_crossing_are_not_taken(tmp_path):
                                     1.8994280695090804), other, 273.7691724175363, True, 87,        # -5.2 dB
                                0.07406044805341043, 0.19075579581397695)
     best = best_held(scores, 2)
-    assert len(track.objects) == 2 and best[0] >= 0.95 and best[1] >= 0.65, (len(track.objects), best)
+    assert len(track.objects) == 2 and best[0] >= 0.9 and best[1] >= 0.8, (len(track.objects), best)
 
 
 def test_a_mover_goes_on_along_the_echo_tables_line(tmp_path):
@@ -268,18 +271,18 @@ def test_courses_known_at_other_times_share_a_conversion():
     other times, RUN_PAIRS pairs apart at least; each pair's band is the course known
     there, else the candidate's own (two lone captures: the same objects as one
     conversion per mover, 0.76x its process CPU)."""
-    from fmcw_cl.course import Course
+    from fmcw_cl.course import Course, lanes, merged
 
     n, gap = 1000, along.RUN_PAIRS
     spans = [(0, 300), (300 + gap + 1, 600), (200, 500), (600 + gap // 2, 900)]
     known = [np.zeros(n, bool) for _ in spans]
     for k, (a, b) in zip(known, spans, strict=True):
         k[a:b] = True
-    assert along._lanes(known) == [[0, 1], [2, 3]]
+    assert lanes(known, along.RUN_PAIRS) == [[0, 1], [2, 3]]
     t = PERIOD * np.arange(n)
     got = [(Course(t, np.where(k, 0.1 * (j + 1), 0.03) * np.ones((2, 1)), np.where(k, 0.2 * (j + 1), 1e3)
-                   * np.ones((2, 1))), k, None) for j, k in enumerate(known[:2])]
-    merged = along._merged(got)
-    assert np.all(merged.lo_m[:, 100] == 0.1) and np.all(merged.lo_m[:, 400] == 0.2)
-    assert np.all(merged.hi_m[:, 400] == 0.4) and np.all(merged.lo_m[:, 320] == 0.03)
-    assert np.all(merged.hi_m[:, 320] == 1e3)
+                   * np.ones((2, 1))), k) for j, k in enumerate(known[:2])]
+    one = merged(got)
+    assert np.all(one.lo_m[:, 100] == 0.1) and np.all(one.lo_m[:, 400] == 0.2)
+    assert np.all(one.hi_m[:, 400] == 0.4) and np.all(one.lo_m[:, 320] == 0.03)
+    assert np.all(one.hi_m[:, 320] == 1e3)
