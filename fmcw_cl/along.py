@@ -164,7 +164,7 @@ def converted_along(cap: Capture, first: First, done: list[Converted], moving: l
         found = bodies_of(first) + fast_bodies_of(first) if any(mine) else []
     lines = continuing([d.track if w else None for d, w in zip(done, mine, strict=True)], found,
                        [d.track for d in done])
-    if any(bare) and not lined:
+    if any(bare):
         fast = fast_bodies_of(first)
         held = [d.track for d in done if d.track.valid.any()]
         for i in np.flatnonzero(bare):

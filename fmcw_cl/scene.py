@@ -80,14 +80,15 @@ def objects_of(cap: Capture, first: First, choice: target.Choice, own: Converted
     done = _at_rest(cap, done, loose, first, made, processor, seconds, progress)
     done = _distinct(done, first, seconds, processor)
     moving = any(_moving(d) for d in done)
-    plain = along.bodies_of(first) if moving else []
+    table = cache(lambda: along.bodies_of(first))      # the echo table's bodies, sought once
+    plain = table() if moving else []
     done = along.converted_along(cap, first, done, [_moving(d) for d in done], processor, seconds, progress,
                                  found=plain)
     # the velocity bank's bodies carry courses once the identities are told: before, the
     # pairs they gained moved the parts' ends that the joins read (a glide split in two)
     lines = []
     if plain or any(_moving(d) for d in done):
-        lines = (plain if moving else along.bodies_of(first)) + along.fast_bodies_of(first)
+        lines = (plain if moving else table()) + along.fast_bodies_of(first)
     unseen = {(i, j) for i, d in enumerate(done) for j in _unseen(d, done, first)}
     done = _unveiled(done, unseen, seconds, processor)
     done = _exclusive(done, unseen, first, seconds, processor)
@@ -95,12 +96,17 @@ def objects_of(cap: Capture, first: First, choice: target.Choice, own: Converted
     several = sum(o.moving and o.track.valid.any() for o in found) >= 2
     of = {id(d.track): d for d in done}
 
+    wide = replace(own, choice=replace(own.choice, band_m=options.band_m))   # for a mover no tracker held
+
     def lined(scene: list[objects.SceneObject]) -> list[objects.SceneObject]:
-        conv = [of.get(id(o.track if o.whole is None else o.whole), own) for o in scene]
+        conv = [of.get(id(o.track if o.whole is None else o.whole), own if o.track.valid.any() else wide)
+                for o in scene]
         return along.objects_along(cap, first, conv, scene, processor, seconds, progress, lined=True,
                                    found=lines)
 
-    return _told_apart(found, done, own, options, several, courses=lined)
+    fast = along.fast_bodies_of(first) if options.dechirp else []
+    return _told_apart(found, done, own, options, several, courses=lambda scene: unheld_movers.with_unheld(
+        scene, fast, table, options.band_m, lined))
 
 
 def _lone(cap: Capture, first: First, own: Converted, moving: bool, processor: ChunkProcessor,
@@ -114,8 +120,9 @@ def _lone(cap: Capture, first: First, own: Converted, moving: bool, processor: C
     bodies, body = lone_bodies.count(own.track, moving) if options.dechirp else (1, own.track)
     # a mover its tracker never held, which the velocity bank saw (none on the paper's
     # method); the echo table's bodies (a loop in Python, 0.1-0.4 s) sought once, if asked
-    fast, plain = along.fast_bodies_of(first), cache(lambda: along.bodies_of(first))
-    bare = unheld_movers.unheld(fast, plain, [own.track], own.choice.band_m) if options.dechirp else None
+    fast = along.fast_bodies_of(first) if options.dechirp else []
+    plain = cache(lambda: along.bodies_of(first))
+    bare = unheld_movers.unheld(fast, plain, [own.track], own.choice.band_m)
     if body is own.track and bodies < 2 and bare is None:
         return [objects.SceneObject(1, moving, own.track, "the target: no other echo")], 0, own
     if bodies < 2 and bare is None:     # another echo held briefly: its pairs ambiguous
@@ -128,16 +135,12 @@ def _lone(cap: Capture, first: First, own: Converted, moving: bool, processor: C
                                  else own.choice.note)]
 
     def courses(scene: list[objects.SceneObject]) -> list[objects.SceneObject]:
-        # the bank's bodies that go on as none of the parts told apart
-        bare = unheld_movers.unheld(fast, plain, [o.track for o in scene if o.track.valid.any()],
-                                    own.choice.band_m) if options.dechirp else None
-        scene = scene + ([bare] if bare else [])
         held = any(o.moving and o.track.valid.any() for o in scene)    # as converted_along asks
-        out = along.objects_along(cap, first, [own] * len(scene), scene, processor, seconds, progress,
-                                  found=plain() + fast if held else [])
-        return unheld_movers.without_twin(out) if bare else out
+        return along.objects_along(cap, first, [own] * len(scene), scene, processor, seconds, progress,
+                                   found=plain() + fast if held else [])
 
-    return _told_apart(found, [own], own, options, True, lone=True, courses=courses)
+    return _told_apart(found, [own], own, options, True, lone=True, courses=lambda scene: (
+        unheld_movers.with_unheld(scene, fast, plain, own.choice.band_m, courses)))
 
 
 def _told_apart(found: list[objects.SceneObject], done: list[Converted], own: Converted, options,

@@ -42,6 +42,18 @@ def unheld(fast: list[tuple[np.ndarray, np.ndarray, np.ndarray]],
     return objects.SceneObject(0, True, bare(held[0]), "a mover no tracker held: the velocity bank's bodies")
 
 
+def with_unheld(scene: list[objects.SceneObject], fast: list, plain: Callable[[], list],
+                band_m: tuple[float, float | None],
+                convert: Callable[[list[objects.SceneObject]], list[objects.SceneObject]]
+                ) -> list[objects.SceneObject]:
+    """`convert(scene)` (its objects converted along their courses, along.objects_along)
+    with, last, a bare object of the velocity bank's bodies `fast` that go on as none
+    of them (`unheld`; `plain`, `band_m` as there), converted along its course with
+    them, unless it is a twin (`without_twin`)."""
+    bare = unheld(fast, plain, [o.track for o in scene if o.track.valid.any()], band_m)
+    return convert(scene) if bare is None else without_twin(convert(scene + [bare]))
+
+
 def without_twin(scene: list[objects.SceneObject]) -> list[objects.SceneObject]:
     """`scene` without its last object (the bare one, once converted along its course)
     where it holds no pair, or half its verified pairs or more lie within
