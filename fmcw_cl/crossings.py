@@ -124,7 +124,8 @@ def _acceleration(t: np.ndarray, v: np.ndarray, at: np.ndarray) -> np.ndarray:
 
 
 def conflicts(tracks: list[Track], fixed: list[bool] | None = None,
-              unseen: set[tuple[int, int]] = frozenset()) -> list[np.ndarray]:
+              unseen: set[tuple[int, int]] = frozenset(), k: tuple[float, float] | None = None
+              ) -> list[np.ndarray]:
     """For each track, the pairs where another object's path lies within GATE_M of its
     own (`heard`: its ambiguous pairs too): the two echoes cannot be told apart there
     (a wall of 150 codes 5 mm from a rail creeping off: the rail's pairs ambiguous
@@ -134,28 +135,46 @@ def conflicts(tracks: list[Track], fixed: list[bool] | None = None,
     span is ambiguous on both (a cable swaying +-10 mm, a fixed echo of the tables,
     whose band edge cut its near swing: the rail's tracker held that swing once the
     rail had left its band). Not where (i, j) is `unseen`: track i's rows hold nothing
-    of object j (a still one, taken out of a mover's rows: fmcw_cl.scene)."""
+    of object j (a still one, taken out of a mover's rows: fmcw_cl.scene). With the
+    Doppler factors `k` (m per m/s, rising and falling), a fixed object and a mover
+    that passes it so fast that their peaks lie more than GATE_M apart in each
+    direction (the distance + k v: a spectrum de-chirped at any velocity shifts both
+    alike) are told apart (a hand at -1.1 m/s passing a foot at rest: its peaks 30 mm
+    either side of the foot's; movers.py seed 3, capture 12, the foot 360 pairs
+    `ambiguous`); where one direction's peaks meet elsewhere, the images' rule judges.
+    Not two movers: a glide at +3.5 m/s and a sway at -1.3 m/s 1-2 mm apart left a
+    blend 2.1 mm off the glide however far apart their peaks (`passing`; movers.py seed
+    2, capture 29: 6 valid pairs off their object)."""
     fixed = fixed or [False] * len(tracks)
     own = [path(t) for t in tracks]
     paths = [p if f else heard(t) for t, p, f in zip(tracks, own, fixed, strict=True)]
+    speeds = [course(t)[1] for t in tracks]
     out = [np.zeros(t.pairs, bool) for t in tracks]
     for i in range(len(tracks)):
         for j in range(i + 1, len(tracks)):
             close = np.abs(paths[i] - paths[j]) <= GATE_M      # NaN: False
+            if k is not None and (fixed[i] or fixed[j]):    # a velocity not known (NaN): not apart
+                gap, dv = paths[i] - paths[j], speeds[i] - speeds[j]
+                close &= ~((np.abs(gap + k[0] * dv) > GATE_M) & (np.abs(gap + k[1] * dv) > GATE_M))
             # an ambiguous pair's peaks where the other's own verified pair lies: that
             # echo seen by a second tracker, not a second echo beside it
             echo = np.isnan(own[i]) ^ np.isnan(own[j])
             close &= ~(echo & (np.abs(paths[i] - paths[j]) <= SAME_M))
             for a, b in ((i, j), (j, i)):
                 if fixed[b] and tracks[b].valid.any():
-                    close |= _within_span(tracks[b], paths[a])
+                    near = _within_span(tracks[b], paths[a])
+                    if k is not None:   # the mover's peaks either side of the still span
+                        apart = [~_within_span(tracks[b], paths[a] + kj * speeds[a]) for kj in k]
+                        near &= ~(apart[0] & apart[1] & np.isfinite(speeds[a]))
+                    close |= near
             for a, b in ((i, j), (j, i)):
                 if (a, b) not in unseen:
                     out[a] |= close
     return out
 
 
-def passing(tracks: list[Track]) -> list[np.ndarray]:
+def passing(tracks: list[Track], k: tuple[float, float] | None = None,
+            fixed: list[bool] | None = None) -> list[np.ndarray]:
     """For each track, the verified pairs within GATE_M of the `course` of another
     object in motion (a verified pair at fixed_echoes.MOVING_MPS or faster, of either
     kind: a sway's 2 ms at -1.3 m/s, 3 mm, is a fixed part; a still wall is
@@ -164,14 +183,21 @@ def passing(tracks: list[Track]) -> list[np.ndarray]:
     tracker passed from one mover to another as they crossed, its last pairs on the
     one and its first on the other, which no two tracks held at once (`conflicts`), a
     merged peak's (a glide at +3.5 m/s and a sway at -1.3 m/s 1-2 mm apart: the glide's
-    last pair 2.1 mm off it)."""
+    last pair 2.1 mm off it). With the Doppler factors `k`, not a `fixed` object's pairs
+    where its velocity and the course's put their peaks more than GATE_M apart in each
+    direction (`conflicts`: a pair on the other's echo reads its velocity)."""
     moving = [bool(np.any(np.abs(t.velocity_mps[t.valid]) >= fixed_echoes.MOVING_MPS)) for t in tracks]
-    courses = [course(t, KINEMATIC_S)[0] if m else None for t, m in zip(tracks, moving, strict=True)]
+    courses = [course(t, KINEMATIC_S) if m else None for t, m in zip(tracks, moving, strict=True)]
     out = [np.zeros(t.pairs, bool) for t in tracks]
     for i, a in enumerate(tracks):
         for j, c in enumerate(courses):
             if i != j and c is not None:
-                out[i] |= a.valid & (np.abs(a.distance_m - c) <= GATE_M)
+                gap = a.distance_m - c[0]
+                near = np.abs(gap) <= GATE_M
+                if k is not None and fixed is not None and fixed[i]:
+                    dv = a.velocity_mps - c[1]
+                    near &= ~((np.abs(gap + k[0] * dv) > GATE_M) & (np.abs(gap + k[1] * dv) > GATE_M))
+                out[i] |= a.valid & near
     return out
 
 

@@ -173,7 +173,7 @@ def _told_apart(found: list[objects.SceneObject], done: list[Converted], own: Co
     tracks, moving = [o.track for o in scene], [o.moving for o in scene]
     rad_per_m = phase.radians_per_metre(own.plan.lut.nu_hz, own.plan.info.refractive_index)
     two = [coherence.two_bodies(t, rad_per_m) for t in tracks]
-    clash = crossings.passing(tracks)
+    clash = crossings.passing(tracks, (own.plan.model.k_rise, own.plan.model.k_fall), [not m for m in moving])
     # the objects' own images of each other (`_exclusive` looked across conversions,
     # before their parts were told apart): a sway's part de-chirped at -3.48 m/s held a
     # glide's image, 18 pairs
@@ -365,9 +365,10 @@ def _exclusive(done: list[Converted], unseen: set[tuple[int, int]], first: First
     and so is a pair verified only once they are taken out (not checked against the others).
     Not by an object that the conversion's rows hold nothing of (`unseen`: (i, j), `_unseen`)."""
     tracks, moving = [d.track for d in done], [_moving(d) for d in done]
-    clash = crossings.conflicts(tracks, [not m for m in moving], unseen)
+    model = first.plan.model
+    clash = crossings.conflicts(tracks, [not m for m in moving], unseen, (model.k_rise, model.k_fall))
     ghost = crossings.harmonics(tracks, first.plan.lut.unambiguous_range_m)
-    image = crossings.images(tracks, first.plan.model, first.plan.window, unseen)
+    image = crossings.images(tracks, model, first.plan.window, unseen)
     out = []
     for d, c, g, m in zip(done, clash, ghost, image, strict=True):
         c = (c | g | m) & d.track.valid
