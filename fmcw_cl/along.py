@@ -165,7 +165,7 @@ def converted_along(cap: Capture, first: First, done: list[Converted], moving: l
         found = bodies_of(first) + fast_bodies_of(first) if any(mine) else []
     lines = continuing([d.track if w else None for d, w in zip(done, mine, strict=True)], found,
                        [d.track for d in done])
-    if any(bare):
+    if any(bare) and not lined:
         fast = fast_bodies_of(first)
         held = [d.track for d in done if d.track.valid.any()]
         for i in np.flatnonzero(bare):
@@ -310,7 +310,8 @@ def continuing(tracks: list[Track | None], found: list[tuple[np.ndarray, np.ndar
     where its tracker held another echo (a weaker mover the lone candidate's tracker
     left once the stronger came into its band). With them, the bodies no track holds
     that go on as them beyond the track's verified pairs (`_going_on`, gaps of GAP_S at
-    most) and lie clear of every other object of `held` (`_clear`)."""
+    most) or inside a gap of them (`_fills`) and lie clear of every other object of
+    `held` (`_clear`)."""
     near = np.full((len(found), len(tracks)), np.inf)
     along = np.zeros((len(found), len(tracks)))          # how long it lies on each (steps)
     for j, track in enumerate(tracks):
@@ -361,8 +362,8 @@ def _fills(b: tuple[np.ndarray, np.ndarray, np.ndarray], t: np.ndarray, d: np.nd
     """Whether the body `b` lies inside one gap of the verified pairs (t s, d m, v m/s)
     and one body's motion (`_one_body`) joins it to the pairs either side, each within
     FILL_S: held at both ends, a longer gap than GAP_S (a glide's bank body 5 and 25 ms
-    from the ends of a 66 ms gap of its pairs, 0.3 mm off the trapezoid, was a bare
-    object of its own beside it: movers.py seed 3, capture 23)."""
+    from the ends of a 66 ms gap of its pairs, 0.3 mm off the trapezoid, went on as no
+    object: movers.py seed 3, capture 23)."""
     i, k = np.searchsorted(t, [b[0][0], b[0][-1]])
     if i != k or i == 0 or i == t.size or b[0][0] - t[i - 1] > FILL_S or t[i] - b[0][-1] > FILL_S:
         return False

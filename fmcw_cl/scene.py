@@ -96,17 +96,12 @@ def objects_of(cap: Capture, first: First, choice: target.Choice, own: Converted
     several = sum(o.moving and o.track.valid.any() for o in found) >= 2
     of = {id(d.track): d for d in done}
 
-    wide = replace(own, choice=replace(own.choice, band_m=options.band_m))   # for a mover no tracker held
-
     def lined(scene: list[objects.SceneObject]) -> list[objects.SceneObject]:
-        conv = [of.get(id(o.track if o.whole is None else o.whole), own if o.track.valid.any() else wide)
-                for o in scene]
+        conv = [of.get(id(o.track if o.whole is None else o.whole), own) for o in scene]
         return along.objects_along(cap, first, conv, scene, processor, seconds, progress, lined=True,
                                    found=lines)
 
-    fast = along.fast_bodies_of(first) if options.dechirp else []
-    return _told_apart(found, done, own, options, several, courses=lambda scene: unheld_movers.with_unheld(
-        scene, fast, table, options.band_m, lined))
+    return _told_apart(found, done, own, options, several, courses=lined)
 
 
 def _lone(cap: Capture, first: First, own: Converted, moving: bool, processor: ChunkProcessor,

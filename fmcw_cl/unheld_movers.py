@@ -1,4 +1,4 @@
-"""A mover that no tracker held: the velocity bank's bodies an object of their own.
+"""A mover that shares a lone candidate's band but that no tracker held.
 
 Two movers within one moving span are one candidate (fmcw_cl.objects): its tracker
 follows one echo at a time, and a weaker mover it never held leaves no part to tell
@@ -7,9 +7,9 @@ in none of its periods). A mover faster than about 1 m/s leaves no plain peak, b
 velocity bank (fmcw_cl.fast_echoes) sees it: its bodies that lie on no verified pair
 of the candidate's (along._untracked) are an object of their own, holding no pair yet,
 converted along their course once the identities are told, as a candidate no tracker
-held is (along.converted_along). So too where the tables show several candidates and
-none of their trackers held it (a glide coming down to rest where a rail rests and
-sets off: two candidates, the glide in neither).
+held is (along.converted_along). Not where the tables show several candidates: a leg's
+take-off so made an object (seed 1 of benchmarks/objects.py's two legs 40 ms apart)
+and the legs' coherence cuts then left them in pieces (80 / 40 -> 43 / 31 %).
 """
 
 from __future__ import annotations

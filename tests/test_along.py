@@ -146,9 +146,8 @@ def test_a_course_is_cut_half_way_to_another_object_wholly_on_one_side():
 def test_a_body_inside_a_gap_of_a_movers_pairs_goes_on_as_it():
     """A glide at -1.2 m/s verified but for a 66 ms gap; a body of its own inside the gap,
     5 and 25 ms from its ends, goes on as it (both ends one body's motion, each within
-    FILL_S: movers.py seed 3, capture 23, that body a bare object of its own beside the
-    glide's); not one 45 ms from an end, 30 mm off, moving the other way, or reaching
-    over a verified pair."""
+    FILL_S: movers.py seed 3, capture 23, the gap missed); not one 45 ms from an end,
+    30 mm off, moving the other way, or reaching over a verified pair."""
     n = 4000
     t = PERIOD * (np.arange(n) + 0.5)
     d, v = 0.25 - 1.2 * t, np.full(n, -1.2)
@@ -172,9 +171,9 @@ def test_a_body_inside_a_gap_of_a_movers_pairs_goes_on_as_it():
 def test_a_glide_whose_gap_a_bank_body_fills_is_one_object(tmp_path):
     """Two glides one way, clean, the weaker 3.5 dB under (movers.py seed 3, capture
     23): the weaker's verified pairs leave a 66 ms gap where the two cross, the velocity
-    bank's body of it 5 and 25 ms from the gap's ends. It went on as no object, and
-    became a bare object of its own beside the glide's (the glide in two ids, 56 %); now
-    its course: one object, 77 %, none off its own object (`two_movers` asserts it)."""
+    bank's body of it 5 and 25 ms from the gap's ends went on as no object (the glide
+    56 %); now its course: one object, 77 %, none off its own object (`two_movers`
+    asserts it)."""
     from fmcw_cl.simulator.scene import glide
 
     track, scores = two_movers(tmp_path / "glides.h5",

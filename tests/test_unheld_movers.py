@@ -64,22 +64,3 @@ def test_a_hand_the_jumps_tracker_never_held_is_an_object(tmp_path, hand, db, se
     assert best[0] >= 0.85 and best[1] >= held, best
     assert any("no tracker held" in o.note for o in track.objects)
 
-
-@pytest.mark.long
-def test_a_mover_no_candidates_tracker_held_is_an_object(tmp_path):
-    """A glide coming down at 3.5 m/s to rest where a rail rests and then sets off, lab
-    SNR, 2.9 dB stronger (movers.py seed 3, capture 21): two candidates (the rest at
-    0.094 m, the rail's start), neither tracker on the glide (0 % of its periods). The
-    velocity bank's bodies that go on as no object make it one (unheld_movers.with_unheld,
-    as for a lone candidate): its descent, 19 %; none off its own object (`two_movers`
-    asserts it)."""
-    from fmcw_cl.simulator.scene import rail
-
-    target = rail(0.7, 0.0950953320788758, 1.0881459634146529, 8.0, 0.10591639813897515)
-    other = glide(0.7, 0.296161620134309, 0.09374081241928531, 0.0400550759835288, 0.1517683992098564)
-    amplitude = 500.0 * 10 ** (2.8572311508533 / 20)
-    track, scores = two_movers(tmp_path / "rail_glide.h5", target, other, amplitude, True, 543,
-                               0.08857387429539977, 0.1536853042689481)
-    best = best_held(scores, 2)
-    assert best[0] >= 0.5 and best[1] >= 0.15, best
-    assert any("no tracker held" in o.note for o in track.objects)
