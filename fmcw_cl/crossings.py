@@ -148,14 +148,13 @@ def conflicts(tracks: list[Track], fixed: list[bool] | None = None,
     fixed = fixed or [False] * len(tracks)
     own = [path(t) for t in tracks]
     paths = [p if f else heard(t) for t, p, f in zip(tracks, own, fixed, strict=True)]
-    speeds = [course(t)[1] for t in tracks]
+    speeds = [course(t)[1] for t in tracks] if k is not None else []
     out = [np.zeros(t.pairs, bool) for t in tracks]
     for i in range(len(tracks)):
         for j in range(i + 1, len(tracks)):
             close = np.abs(paths[i] - paths[j]) <= GATE_M      # NaN: False
-            if k is not None and (fixed[i] or fixed[j]):    # a velocity not known (NaN): not apart
-                gap, dv = paths[i] - paths[j], speeds[i] - speeds[j]
-                close &= ~((np.abs(gap + k[0] * dv) > GATE_M) & (np.abs(gap + k[1] * dv) > GATE_M))
+            if k is not None and (fixed[i] or fixed[j]):
+                close &= ~_peaks_apart(paths[i] - paths[j], speeds[i] - speeds[j], k)
             # an ambiguous pair's peaks where the other's own verified pair lies: that
             # echo seen by a second tracker, not a second echo beside it
             echo = np.isnan(own[i]) ^ np.isnan(own[j])
@@ -195,10 +194,16 @@ def passing(tracks: list[Track], k: tuple[float, float] | None = None,
                 gap = a.distance_m - c[0]
                 near = np.abs(gap) <= GATE_M
                 if k is not None and fixed is not None and fixed[i]:
-                    dv = a.velocity_mps - c[1]
-                    near &= ~((np.abs(gap + k[0] * dv) > GATE_M) & (np.abs(gap + k[1] * dv) > GATE_M))
+                    near &= ~_peaks_apart(gap, a.velocity_mps - c[1], k)
                 out[i] |= a.valid & near
     return out
+
+
+def _peaks_apart(gap_m: np.ndarray, dv_mps: np.ndarray, k: tuple[float, float]) -> np.ndarray:
+    """Where two echoes `gap_m` (m) and `dv_mps` (m/s) apart have their peaks (the
+    distance + k v, `k`: m per m/s, rising and falling) more than GATE_M apart in both
+    directions: told apart (NaN, a velocity not known: not apart)."""
+    return (np.abs(gap_m + k[0] * dv_mps) > GATE_M) & (np.abs(gap_m + k[1] * dv_mps) > GATE_M)
 
 
 def _within_span(fixed: Track, d: np.ndarray) -> np.ndarray:

@@ -80,15 +80,14 @@ def objects_of(cap: Capture, first: First, choice: target.Choice, own: Converted
     done = _at_rest(cap, done, loose, first, made, processor, seconds, progress)
     done = _distinct(done, first, seconds, processor)
     moving = any(_moving(d) for d in done)
-    table = cache(lambda: along.bodies_of(first))      # the echo table's bodies, sought once
-    plain = table() if moving else []
+    plain = along.bodies_of(first) if moving else []
     done = along.converted_along(cap, first, done, [_moving(d) for d in done], processor, seconds, progress,
                                  found=plain)
     # the velocity bank's bodies carry courses once the identities are told: before, the
     # pairs they gained moved the parts' ends that the joins read (a glide split in two)
     lines = []
     if plain or any(_moving(d) for d in done):
-        lines = (plain if moving else table()) + along.fast_bodies_of(first)
+        lines = (plain if moving else along.bodies_of(first)) + along.fast_bodies_of(first)
     unseen = {(i, j) for i, d in enumerate(done) for j in _unseen(d, done, first)}
     done = _unveiled(done, unseen, seconds, processor)
     done = _exclusive(done, unseen, first, seconds, processor)
