@@ -138,6 +138,19 @@ def test_a_fixed_object_after_a_mover_is_not_its_rest_unless_it_brakes_there(cas
     assert len(meeting.met(scene)) == len(scene)
 
 
+@pytest.mark.parametrize("stays", [False, True])
+def test_a_rest_where_another_body_rested_is_the_movers_once_that_one_left(stays):
+    """The other glide at rest 2.6 mm from where this one comes to rest, set off 60 ms
+    before and verified 0.1 m away while this one rests (movers.py seed 3, capture 8):
+    not a contender; one still at rest there is."""
+    stop = 0.0533 + 0.9 / 41.0
+    mover, rest = _braking(0.3858, stop, 41.0, 0.0533, 0.0533 + 0.035)
+    gone = T >= 0.02 if not stays else np.zeros(T.size, bool)
+    other = _object(np.where(gone, 0.3832 - 1.0 * (T - 0.02), 0.3832), np.where(gone, -1.0, 0.0), 0.0, 0.3)
+    scene = meeting.met([mover, rest, other])
+    assert len(scene) == (3 if stays else 2)
+
+
 @pytest.mark.long
 @pytest.mark.parametrize("case", ["two glides crossing", "a glide come to rest"])
 def test_movers_lost_at_a_crossing_or_at_rest_are_one_object_again(tmp_path, case):
