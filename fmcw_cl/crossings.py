@@ -124,8 +124,8 @@ def _acceleration(t: np.ndarray, v: np.ndarray, at: np.ndarray) -> np.ndarray:
 
 
 def conflicts(tracks: list[Track], fixed: list[bool] | None = None,
-              unseen: set[tuple[int, int]] = frozenset(), k: tuple[float, float] | None = None
-              ) -> list[np.ndarray]:
+              unseen: set[tuple[int, int]] = frozenset(), k: tuple[float, float] | None = None,
+              there: list[tuple[float, float]] | None = None) -> list[np.ndarray]:
     """For each track, the pairs where another object's path lies within GATE_M of its
     own (`heard`: its ambiguous pairs too): the two echoes cannot be told apart there
     (a wall of 150 codes 5 mm from a rail creeping off: the rail's pairs ambiguous
@@ -134,7 +134,8 @@ def conflicts(tracks: list[Track], fixed: list[bool] | None = None,
     whether or not its own track holds it then: a pair of another within GATE_M of that
     span is ambiguous on both (a cable swaying +-10 mm, a fixed echo of the tables,
     whose band edge cut its near swing: the rail's tracker held that swing once the
-    rail had left its band). Not where (i, j) is `unseen`: track i's rows hold nothing
+    rail had left its band); a body's rest only from when it came to when it left (`there`,
+    s per track: fmcw_cl.rest_spans). Not where (i, j) is `unseen`: track i's rows hold nothing
     of object j (a still one, taken out of a mover's rows: fmcw_cl.scene). With the
     Doppler factors `k` (m per m/s, rising and falling), a fixed object and a mover
     that passes it so fast that their peaks lie more than GATE_M apart in each
@@ -162,6 +163,8 @@ def conflicts(tracks: list[Track], fixed: list[bool] | None = None,
             for a, b in ((i, j), (j, i)):
                 if fixed[b] and tracks[b].valid.any():
                     near = _within_span(tracks[b], paths[a])
+                    if there is not None:
+                        near &= (tracks[a].time_s >= there[b][0]) & (tracks[a].time_s <= there[b][1])
                     if k is not None:   # the mover's peaks either side of the still span
                         apart = [~_within_span(tracks[b], paths[a] + kj * speeds[a]) for kj in k]
                         near &= ~(apart[0] & apart[1] & np.isfinite(speeds[a]))

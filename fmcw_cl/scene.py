@@ -26,6 +26,7 @@ from . import (
     meeting,
     moving_echoes,
     objects,
+    rest_spans,
     rests,
     target,
     unheld_movers,
@@ -79,6 +80,7 @@ def objects_of(cap: Capture, first: First, choice: target.Choice, own: Converted
         extra = found
     done = _at_rest(cap, done, loose, first, made, processor, seconds, progress)
     done = _distinct(done, first, seconds, processor)
+    done = rest_spans.bounded(done, [_moving(d) for d in done], processor, seconds)
     moving = any(_moving(d) for d in done)
     plain = along.bodies_of(first) if moving else []
     done = along.converted_along(cap, first, done, [_moving(d) for d in done], processor, seconds, progress,
@@ -360,7 +362,8 @@ def _exclusive(done: list[Converted], unseen: set[tuple[int, int]], first: First
     Not by an object that the conversion's rows hold nothing of (`unseen`: (i, j), `_unseen`)."""
     tracks, moving = [d.track for d in done], [_moving(d) for d in done]
     model = first.plan.model
-    clash = crossings.conflicts(tracks, [not m for m in moving], unseen, (model.k_rise, model.k_fall))
+    clash = crossings.conflicts(tracks, [not m for m in moving], unseen, (model.k_rise, model.k_fall),
+                                [d.choice.there_s for d in done])
     ghost = crossings.harmonics(tracks, first.plan.lut.unambiguous_range_m)
     image = crossings.images(tracks, model, first.plan.window, unseen)
     out = []

@@ -25,30 +25,29 @@ The rule (`--target`):
 
 - ``auto``: where a moving echo is found, it is the target (the instrument exists to
   measure motion); the fixed echoes it does not reach are left out of the band, which
-  becomes the gap between them that holds the moving echo's span (each edge
-  WALL_MARGIN_M inside the fixed echo, or half way to the span where that is nearer). A fixed echo
-  inside the span (or within APART_M of its ends) is the target at rest when it fades
-  with the target's departure; one that stays while the target is elsewhere is another
-  object, and the pairs within GATE_M of it are ``ambiguous`` (where the span comes
-  from the smeared energy alone, while the first conversion held the object, the part
-  beside the objects that holds most of the smeared energy's slices is tracked
-  instead: the object would hold the tracker again). With no moving echo and several fixed echoes, or
-  several moving echoes, the rule cannot tell which is the target: every pair on one of
-  them is ``ambiguous``. With no echo at all at a slice's or a block's level, the
-  echoes of the capture's mean spectra (`Echoes.peaks`) stand for the fixed ones; with
-  none there either, the verified pairs in motion stand (`ambiguous` below). With one
-  echo, it is the target, unless
-  OTHERS_SHARE of all the half-sweeps hold other echoes in the band (something neither
-  fixed nor found moving), or the capture's mean spectra hold another echo (one within
-  APART_M of it that its power hides from the CFAR, `echoes.masked_peaks`, or a peak of
-  both directions more than GATE_M from it, its harmonics excepted), or they put it at
-  two distances more than SPLIT_M apart in the two directions (a conversion that moves
-  an echo at rest: the sync delay or the chirp off): then the pairs on it are
-  ``ambiguous``. Before that, the moving echoes a second look beside it finds
-  (fmcw_cl.second_look; `Choice.lone` asks for one) join the choice; after it, where
-  OTHERS_SHARE of the verified pairs lie more than GATE_M from the echo, the tracker
-  held something else the tables missed, and the pairs on either are ``ambiguous``
-  (so are they beside several fixed echoes).
+  becomes the gap between them that holds the moving echo's span (each edge WALL_MARGIN_M
+  inside the fixed echo, or half way to the span where that is nearer). A fixed echo
+  inside the span (or within APART_M of its ends) is the target at rest when it fades with
+  the target's departure; one that stays while the target is elsewhere is another object,
+  and the pairs within GATE_M of it are ``ambiguous`` (a body's rest only while it is
+  there, fmcw_cl.rest_spans; where the span comes from the smeared energy alone, while the
+  first conversion held the object, the part beside the objects that holds most of the
+  smeared energy's slices is tracked instead: the object would hold the tracker again).
+  With no moving echo and several fixed echoes, or several moving echoes, the rule cannot
+  tell which is the target: every pair on one of them is ``ambiguous``. With no echo at
+  all at a slice's or a block's level, the echoes of the capture's mean spectra
+  (`Echoes.peaks`) stand for the fixed ones; with none there either, the verified pairs in
+  motion stand (`ambiguous` below). With one echo, it is the target, unless OTHERS_SHARE
+  of all the half-sweeps hold other echoes in the band (something neither fixed nor found
+  moving), or the capture's mean spectra hold another echo (one within APART_M of it that
+  its power hides from the CFAR, `echoes.masked_peaks`, or a peak of both directions more
+  than GATE_M from it, its harmonics excepted), or they put it at two distances more than
+  SPLIT_M apart in the two directions (a conversion that moves an echo at rest: the sync
+  delay or the chirp off): then the pairs on it are ``ambiguous``. Before that, the moving
+  echoes a second look beside it finds (fmcw_cl.second_look; `Choice.lone` asks for one)
+  join the choice; after it, where OTHERS_SHARE of the verified pairs lie more than GATE_M
+  from the echo, the tracker held something else the tables missed, and the pairs on
+  either are ``ambiguous`` (so are they beside several fixed echoes).
 - ``moving``: as auto, and a capture without a moving echo is refused.
 - ``nearest``: the nearest fixed echo or moving span, left alone in its gap (the other
   echoes' nearer ends bound it).
@@ -120,12 +119,14 @@ class Choice:
     ambiguous_m: np.ndarray = field(default_factory=lambda: np.zeros(0))
     note: str = ""
     ambiguous_spans_m: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
-    lone: bool = False      # one fixed echo taken for the target, before a second look beside it
-    unseen_rest: bool = False   # no echo at all: the pairs at rest (under MOVING_MPS) stand on none
+    lone: bool = False
+    unseen_rest: bool = False
     walls_m: np.ndarray = field(default_factory=lambda: np.zeros(0))
     walls_db: np.ndarray = field(default_factory=lambda: np.zeros(0))
     at_rest_m: float | None = None    # a fixed object (fmcw_cl.objects): its pairs only at rest, there
     taken_s: np.ndarray = field(default_factory=lambda: np.zeros(0))   # pair times another object shares
+    there_s: tuple[float, float] = (-np.inf, np.inf)    # a fixed object a body's rest: there then alone
+    rests_s: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))   # those ambiguous: (m, s, s)
 
     @property
     def undecided(self) -> bool:
@@ -349,11 +350,10 @@ def _part_band(span: tuple[float, float], cuts: np.ndarray, found: np.ndarray, b
     of it that holds most of the distances where smeared energy was `found` (m): `_gap`
     of the part (clipped to the span) with the other echoes `bounds` ((lo, hi) rows, m),
     its edge at a cut GATE_M inside the part (nearer, the pairs are `ambiguous` anyway).
-    None where no part holds more than
-    half of them (the target may spend as long on either side, and leave the band where
-    the tracker takes what it holds: a rail's start 14 mm before a wall of 3000 codes,
-    one slice found on each side, left the band and 49 pairs were valid 25 mm off) or
-    the band is narrower than options.RANGE_GAP_M."""
+    None where no part holds more than half of them (the target may spend as long on
+    either side, and leave the band where the tracker takes what it holds: a rail's
+    start 14 mm before a wall of 3000 codes, one slice found on each side, left the band
+    and 49 pairs were valid 25 mm off) or the band is narrower than options.RANGE_GAP_M."""
     cuts = cuts[np.argsort(cuts[:, 0])]
     starts, ends = np.r_[-np.inf, cuts[:, 1]], np.r_[cuts[:, 0], np.inf]
     held = np.array([np.sum((found > x) & (found < y)) for x, y in zip(starts, ends, strict=True)])
@@ -409,15 +409,15 @@ def ambiguous(code: np.ndarray, time_s: np.ndarray, distance_m: np.ndarray, velo
               choice: Choice, imaged: np.ndarray | None = None,
               velocity_sigma_mps: np.ndarray | float = 0.0, velocity_bias_mps: float = 0.0) -> np.ndarray:
     """`code` with the OK pairs within GATE_M of the choice's ambiguous echoes (fixed
-    echoes and moving spans) or `imaged` (a half-sweep's peak may be the image of a
-    fixed echo, fmcw_cl.wall_images) set to faults.AMBIGUOUS; with no echo found
-    (`Choice.unseen_rest`), those slower than MOVING_MPS, or all where their distances
-    do not follow their velocities (numeric.drift beyond pairing.DRIFT_MPS: a wall at
-    rest read at 0.35 m/s under a sync delay 77 samples off). A fixed object's pairs
-    (`Choice.at_rest_m`) beyond GATE_M of it, moving (MOVING_MPS), or faster than
-    `_blended` (`velocity_sigma_mps`: the noise of each pair's velocity from its peaks';
-    `velocity_bias_mps`: the bias all velocities may share, the sync delay's) are another
-    echo's or blends with one."""
+    echoes, a body's rest only while there: `Choice.rests_s`; moving spans) or `imaged`
+    (a half-sweep's peak may be the image of a fixed echo, fmcw_cl.wall_images) set to
+    faults.AMBIGUOUS; with no echo found (`Choice.unseen_rest`), those slower than
+    MOVING_MPS, or all where their distances do not follow their velocities
+    (numeric.drift beyond pairing.DRIFT_MPS: a wall at rest read at 0.35 m/s under a
+    sync delay 77 samples off). A fixed object's pairs (`Choice.at_rest_m`) beyond
+    GATE_M of it, moving (MOVING_MPS), or faster than `_blended` (`velocity_sigma_mps`:
+    the noise of each pair's velocity from its peaks'; `velocity_bias_mps`: the bias all
+    velocities may share, the sync delay's) are another echo's or blends with one."""
     out = code.copy()
     if choice.unseen_rest:
         ok = out == faults.OK
@@ -428,6 +428,8 @@ def ambiguous(code: np.ndarray, time_s: np.ndarray, distance_m: np.ndarray, velo
     spans = [(f, f) for f in choice.ambiguous_m] + [tuple(s) for s in choice.ambiguous_spans_m]
     for lo, hi in spans:
         near = (distance_m >= lo - GATE_M) & (distance_m <= hi + GATE_M)
+        for f, a, b in choice.rests_s if lo == hi else ():     # a body's rest, there from a to b alone
+            near &= (np.abs(lo - f) > APART_M) | ((time_s >= a) & (time_s <= b))
         out[(out == faults.OK) & near] = faults.AMBIGUOUS
     if imaged is not None:
         out[(out == faults.OK) & imaged] = faults.AMBIGUOUS
