@@ -12,11 +12,14 @@ mover's verified pair within CAME_S before it moved towards it, fast enough to
 reach it, and the mover was not verified beyond it since, came with that mover: it
 was there from that pair on, no earlier (`there`); so too, time reversed, one a mover
 set off from. A window that a foot rests on at the start is first verified as the
-foot leaves it: nothing came to it, it stays there all along.
+foot leaves it: nothing came to it, it stays there all along. Nor where a mover moving
+the other way could have left it (time reversed, reached it) in between: two bodies
+swapping places at one spot are not told apart by its span.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import replace
 
 import numpy as np
@@ -25,6 +28,7 @@ from . import conversions
 from .conversions import Converted
 from .fixed_echoes import APART_M, GATE_M, MOVING_MPS
 from .numeric import median
+from .processor import ChunkProcessor
 from .track import Track
 
 ABSENT_S = 0.01     # a fixed conversion unverified this long at the capture's start or end may be a rest
@@ -32,7 +36,8 @@ CAME_S = 0.1        # ... of a body whose verified pair this close in time came 
                     # a glide setting off at 13 m/s^2, within GATE_M for 40 ms, first verified 56 ms after)
 
 
-def bounded(done: list[Converted], moving: list[bool], processor, seconds) -> list[Converted]:
+def bounded(done: list[Converted], moving: list[bool], processor: ChunkProcessor, seconds: Callable[[], float]
+            ) -> list[Converted]:
     """`done` with each fixed conversion that is a body's rest (`there`) given its time
     span (target.Choice.there_s), and each moving conversion ambiguous about it
     assembled again, ambiguous there only within that span (target.Choice.rests_s)."""
