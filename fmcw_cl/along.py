@@ -24,31 +24,25 @@ from dataclasses import replace
 
 import numpy as np
 
-from . import conversions, fast_echoes, moving_echoes, numeric, objects
+from . import conversions, numeric, objects
 from .capture import Capture
 from .chunks import capture_parts
 from .conversions import Converted, First
 from .course import Course, lanes, merged
+from .course_bodies import ACCEL_MPS2, GAP_S, bodies_of, continuing, fast_bodies_of, going_on
 from .processor import ChunkProcessor
 from .stages import bank
 from .stages.spectrum import GUARD_BINS
-from .stages.verification import reachable
 from .track import Track
 
-GAP_S = 0.02          # a gap of a mover's verified pairs this long or shorter is bridged
-FILL_S = 2 * GAP_S    # a body inside a gap of them this far from either end goes on as them
 END_S = 0.005         # its course goes on this long beyond its first and last verified pairs
 WIDTH_M = 0.006       # the band's half-width about the course at a verified pair
-ACCEL_MPS2 = 500.0    # what a body can have moved since its nearest verified pair: a t^2 / 2
 MAX_WIDTH_M = 0.03    # beyond this, the course is not known: the candidate's own band
 MAX_SPEED_MPS = 10.0  # ... nor where it runs faster than a robot's leg (a pair of two bodies)
 ONE_BODY_M = 0.001    # a gap is bridged where one body can have crossed it (fmcw_cl.stages.verification)
 OTHER_GAP_S = 0.005   # another object is where its verified pairs say, across gaps this long
 FLOOR_BINS = 16       # bins of a peak's noise floor beyond its guard on each side, where nothing is cut
 RUN_PAIRS = 40        # a run of new verified pairs this long (2 ms) is the mover's own stretch
-MATCH_S = 1e-3        # a body of the echo table on a mover's verified pairs this long ...
-MATCH_M = 0.0015      # ... within this of them (median) is its; it says its course ...
-BEYOND_S = 1e-3       # ... this far from every one of them (where the tracker held another echo)
 SEED_MPS = bank.MIN_MPS  # a course this fast is first measured de-chirped at its velocity (course.Course)
 COURSE_ATTR = "band_along_course"     # a track's attribute: 1 where pairs were taken from its course
 
@@ -58,7 +52,7 @@ def course_of(track: Track, others: list[tuple[Track, bool]], k: tuple[float, fl
               lines: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> tuple | None:
     """The course of the mover of `track` (its verified pairs, and where it has none
     the points (time s, distance m, velocity m/s) of the echo table's `lines` that go on
-    as it: `continuing`) at each of its pairs' times, in each direction of Doppler
+    as it: course_bodies.continuing) at each of its pairs' times, in each direction of Doppler
     factors `k` (m per m/s: rising, falling), at least `room_m` (m) either side (the
     peak's noise floor lies beyond its guard), cut half way to each of `others` (track,
     moving) wholly on one side of it; `band_m` (m) where it is not known. With which
@@ -145,13 +139,13 @@ def converted_along(cap: Capture, first: First, done: list[Converted], moving: l
                     lined: bool = False, found: list | None = None) -> list[Converted]:
     """`done` with each mover (`moving`; not a track joined of several conversions)
     that another object's path enters converted again along its course (`course_of`;
-    with the echo table's lines that go on as it, `continuing`), in the user's band, on
+    with the echo table's lines that go on as it, course_bodies.continuing), in the user's band, on
     its own kind of rows (Plan.still_half), and joined with the runs of RUN_PAIRS or
     more verified pairs that gives where its track had none. `packed` (one
     conversion's plan and choice for all): movers whose courses are known at other
     times share a conversion (course.lanes), each pair in the course known there. `lined`:
-    only the movers that lines go on as. `found`: the table's bodies (`bodies_of`,
-    with `fast_bodies_of`), where already known. A mover that no tracker held (no
+    only the movers that lines go on as. `found`: the table's bodies (course_bodies.bodies_of,
+    with fast_bodies_of), where already known. A mover that no tracker held (no
     verified pair) is converted along the course of the velocity bank's bodies its band
     holds (`_untracked`)."""
     if len(done) < 2 and not lined:
@@ -204,23 +198,6 @@ def converted_along(cap: Capture, first: First, done: list[Converted], moving: l
     return out
 
 
-def bodies_of(first: First) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
-    """The bodies (moving_echoes.bodies) of every detection of the first conversion's
-    echo table, its tracked peaks too: a body's line then runs through the stretch its
-    object holds and on beyond it (off them, a line began only where the first tracker
-    left it, and seldom lay on the object for MATCH_S: two glides, movers.py seed 3,
-    capture 3, the second 20 -> 46 %)."""
-    e, m = first.track.echoes, first.plan.model
-    return [] if e is None else moving_echoes.bodies(e, m.k_rise, m.k_fall, np.ones(e.time_s.size, bool))
-
-
-def fast_bodies_of(first: First) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
-    """The velocity bank's bodies of the first conversion's echo table
-    (fast_echoes.bodies: movers too fast for a plain peak)."""
-    e = first.track.echoes
-    return [] if e is None else fast_echoes.bodies(e.fast)
-
-
 def _untracked(fast: list[tuple[np.ndarray, np.ndarray, np.ndarray]], held: list[Track],
                band_m: tuple[float, float | None]) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
     """The points (time s, distance m, velocity m/s) of the velocity bank's bodies `fast`
@@ -247,156 +224,10 @@ def _untracked(fast: list[tuple[np.ndarray, np.ndarray, np.ndarray]], held: list
             mine.append((grid, at, v))
     if not mine:
         return None
-    mine += _going_on(mine, [b for b in left if not any(b is c for c in mine)])
+    mine += going_on(mine, [b for b in left if not any(b is c for c in mine)])
     t, d, v = (np.concatenate(x) for x in zip(*mine, strict=True))
     order = np.argsort(t, kind="stable")
     return t[order], d[order], v[order]
-
-
-def _going_on(mine: list[tuple[np.ndarray, np.ndarray, np.ndarray]],
-              left: list[tuple[np.ndarray, np.ndarray, np.ndarray]], ends: tuple | None = None,
-              within_s: float = np.inf) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
-    """The bodies of `left` (time s, distance m, velocity m/s each) that go on as the
-    bodies `mine` before the first of them or after the last, and those that go on as
-    those in turn, the nearest in time first (a body seen again far off passes over the
-    ones between), then the nearest in place: one body seen again (objects.seen_again)
-    or, with `ends` ((first, last) points (t, d, v) of the object beyond its bodies: its
-    verified pairs'), one body's motion across a gap of `within_s` at most (`_one_body`)."""
-    got: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
-    pool = list(left)
-    while pool:
-        firsts = [(b[0][0], b[1][0], b[2][0]) for b in mine + got] + ([ends[0]] if ends else [])
-        lasts = [(b[0][-1], b[1][-1], b[2][-1]) for b in mine + got] + ([ends[1]] if ends else [])
-        first, last = min(firsts, key=lambda p: p[0]), max(lasts, key=lambda p: p[0])
-        # (gap s, miss m) of each body seen again before the first or after the last
-        keys = [(np.inf, np.inf)] * len(pool)
-        for n, b in enumerate(pool):
-            a, z = _across(b, first, last)
-            if a is not None and (_one_body(a, z) if ends else objects.seen_again(*a, *z)):
-                keys[n] = (z[0] - a[0], abs(z[1] - a[1] - 0.5 * (a[2] + z[2]) * (z[0] - a[0])))
-        n = min(range(len(pool)), key=lambda n: keys[n])        # the nearest in time, then in place
-        if not keys[n][0] <= within_s:
-            break
-        got.append(pool.pop(n))
-    return got
-
-
-def _across(b: tuple[np.ndarray, np.ndarray, np.ndarray], first: tuple, last: tuple) -> tuple:
-    """The points (t s, d m, v m/s) either side of the gap between the body `b` and the
-    `first` point of what it may go on as, or its `last`: `b`'s last before `first`, or
-    its first after `last`; (None, None) where it lies on neither side. A body reaching
-    past the end by less than MATCH_S (too briefly to lie on it, `continuing`) counts
-    from its points beyond it (a rail's first 25 ms, its body 0.6 ms past the first
-    verified pair: movers.py seed 3, capture 11)."""
-    t = b[0]
-    if t[0] < first[0] and t[-1] < first[0] + MATCH_S:
-        k = int(np.searchsorted(t, first[0])) - 1
-        return (t[k], b[1][k], b[2][k]), first
-    if t[-1] > last[0] and t[0] > last[0] - MATCH_S:
-        k = int(np.searchsorted(t, last[0], "right"))
-        return last, (t[k], b[1][k], b[2][k])
-    return None, None
-
-
-def continuing(tracks: list[Track | None], found: list[tuple[np.ndarray, np.ndarray, np.ndarray]],
-               held: list[Track] = ()) -> list[tuple[np.ndarray, np.ndarray, np.ndarray] | None]:
-    """Per track (None: none wanted), the points (time s, distance m, velocity m/s) of
-    the bodies `found` (moving_echoes.bodies) that go on as it, more than BEYOND_S from
-    each of its verified pairs: a body is the track's whose verified pairs it lies on
-    for MATCH_S, within MATCH_M (median) and their velocity within
-    moving_echoes.AGREE_MPS, and of those the one it lies on longest (a rail's fast body
-    lay on a glide's conversion's few pairs of the rail as closely as on the rail's own,
-    and carried the glide's course onto the rail), then the nearest's (median). One body's course
-    where its tracker held another echo (a weaker mover the lone candidate's tracker
-    left once the stronger came into its band). With them, the bodies no track holds
-    that go on as them beyond the track's verified pairs (`_going_on`, gaps of GAP_S at
-    most) or inside a gap of them (`_fills`) and lie clear of every other object of
-    `held` (`_clear`)."""
-    near = np.full((len(found), len(tracks)), np.inf)
-    along = np.zeros((len(found), len(tracks)))          # how long it lies on each (steps)
-    for j, track in enumerate(tracks):
-        if track is None:
-            continue
-        ok = track.valid & np.isfinite(track.distance_m) & np.isfinite(track.velocity_mps)
-        if not ok.any():
-            continue
-        t_ok, d_ok, v_ok = track.time_s[ok], track.distance_m[ok], track.velocity_mps[ok]
-        for n, (grid, at, v) in enumerate(found):
-            i = numeric.nearest(t_ok, grid)
-            on = np.abs(t_ok[i] - grid) <= 2 * (track.period_s or 50e-6)
-            if on.sum() * moving_echoes.STEP_S < MATCH_S:
-                continue
-            miss = float(np.median(np.abs(at[on] - d_ok[i[on]])))
-            if miss <= MATCH_M and np.median(np.abs(v[on] - v_ok[i[on]])) <= moving_echoes.AGREE_MPS:
-                near[n, j], along[n, j] = miss, on.sum()
-    owned: list[list[tuple[np.ndarray, np.ndarray, np.ndarray]]] = [[] for _ in tracks]
-    for n, body in enumerate(found):
-        if np.isfinite(near[n]).any():
-            # the track it lies on longest (another's few stray pairs on it are no claim), then nearest
-            owned[int(np.argmax(np.where(np.isfinite(near[n]), along[n] - 0.5 * near[n] / MATCH_M,
-                                         -np.inf)))].append(body)
-    left = [b for n, b in enumerate(found) if not np.isfinite(near[n]).any()]
-    out: list[tuple[np.ndarray, np.ndarray, np.ndarray] | None] = [None] * len(tracks)
-    for j, track in enumerate(tracks):
-        if not owned[j]:
-            continue
-        ok = track.valid
-        t_ok, d_ok, v_ok = track.time_s[ok], track.distance_m[ok], track.velocity_mps[ok]
-        ends = ((t_ok[0], d_ok[0], v_ok[0]), (t_ok[-1], d_ok[-1], v_ok[-1]))
-        # and the bodies no track holds that go on as them beyond its ends (a fast glide's
-        # earlier stretches, between which it passed a stronger object's peaks)
-        others = [h for h in held if h is not track]
-        clear = [b for b in left if _clear(b[0], b[1], others)]
-        gone = _going_on(owned[j], clear, ends, GAP_S)
-        gone += [b for b in clear if _fills(b, t_ok, d_ok, v_ok) and not any(b is g for g in gone)]
-        left = [b for b in left if not any(b is g for g in gone)]
-        for grid, at, v in owned[j] + gone:
-            off = np.abs(t_ok[numeric.nearest(t_ok, grid)] - grid) > BEYOND_S
-            if off.any():
-                got = out[j] or (np.zeros(0), np.zeros(0), np.zeros(0))
-                out[j] = tuple(np.r_[a, b[off]] for a, b in zip(got, (grid, at, v), strict=True))
-    return out
-
-
-def _fills(b: tuple[np.ndarray, np.ndarray, np.ndarray], t: np.ndarray, d: np.ndarray, v: np.ndarray) -> bool:
-    """Whether the body `b` lies inside one gap of the verified pairs (t s, d m, v m/s)
-    and one body's motion (`_one_body`) joins it to the pairs either side, each within
-    FILL_S: held at both ends, a longer gap than GAP_S (a glide's bank body 5 and 25 ms
-    from the ends of a 66 ms gap of its pairs, 0.3 mm off the trapezoid, went on as no
-    object: movers.py seed 3, capture 23)."""
-    i, k = np.searchsorted(t, [b[0][0], b[0][-1]])
-    if i != k or i == 0 or i == t.size or b[0][0] - t[i - 1] > FILL_S or t[i] - b[0][-1] > FILL_S:
-        return False
-    return _one_body((t[i - 1], d[i - 1], v[i - 1]), (b[0][0], b[1][0], b[2][0])) and _one_body(
-        (b[0][-1], b[1][-1], b[2][-1]), (t[i], d[i], v[i]))
-
-
-def _one_body(a: tuple, z: tuple) -> bool:
-    """Whether one body last seen at `a` can be the one seen at `z` ((t s, d m, v m/s)):
-    the trapezoid of their velocities within the verification's bound
-    (verification.reachable, as across a course's gaps, `_bridged`), their velocities
-    within moving_echoes.AGREE_MPS + ACCEL_MPS2 dt (a body 6 mm off a rail's end 4 ms on,
-    objects.seen_again's 40 mm allowed: a wall's, 73 valid pairs on it;
-    tests/test_scenes.py, hunt seed 9)."""
-    dt = z[0] - a[0]
-    return bool(reachable(*a, *z) and abs(z[2] - a[2]) <= moving_echoes.AGREE_MPS + ACCEL_MPS2 * dt)
-
-
-def _clear(grid: np.ndarray, at: np.ndarray, others: list[Track]) -> bool:
-    """Whether a body (times s, distances m) lies mostly more than objects.GATE_M from
-    each of `others`' verified pairs nearest in time, those within GAP_S of it: an object
-    unverified a while is still there (a foot at rest 2 mm from the other landing foot,
-    whose body went on as the other's course: 165 valid pairs on it, movers.py seed 1,
-    capture 30)."""
-    on = np.zeros(grid.size, bool)
-    for track in others:
-        ok = track.valid
-        if not ok.any():
-            continue
-        t_ok, d_ok = track.time_s[ok], track.distance_m[ok]
-        i = numeric.nearest(t_ok, grid)
-        on |= (np.abs(t_ok[i] - grid) <= GAP_S) & (np.abs(at - d_ok[i]) <= objects.GATE_M)
-    return bool(on.mean() < 0.5)
 
 
 def objects_along(cap: Capture, first: First, own: list[Converted], scene: list[objects.SceneObject],

@@ -18,11 +18,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import along, identities, objects
+from . import along, course_bodies, identities, objects
 from .numeric import centred_slope
 from .objects import SceneObject
 
-GAP_S = along.GAP_S         # a gap this long or shorter is joined across ...
+GAP_S = course_bodies.GAP_S         # a gap this long or shorter is joined across ...
 REST_GAP_S = 0.05           # ... this long between a mover and its rest (it may rest a while unseen)
 MOVING_MPS = along.SEED_MPS   # ends this fast: a body in motion, never two at rest side by side
 BRAKE_MPS2 = 10.0           # an end's acceleration this strong against (or with) its motion is braking
@@ -68,10 +68,10 @@ def _goes_on(a: tuple, z: tuple) -> bool:
     first seen at `z`: later within GAP_S, in motion the same way at both (a rail
     slowing to +0.90 m/s is not a glide setting off from beside it at -0.71 m/s 7.3 ms
     later, although a body can turn so: movers.py seed 3, capture 26, 757 valid pairs
-    of the rail joined to the glide), one body's motion across (along._one_body)."""
+    of the rail joined to the glide), one body's motion across (course_bodies.one_body)."""
     dt = z[1] - a[1]
     return bool(z[0] > a[0] and 0 < dt <= GAP_S and min(abs(a[3]), abs(z[3])) >= MOVING_MPS
-                and a[3] * z[3] > 0 and along._one_body(a[1:4], z[1:4]))
+                and a[3] * z[3] > 0 and course_bodies.one_body(a[1:4], z[1:4]))
 
 
 def _rests(end: tuple, rest_m: float, dt: float) -> bool:

@@ -10,7 +10,7 @@ their velocity, reach it within LINK_M + ACCEL_MAX dt^2 / 2, across at most GAP_
 A line of MIN_DETECTIONS over MIN_SPAN_S is an echo's. A rising and a falling line at
 once give an echo's distance and its Doppler velocity (the two equations d = R + k v);
 where that velocity is the distance's own slope, they are one moving body's (`bodies`,
-which along.continuing reads too; noise lines, one direction's sidelobes, or two
+which course_bodies.continuing reads too; noise lines, one direction's sidelobes, or two
 echoes' lines are not), unless it lies on the tracked target (within
 fixed_echoes.APART_M: the target's own peak split, smeared) or on its harmonics (two
 and three times its distance), and only where the tracker held verified pairs at once

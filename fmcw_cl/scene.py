@@ -17,6 +17,7 @@ from . import (
     along,
     coherence,
     conversions,
+    course_bodies,
     crossings,
     exchanges,
     fast_echoes,
@@ -82,14 +83,14 @@ def objects_of(cap: Capture, first: First, choice: target.Choice, own: Converted
     done = _distinct(done, first, seconds, processor)
     done = rest_spans.bounded(done, [_moving(d) for d in done], processor, seconds)
     moving = any(_moving(d) for d in done)
-    plain = along.bodies_of(first) if moving else []
+    plain = course_bodies.bodies_of(first) if moving else []
     done = along.converted_along(cap, first, done, [_moving(d) for d in done], processor, seconds, progress,
                                  found=plain)
     # the velocity bank's bodies carry courses once the identities are told: before, the
     # pairs they gained moved the parts' ends that the joins read (a glide split in two)
     lines = []
     if plain or any(_moving(d) for d in done):
-        lines = (plain if moving else along.bodies_of(first)) + along.fast_bodies_of(first)
+        lines = (plain if moving else course_bodies.bodies_of(first)) + course_bodies.fast_bodies_of(first)
     unseen = {(i, j) for i, d in enumerate(done) for j in _unseen(d, done, first)}
     done = _unveiled(done, unseen, seconds, processor)
     done = _exclusive(done, unseen, first, seconds, processor)
@@ -116,8 +117,8 @@ def _lone(cap: Capture, first: First, own: Converted, moving: bool, processor: C
     bodies, body = lone_bodies.count(own.track, moving) if options.dechirp else (1, own.track)
     # a mover its tracker never held, which the velocity bank saw (none on the paper's
     # method); the echo table's bodies (a loop in Python, 0.1-0.4 s) sought once, if asked
-    fast = along.fast_bodies_of(first) if options.dechirp else []
-    plain = cache(lambda: along.bodies_of(first))
+    fast = course_bodies.fast_bodies_of(first) if options.dechirp else []
+    plain = cache(lambda: course_bodies.bodies_of(first))
     bare = unheld_movers.unheld(fast, plain, [own.track], own.choice.band_m)
     if body is own.track and bodies < 2 and bare is None:
         return [objects.SceneObject(1, moving, own.track, "the target: no other echo")], 0, own

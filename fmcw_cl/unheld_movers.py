@@ -18,7 +18,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from . import along, objects
+from . import along, course_bodies, objects
 from .stages import faults
 from .track import Track
 
@@ -27,16 +27,16 @@ def unheld(fast: list[tuple[np.ndarray, np.ndarray, np.ndarray]],
            plain: Callable[[], list[tuple[np.ndarray, np.ndarray, np.ndarray]]], held: list[Track],
            band_m: tuple[float, float | None]) -> objects.SceneObject | None:
     """A moving object holding no pair (`bare`) where the velocity bank's bodies `fast`
-    (along.fast_bodies_of) in `band_m` (m) lie on none of the `held` tracks, clear of
-    them (along._clear), and go on as none of them (along.continuing, with the echo
-    table's bodies `plain()`, along.bodies_of: a glide's own body beyond its part's end,
+    (course_bodies.fast_bodies_of) in `band_m` (m) lie on none of the `held` tracks, clear of
+    them (course_bodies.clear), and go on as none of them (course_bodies.continuing, with the echo
+    table's bodies `plain()`, course_bodies.bodies_of: a glide's own body beyond its part's end,
     which its course then took, made a second object of it and the crossing check left
     both `ambiguous` there: 96 -> 28 % of its periods, movers.py seed 1, capture 16);
     else None."""
-    fast = [b for b in fast if along._clear(b[0], b[1], held)] if held else []
+    fast = [b for b in fast if course_bodies.clear(b[0], b[1], held)] if held else []
     if not fast:            # the common case: the echo table's bodies (a loop in Python) not sought
         return None
-    taken = [c[0] for c in along.continuing(list(held), plain() + fast, held) if c is not None]
+    taken = [c[0] for c in course_bodies.continuing(list(held), plain() + fast, held) if c is not None]
     if taken:
         fast = [b for b in fast if np.mean(np.isin(b[0], np.concatenate(taken))) < 0.5]
     if along._untracked(fast, held, band_m) is None:

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from conftest import process, scene_of, two_movers
 
-from fmcw_cl import along
+from fmcw_cl import along, course_bodies
 from fmcw_cl.evaluate import best_held
 from fmcw_cl.stages import faults
 from fmcw_cl.track import Track
@@ -69,12 +69,12 @@ def test_a_line_of_the_echo_table_goes_on_as_the_mover_it_lies_on():
     mover, beside = _track(d, v, ok), _track(d + 1e-3, v, ok)
     off = (grid, on[1] + 5e-3, on[2])
     fast = (grid, on[1], on[2] + 1.0)
-    got = along.continuing([mover, None], [on, off, fast])
+    got = course_bodies.continuing([mover, None], [on, off, fast])
     assert got[1] is None
     tg, rg, vg = got[0]
-    assert tg.size and tg.min() > 0.02 + along.BEYOND_S - 3e-4 and np.all(np.isin(tg, grid))
+    assert tg.size and tg.min() > 0.02 + course_bodies.BEYOND_S - 3e-4 and np.all(np.isin(tg, grid))
     np.testing.assert_allclose(rg, 0.2 + 0.5 * tg + 3e-4)
-    two = along.continuing([beside, mover], [on])
+    two = course_bodies.continuing([beside, mover], [on])
     assert two[0] is None and two[1] is not None
     alone = along.course_of(mover, [], K, (0.03, None), room_m=0.0)[1]
     lined = along.course_of(mover, [], K, (0.03, None), 0.0, got[0])[1]
@@ -84,7 +84,7 @@ def test_a_line_of_the_echo_table_goes_on_as_the_mover_it_lies_on():
 def test_bodies_that_go_on_as_a_movers_body_carry_its_course_on():
     """A glide at 2 m/s verified for 10 ms, a body on its last 5 ms and 10 ms beyond, then
     bodies of the same glide after gaps of 8 and 12 ms (it passed a stronger echo's
-    peaks): they go on as it (one body's motion across the gap, along._one_body), the
+    peaks): they go on as it (one body's motion across the gap, course_bodies.one_body), the
     nearer in time first, so the far one joins too, and the course is known through
     them; one 30 ms on (beyond GAP_S),
     one on another line at once (30 mm off) and one on an object at rest
@@ -100,17 +100,17 @@ def test_bodies_that_go_on_as_a_movers_body_carry_its_course_on():
 
     on, near, far, late = body(0.005, 0.02), body(0.028, 0.034), body(0.046, 0.055), body(0.085, 0.1)
     wrong = body(0.028, 0.034, 0.03)
-    got = along.continuing([_track(d, v, ok), None], [on, far, wrong, near, late])
+    got = course_bodies.continuing([_track(d, v, ok), None], [on, far, wrong, near, late])
     tg = got[0][0]
     assert np.isin(near[0], tg).all() and np.isin(far[0], tg).all()
-    beyond = np.sum(on[0] > 0.01 + along.BEYOND_S)         # the points of `on` off the verified pairs
+    beyond = np.sum(on[0] > 0.01 + course_bodies.BEYOND_S)         # the points of `on` off the verified pairs
     assert not np.isin(late[0], tg).any() and tg.size == beyond + near[0].size + far[0].size
     known = along.course_of(_track(d, v, ok), [], K, (0.03, None), 0.0, got[0])[1]
     assert known[int(0.03 / PERIOD):int(0.05 / PERIOD)].all()
     # an object at rest where the next body lies, last verified 12 ms before it
     rest_ok = t < 0.016
     rest = _track(np.full(n, 0.1 + 2.0 * 0.031 + 0.002), np.zeros(n), rest_ok)
-    held = along.continuing([_track(d, v, ok), None], [on, near, far], [_track(d, v, ok), rest])
+    held = course_bodies.continuing([_track(d, v, ok), None], [on, near, far], [_track(d, v, ok), rest])
     assert not np.isin(near[0], held[0][0]).any() and not np.isin(far[0], held[0][0]).any()
 
 
@@ -160,10 +160,10 @@ def test_a_body_inside_a_gap_of_a_movers_pairs_goes_on_as_it():
     inside, far = body(0.0193, 0.0560), body(0.0193, 0.0350)
     off, back, over = body(0.0193, 0.0560, 0.03), body(0.0193, 0.0560, 0.0, -1.0), body(0.0100, 0.0560)
     tv, dv, vv = t[ok], d[ok], v[ok]
-    assert along._fills(inside, tv, dv, vv)
-    assert not any(along._fills(b, tv, dv, vv) for b in (far, off, back, over))
+    assert course_bodies._fills(inside, tv, dv, vv)
+    assert not any(course_bodies._fills(b, tv, dv, vv) for b in (far, off, back, over))
     mine = body(0.0, 0.0143)                # the body on its pairs: the lines go on as it
-    got = along.continuing([_track(d, v, ok)], [mine, inside, far])[0][0]
+    got = course_bodies.continuing([_track(d, v, ok)], [mine, inside, far])[0][0]
     assert np.isin(inside[0], got).all() and got.size == inside[0].size      # not `far`
 
 
@@ -232,7 +232,7 @@ def test_a_few_new_pairs_in_a_crossing_are_not_taken(tmp_path):
     crossing; taken whole, they moved the parts' ends and both tracks were cut (five
     objects, the sway 96 -> 71 %). Only runs of RUN_PAIRS or more join: two objects,
     as before. The glide's body reaching 0.6 ms past its first verified pair goes on as
-    it (along._across): the glide 69 -> 83 %, and the sway's pairs where the glide's
+    it (course_bodies._across): the glide 69 -> 83 %, and the sway's pairs where the glide's
     plain peak lay on its own (crossings.images, 85-105 mm apart at -3.8 m/s) are
     `ambiguous`: 96 -> 91 %."""
     from fmcw_cl.simulator.scene import glide, sway
@@ -250,7 +250,7 @@ def test_a_mover_goes_on_along_the_echo_tables_line(tmp_path):
     """A glide (the target) through a sway 5.2 dB weaker, lab (movers.py seed 3,
     capture 14): where the glide came into the sway's band its tracker held the glide,
     and the sway's object ended there, while the sway's plain peaks still stood in the
-    echo table as lines. Its course goes on along them (along.continuing) and its
+    echo table as lines. Its course goes on along them (course_bodies.continuing) and its
     conversion along that course holds the sway in 73 % of its periods (57 % without
     the lines); no pair off its own object."""
     from fmcw_cl.simulator.scene import glide, sway
