@@ -77,7 +77,10 @@ def _across(b: tuple[np.ndarray, np.ndarray, np.ndarray], first: tuple, last: tu
     its first after `last`; (None, None) where it lies on neither side. A body reaching
     past the end by less than MATCH_S (too briefly to lie on it, `continuing`) counts
     from its points beyond it (a rail's first 25 ms, its body 0.6 ms past the first
-    verified pair: movers.py seed 3, capture 11)."""
+    verified pair: movers.py seed 3, capture 11); one reaching further, from where it
+    passes the end within MATCH_M and AGREE_MPS (a glide's rest and
+    set-off, its body 3.9 ms past the first of the body its course goes on as:
+    movers.py seed 1, capture 1)."""
     t = b[0]
     if t[0] < first[0] and t[-1] < first[0] + MATCH_S:
         k = int(np.searchsorted(t, first[0])) - 1
@@ -85,6 +88,10 @@ def _across(b: tuple[np.ndarray, np.ndarray, np.ndarray], first: tuple, last: tu
     if t[-1] > last[0] and t[0] > last[0] - MATCH_S:
         k = int(np.searchsorted(t, last[0], "right"))
         return last, (t[k], b[1][k], b[2][k])
+    for end in (first, last):      # passing through it: that point of it is the end's
+        at = (end[0], np.interp(end[0], t, b[1]), np.interp(end[0], t, b[2]))
+        if t[0] < end[0] < t[-1] and abs(at[1] - end[1]) <= MATCH_M and abs(at[2] - end[2]) <= AGREE_MPS:
+            return (at, end) if end is first else (end, at)
     return None, None
 
 

@@ -114,6 +114,24 @@ def test_bodies_that_go_on_as_a_movers_body_carry_its_course_on():
     assert not np.isin(near[0], held[0][0]).any() and not np.isin(far[0], held[0][0]).any()
 
 
+def test_a_body_passing_through_the_start_of_a_movers_course_goes_on_as_it():
+    """A glide's rest and set-off, its body 3.9 ms past the first point of the body its
+    course goes on as (movers.py seed 1, capture 1: 57 -> 77 % of its periods): it
+    passes through that point, one body; not 3 mm off it, or moving the other way."""
+    def body(a: float, b: float, shift: float = 0.0, way: float = 1.0):
+        grid = np.arange(a, b, 2.5e-4)
+        return grid, 0.1 + 2.0 * grid + shift, np.full(grid.size, 2.0 * way)
+
+    mine = body(0.04, 0.1)
+    first, last = (mine[0][0], mine[1][0], mine[2][0]), (mine[0][-1], mine[1][-1], mine[2][-1])
+    through, off, back = body(0.0, 0.0439), body(0.0, 0.0439, 0.003), body(0.0, 0.0439, 0.0, -1.0)
+    a, z = course_bodies._across(through, first, last)
+    assert z == first and a[0] == first[0] and abs(a[1] - first[1]) < 1e-9
+    assert all(course_bodies._across(b, first, last) == (None, None) for b in (off, back))
+    got = course_bodies.going_on([mine], [off, through, back], (first, last), course_bodies.GAP_S)
+    assert len(got) == 1 and got[0] is through
+
+
 def test_a_course_is_cut_half_way_to_another_object_wholly_on_one_side():
     """A still object 40 mm above a slow mover: each band's top lies half way between
     the mover's interval and the other's (its plain peak and its image de-chirped at the
