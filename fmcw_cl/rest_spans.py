@@ -34,6 +34,8 @@ from .track import Track
 ABSENT_S = 0.01     # a fixed conversion unverified this long at the capture's start or end may be a rest
 CAME_S = 0.1        # ... of a body whose verified pair this close in time came to it (or set off from it:
                     # a glide setting off at 13 m/s^2, within GATE_M for 40 ms, first verified 56 ms after)
+SEEN_S = 0.02       # ... where its verified pairs span this long (2.5 ms, 7 mm from two bodies' rests: none)
+SWAP_MPS = 0.03     # a body moving the other way this fast could have left it (a set-off's first pairs)
 
 
 def bounded(done: list[Converted], moving: list[bool], processor: ChunkProcessor, seconds: Callable[[], float]
@@ -63,9 +65,11 @@ def there(rest: Track, movers: list[Track]) -> tuple[float, float]:
     from the verified pair of a mover of `movers` that came to it (`_came`) where its
     own are first verified ABSENT_S or more after the capture's start, to that of one
     that set off from it where they end ABSENT_S or more before its end; -inf and inf
-    otherwise."""
+    otherwise, and where its verified pairs span less than SEEN_S (a fixed conversion
+    verified for 2.5 ms, 7 mm from where a glide set off and a rail came to rest: no
+    rest's span; tests/test_objects.py, the rail that left one mover for another)."""
     ok = np.flatnonzero(rest.valid)
-    if not ok.size:
+    if not ok.size or rest.time_s[ok[-1]] - rest.time_s[ok[0]] < SEEN_S:
         return -np.inf, np.inf
     t = rest.time_s
     f = median(rest.distance_m[ok])
@@ -106,10 +110,10 @@ def _came(f: float, at: float, movers: list[Track], way: float) -> float:
 
 def _swapped(f: float, t_k: float, at: float, m: Track, way: float) -> bool:
     """Whether mover `m` has a verified pair between `t_k` and `at` (s) moving away from
-    `f` (m; `way` -1: towards it) at MOVING_MPS or more, near enough to have left it
+    `f` (m; `way` -1: towards it) at SWAP_MPS or more, near enough to have left it
     after `t_k` (to reach it by `t_k`) at that speed, GATE_M more."""
     after = way * (m.time_s - t_k)
     ok = np.flatnonzero(m.valid & (after > 0) & (way * (at - m.time_s) > 0))
     d, v = m.distance_m[ok], m.velocity_mps[ok]
-    return bool(np.any((way * v * (f - d) < 0) & (np.abs(v) >= MOVING_MPS)
+    return bool(np.any((way * v * (f - d) < 0) & (np.abs(v) >= SWAP_MPS)
                        & (np.abs(f - d) <= np.abs(v) * after[ok] + GATE_M)))

@@ -51,7 +51,7 @@ def test_a_rest_a_mover_set_off_from_is_there_until_its_first_pair():
 
 
 @pytest.mark.parametrize("case", ["seen from the start", "a foot left it", "passed through", "too far",
-                                  "long before"])
+                                  "long before", "seen briefly"])
 def test_an_echo_nothing_came_to_is_there_all_along(case):
     rest, movers = _rest(0.112, 0.3), [_braking(0.11, 0.095)]
     if case == "seen from the start":       # a wall, verified from the capture's first pairs
@@ -64,6 +64,8 @@ def test_an_echo_nothing_came_to_is_there_all_along(case):
         movers = [_track(REST - 0.04 + 0.2 * (T - 0.107), np.full(T.size, 0.2), T <= 0.107)]
     if case == "long before":               # last seen coming 0.15 s before the rest's first pair
         movers = [_braking(0.11, -0.04)]
+    if case == "seen briefly":              # verified 2.5 ms: no rest of a body
+        rest = _rest(0.112, 0.1145)
     assert rest_spans.there(rest, movers) == (-np.inf, np.inf)
 
 
