@@ -92,9 +92,7 @@ def _came(f: float, at: float, movers: list[Track], way: float) -> float:
     for m in movers:
         dt = way * (at - m.time_s)
         ok = np.flatnonzero(m.valid & (dt > 0) & (dt <= CAME_S))
-        d, v = m.distance_m[ok], m.velocity_mps[ok]
-        reach = np.abs(f - d) <= np.abs(v) * dt[ok] + GATE_M
-        towards = (way * v * (f - d) > 0) & (np.abs(v) >= MOVING_MPS) & reach
+        towards = _heading(f, m.distance_m[ok], m.velocity_mps[ok], dt[ok], way, MOVING_MPS)
         if not towards.any():
             continue
         k = ok[towards][np.argmin(dt[ok][towards])]
@@ -114,6 +112,11 @@ def _swapped(f: float, t_k: float, at: float, m: Track, way: float) -> bool:
     after `t_k` (to reach it by `t_k`) at that speed, GATE_M more."""
     after = way * (m.time_s - t_k)
     ok = np.flatnonzero(m.valid & (after > 0) & (way * (at - m.time_s) > 0))
-    d, v = m.distance_m[ok], m.velocity_mps[ok]
-    return bool(np.any((way * v * (f - d) < 0) & (np.abs(v) >= SWAP_MPS)
-                       & (np.abs(f - d) <= np.abs(v) * after[ok] + GATE_M)))
+    return bool(np.any(_heading(f, m.distance_m[ok], m.velocity_mps[ok], after[ok], -way, SWAP_MPS)))
+
+
+def _heading(f: float, d: np.ndarray, v: np.ndarray, dt: np.ndarray, way: float, speed: float) -> np.ndarray:
+    """Which pairs (distances `d` m, velocities `v` m/s) move towards `f` (m; `way` -1:
+    away from it) at `speed` (m/s) or more, near enough to reach it in `dt` (s; or to
+    have left it that long before) at that speed, GATE_M more."""
+    return (way * v * (f - d) > 0) & (np.abs(v) >= speed) & (np.abs(f - d) <= np.abs(v) * dt + GATE_M)
