@@ -28,6 +28,7 @@ STILL_M = 5e-4           # an object whose verified distances span at most this 
 SLOPE_S = 2e-3           # a course accelerates this long beyond its pairs, as their velocities within it
 FOLLOW_PAIRS = 16        # a fixed object's pairs read moving this close in pairs are taken together ...
 FOLLOW_M = 2.5e-4        # ... and their own where their distances follow their velocities within this
+MOVERS_M = 5e-3          # two movers this close, or their peaks in either direction, cannot be told apart
 
 
 def path(track: Track) -> np.ndarray:
@@ -143,9 +144,10 @@ def conflicts(tracks: list[Track], fixed: list[bool] | None = None,
     alike) are told apart (a hand at -1.1 m/s passing a foot at rest: its peaks 30 mm
     either side of the foot's; movers.py seed 3, capture 12, the foot 360 pairs
     `ambiguous`); where one direction's peaks meet elsewhere, the images' rule judges.
-    Not two movers: a glide at +3.5 m/s and a sway at -1.3 m/s 1-2 mm apart left a
-    blend 2.1 mm off the glide however far apart their peaks (`passing`; movers.py seed
-    2, capture 29: 6 valid pairs off their object)."""
+    Two movers only where they lie MOVERS_M apart or more and so do their peaks in
+    each direction (`_movers_apart`): a glide at +3.5 m/s and a sway at -1.3 m/s 1-2
+    mm apart left a blend 2.1 mm off the glide however far apart their peaks
+    (`passing`; movers.py seed 2, capture 29: 6 valid pairs off their object)."""
     fixed = fixed or [False] * len(tracks)
     own = [path(t) for t in tracks]
     paths = [p if f else heard(t) for t, p, f in zip(tracks, own, fixed, strict=True)]
@@ -156,6 +158,8 @@ def conflicts(tracks: list[Track], fixed: list[bool] | None = None,
             close = np.abs(paths[i] - paths[j]) <= GATE_M      # NaN: False
             if k is not None and (fixed[i] or fixed[j]):
                 close &= ~_peaks_apart(paths[i] - paths[j], speeds[i] - speeds[j], k)
+            elif k is not None:
+                close &= ~_movers_apart(paths[i] - paths[j], speeds[i] - speeds[j], k)
             # an ambiguous pair's peaks where the other's own verified pair lies: that
             # echo seen by a second tracker, not a second echo beside it
             echo = np.isnan(own[i]) ^ np.isnan(own[j])
@@ -187,7 +191,8 @@ def passing(tracks: list[Track], k: tuple[float, float] | None = None,
     merged peak's (a glide at +3.5 m/s and a sway at -1.3 m/s 1-2 mm apart: the glide's
     last pair 2.1 mm off it). With the Doppler factors `k`, not a `fixed` object's pairs
     where its velocity and the course's put their peaks more than GATE_M apart in each
-    direction (`conflicts`: a pair on the other's echo reads its velocity)."""
+    direction (`conflicts`: a pair on the other's echo reads its velocity), nor a mover's
+    where they lie apart as two movers' (`_movers_apart`)."""
     moving = [bool(np.any(np.abs(t.velocity_mps[t.valid]) >= fixed_echoes.MOVING_MPS)) for t in tracks]
     courses = [course(t, KINEMATIC_S) if m else None for t, m in zip(tracks, moving, strict=True)]
     out = [np.zeros(t.pairs, bool) for t in tracks]
@@ -198,15 +203,27 @@ def passing(tracks: list[Track], k: tuple[float, float] | None = None,
                 near = np.abs(gap) <= GATE_M
                 if k is not None and fixed is not None and fixed[i]:
                     near &= ~_peaks_apart(gap, a.velocity_mps - c[1], k)
+                elif k is not None:
+                    near &= ~_movers_apart(gap, a.velocity_mps - c[1], k)
                 out[i] |= a.valid & near
     return out
 
 
-def _peaks_apart(gap_m: np.ndarray, dv_mps: np.ndarray, k: tuple[float, float]) -> np.ndarray:
+def _peaks_apart(gap_m: np.ndarray, dv_mps: np.ndarray, k: tuple[float, float],
+                 gate_m: float = GATE_M) -> np.ndarray:
     """Where two echoes `gap_m` (m) and `dv_mps` (m/s) apart have their peaks (the
-    distance + k v, `k`: m per m/s, rising and falling) more than GATE_M apart in both
+    distance + k v, `k`: m per m/s, rising and falling) more than `gate_m` apart in both
     directions: told apart (NaN, a velocity not known: not apart)."""
-    return (np.abs(gap_m + k[0] * dv_mps) > GATE_M) & (np.abs(gap_m + k[1] * dv_mps) > GATE_M)
+    return (np.abs(gap_m + k[0] * dv_mps) > gate_m) & (np.abs(gap_m + k[1] * dv_mps) > gate_m)
+
+
+def _movers_apart(gap_m: np.ndarray, dv_mps: np.ndarray, k: tuple[float, float]) -> np.ndarray:
+    """Where two movers `gap_m` (m) and `dv_mps` (m/s) apart are told apart: more than
+    MOVERS_M apart, and so are their peaks in each direction (`_peaks_apart`). A Hann
+    window's peak 4 mm from one twice as strong moves at most 0.011 mm (3 mm: 0.04 mm;
+    2x padded, Gaussian interpolation); GATE_M also took two movers' pairs 5-10 mm
+    apart (glides overtaking, a hand past a foot: benchmarks/movers.py)."""
+    return (np.abs(gap_m) > MOVERS_M) & _peaks_apart(gap_m, dv_mps, k, MOVERS_M)
 
 
 def _within_span(fixed: Track, d: np.ndarray) -> np.ndarray:

@@ -730,24 +730,42 @@ def test_objects_whose_peaks_lie_apart_in_each_direction_are_told_apart():
     rest within GATE_M has its peaks 30 mm either side of the foot's (movers.py seed
     3, capture 12: the foot's 360 pairs `ambiguous`). With the Doppler factors, neither
     is then ambiguous where one is fixed (`conflicts`, a fixed object's span too,
-    `passing`); at 0.32 m/s apart, where the velocity is not known, or between two
-    movers (a blend 2.1 mm off a glide passing a sway 4.8 m/s apart), both are."""
+    `passing`); at 0.32 m/s apart, or where the velocity is not known, both are; two
+    movers only within crossings.MOVERS_M (a blend 2.1 mm off a glide passing a sway
+    4.8 m/s apart)."""
     k = (0.027, -0.027)
     n = 400
     foot = _track(np.full(n, 0.070))
     hand = _track(np.linspace(0.090, 0.050, n), np.full(n, -1.1))
     near = np.abs(hand.distance_m - 0.070) <= objects.GATE_M
     assert np.array_equal(crossings.conflicts([foot, hand])[0], near)
-    assert np.array_equal(crossings.conflicts([foot, hand], k=k)[0], near)            # two movers
+    movers = np.abs(hand.distance_m - 0.070) <= crossings.MOVERS_M
+    assert movers.any() and (near & ~movers).any()
+    assert np.array_equal(crossings.conflicts([foot, hand], k=k)[0], movers)          # two movers
     assert not any(h.any() for h in crossings.conflicts([foot, hand], [True, False], k=k))
     assert np.array_equal(crossings.passing([foot, hand])[0], near)
-    assert np.array_equal(crossings.passing([foot, hand], k)[0], near)
+    assert np.array_equal(crossings.passing([foot, hand], k)[0], movers)
     assert not crossings.passing([foot, hand], k, [True, False])[0].any()
     slow = _track(hand.distance_m, np.full(n, -0.32))
     assert np.array_equal(crossings.conflicts([foot, slow], [True, False], k=k)[0], near)
     assert np.array_equal(crossings.passing([foot, slow], k, [True, False])[0], near)
     unknown = _track(hand.distance_m, np.full(n, np.nan))
     assert np.array_equal(crossings.conflicts([foot, unknown], [True, False], k=k)[0], near)
+
+
+def test_two_movers_are_told_apart_where_they_and_their_peaks_lie_apart():
+    """Two movers 5-10 mm apart (crossings.MOVERS_M .. objects.GATE_M) are told apart
+    where their peaks are too in each direction: at one velocity, 7 mm apart, neither
+    is ambiguous; 8 mm apart at 0.3 m/s apart, one direction's peaks meet and both are;
+    4 mm apart, both are whatever their velocities."""
+    k = (0.027, -0.027)
+    n = 400
+    a = _track(np.full(n, 0.200), np.full(n, 1.0))
+    for gap, dv, hit in ((0.007, 0.0, False), (0.008, -0.3, True), (0.004, 2.0, True)):
+        b = _track(np.full(n, 0.200 + gap), np.full(n, 1.0 + dv))
+        assert all(h.all() == hit and h.any() == hit for h in crossings.conflicts([a, b], k=k))
+        assert all(h.all() == hit and h.any() == hit for h in crossings.passing([a, b], k))
+        assert all(h.all() for h in crossings.conflicts([a, b]))             # no velocities: GATE_M
 
 
 def test_conflicts_count_another_objects_ambiguous_pairs():
