@@ -24,7 +24,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from . import conversions, numeric, objects
+from . import conversions, crossings, numeric, objects
 from .capture import Capture
 from .chunks import capture_parts
 from .conversions import Converted, First
@@ -189,7 +189,8 @@ def converted_along(cap: Capture, first: First, done: list[Converted], moving: l
             # stands; a pair further off than the mover can be is another's, not its; one
             # beside another object is a crossing's, which the parts' ends tell (identities)
             r, width = got[2]
-            near = got[1] & (np.abs(track.distance_m - r) <= width) & _apart(track, others)
+            k = (m.k_rise, m.k_fall)
+            near = got[1] & (np.abs(track.distance_m - r) <= width) & _apart(track, others, k)
             gained = _runs(track.valid & ~done[i].track.valid & near, RUN_PAIRS)
             if gained.any():
                 joined = objects.joined(done[i].track, objects.invalidated(track, track.valid & ~gained))
@@ -245,13 +246,18 @@ def objects_along(cap: Capture, first: First, own: list[Converted], scene: list[
     return [replace(o, track=d.track) for o, d in zip(scene, done, strict=True)]
 
 
-def _apart(track: Track, others: list[tuple[Track, bool]]) -> np.ndarray:
+def _apart(track: Track, others: list[tuple[Track, bool]], k: tuple[float, float] | None = None
+           ) -> np.ndarray:
     """Which pairs of `track` lie more than objects.GATE_M from every other object where
-    it is (`_where`)."""
+    it is (`_where`), or, with the Doppler factors `k` (m per m/s), from every mover
+    they are told apart from as two movers are (crossings.movers_apart)."""
     out = np.ones(track.pairs, bool)
     for o, moving in others:
-        seen, r_o, _ = _where(o, track.time_s, moving)
-        out &= ~(seen & (np.abs(track.distance_m - r_o) <= objects.GATE_M))
+        seen, r_o, v_o = _where(o, track.time_s, moving)
+        near = seen & (np.abs(track.distance_m - r_o) <= objects.GATE_M)
+        if k is not None and moving:
+            near &= ~crossings.movers_apart(track.distance_m - r_o, track.velocity_mps - v_o, k)
+        out &= ~near
     return out
 
 

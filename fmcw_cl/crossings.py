@@ -145,7 +145,7 @@ def conflicts(tracks: list[Track], fixed: list[bool] | None = None,
     either side of the foot's; movers.py seed 3, capture 12, the foot 360 pairs
     `ambiguous`); where one direction's peaks meet elsewhere, the images' rule judges.
     Two movers only where they lie MOVERS_M apart or more and so do their peaks in
-    each direction (`_movers_apart`): a glide at +3.5 m/s and a sway at -1.3 m/s 1-2
+    each direction (`movers_apart`): a glide at +3.5 m/s and a sway at -1.3 m/s 1-2
     mm apart left a blend 2.1 mm off the glide however far apart their peaks
     (`passing`; movers.py seed 2, capture 29: 6 valid pairs off their object)."""
     fixed = fixed or [False] * len(tracks)
@@ -159,7 +159,7 @@ def conflicts(tracks: list[Track], fixed: list[bool] | None = None,
             if k is not None and (fixed[i] or fixed[j]):
                 close &= ~_peaks_apart(paths[i] - paths[j], speeds[i] - speeds[j], k)
             elif k is not None:
-                close &= ~_movers_apart(paths[i] - paths[j], speeds[i] - speeds[j], k)
+                close &= ~movers_apart(paths[i] - paths[j], speeds[i] - speeds[j], k)
             # an ambiguous pair's peaks where the other's own verified pair lies: that
             # echo seen by a second tracker, not a second echo beside it
             echo = np.isnan(own[i]) ^ np.isnan(own[j])
@@ -192,7 +192,7 @@ def passing(tracks: list[Track], k: tuple[float, float] | None = None,
     last pair 2.1 mm off it). With the Doppler factors `k`, not a `fixed` object's pairs
     where its velocity and the course's put their peaks more than GATE_M apart in each
     direction (`conflicts`: a pair on the other's echo reads its velocity), nor a mover's
-    where they lie apart as two movers' (`_movers_apart`)."""
+    where they lie apart as two movers' (`movers_apart`)."""
     moving = [bool(np.any(np.abs(t.velocity_mps[t.valid]) >= fixed_echoes.MOVING_MPS)) for t in tracks]
     courses = [course(t, KINEMATIC_S) if m else None for t, m in zip(tracks, moving, strict=True)]
     out = [np.zeros(t.pairs, bool) for t in tracks]
@@ -204,7 +204,7 @@ def passing(tracks: list[Track], k: tuple[float, float] | None = None,
                 if k is not None and fixed is not None and fixed[i]:
                     near &= ~_peaks_apart(gap, a.velocity_mps - c[1], k)
                 elif k is not None:
-                    near &= ~_movers_apart(gap, a.velocity_mps - c[1], k)
+                    near &= ~movers_apart(gap, a.velocity_mps - c[1], k)
                 out[i] |= a.valid & near
     return out
 
@@ -217,7 +217,7 @@ def _peaks_apart(gap_m: np.ndarray, dv_mps: np.ndarray, k: tuple[float, float],
     return (np.abs(gap_m + k[0] * dv_mps) > gate_m) & (np.abs(gap_m + k[1] * dv_mps) > gate_m)
 
 
-def _movers_apart(gap_m: np.ndarray, dv_mps: np.ndarray, k: tuple[float, float]) -> np.ndarray:
+def movers_apart(gap_m: np.ndarray, dv_mps: np.ndarray, k: tuple[float, float]) -> np.ndarray:
     """Where two movers `gap_m` (m) and `dv_mps` (m/s) apart are told apart: more than
     MOVERS_M apart, and so are their peaks in each direction (`_peaks_apart`). A Hann
     window's peak 4 mm from one twice as strong moves at most 0.011 mm (3 mm: 0.04 mm;

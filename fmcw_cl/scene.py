@@ -177,7 +177,7 @@ def _told_apart(found: list[objects.SceneObject], done: list[Converted], own: Co
     image = crossings.images(tracks, own.plan.model, own.plan.window, _calm_unseen(scene, of, own))
     clash = [c | m | r for c, m, r in zip(clash, image, crossings.read_moving(tracks, moving), strict=True)]
     if lone:
-        paths = crossings.conflicts(tracks)
+        paths = crossings.conflicts(tracks, k=(own.plan.model.k_rise, own.plan.model.k_fall))
         clash = [c | p for c, p in zip(clash, paths, strict=True)]
     clash = [c | _brief_rest(o, c | w) for o, c, w in zip(scene, clash, two, strict=True)]
     movers = [o.track for o in scene if o.moving]

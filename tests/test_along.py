@@ -161,6 +161,26 @@ def test_a_course_is_cut_half_way_to_another_object_wholly_on_one_side():
     np.testing.assert_allclose(course2.hi_m[0][:200], course.hi_m[0][:200])
 
 
+def test_pairs_along_a_course_beside_a_mover_told_apart_from_it_are_gained():
+    """A course's new pairs within GATE_M of another object are not gained (`_apart`),
+    but with the Doppler factors, those beside a mover they are told apart from as two
+    movers are (crossings.movers_apart: more than 5 mm apart and so are their peaks,
+    a hand at 1.1 m/s past a foot at -0.3 m/s); not those beside a fixed object."""
+    n = 400
+    d = np.linspace(0.060, 0.080, n)
+    hand = _track(d, np.full(n, 1.1), np.ones(n, bool))
+    foot = _track(np.full(n, 0.070), np.full(n, -0.3), np.ones(n, bool))
+    gap = np.abs(d - 0.070)
+    plain = along._apart(hand, [(foot, True)])
+    told = along._apart(hand, [(foot, True)], K)
+    assert np.array_equal(plain, gap > 0.01) and np.array_equal(told, gap > 0.005)
+    assert np.array_equal(along._apart(hand, [(foot, False)], K), plain)
+    slow = _track(d, np.full(n, -0.2), np.ones(n, bool))         # one direction's peaks 2.7 mm closer
+    assert np.array_equal(along._apart(slow, [(foot, True)], K), gap > 0.005 + K[0] * 0.1)
+    same = _track(d, np.full(n, -0.3), np.ones(n, bool))
+    assert np.array_equal(along._apart(same, [(foot, True)], K), gap > 0.005)
+
+
 def test_a_body_inside_a_gap_of_a_movers_pairs_goes_on_as_it():
     """A glide at -1.2 m/s verified but for a 66 ms gap; a body of its own inside the gap,
     5 and 25 ms from its ends, goes on as it (both ends one body's motion, each within
