@@ -153,6 +153,7 @@ def converted_along(cap: Capture, first: First, done: list[Converted], moving: l
     m = first.plan.model
     user = first.plan.options.band_m
     room = (GUARD_BINS + FLOOR_BINS) * m.metres_per_bin
+    doppler = (m.k_rise, m.k_fall)
     mine = [moving[i] and not d.joined and d.track.valid.any() for i, d in enumerate(done)]
     bare = [moving[i] and not d.joined and not d.track.valid.any() for i, d in enumerate(done)]
     if found is None:
@@ -169,7 +170,7 @@ def converted_along(cap: Capture, first: First, done: list[Converted], moving: l
         if not (mine[i] or (bare[i] and lines[i] is not None)) or (lined and lines[i] is None):
             continue
         others = [(o.track, mv) for o, mv in zip(done, moving, strict=True) if o is not d]
-        got = course_of(d.track, others, (m.k_rise, m.k_fall), d.choice.band_m, room, lines[i])
+        got = course_of(d.track, others, doppler, d.choice.band_m, room, lines[i])
         if got is None or not (bare[i] or _entered(d.track, others, got[0], got[1], d.choice.band_m)):
             continue
         if conversions.searchable(replace(d.plan.with_band(user), course=got[0]), user):
@@ -189,8 +190,7 @@ def converted_along(cap: Capture, first: First, done: list[Converted], moving: l
             # stands; a pair further off than the mover can be is another's, not its; one
             # beside another object is a crossing's, which the parts' ends tell (identities)
             r, width = got[2]
-            k = (m.k_rise, m.k_fall)
-            near = got[1] & (np.abs(track.distance_m - r) <= width) & _apart(track, others, k)
+            near = got[1] & (np.abs(track.distance_m - r) <= width) & _apart(track, others, doppler)
             gained = _runs(track.valid & ~done[i].track.valid & near, RUN_PAIRS)
             if gained.any():
                 joined = objects.joined(done[i].track, objects.invalidated(track, track.valid & ~gained))

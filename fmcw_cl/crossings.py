@@ -144,7 +144,7 @@ def conflicts(tracks: list[Track], fixed: list[bool] | None = None,
     alike) are told apart (a hand at -1.1 m/s passing a foot at rest: its peaks 30 mm
     either side of the foot's; movers.py seed 3, capture 12, the foot 360 pairs
     `ambiguous`); where one direction's peaks meet elsewhere, the images' rule judges.
-    Two movers only where they lie MOVERS_M apart or more and so do their peaks in
+    Two movers only where they lie more than MOVERS_M apart and so do their peaks in
     each direction (`movers_apart`): a glide at +3.5 m/s and a sway at -1.3 m/s 1-2
     mm apart left a blend 2.1 mm off the glide however far apart their peaks
     (`passing`; movers.py seed 2, capture 29: 6 valid pairs off their object)."""
