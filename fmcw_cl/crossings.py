@@ -155,15 +155,14 @@ def conflicts(tracks: list[Track], fixed: list[bool] | None = None,
     out = [np.zeros(t.pairs, bool) for t in tracks]
     for i in range(len(tracks)):
         for j in range(i + 1, len(tracks)):
-            close = np.abs(paths[i] - paths[j]) <= GATE_M      # NaN: False
-            if k is not None and (fixed[i] or fixed[j]):
-                close &= ~_peaks_apart(paths[i] - paths[j], speeds[i] - speeds[j], k)
-            elif k is not None:
-                close &= ~movers_apart(paths[i] - paths[j], speeds[i] - speeds[j], k)
+            gap = paths[i] - paths[j]
+            close = np.abs(gap) <= GATE_M      # NaN: False
+            if k is not None:
+                close &= ~_apart(gap, speeds[i] - speeds[j], k, fixed[i] or fixed[j])
             # an ambiguous pair's peaks where the other's own verified pair lies: that
             # echo seen by a second tracker, not a second echo beside it
             echo = np.isnan(own[i]) ^ np.isnan(own[j])
-            close &= ~(echo & (np.abs(paths[i] - paths[j]) <= SAME_M))
+            close &= ~(echo & (np.abs(gap) <= SAME_M))
             for a, b in ((i, j), (j, i)):
                 if fixed[b] and tracks[b].valid.any():
                     near = _within_span(tracks[b], paths[a])
@@ -201,10 +200,8 @@ def passing(tracks: list[Track], k: tuple[float, float] | None = None,
             if i != j and c is not None:
                 gap = a.distance_m - c[0]
                 near = np.abs(gap) <= GATE_M
-                if k is not None and fixed is not None and fixed[i]:
-                    near &= ~_peaks_apart(gap, a.velocity_mps - c[1], k)
-                elif k is not None:
-                    near &= ~movers_apart(gap, a.velocity_mps - c[1], k)
+                if k is not None:
+                    near &= ~_apart(gap, a.velocity_mps - c[1], k, fixed is not None and fixed[i])
                 out[i] |= a.valid & near
     return out
 
@@ -224,6 +221,13 @@ def movers_apart(gap_m: np.ndarray, dv_mps: np.ndarray, k: tuple[float, float]) 
     2x padded, Gaussian interpolation); GATE_M also took two movers' pairs 5-10 mm
     apart (glides overtaking, a hand past a foot: benchmarks/movers.py)."""
     return (np.abs(gap_m) > MOVERS_M) & _peaks_apart(gap_m, dv_mps, k, MOVERS_M)
+
+
+def _apart(gap_m: np.ndarray, dv_mps: np.ndarray, k: tuple[float, float], fixed: bool) -> np.ndarray:
+    """Where two echoes `gap_m` (m) and `dv_mps` (m/s) apart are told apart: by their
+    peaks alone where one is `fixed` (`_peaks_apart`), else as two movers are
+    (`movers_apart`)."""
+    return _peaks_apart(gap_m, dv_mps, k) if fixed else movers_apart(gap_m, dv_mps, k)
 
 
 def _within_span(fixed: Track, d: np.ndarray) -> np.ndarray:

@@ -22,7 +22,7 @@ from . import along, course_bodies, identities, objects
 from .numeric import centred_slope
 from .objects import SceneObject
 
-GAP_S = course_bodies.GAP_S  # a gap this long or shorter is joined across ...
+GAP_S = course_bodies.GAP_S         # a gap this long or shorter is joined across ...
 REST_GAP_S = 0.05           # ... this long between a mover and its rest (it may rest a while unseen)
 MOVING_MPS = along.SEED_MPS   # ends this fast: a body in motion, never two at rest side by side
 BRAKE_MPS2 = 10.0           # an end's acceleration this strong against (or with) its motion is braking

@@ -170,14 +170,15 @@ def _told_apart(found: list[objects.SceneObject], done: list[Converted], own: Co
     tracks, moving = [o.track for o in scene], [o.moving for o in scene]
     rad_per_m = phase.radians_per_metre(own.plan.lut.nu_hz, own.plan.info.refractive_index)
     two = [coherence.two_bodies(t, rad_per_m) for t in tracks]
-    clash = crossings.passing(tracks, (own.plan.model.k_rise, own.plan.model.k_fall), [not m for m in moving])
+    doppler = (own.plan.model.k_rise, own.plan.model.k_fall)
+    clash = crossings.passing(tracks, doppler, [not m for m in moving])
     # the objects' own images of each other (`_exclusive` looked across conversions,
     # before their parts were told apart): a sway's part de-chirped at -3.48 m/s held a
     # glide's image, 18 pairs
     image = crossings.images(tracks, own.plan.model, own.plan.window, _calm_unseen(scene, of, own))
     clash = [c | m | r for c, m, r in zip(clash, image, crossings.read_moving(tracks, moving), strict=True)]
     if lone:
-        paths = crossings.conflicts(tracks, k=(own.plan.model.k_rise, own.plan.model.k_fall))
+        paths = crossings.conflicts(tracks, k=doppler)
         clash = [c | p for c, p in zip(clash, paths, strict=True)]
     clash = [c | _brief_rest(o, c | w) for o, c, w in zip(scene, clash, two, strict=True)]
     movers = [o.track for o in scene if o.moving]
