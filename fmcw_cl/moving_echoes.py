@@ -27,7 +27,7 @@ import numpy as np
 from . import echoes
 from .coherence import slope
 from .fixed_echoes import APART_M, MIN_TRAVEL_M, MOVING_MPS, beside_span
-from .numeric import nearest, nearest_first, runs
+from .numeric import matched, nearest, runs
 from .objects import seen_again
 from .stages.verification import ACCEL_MAX, KINEMATIC_S
 from .track import Track
@@ -52,38 +52,39 @@ def lines(time_s: np.ndarray, distance_m: np.ndarray) -> list[np.ndarray]:
     at `time_s` (s, sorted) and `distance_m` (m) of MIN_DETECTIONS or more over
     MIN_SPAN_S or more. A line's velocity is its last detection's distance less its
     TREND'th last's over their time (its first's while shorter)."""
-    open_: list[list[int]] = []
-    out: list[list[int]] = []
     if not time_s.size:
         return []
-    starts = np.r_[0, np.flatnonzero(np.diff(time_s) > 0) + 1, time_s.size]
+    # a half-sweep holds one to three detections and a few lines are open: Python's
+    # floats link them several times faster than numpy's calls on such small arrays
+    t, d = time_s.tolist(), distance_m.tolist()
+    starts = np.r_[0, np.flatnonzero(np.diff(time_s) > 0) + 1, time_s.size].tolist()
+    open_: list[list[int]] = []
+    out: list[list[int]] = []
     for a, b in zip(starts[:-1], starts[1:], strict=True):
-        now = float(time_s[a])
-        going = [now - time_s[x[-1]] <= (GAP_S if len(x) > 1 else START_S) for x in open_]
+        now = t[a]
+        going = [now - t[x[-1]] <= (GAP_S if len(x) > 1 else START_S) for x in open_]
         out += [x for x, g in zip(open_, going, strict=True) if not g and len(x) > 1]
         open_ = [x for x, g in zip(open_, going, strict=True) if g]
         if not open_:
             open_ = [[i] for i in range(a, b)]
             continue
-        last = np.array([x[-1] for x in open_])
-        back = np.array([x[-TREND] if len(x) >= TREND else x[0] for x in open_])
-        dt = now - time_s[last]
-        span = time_s[last] - time_s[back]
-        single = span <= 0
-        v = np.where(single, 0.0, (distance_m[last] - distance_m[back]) / np.where(single, 1.0, span))
-        at = distance_m[last] + v * dt
-        reach = np.where(single, np.where(dt <= START_S, LINK_M + START_MPS * dt, -1.0),
-                         LINK_M + 0.5 * ACCEL_MAX * dt * dt)
-        miss = np.abs(distance_m[a:b, None] - at[None, :])             # (detections, lines)
-        miss[miss > reach[None, :]] = np.inf
-        taken = np.zeros(b - a, bool)
-        for i, n in nearest_first(miss):                # one detection a line
+        near = []                                       # (miss, detection, line) within reach
+        for n, x in enumerate(open_):
+            last, back = x[-1], x[-TREND] if len(x) >= TREND else x[0]
+            dt, span = now - t[last], t[last] - t[back]
+            if span <= 0:
+                at, reach = d[last], LINK_M + START_MPS * dt if dt <= START_S else -1.0
+            else:
+                at, reach = d[last] + (d[last] - d[back]) / span * dt, LINK_M + 0.5 * ACCEL_MAX * dt * dt
+            near += [(m, i, n) for i in range(b - a) if (m := abs(d[a + i] - at)) <= reach]
+        taken = [False] * (b - a)
+        for i, n in matched(near):                      # one detection a line
             open_[n].append(a + i)
             taken[i] = True
-        open_ += [[a + int(i)] for i in np.flatnonzero(~taken)]
+        open_ += [[a + i] for i in range(b - a) if not taken[i]]
     out += open_
     return [np.asarray(x) for x in out
-            if len(x) >= MIN_DETECTIONS and time_s[x[-1]] - time_s[x[0]] >= MIN_SPAN_S]
+            if len(x) >= MIN_DETECTIONS and t[x[-1]] - t[x[0]] >= MIN_SPAN_S]
 
 
 def unheld(e: echoes.Echoes, k_rise: float, k_fall: float, track: Track, band: tuple[float, float | None],

@@ -296,14 +296,22 @@ def drifts(t: np.ndarray, d: np.ndarray, v: np.ndarray, sizes: np.ndarray, block
 
 def nearest_first(miss: np.ndarray) -> list[tuple[int, int]]:
     """(row, column) of `miss` (a cost matrix, inf: not allowed) matched nearest first,
-    each row and each column at most once."""
-    miss = miss.copy()
+    each row and each column at most once (`matched`)."""
+    rows, cols = np.nonzero(np.isfinite(miss))
+    return matched(list(zip(miss[rows, cols].tolist(), rows.tolist(), cols.tolist(), strict=True)))
+
+
+def matched(near: list[tuple[float, int, int]]) -> list[tuple[int, int]]:
+    """(row, column) of the candidates `near` ((cost, row, column)) taken nearest first,
+    on a tie the lower row, then the lower column; each row and each column at most once."""
+    rows: set[int] = set()
+    cols: set[int] = set()
     out = []
-    while np.isfinite(miss).any():
-        i, n = np.unravel_index(np.argmin(miss), miss.shape)
-        out.append((int(i), int(n)))
-        miss[i, :] = np.inf
-        miss[:, n] = np.inf
+    for _, i, n in sorted(near):
+        if i not in rows and n not in cols:
+            out.append((i, n))
+            rows.add(i)
+            cols.add(n)
     return out
 
 

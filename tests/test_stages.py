@@ -365,6 +365,28 @@ def test_run_medians_equal_numpys_nanmedian_over_each_runs_windows():
     assert np.isnan(got[~valid]).all() and np.isnan(got[1016:1024]).all()
 
 
+def test_nearest_first_matches_as_the_argmin_of_what_is_left():
+    """numeric.nearest_first (the trackers' and echo lines' one detection a line): the
+    matrix's smallest finite cost taken again and again, its row and column then left
+    out, on a tie the first in row-major order (np.argmin), on costs rounded to give ties."""
+    from fmcw_cl.numeric import nearest_first
+
+    def argmin_loop(miss):
+        miss, out = miss.copy(), []
+        while np.isfinite(miss).any():
+            i, n = np.unravel_index(np.argmin(miss), miss.shape)
+            out.append((int(i), int(n)))
+            miss[i, :] = miss[:, n] = np.inf
+        return out
+
+    rng = np.random.default_rng(4)
+    for _ in range(500):
+        miss = np.round(rng.uniform(0, 1, rng.integers(1, 9, 2)), 1)
+        miss[rng.random(miss.shape) < 0.4] = np.inf
+        assert nearest_first(miss) == argmin_loop(miss)
+    assert nearest_first(np.array([[1.0, 1.0], [1.0, 0.5]])) == [(1, 1), (0, 0)]
+
+
 def test_running_median_and_savgol_derivative_equal_scipys():
     """The tracker's running median and the acceleration's Savitzky-Golay derivative
     (fmcw_cl.numeric: scipy.signal and scipy.ndimage cost a second to import) against
