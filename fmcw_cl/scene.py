@@ -119,7 +119,7 @@ def _lone(cap: Capture, first: First, own: Converted, moving: bool, processor: C
     # method); the echo table's bodies (a loop in Python, 0.1-0.4 s) sought once, if asked
     fast = course_bodies.fast_bodies_of(first) if options.dechirp else []
     plain = cache(lambda: course_bodies.bodies_of(first))
-    bare = unheld_movers.unheld(fast, plain, [own.track], own.choice.band_m)
+    bare = unheld_movers.unheld(fast, plain, [own.track], own.choice.band_m, [moving])
     if body is own.track and bodies < 2 and bare is None:
         return [objects.SceneObject(1, moving, own.track, "the target: no other echo")], 0, own
     if bodies < 2 and bare is None:     # another echo held briefly: its pairs ambiguous

@@ -25,18 +25,21 @@ from .track import Track
 
 def unheld(fast: list[tuple[np.ndarray, np.ndarray, np.ndarray]],
            plain: Callable[[], list[tuple[np.ndarray, np.ndarray, np.ndarray]]], held: list[Track],
-           band_m: tuple[float, float | None]) -> objects.SceneObject | None:
+           band_m: tuple[float, float | None], moving: list[bool]) -> objects.SceneObject | None:
     """A moving object holding no pair (`bare`) where the velocity bank's bodies `fast`
     (course_bodies.fast_bodies_of) in `band_m` (m) lie on none of the `held` tracks, clear of
-    them (course_bodies.clear), and go on as none of them (course_bodies.continuing, with the echo
-    table's bodies `plain()`, course_bodies.bodies_of: a glide's own body beyond its part's end,
-    which its course then took, made a second object of it and the crossing check left
-    both `ambiguous` there: 96 -> 28 % of its periods, movers.py seed 1, capture 16);
-    else None."""
+    them (course_bodies.clear), and go on as none of the movers among them (`moving`;
+    course_bodies.continuing, with the echo table's bodies `plain()`, course_bodies.bodies_of:
+    a glide's own body beyond its part's end, which its course then took, made a second
+    object of it and the crossing check left both `ambiguous` there: 96 -> 28 % of its
+    periods, movers.py seed 1, capture 16; a fixed part is converted along no course, and
+    a weak glide's 2 ms held as one kept the bank's body of its next 100 ms: 1 % of its
+    periods, seed 2, capture 33); else None."""
     fast = [b for b in fast if course_bodies.clear(b[0], b[1], held)] if held else []
     if not fast:            # the common case: the echo table's bodies (a loop in Python) not sought
         return None
-    taken = [c[0] for c in course_bodies.continuing(list(held), plain() + fast, held) if c is not None]
+    goes = [t if m else None for t, m in zip(held, moving, strict=True)]
+    taken = [c[0] for c in course_bodies.continuing(goes, plain() + fast, held) if c is not None]
     if taken:
         fast = [b for b in fast if np.mean(np.isin(b[0], np.concatenate(taken))) < 0.5]
     if along._untracked(fast, held, band_m) is None:
@@ -50,9 +53,10 @@ def with_unheld(scene: list[objects.SceneObject], fast: list, plain: Callable[[]
                 ) -> list[objects.SceneObject]:
     """`convert(scene)` (its objects converted along their courses, along.objects_along)
     with, last, a bare object of the velocity bank's bodies `fast` that go on as none
-    of them (`unheld`; `plain`, `band_m` as there), converted along its course with
+    of its movers (`unheld`; `plain`, `band_m` as there), converted along its course with
     them, unless it is a twin (`without_twin`)."""
-    bare = unheld(fast, plain, [o.track for o in scene if o.track.valid.any()], band_m)
+    kept = [o for o in scene if o.track.valid.any()]
+    bare = unheld(fast, plain, [o.track for o in kept], band_m, [o.moving for o in kept])
     return convert(scene) if bare is None else without_twin(convert(scene + [bare]))
 
 

@@ -64,3 +64,20 @@ def test_a_hand_the_jumps_tracker_never_held_is_an_object(tmp_path, hand, db, se
     assert best[0] >= 0.85 and best[1] >= held, best
     assert any("no tracker held" in o.note for o in track.objects)
 
+
+@pytest.mark.long
+def test_a_weak_glide_whose_few_pairs_are_a_fixed_part_is_an_object(tmp_path):
+    """Two glides one way at a lab's SNR (movers.py seed 2, capture 33): the other, 5.9
+    dB weaker, rests at 0.083 m until the target has passed it, then glides after it at
+    up to 1.4 m/s. One candidate; its tracker held the weaker glide for 2 ms (40 pairs,
+    a fixed part: too short to move). The velocity bank's body of the glide goes on as
+    that part, but a fixed part is converted along no course: the body is an object of
+    its own (1 -> 22 % of the glide's periods), no pair off its own object."""
+    target = glide(0.7, 0.06426805035336254, 0.2864645441449119, 0.0775095587342738, 0.4775095587342738)
+    other = glide(0.7, 0.08258346981345052, 0.37919452866132275, 0.14828275983005668, 0.5482827598300567)
+    track, scores = two_movers(tmp_path / "glides.h5", target, other, 254.4762553761667, True, 106,
+                               0.10386334032799983, 0.23401722063618646)
+    best = best_held(scores, 2)
+    assert best[0] >= 0.9 and best[1] >= 0.15, best
+    assert any("no tracker held" in o.note for o in track.objects)
+
