@@ -1555,3 +1555,31 @@ def test_a_hand_passing_a_foot_at_rest_leaves_the_foot_its_pairs(tmp_path):
                                0.33765822527717976, 0.07203321095259645)
     best = best_held(scores, 2)
     assert best[0] >= 0.85 and best[1] >= 0.95, best
+
+
+def test_a_fixed_object_squeezed_under_a_movers_span_has_a_band_of_its_own():
+    """A fixed object's band is at least options.RANGE_GAP_M wide, its far end moved out
+    (conversions._wide_enough); a band that wide, or open, stays as it is."""
+    from fmcw_cl.conversions import _wide_enough
+    from fmcw_cl.options import RANGE_GAP_M
+
+    lo, hi = _wide_enough((0.03, 0.0393))
+    assert lo == 0.03 and hi == pytest.approx(0.03 + RANGE_GAP_M)
+    assert _wide_enough((0.03, 0.05)) == (0.03, 0.05)
+    assert _wide_enough((0.2, None)) == (0.2, None)
+
+
+@pytest.mark.long
+def test_a_hand_come_to_rest_near_the_range_start_is_an_object_with_pairs(tmp_path):
+    """The jump and a hand glided down to rest at 0.038 m, 3.3 dB weaker, clean (movers.py
+    seed 5, capture 2): the hand at rest is a fixed object between the range's start
+    (0.03 m) and the moving span from 0.041 m, its band 9.3 mm, narrower than a band may
+    be: it held no pair (0 % of the hand's periods). Its band widened to 10 mm: the hand
+    at rest held (over 35 %), the jump 95 % or more, none off its own object."""
+    from fmcw_cl.simulator.scene import jump
+
+    hand = glide(0.7, 0.3666715340304868, 0.038143548135903045, 0.016053609328047752, 0.19965140964049544)
+    track, scores = two_movers(tmp_path / "jump_hand.h5", jump(0.7), hand, 343.05291930796227, False, 677,
+                               0.07117323949038978, 0.21979538325534126)
+    best = best_held(scores, 2)
+    assert best[0] >= 0.95 and best[1] >= 0.35, best
