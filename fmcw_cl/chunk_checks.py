@@ -14,6 +14,9 @@ from . import echoes
 from .stages import bank, doppler, faults, pairing
 from .stages.spectrum import Search
 
+CHECK_STRIDE = 4             # the 2N-point range check runs on every 4th pair near the limit,
+CHECK_STRIDE_FAR = 16        # ... every 16th where every distance of the chunk is below
+CHECK_NEAR = 0.75            # this share of the unambiguous range
 SURVEY_KEYS = ("time_s", "rising", "ratio", "distance_m", "found", *echoes.MEAN_KEYS, *bank.POINT_KEYS)
 
 
@@ -38,6 +41,28 @@ class RangeCheck:
     window: np.ndarray
     model: doppler.DopplerModel
     search: Search
+
+    @classmethod
+    def of(cls, plan, hs, r: np.ndarray, f: np.ndarray, res: pairing.PairResult) -> RangeCheck:
+        """The 2N-point range check of pairs (r, f) of the half-sweeps `hs` with the
+        tracker's results `res` under `plan`, on the plain spectra (a target whose
+        Doppler-shifted plain peak folds is flagged too: the plain pass that starts the
+        tracker cannot measure it), run on every CHECK_STRIDE-th pair (`beyond`). A
+        target only crosses the limit through N-point distances near it: in a chunk whose
+        plain and Doppler-free distances all stay below CHECK_NEAR of it, every
+        CHECK_STRIDE_FAR-th pair is checked (a target beyond the range from the start is
+        still found)."""
+        lut2, win2, model2 = plan.check
+        seen = np.concatenate([res.dist_rise, res.dist_fall, res.dechirped_rise, res.dechirped_fall,
+                               res.distance])
+        near = np.any(seen > CHECK_NEAR * plan.lut.unambiguous_range_m)
+        stride = CHECK_STRIDE if near else CHECK_STRIDE_FAR
+        checked = np.arange(0, r.size, stride)
+        if checked[-1] != r.size - 1:
+            checked = np.append(checked, r.size - 1)
+        sides = ((r[checked], lut2.u_rise), (f[checked], lut2.u_fall))
+        return cls(checked, [(hs.start[idx], hs.length[idx], u) for idx, u in sides], win2, model2,
+                   Search(plan.search.lo, model2.nfft // 2))
 
     def beyond(self, got: list, res: pairing.PairResult, lut) -> np.ndarray:
         """Which of the pairs of `res` lie beyond the unambiguous range of `lut`, from the

@@ -12,6 +12,9 @@ runs the same steps on a device. What the steps are, in order (`process`):
 3. the tracker's passes (plain FFT, de-chirp, regularisation; `stages.pairing`);
 4. ownership: the pairs whose first turning point lies in the chunk's core;
 5. clipping by its effect, the 2N-point range check, the survey of hidden echoes.
+
+A processor's later conversions of a capture (its objects') take the turning points,
+clipping counts and range checks its chunks gave before (chunk_memo.ChunkMemo).
 """
 
 from __future__ import annotations
@@ -24,19 +27,15 @@ import numpy as np
 
 from . import echoes, spectrum_ops
 from .chunk_checks import RangeCheck, Survey, no_survey, owned
+from .chunk_memo import ChunkMemo
 from .chunk_state import Ahead, Held, Later, Pending, Prepared, clipping
 from .errors import FmcwError
 from .stages import bank, clutter, delay, faults, integrate, lpf, pairing, resample, sync
 from .stages.groups import group_slices
-from .stages.spectrum import Search
 
 if TYPE_CHECKING:
     from .capture import Chunk
     from .plan import Plan
-
-CHECK_STRIDE = 4             # the 2N-point range check runs on every 4th pair near the limit,
-CHECK_STRIDE_FAR = 16        # ... every 16th where every distance of the chunk is below
-CHECK_NEAR = 0.75            # this share of the unambiguous range
 
 
 @dataclass
@@ -84,6 +83,7 @@ class ChunkProcessor(spectrum_ops.SpectrumOps):
         self._ahead: Ahead | None = None         # the next chunk, prepared by the last one
         self._pending: Pending | None = None     # the last chunk, but for its range check and survey
         self._meanwhile: Callable[[], None] | None = None    # `meanwhile`'s work
+        self._memo = ChunkMemo()      # what the capture's chunks gave its other conversions
 
     # -- life cycle --
     def open(self, plan: Plan) -> None:
@@ -91,8 +91,10 @@ class ChunkProcessor(spectrum_ops.SpectrumOps):
         self.plan, self._ahead, self._pending, self._meanwhile = plan, None, None, None
 
     def close(self) -> None:
-        """Let the plan go (a device processor also returns its pooled buffers)."""
+        """Let the plan and what the capture's chunks gave go (a device processor also
+        returns its pooled buffers)."""
         self.plan, self._ahead, self._pending, self._meanwhile = None, None, None, None
+        self._memo = ChunkMemo()
 
     def fork(self) -> ChunkProcessor:
         """A processor of the same kind for another thread."""
@@ -181,15 +183,17 @@ class ChunkProcessor(spectrum_ops.SpectrumOps):
         if prepared is None and ahead is not None and ahead.chunk is chunk:
             prepared, found, resampled = ahead.prepared, ahead.found, ahead.resampled
         else:
-            prepared = self.prepare(chunk, info) if prepared is None else prepared
+            if prepared is None:
+                prepared = self._memo.prepared(chunk, info, lambda: Later(self.prepare(chunk, info))).get()
             found, resampled = self._pairs(chunk, prepared, plan.lag), None
         if found is None:
-            return [] if before is None else [self._finished(before, self.check_and_survey(before))]
+            return [] if before is None else [self._finished(before, self._checked(before))]
         (xr, xf), times = resampled if resampled is not None else self._resampled(chunk, found)
-        landed = None if before is None else self.check_and_survey_later(before)
+        landed = None if before is None else self._memo.checked(before, info, self.check_and_survey_later)
         nxt = following() if following is not None else None
         if nxt is not None:
-            coming = self.prepare_later(nxt, info).start()     # down before the tracker's passes
+            # down before the tracker's passes
+            coming = self._memo.prepared(nxt, info, lambda: self.prepare_later(nxt, info)).start()
 
             def launch_next() -> None:
                 ready = coming.get()
@@ -204,7 +208,7 @@ class ChunkProcessor(spectrum_ops.SpectrumOps):
         done = [] if before is None else [self._finished(before, landed.get())]
         mine = self._owned(chunk, prepared, found, res, (xr, xf), plan.lag)
         if nxt is None or (mine.check is None and mine.survey is None):
-            return [*done, self._finished(mine, self.check_and_survey(mine))]
+            return [*done, self._finished(mine, self._checked(mine))]
         self._pending = mine
         return done
 
@@ -327,7 +331,7 @@ class ChunkProcessor(spectrum_ops.SpectrumOps):
                      -(-(chunk.core_stop - chunk.start) // faults.CLIP_BLOCK))
         clipped = int(counts[core].sum(dtype=np.int64))
         return Pending(chunk.beat, (times.rise, times.fall), own, sel, clip, clipped,
-                       self._range_check(hs, r, f, sel) if plan.check is not None and r.size else None,
+                       RangeCheck.of(plan, hs, r, f, sel) if plan.check is not None and r.size else None,
                        self._survey(rows, res, np.arange(first.size)[own]) if plan.survey else None)
 
     def _finished(self, chunk: Pending, got: tuple) -> ChunkMeasurements:
@@ -359,6 +363,10 @@ class ChunkProcessor(spectrum_ops.SpectrumOps):
         """`resample_each` of a chunk's pairs (rising, falling) and their `times` for the
         tracker (a device: taken up with the positions)."""
         return self.resample_each(codes, jobs, win), times
+
+    def _checked(self, chunk: Pending) -> tuple:
+        """`check_and_survey(chunk)`, a range check the capture's chunks gave before kept."""
+        return self._memo.checked(chunk, self.plan.info, lambda c: Later(self.check_and_survey(c))).get()
 
     def check_and_survey_later(self, chunk: Pending) -> Later:
         """`check_and_survey` of `chunk` (a device: launched, its inputs up by one copy,
@@ -398,28 +406,6 @@ class ChunkProcessor(spectrum_ops.SpectrumOps):
                             [d[idx] / m.metres_per_bin for d in (res.dechirped_rise, res.dechirped_fall)],
                             [d[idx] / m.metres_per_bin for d in dists], others),
                       idx[:: bank.BANK_STRIDE] if plan.bank else None)
-
-    def _range_check(self, hs, r: np.ndarray, f: np.ndarray, res: pairing.PairResult) -> RangeCheck:
-        """The 2N-point range check of pairs (r, f) with the tracker's results `res`, on
-        the plain spectra (a target whose Doppler-shifted plain peak folds is flagged too:
-        the plain pass that starts the tracker cannot measure it), run on every
-        CHECK_STRIDE-th pair (RangeCheck.beyond). A target only crosses the limit through
-        N-point distances near it: in a chunk whose plain and Doppler-free distances all
-        stay below CHECK_NEAR of it, every CHECK_STRIDE_FAR-th pair is checked (a target
-        beyond the range from the start is still found)."""
-        plan = self.plan
-        lut2, win2, model2 = plan.check
-        seen = np.concatenate([res.dist_rise, res.dist_fall, res.dechirped_rise, res.dechirped_fall,
-                               res.distance])
-        near = np.any(seen > CHECK_NEAR * plan.lut.unambiguous_range_m)
-        stride = CHECK_STRIDE if near else CHECK_STRIDE_FAR
-        checked = np.arange(0, r.size, stride)
-        if checked[-1] != r.size - 1:
-            checked = np.append(checked, r.size - 1)
-        sides = ((r[checked], lut2.u_rise), (f[checked], lut2.u_fall))
-        return RangeCheck(checked, [(hs.start[idx], hs.length[idx], u) for idx, u in sides], win2, model2,
-                          Search(plan.search.lo, model2.nfft // 2))
-
 
 class NumpyProcessor(ChunkProcessor):
     """The reference processor: every stage in numpy/scipy (`stages/`)."""

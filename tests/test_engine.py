@@ -214,6 +214,76 @@ def test_the_first_chunk_is_read_while_the_plan_is_made(static_capture, monkeypa
         np.testing.assert_array_equal(a.result.distance, b.result.distance)
 
 
+@pytest.fixture(scope="module")
+def receding(tmp_path_factory):
+    """60 ms of a target receding at 1 m/s from 0.42 m: it crosses the 0.468 m limit
+    of --points 1000 after 48 ms (the range check flags the pairs beyond)."""
+    from fmcw_cl.simulator.scene import Trajectory
+    from fmcw_cl.simulator.writer import simulate_capture
+
+    path = tmp_path_factory.mktemp("receding") / "receding.h5"
+    trajectory = Trajectory.from_velocity(0.0, 0.07, lambda t: np.full_like(t, 1.0), np.zeros_like, 0.42)
+    simulate_capture(path, trajectory, 0.06, seed=23)
+    return path
+
+
+@pytest.mark.parametrize("kind", ["numpy", "opencl"])
+def test_a_capture_s_next_conversions_take_what_its_chunks_gave(receding, kind, monkeypatch):
+    """A processor's next conversion of a capture (another band from the same bin, as an
+    object's) makes neither the chunks' turning points and clipping nor their range
+    checks again (chunk_memo), and measures what a new processor measures, the pairs
+    beyond the range flagged as there; a band from another bin checks its own; the next
+    capture's chunks, and those of a processor closed since, are their own."""
+    from fmcw_cl.backend import make_processor
+    from fmcw_cl.chunks import capture_parts
+    from fmcw_cl.plan import make_plan
+
+    def made(processor) -> list:
+        calls = []
+
+        def spied(name):
+            real = getattr(processor, name)
+
+            def call(*args):
+                checks = name.startswith("prepare") or args[0].check is not None
+                calls.append(name[:7] if checks else "survey")
+                return real(*args)
+            return call
+
+        for name in ("prepare", "prepare_later", "check_and_survey", "check_and_survey_later"):
+            monkeypatch.setattr(processor, name, spied(name))
+        return calls
+
+    def reasons(parts) -> np.ndarray:
+        return np.concatenate([p.reason for p in parts])
+
+    processor = make_processor(kind)
+    calls = made(processor)
+    options = Options(points=1000, chunk_periods=200)
+    with Capture(receding) as cap:
+        plan = make_plan(cap, options, processor=make_processor(kind))
+        capture_parts(cap, plan, processor)
+        assert {"prepare", "check_a"} <= set(calls)
+        for band, made_again in (((plan.options.band_m[0], 0.46), set()), ((0.2, None), {"check_a"})):
+            calls.clear()
+            again = capture_parts(cap, plan.with_band(band), processor)
+            assert set(calls) - {"survey"} == made_again
+            fresh = capture_parts(cap, plan.with_band(band), make_processor(kind))
+            np.testing.assert_array_equal(reasons(again), reasons(fresh))
+            for a, b in zip(again, fresh, strict=True):
+                np.testing.assert_array_equal(a.result.distance, b.result.distance)
+            assert np.mean(reasons(again) == faults.BEYOND_RANGE) > 0.1
+    calls.clear()
+    with Capture(receding) as cap:
+        plan = make_plan(cap, options, processor=make_processor(kind))
+        capture_parts(cap, plan, processor)
+        assert "prepare" in calls
+        calls.clear()
+        processor.close()
+        capture_parts(cap, plan, processor)
+    assert "prepare" in calls
+
+
 def test_read_ahead_peeks_at_the_next_item_and_reads_no_further():
     """`peek` gives the item after the one being processed (its slot is the other one);
     the read after that starts only when the iteration moves on (it takes the slot of

@@ -988,9 +988,11 @@ def test_a_chunk_makes_two_trips_each_way(backend, wall_capture, monkeypatch):
     with Capture(wall_capture) as cap:
         plan = make_plan(cap, options, processor=backend)
         capture_parts(cap, plan, backend)    # a context's constants (twiddles, tables) go up once
+        backend.close()                      # ... but what the chunks gave is made again (chunk_memo)
         before = backend.traffic()
         parts = capture_parts(cap, plan, backend)
         after = backend.traffic()
+        backend.close()
         ahead = []
         later = OpenCLProcessor.prepare_later
 
