@@ -164,7 +164,7 @@ def converted_along(cap: Capture, first: First, done: list[Converted], moving: l
         fast = fast_bodies_of(first)
         held = [d.track for d in done if d.track.valid.any()]
         for i in np.flatnonzero(bare):
-            lines[i] = _untracked(fast, held, done[i].choice.band_m)
+            lines[i] = _untracked(fast, held, done[i].choice.band_m, doppler)
     wanted = []
     for i, d in enumerate(done):
         if not (mine[i] or (bare[i] and lines[i] is not None)) or (lined and lines[i] is None):
@@ -200,24 +200,29 @@ def converted_along(cap: Capture, first: First, done: list[Converted], moving: l
 
 
 def _untracked(fast: list[tuple[np.ndarray, np.ndarray, np.ndarray]], held: list[Track],
-               band_m: tuple[float, float | None]) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+               band_m: tuple[float, float | None], k: tuple[float, float] | None = None
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
     """The points (time s, distance m, velocity m/s) of the velocity bank's bodies `fast`
     (fast_echoes.bodies) that a mover's `band_m` (m) holds (most of each) and that lie
     on none of the `held` tracks (most of each more than objects.GATE_M from their
-    verified pairs, where those lie within OTHER_GAP_S), none two at once (the longer
+    verified pairs, where those lie within OTHER_GAP_S; with the Doppler factors `k`,
+    m per m/s, or told apart from them as two movers are), none two at once (the longer
     kept), with those beyond the band that go on as them (objects.seen_again): the course
     of a candidate that no tracker held (its plain peaks smeared, or shifted out of its
     band by their Doppler term). None where there are none."""
     hi = np.inf if band_m[1] is None else band_m[1]
 
-    def free(grid: np.ndarray, at: np.ndarray) -> bool:
+    def free(grid: np.ndarray, at: np.ndarray, v: np.ndarray) -> bool:
         on = np.zeros(grid.size, bool)
         for track in held:
-            seen, r, _ = _where(track, grid, True)
-            on |= seen & (np.abs(at - r) <= objects.GATE_M)
+            seen, r, v_o = _where(track, grid, True)
+            near = seen & (np.abs(at - r) <= objects.GATE_M)
+            if k is not None:
+                near &= ~crossings.movers_apart(at - r, v - v_o, k)
+            on |= near
         return bool(on.mean() < 0.5)
 
-    left = [b for b in sorted(fast, key=lambda b: -b[0].size) if free(b[0], b[1])]
+    left = [b for b in sorted(fast, key=lambda b: -b[0].size) if free(*b)]
     mine: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
     for grid, at, v in left:
         if np.mean((at >= band_m[0]) & (at <= hi)) >= 0.8 and not any(
@@ -225,7 +230,7 @@ def _untracked(fast: list[tuple[np.ndarray, np.ndarray, np.ndarray]], held: list
             mine.append((grid, at, v))
     if not mine:
         return None
-    mine += going_on(mine, [b for b in left if not any(b is c for c in mine)])
+    mine += going_on(mine, [b for b in left if not any(b[0] is c[0] for c in mine)])   # not itself again
     t, d, v = (np.concatenate(x) for x in zip(*mine, strict=True))
     order = np.argsort(t, kind="stable")
     return t[order], d[order], v[order]

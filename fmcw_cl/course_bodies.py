@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import fast_echoes, moving_echoes, numeric, objects
+from . import crossings, fast_echoes, moving_echoes, numeric, objects
 from .conversions import First
 from .moving_echoes import AGREE_MPS
 from .stages.verification import reachable
@@ -179,12 +179,14 @@ def one_body(a: tuple, z: tuple) -> bool:
     return bool(reachable(*a, *z) and abs(z[2] - a[2]) <= AGREE_MPS + ACCEL_MPS2 * dt)
 
 
-def clear(grid: np.ndarray, at: np.ndarray, others: list[Track]) -> bool:
+def clear(grid: np.ndarray, at: np.ndarray, others: list[Track], v: np.ndarray | None = None,
+          k: tuple[float, float] | None = None) -> bool:
     """Whether a body (times s, distances m) lies mostly more than objects.GATE_M from
     each of `others`' verified pairs nearest in time, those within GAP_S of it: an object
     unverified a while is still there (a foot at rest 2 mm from the other landing foot,
     whose body went on as the other's course: 165 valid pairs on it, movers.py seed 1,
-    capture 30)."""
+    capture 30). With its velocities `v` (m/s) and the Doppler factors `k` (m per m/s),
+    nor where the two are told apart as two movers are (crossings.movers_apart)."""
     on = np.zeros(grid.size, bool)
     for track in others:
         ok = track.valid
@@ -192,5 +194,8 @@ def clear(grid: np.ndarray, at: np.ndarray, others: list[Track]) -> bool:
             continue
         t_ok, d_ok = track.time_s[ok], track.distance_m[ok]
         i = numeric.nearest(t_ok, grid)
-        on |= (np.abs(t_ok[i] - grid) <= GAP_S) & (np.abs(at - d_ok[i]) <= objects.GATE_M)
+        near = (np.abs(t_ok[i] - grid) <= GAP_S) & (np.abs(at - d_ok[i]) <= objects.GATE_M)
+        if k is not None:
+            near &= ~crossings.movers_apart(at - d_ok[i], v - track.velocity_mps[ok][i], k)
+        on |= near
     return bool(on.mean() < 0.5)

@@ -119,7 +119,8 @@ def _lone(cap: Capture, first: First, own: Converted, moving: bool, processor: C
     # method); the echo table's bodies (a loop in Python, 0.1-0.4 s) sought once, if asked
     fast = course_bodies.fast_bodies_of(first) if options.dechirp else []
     plain = cache(lambda: course_bodies.bodies_of(first))
-    bare = unheld_movers.unheld(fast, plain, [own.track], own.choice.band_m, [moving])
+    k = (first.plan.model.k_rise, first.plan.model.k_fall)
+    bare = unheld_movers.unheld(fast, plain, [own.track], own.choice.band_m, [moving], k)
     if body is own.track and bodies < 2 and bare is None:
         return [objects.SceneObject(1, moving, own.track, "the target: no other echo")], 0, own
     if bodies < 2 and bare is None:     # another echo held briefly: its pairs ambiguous
@@ -137,7 +138,7 @@ def _lone(cap: Capture, first: First, own: Converted, moving: bool, processor: C
                                    found=plain() + fast if held else [])
 
     return _told_apart(found, [own], own, options, True, lone=True, courses=lambda scene: (
-        unheld_movers.with_unheld(scene, fast, plain, own.choice.band_m, courses)))
+        unheld_movers.with_unheld(scene, fast, plain, own.choice.band_m, k, courses)))
 
 
 def _told_apart(found: list[objects.SceneObject], done: list[Converted], own: Converted, options,

@@ -42,12 +42,38 @@ def test_a_bare_object_that_took_a_held_movers_echo_is_dropped(jump_track):
     assert unheld_movers.without_twin(scene) == scene
 
 
+def test_a_body_told_apart_by_its_motion_is_clear_of_a_track(jump_track):
+    """A velocity bank's body within objects.GATE_M (10 mm) of a held track's verified
+    pairs lies on it, unless its velocities are given and the two are told apart as two
+    movers are (crossings.movers_apart: a hand at 1-1.5 m/s across a foot, more than 5
+    mm apart and so are their peaks in both directions); not where one direction's
+    peaks meet, nor within 5 mm. So too for a candidate no tracker held (along._untracked)."""
+    from fmcw_cl import along, course_bodies
+
+    track = read_track(jump_track)
+    ok = np.flatnonzero(track.valid)[:400]
+    t, d, v = track.time_s[ok], track.distance_m[ok], track.velocity_mps[ok]
+    k = (-0.029, 0.029)
+    assert course_bodies.clear(t, d + 0.02, [track])
+    assert not course_bodies.clear(t, d + 0.007, [track])
+    assert course_bodies.clear(t, d + 0.007, [track], v + 1.5, k)
+    assert not course_bodies.clear(t, d + 0.007, [track], v + 0.007 / 0.029, k)    # rising peaks meet
+    assert not course_bodies.clear(t, d + 0.003, [track], v + 1.5, k)
+    # ... and so a candidate no tracker held takes it for its course (along._untracked)
+    body = (t, d + 0.007, v + 1.5)
+    assert along._untracked([body], [track], (0.03, None)) is None
+    course = along._untracked([body], [track], (0.03, None), k)
+    assert course is not None and np.array_equal(np.unique(course[1]), np.unique(body[1]))
+
+
 @pytest.mark.long
 @pytest.mark.parametrize("hand, db, seed, start, span, held", [
     ((0.3912946541500179, 0.03079453646711917, 0.0929636424675265, 0.4423116408428659), -3.3, 630,
      0.20878124721276184, 0.16926850140933736, 0.3),
     ((0.04729550206929087, 0.3310377115877617, 0.2090456251110855, 0.3826703838188366), 5.0, 131,
-     0.23237886607588146, 0.07353313207044986, 0.6)])
+     0.23237886607588146, 0.07353313207044986, 0.6),
+    ((0.04819524271923787, 0.304085469873333, 0.17130089747496066, 0.4267919828842448), -5.761990254360757,
+     198, 0.18615715086914136, 0.0890866624758966, 0.05)])
 def test_a_hand_the_jumps_tracker_never_held_is_an_object(tmp_path, hand, db, seed, start, span, held):
     """The jump and a hand glided through its path at 1.5-3 m/s in one moving span, lab
     SNR (movers.py seed 1, capture 17, the hand 3.3 dB weaker coming down; seed 6,
@@ -56,7 +82,9 @@ def test_a_hand_the_jumps_tracker_never_held_is_an_object(tmp_path, hand, db, se
     The velocity bank saw the hand: an object of its own, converted along its bodies'
     course (41 % and 75 % of its periods), the foot's pairs where the hand passes within
     10 mm now `ambiguous` (97 -> 90 %, 96 -> 89 %); no pair off its own object
-    (`two_movers` asserts it)."""
+    (`two_movers` asserts it). Seed 1, capture 22: the hand 5.8 dB weaker going up at
+    0.8-1.4 m/s across the foot come to rest, half its body within 10 mm of it but told
+    apart by its motion (course_bodies.clear): 0 -> 9 %."""
     amplitude = 500.0 * 10 ** (db / 20)
     track, scores = two_movers(tmp_path / "jump_hand.h5", jump(0.7), glide(0.7, *hand), amplitude, True, seed,
                                start, span)
