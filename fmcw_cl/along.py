@@ -153,7 +153,7 @@ def converted_along(cap: Capture, first: First, done: list[Converted], moving: l
     m = first.plan.model
     user = first.plan.options.band_m
     room = (GUARD_BINS + FLOOR_BINS) * m.metres_per_bin
-    doppler = (m.k_rise, m.k_fall)
+    doppler = m.k
     mine = [moving[i] and not d.joined and d.track.valid.any() for i, d in enumerate(done)]
     bare = [moving[i] and not d.joined and not d.track.valid.any() for i, d in enumerate(done)]
     if found is None:

@@ -119,7 +119,7 @@ def _lone(cap: Capture, first: First, own: Converted, moving: bool, processor: C
     # method); the echo table's bodies (a loop in Python, 0.1-0.4 s) sought once, if asked
     fast = course_bodies.fast_bodies_of(first) if options.dechirp else []
     plain = cache(lambda: course_bodies.bodies_of(first))
-    k = (first.plan.model.k_rise, first.plan.model.k_fall)
+    k = first.plan.model.k
     bare = unheld_movers.unheld(fast, plain, [own.track], own.choice.band_m, [moving], k)
     if body is own.track and bodies < 2 and bare is None:
         return [objects.SceneObject(1, moving, own.track, "the target: no other echo")], 0, own
@@ -171,7 +171,7 @@ def _told_apart(found: list[objects.SceneObject], done: list[Converted], own: Co
     tracks, moving = [o.track for o in scene], [o.moving for o in scene]
     rad_per_m = phase.radians_per_metre(own.plan.lut.nu_hz, own.plan.info.refractive_index)
     two = [coherence.two_bodies(t, rad_per_m) for t in tracks]
-    doppler = (own.plan.model.k_rise, own.plan.model.k_fall)
+    doppler = own.plan.model.k
     clash = crossings.passing(tracks, doppler, [not m for m in moving])
     # the objects' own images of each other (`_exclusive` looked across conversions,
     # before their parts were told apart): a sway's part de-chirped at -3.48 m/s held a
@@ -365,7 +365,7 @@ def _exclusive(done: list[Converted], unseen: set[tuple[int, int]], first: First
     Not by an object that the conversion's rows hold nothing of (`unseen`: (i, j), `_unseen`)."""
     tracks, moving = [d.track for d in done], [_moving(d) for d in done]
     model = first.plan.model
-    clash = crossings.conflicts(tracks, [not m for m in moving], unseen, (model.k_rise, model.k_fall),
+    clash = crossings.conflicts(tracks, [not m for m in moving], unseen, model.k,
                                 [d.choice.there_s for d in done])
     ghost = crossings.harmonics(tracks, first.plan.lut.unambiguous_range_m)
     image = crossings.images(tracks, model, first.plan.window, unseen)

@@ -117,7 +117,7 @@ def confused(velocity: np.ndarray, peaks_m: tuple, snr_db: tuple, walls_m: np.nd
     tones = np.concatenate([walls_m, -np.asarray(walls_m)])      # each wall's tone and its mirror
     levels = np.concatenate([walls_db, walls_db])
     reach = _may_reach(levels[:, None], own[None, :])      # (tones, pairs)
-    for beta, k, peak in zip((model.beta_rise, model.beta_fall), (model.k_rise, model.k_fall), peaks_m,
+    for beta, k, peak in zip((model.beta_rise, model.beta_fall), model.k, peaks_m,
                              strict=True):
         shift = -v * k                               # where an image's centre lies from its tone
         offset = peak[None, :] - tones[:, None]      # (tones, pairs)
@@ -148,7 +148,7 @@ def confused_moving(velocity: np.ndarray, peaks_m: tuple, snr_db: tuple, other_m
     for sign in (1.0, -1.0):                       # the tone, then its mirror
         rel = v - sign * np.nan_to_num(other_mps)
         tone = sign * np.nan_to_num(other_m)
-        for beta, k, peak, level in zip((model.beta_rise, model.beta_fall), (model.k_rise, model.k_fall),
+        for beta, k, peak, level in zip((model.beta_rise, model.beta_fall), model.k,
                                         peaks_m, levels, strict=True):
             shift = -rel * k
             offset = peak - tone

@@ -45,6 +45,12 @@ class DopplerModel:
     q_rise: float = 0.0
     q_fall: float = 0.0
 
+    @property
+    def k(self) -> tuple[float, float]:
+        """(k_rise, k_fall): each direction's shift per m/s (s), as the scene's rules
+        take them."""
+        return self.k_rise, self.k_fall
+
 
 def doppler_model(lut: Lut, half_sweep_s: float, nfft: int, win: np.ndarray) -> DopplerModel:
     """Build the de-chirp bases and effective times for a LUT and window."""
