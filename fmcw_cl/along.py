@@ -216,10 +216,7 @@ def _untracked(fast: list[tuple[np.ndarray, np.ndarray, np.ndarray]], held: list
         on = np.zeros(grid.size, bool)
         for track in held:
             seen, r, v_o = _where(track, grid, True)
-            near = seen & (np.abs(at - r) <= objects.GATE_M)
-            if k is not None:
-                near &= ~crossings.movers_apart(at - r, v - v_o, k)
-            on |= near
+            on |= seen & crossings.indistinct(at - r, v - v_o, k)
         return bool(on.mean() < 0.5)
 
     left = [b for b in sorted(fast, key=lambda b: -b[0].size) if free(*b)]
@@ -259,10 +256,8 @@ def _apart(track: Track, others: list[tuple[Track, bool]], k: tuple[float, float
     out = np.ones(track.pairs, bool)
     for o, moving in others:
         seen, r_o, v_o = _where(o, track.time_s, moving)
-        near = seen & (np.abs(track.distance_m - r_o) <= objects.GATE_M)
-        if k is not None and moving:
-            near &= ~crossings.movers_apart(track.distance_m - r_o, track.velocity_mps - v_o, k)
-        out &= ~near
+        out &= ~(seen & crossings.indistinct(track.distance_m - r_o, track.velocity_mps - v_o,
+                                             k if moving else None))
     return out
 
 

@@ -194,8 +194,6 @@ def clear(grid: np.ndarray, at: np.ndarray, others: list[Track], v: np.ndarray |
             continue
         t_ok, d_ok = track.time_s[ok], track.distance_m[ok]
         i = numeric.nearest(t_ok, grid)
-        near = (np.abs(t_ok[i] - grid) <= GAP_S) & (np.abs(at - d_ok[i]) <= objects.GATE_M)
-        if k is not None:
-            near &= ~crossings.movers_apart(at - d_ok[i], v - track.velocity_mps[ok][i], k)
-        on |= near
+        dv = None if k is None else v - track.velocity_mps[ok][i]
+        on |= (np.abs(t_ok[i] - grid) <= GAP_S) & crossings.indistinct(at - d_ok[i], dv, k)
     return bool(on.mean() < 0.5)

@@ -223,6 +223,15 @@ def movers_apart(gap_m: np.ndarray, dv_mps: np.ndarray, k: tuple[float, float]) 
     return (np.abs(gap_m) > MOVERS_M) & _peaks_apart(gap_m, dv_mps, k, MOVERS_M)
 
 
+def indistinct(gap_m: np.ndarray, dv_mps: np.ndarray | None, k: tuple[float, float] | None = None
+               ) -> np.ndarray:
+    """Where two echoes `gap_m` (m) apart lie within GATE_M of each other and, with the
+    Doppler factors `k` (m per m/s) and their velocities `dv_mps` (m/s) apart, are not
+    told apart as two movers are (`movers_apart`): one cannot be told from the other."""
+    near = np.abs(gap_m) <= GATE_M
+    return near if k is None else near & ~movers_apart(gap_m, dv_mps, k)
+
+
 def _apart(gap_m: np.ndarray, dv_mps: np.ndarray, k: tuple[float, float], fixed: bool) -> np.ndarray:
     """Where two echoes `gap_m` (m) and `dv_mps` (m/s) apart are told apart: by their
     peaks alone where one is `fixed` (`_peaks_apart`), else as two movers are
