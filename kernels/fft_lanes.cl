@@ -19,6 +19,8 @@ RADIX4(radix4_lanes, floatL)
     r[o + 7][j]
 #if LANES == 16
 #define ROWS(r, j) ((floatL)(ROWS8(r, j, 0), ROWS8(r, j, 8)))
+#elif LANES == 4
+#define ROWS(r, j) ((floatL)(r[0][j], r[1][j], r[2][j], r[3][j]))
 #else
 #define ROWS(r, j) ((floatL)(ROWS8(r, j, 0)))
 #endif

@@ -4,8 +4,10 @@
 // LANES (a build option, Runtime.width): the lanes of fft_lanes.cl's transforms, of
 // resample.cl's resample_rows and of survey.cl's hidden_lanes, which are independent:
 // 16 where the device's preferred float vector is 16 wide (AVX-512: one zmm register a
-// value), else 8. Each lane's arithmetic is the same at either width. (integrate_lanes.cl
-// at 16 lanes: no faster, its loads bound it; it stays at float8.) LO_HALF and HI_HALF
+// value), else 8; fft_lanes.cl's also 4 where a transform of 8 lanes does not fit the
+// local memory (Intel's CPU runtime: 256 KiB, the 4096-point range check needs 384 KiB
+// at 8). Each lane's arithmetic is the same at any width. (integrate_lanes.cl at 16
+// lanes: no faster, its loads bound it; it stays at float8.) LO_HALF and HI_HALF
 // interleave the lower and the upper halves of two vectors.
 #ifndef LANES
 #define LANES 8
@@ -35,6 +37,19 @@ typedef int16 intL;
 #define HI_HALF(a, b) (floatL)(a.s8, b.s8, a.s9, b.s9, a.sa, b.sa, a.sb, b.sb, \
                                a.sc, b.sc, a.sd, b.sd, a.se, b.se, a.sf, b.sf)
 #define LOG2_LANES 4
+#elif LANES == 4
+typedef float4 floatL;
+typedef int4 intL;
+#define VSTOREL vstore4
+#define VLOADL vload4
+#define VLOADSL vload4
+#define CONVERT_FLOATL convert_float4
+#define CONVERT_INTL convert_int4
+#define AS_INTL as_int4
+#define AS_FLOATL as_float4
+#define LO_HALF(a, b) (floatL)(a.s0, b.s0, a.s1, b.s1)
+#define HI_HALF(a, b) (floatL)(a.s2, b.s2, a.s3, b.s3)
+#define LOG2_LANES 2
 #else
 typedef float8 floatL;
 typedef int8 intL;
@@ -67,10 +82,12 @@ inline int any_lanes(const intL v)
 #else
 #if LANES == 16
     const int8 a = v.lo | v.hi;
-#else
-    const int8 a = v;
-#endif
     const int4 b = a.lo | a.hi;
+#elif LANES == 4
+    const int4 b = v;
+#else
+    const int4 b = v.lo | v.hi;
+#endif
     const int2 c = b.lo | b.hi;
     return (c.x | c.y) < 0;
 #endif

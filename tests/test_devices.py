@@ -79,6 +79,20 @@ def test_lanes_are_as_wide_as_the_compiled_code(preferred, version, lanes):
     assert lanes_width(device) == lanes
 
 
+@pytest.mark.parametrize("cpu,width,local_kib,nfft,lanes", [
+    (True, 8, 256, 2048, 8), (True, 8, 256, 4096, 4),       # Intel's CPU runtime: the range check in 4
+    (True, 8, 1024, 4096, 8), (True, 16, 1024, 4096, 16),   # pip's PoCL
+    (True, 16, 256, 2048, 8), (True, 8, 256, 8192, 0),     # --points 2048's check: spectrum_peak
+    (False, 8, 48, 2048, 0),                                 # a GPU: work-groups
+])
+def test_spectrum_lanes_as_wide_as_local_memory_holds(cpu, width, local_kib, nfft, lanes):
+    from fmcw_cl.opencl import spectrum as k_spectrum
+
+    rt = SimpleNamespace(lanes=cpu, width=width, device=SimpleNamespace(local_mem_size=local_kib * 1024))
+    assert k_spectrum.lanes_of(rt, nfft) == lanes
+    assert k_spectrum.uses_lanes(rt, nfft) == (lanes > 0)
+
+
 def _fake(kind: int, name: str, n: int):
     plat = SimpleNamespace(name=name, version="1.0")
     return (n, 0, plat, SimpleNamespace(platform=plat, name=f"{name} device", version="v", driver_version="d",

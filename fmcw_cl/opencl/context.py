@@ -191,11 +191,13 @@ class Runtime:
         lsz = min(self.group_size(*ITEMS_LOCAL), self.device.max_work_group_size)
         return (-(-n // lsz) * lsz,), (lsz,)
 
-    def kernel(self, program: str, name: str):
-        """Kernel `name` of kernels/<program>.cl (built and retrieved once)."""
-        key = (program, name, self.width, self.shuffles)
+    def kernel(self, program: str, name: str, width: int | None = None):
+        """Kernel `name` of kernels/<program>.cl (built and retrieved once), its lanes
+        `width` (None: `width`'s)."""
+        width = width or self.width
+        key = (program, name, width, self.shuffles)
         if key not in self.kernels:
-            self.kernels[key] = _Counted(cl.Kernel(self.program(program), name), self.traffic)
+            self.kernels[key] = _Counted(cl.Kernel(self.program(program, width), name), self.traffic)
         return self.kernels[key]
 
     def copy(self, dest, src, wait: bool = True):
@@ -248,9 +250,11 @@ class Runtime:
         done = cl.command_execution_status.COMPLETE
         self.in_flight = [e for e in self.in_flight if e.command_execution_status != done]
 
-    def program(self, name: str):
-        """kernels/<name>.cl built for this context, `width` and `shuffles` (cached)."""
-        key = (name, self.width, self.shuffles)
+    def program(self, name: str, width: int | None = None):
+        """kernels/<name>.cl built for this context, lanes `width` (None: `width`'s) and
+        `shuffles` (cached)."""
+        width = width or self.width
+        key = (name, width, self.shuffles)
         if key not in self.programs:
             from fmcw_cl.kernels import files_of, source
 
@@ -260,7 +264,7 @@ class Runtime:
                     # a build log that is not empty: Intel's and NVIDIA's say what they did
                     # (the kernels build without warnings: tests/test_opencl.py, -Werror)
                     warnings.simplefilter("ignore", cl.CompilerWarning)
-                    prog.build(options=["-cl-std=CL1.2", f"-DLANES={self.width}",
+                    prog.build(options=["-cl-std=CL1.2", f"-DLANES={width}",
                                         f"-DSHUFFLES={int(self.shuffles)}"])
             except cl.Error as exc:
                 log = Path(tempfile.gettempdir()) / f"fmcw-cl-{name}-build.log"

@@ -206,6 +206,11 @@ def spectra(be, rng, group: str) -> None:
     got = be.measure(d_x, beta, v[pick], model, Search(3, nfft // 2), pick)
     want = doppler.measure(x, beta, v[pick], model, Search(3, nfft // 2), pick)
     close("de-chirp + FFT + peak, picked rows", got[0], want[0], 1e-4)
+    # the range check's 4096-point transform, in the lanes local memory holds (spectrum.lanes_of)
+    check = replace(model, nfft=4096)
+    got = be.measure(d_x, beta, None, check, Search(3, 2000))
+    want = doppler.measure(x, beta, None, check, Search(3, 2000))
+    close("FFT + peak at 4096 points (the range check)", got[0], want[0], 1e-4)
     # the phase at a fractional peak (phase.cl), de-chirped and plain, both directions
     bins = [rng.uniform(20, 40, sweeps), rng.uniform(20, 40, sweeps)]
     for vel in (v, None):
