@@ -182,18 +182,22 @@ def objects_cell(track: Track, truths: list[Truth]) -> str:
     return f"{n} ({sum(s['wrong'] for s in object_scores(track, truths))})"
 
 
-UNTRACKED = ("held", "beside", "elsewhere", "outside", "unverified", "missed")
+UNTRACKED = ("held", "as one", "beside", "elsewhere", "outside", "unverified", "missed")
+ONE_M = 2e-3     # two echoes this close make one peak: two range resolutions at 160 GHz (c / 2B
+                 # = 0.94 mm), a Hann window's main lobe at half power
 
 
 def untracked(track: Track, truths: list[Truth], gate_m: float = 0.01) -> list[dict]:
     """Where each truth object's visible periods (the whole pair, as `periods_tracked`)
     went, as shares of them, each period counted under the first of UNTRACKED that
     holds: its best object held a valid pair within WRONG_M ("held"); another truth lay
-    within `gate_m` (m; the two cannot be told apart, "beside"); another object held
+    within ONE_M (one peak: no measurement tells the two apart, "as one"), or within
+    `gate_m` (m; "beside": the scene's rules do not tell them apart); another object held
     it ("elsewhere": one body in two ids); no object's band (attribute target_band_m)
     held its distance ("outside"); an object's path (the mean of its pair's de-chirped
     peaks) lay within WRONG_M, unverified or ambiguous ("unverified"); none did
-    ("missed": every tracker elsewhere). One dict per truth, also "periods"."""
+    ("missed": every tracker elsewhere). One dict per truth, also "periods" and
+    "apart_held": the share of its periods not "as one" that its best object held."""
     from .objects import per_pair
 
     objs = [o.track for o in track.objects] if track.objects else [track]
@@ -208,15 +212,16 @@ def untracked(track: Track, truths: list[Truth], gate_m: float = 0.01) -> list[d
     for k, (tr, d) in enumerate(zip(truths, where, strict=True)):
         seen = truth_visible(tr, t - half) & truth_visible(tr, t + half)
         best = int(np.argmax(near[k].sum(axis=1)))
-        beside = np.zeros(t.size, bool)
-        for j, e in enumerate(where):
-            beside |= (j != k) & (np.abs(d - e) < gate_m)
-        steps = [near[k][best], beside, near[k].any(axis=0),
+        others = [np.abs(d - e) for j, e in enumerate(where) if j != k]
+        gap = np.min(others, axis=0) if others else np.full(t.size, np.inf)
+        steps = [near[k][best], gap < ONE_M, gap < gate_m, near[k].any(axis=0),
                  ~np.any([(d >= b[0]) & (d <= b[1]) for b in bands], axis=0),
                  np.any([np.abs(p - d) <= WRONG_M for p in paths], axis=0), np.ones(t.size, bool)]
         left, row = seen.copy(), {"periods": int(seen.sum())}
         for name, hit in zip(UNTRACKED, steps, strict=True):
             row[name] = float(np.sum(left & hit) / max(1, seen.sum()))
             left &= ~hit
+        apart = seen & (gap >= ONE_M)
+        row["apart_held"] = float(np.sum(apart & near[k][best]) / max(1, apart.sum()))
         out.append(row)
     return out

@@ -94,10 +94,11 @@ def test_scene_truth_lists_every_object(tmp_path):
 
 def test_a_movers_untracked_periods_are_told_by_where_they_went():
     """`evaluate.untracked` gives each of a glide's periods one place: its object held it
-    (300), lost it to noise elsewhere (100: missed), held it unverified (430), beside a
-    body at rest within 10 mm (120: the rest's pairs within 2 mm of it among them),
-    beyond every object's band (180), held by another object (70); the body at rest is
-    held throughout, beside or not."""
+    (300), lost it to noise elsewhere (100: missed), held it unverified (430), within
+    2 mm of a body at rest (24: one peak) or beside it within 10 mm (96 more; the rest's
+    pairs within 2 mm of it among them), beyond every object's band (180), held by
+    another object (70); the body at rest is held throughout, beside or not. Of the
+    glide's 1176 periods not within 2 mm of the rest, 300 held."""
     from fmcw_cl.capture_format import Truth
     from fmcw_cl.evaluate import UNTRACKED, untracked
 
@@ -121,8 +122,9 @@ def test_a_movers_untracked_periods_are_told_by_where_they_went():
     parts = (one, two, rest)
     scene = replace(one, objects=[objects.SceneObject(i + 1, i < 2, x) for i, x in enumerate(parts)])
     got = untracked(scene, truths)
-    assert [round(got[0][name] * n) for name in UNTRACKED] == [300, 120, 70, 180, 430, 100]
+    assert [round(got[0][name] * n) for name in UNTRACKED] == [300, 24, 96, 70, 180, 430, 100]
     assert got[0]["periods"] == n and got[1]["held"] == 1.0
+    assert got[0]["apart_held"] == pytest.approx(300 / 1176) and got[1]["apart_held"] == 1.0
 
 # ---------------------------------------------------------------- the rules on tracks
 
