@@ -367,3 +367,33 @@ def test_courses_known_at_other_times_share_a_conversion():
     assert np.all(one.lo_m[:, 100] == 0.1) and np.all(one.lo_m[:, 400] == 0.2)
     assert np.all(one.hi_m[:, 400] == 0.4) and np.all(one.lo_m[:, 320] == 0.03)
     assert np.all(one.hi_m[:, 320] == 1e3)
+
+
+def test_a_conversion_along_a_course_that_can_gain_nothing_is_not_made(tmp_path, monkeypatch):
+    """A mover whose course holds no RUN_PAIRS unverified known pairs in a row gains no
+    run along it (along._could_gain): the jump beside a sway 6 dB stronger (several.SCENES,
+    seed 1) is converted along its course two times, not three, and every object's
+    arrays are those of the three conversions bit for bit."""
+    from fmcw_cl import chunks
+    from fmcw_cl.simulator import several
+
+    path = tmp_path / "stronger.h5"
+    several.write("jump + sway 6 dB stronger", path, 1)
+    made = []
+
+    def counted(*args, **kw):
+        made.append(args[1].course is not None)
+        return capture_parts(*args, **kw)
+
+    capture_parts = chunks.capture_parts
+    monkeypatch.setattr(along, "capture_parts", counted)
+    fewer = process(path)
+    skipped = sum(made)
+    made.clear()
+    monkeypatch.setattr(along, "_could_gain", lambda track, known: True)
+    every = process(path)
+    assert sum(made) == skipped + 1 == 3, (skipped, sum(made))
+    assert len(fewer.objects) == len(every.objects) == 2
+    for a, b in zip(fewer.objects, every.objects, strict=True):
+        for name in ("distance_m", "velocity_mps", "valid", "reason"):
+            np.testing.assert_array_equal(getattr(a.track, name), getattr(b.track, name))
