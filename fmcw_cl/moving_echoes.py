@@ -55,28 +55,38 @@ def lines(time_s: np.ndarray, distance_m: np.ndarray) -> list[np.ndarray]:
     if not time_s.size:
         return []
     # a half-sweep holds one to three detections and a few lines are open: Python's
-    # floats link them several times faster than numpy's calls on such small arrays
+    # floats link them several times faster than numpy's calls on such small arrays, and
+    # a lone detection goes to its nearest line without the matching's sort (3x)
     t, d = time_s.tolist(), distance_m.tolist()
     starts = np.r_[0, np.flatnonzero(np.diff(time_s) > 0) + 1, time_s.size].tolist()
     open_: list[list[int]] = []
     out: list[list[int]] = []
     for a, b in zip(starts[:-1], starts[1:], strict=True):
         now = t[a]
-        going = [now - t[x[-1]] <= (GAP_S if len(x) > 1 else START_S) for x in open_]
-        out += [x for x, g in zip(open_, going, strict=True) if not g and len(x) > 1]
-        open_ = [x for x, g in zip(open_, going, strict=True) if g]
+        kept = []
+        for x in open_:
+            if now - t[x[-1]] <= (GAP_S if len(x) > 1 else START_S):
+                kept.append(x)
+            elif len(x) > 1:
+                out.append(x)
+        open_ = kept
         if not open_:
             open_ = [[i] for i in range(a, b)]
             continue
-        near = []                                       # (miss, detection, line) within reach
-        for n, x in enumerate(open_):
-            last, back = x[-1], x[-TREND] if len(x) >= TREND else x[0]
-            dt, span = now - t[last], t[last] - t[back]
-            if span <= 0:
-                at, reach = d[last], LINK_M + START_MPS * dt if dt <= START_S else -1.0
+        ahead = [_ahead(x, t, d, now) for x in open_]        # (where, reach) of each line
+        if b - a == 1:
+            best, miss = -1, 0.0
+            for n, (at, reach) in enumerate(ahead):
+                m = abs(d[a] - at)
+                if m <= reach and (best < 0 or m < miss):       # the nearest, on a tie the first
+                    best, miss = n, m
+            if best < 0:
+                open_.append([a])
             else:
-                at, reach = d[last] + (d[last] - d[back]) / span * dt, LINK_M + 0.5 * ACCEL_MAX * dt * dt
-            near += [(m, i, n) for i in range(b - a) if (m := abs(d[a + i] - at)) <= reach]
+                open_[best].append(a)
+            continue
+        near = [(m, i, n) for n, (at, reach) in enumerate(ahead) for i in range(b - a)
+                if (m := abs(d[a + i] - at)) <= reach]        # (miss, detection, line) within reach
         taken = [False] * (b - a)
         for i, n in matched(near):                      # one detection a line
             open_[n].append(a + i)
@@ -85,6 +95,17 @@ def lines(time_s: np.ndarray, distance_m: np.ndarray) -> list[np.ndarray]:
     out += open_
     return [np.asarray(x) for x in out
             if len(x) >= MIN_DETECTIONS and t[x[-1]] - t[x[0]] >= MIN_SPAN_S]
+
+
+def _ahead(x: list[int], t: list[float], d: list[float], now: float) -> tuple[float, float]:
+    """Where the line of detections `x` (indices of times `t` s, distances `d` m) is at
+    `now` (s), moved on at its velocity, and how far from there a detection may lie to
+    go on it (m; -1: none may)."""
+    last, back = x[-1], x[-TREND] if len(x) >= TREND else x[0]
+    dt, span = now - t[last], t[last] - t[back]
+    if span <= 0:
+        return d[last], LINK_M + START_MPS * dt if dt <= START_S else -1.0
+    return d[last] + (d[last] - d[back]) / span * dt, LINK_M + 0.5 * ACCEL_MAX * dt * dt
 
 
 def unheld(e: echoes.Echoes, k_rise: float, k_fall: float, track: Track, band: tuple[float, float | None],

@@ -164,3 +164,53 @@ def test_a_slow_end_after_a_smeared_span_is_that_spans_body(seed):
     found = moving_echoes.unheld(replace(e, persistent=_smear(ts, on)), -K, K, foot, (0.03, None), known)
     assert len(found) == 1 and found[0][0] == known[0][0], (found, known)
     assert abs(found[0][1] - np.percentile(body[T >= 0.055], 99)) < 1e-3
+
+
+def _lines_by_matching(time_s: np.ndarray, distance_m: np.ndarray) -> list[np.ndarray]:
+    """moving_echoes.lines as first written: every half-sweep's detections matched to the
+    open lines by numeric.matched, a lone one too (the reference of its shortcut)."""
+    from fmcw_cl.numeric import matched
+
+    t, d = time_s.tolist(), distance_m.tolist()
+    starts = np.r_[0, np.flatnonzero(np.diff(time_s) > 0) + 1, time_s.size].tolist()
+    open_: list[list[int]] = []
+    out: list[list[int]] = []
+    for a, b in zip(starts[:-1], starts[1:], strict=True):
+        going = [t[a] - t[x[-1]] <= (moving_echoes.GAP_S if len(x) > 1 else moving_echoes.START_S)
+                 for x in open_]
+        out += [x for x, g in zip(open_, going, strict=True) if not g and len(x) > 1]
+        open_ = [x for x, g in zip(open_, going, strict=True) if g]
+        if not open_:
+            open_ = [[i] for i in range(a, b)]
+            continue
+        near = []
+        for n, x in enumerate(open_):
+            at, reach = moving_echoes._ahead(x, t, d, t[a])
+            near += [(m, i, n) for i in range(b - a) if (m := abs(d[a + i] - at)) <= reach]
+        taken = [False] * (b - a)
+        for i, n in matched(near):
+            open_[n].append(a + i)
+            taken[i] = True
+        open_ += [[a + i] for i in range(b - a) if not taken[i]]
+    out += open_
+    return [np.asarray(x) for x in out if len(x) >= moving_echoes.MIN_DETECTIONS
+            and t[x[-1]] - t[x[0]] >= moving_echoes.MIN_SPAN_S]
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_lines_link_a_lone_detection_as_the_matching_does(seed):
+    """A half-sweep's lone detection goes to the nearest line within reach (on a tie the
+    first opened) without the matching's sort: the lines of tables of two crossing
+    glides, a rest, fades and noise (one to four detections a half-sweep) are those of
+    matching every half-sweep's detections."""
+    rng = np.random.default_rng(seed)
+    glide = 0.10 + 1.5 * T
+    cross = 0.30 - 1.2 * T
+    e = _table(rng, [(glide, 1.5, False), (cross, -1.2, False), (np.full(N, 0.2), 0.0, True)], share=0.6,
+               noise=600)
+    for way in (True, False):
+        t, d = e.time_s[e.rising == way], e.distance_m[e.rising == way]
+        got, want = moving_echoes.lines(t, d), _lines_by_matching(t, d)
+        assert len(got) == len(want) >= 3
+        for a, b in zip(got, want, strict=True):
+            np.testing.assert_array_equal(a, b)
