@@ -116,7 +116,7 @@ def _lone(cap: Capture, first: First, own: Converted, moving: bool, processor: C
     # and pass between bodies within one: the test is the de-chirped tracker's
     bodies, body = lone_bodies.count(own.track, moving) if options.dechirp else (1, own.track)
     # a mover its tracker never held, which the velocity bank saw (none on the paper's
-    # method); the echo table's bodies (a loop in Python, 0.1-0.4 s) sought once, if asked
+    # method); the echo table's bodies (a loop in Python, 0.05-0.2 s) sought once, if asked
     fast = course_bodies.fast_bodies_of(first) if options.dechirp else []
     plain = cache(lambda: course_bodies.bodies_of(first))
     k = first.plan.model.k
