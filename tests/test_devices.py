@@ -93,6 +93,19 @@ def test_spectrum_lanes_as_wide_as_local_memory_holds(cpu, width, local_kib, nff
     assert k_spectrum.uses_lanes(rt, nfft) == (lanes > 0)
 
 
+def test_the_narrower_spectrum_programs_a_device_may_run_are_named():
+    """opencl.spectrum.widths: the lanes other than the device's that `lanes_of` picks for
+    some transform up to 8192 points, whose programs the processor builds up front."""
+    from fmcw_cl.opencl import spectrum as k_spectrum
+
+    def rt(width, kib):
+        return SimpleNamespace(lanes=True, width=width, device=SimpleNamespace(local_mem_size=kib * 1024))
+
+    assert k_spectrum.widths(rt(8, 256)) == {4}            # Intel's CPU runtime
+    assert k_spectrum.widths(rt(8, 1024)) == set()         # pip's PoCL
+    assert k_spectrum.widths(rt(16, 1024)) == {8}          # ... on an AVX-512 machine: 8192 points in 8
+
+
 def _fake(kind: int, name: str, n: int):
     plat = SimpleNamespace(name=name, version="1.0")
     return (n, 0, plat, SimpleNamespace(platform=plat, name=f"{name} device", version="v", driver_version="d",

@@ -62,6 +62,8 @@ class OpenCLProcessor(ChunkProcessor):
         self.rt = rt or runtime(selector)
         for program in self.programs:      # build now: a failure must surface before any work
             self.rt.program(program)
+        for width in k_spectrum.widths(self.rt):
+            self.rt.program("spectrum", width)
         self.bufs = Buffers(self.rt)
         self.device = self.rt.name
         if not (self.rt.zero_copy or is_simulator(self.rt.device)):

@@ -72,12 +72,20 @@ def lanes_bytes(rt: Runtime, nfft: int, width: int | None = None) -> int:
 def lanes_of(rt: Runtime, nfft: int) -> int:
     """The lanes `spectrum_lanes` (fft_lanes.cl) runs an nfft-point transform in: on a
     CPU device (`Runtime.lanes`), `Runtime.width`, or 8 or 4 where its local memory
-    holds only those (Intel's CPU runtime, 256 KiB: the 4096-point range check in 4, 3.0x
-    faster than `spectrum_peak`); 0: none holds it, `spectrum_peak` runs it."""
+    holds only those (Intel's CPU runtime, 256 KiB: the 4096-point range check in 4, 3000
+    rows in 13-20 ms against `spectrum_peak`'s 76-77); 0: none holds it, `spectrum_peak`
+    runs it."""
     if not rt.lanes:
         return 0
     return next((w for w in (rt.width, 8, 4) if w <= rt.width
                  and lanes_bytes(rt, nfft, w) <= rt.device.local_mem_size), 0)
+
+
+def widths(rt: Runtime) -> set[int]:
+    """The lanes `spectrum_lanes` may run in on this device other than `Runtime.width`
+    (`lanes_of` up to the 8192 points of the range check at --points 2048): their
+    programs are built with the others, before any work."""
+    return {lanes_of(rt, 1 << p) for p in range(7, 14)} - {0, rt.width}
 
 
 def uses_lanes(rt: Runtime, nfft: int) -> bool:
