@@ -136,7 +136,8 @@ def _where(track: Track, t: np.ndarray, moving: bool) -> tuple[np.ndarray, np.nd
 
 def converted_along(cap: Capture, first: First, done: list[Converted], moving: list[bool],
                     processor: ChunkProcessor, seconds, progress, packed: bool = False,
-                    lined: bool = False, found: list | None = None) -> list[Converted]:
+                    lined: bool = False, found: list | None = None, unheld: list | None = None
+                    ) -> list[Converted]:
     """`done` with each mover (`moving`; not a track joined of several conversions)
     that another object's path enters converted again along its course (`course_of`;
     with the echo table's lines that go on as it, course_bodies.continuing), in the user's band, on
@@ -146,8 +147,8 @@ def converted_along(cap: Capture, first: First, done: list[Converted], moving: l
     times share a conversion (course.lanes), each pair in the course known there. `lined`:
     only the movers that lines go on as. `found`: the table's bodies (course_bodies.bodies_of,
     with fast_bodies_of), where already known. A mover that no tracker held (no
-    verified pair) is converted along the course of the velocity bank's bodies its band
-    holds (`_untracked`)."""
+    verified pair) is converted along the course of the bodies its band holds
+    (`_untracked`): `unheld`'s (unheld_movers.bodies_of), else the velocity bank's."""
     if len(done) < 2 and not lined:
         return done
     m = first.plan.model
@@ -161,7 +162,7 @@ def converted_along(cap: Capture, first: First, done: list[Converted], moving: l
     lines = continuing([d.track if w else None for d, w in zip(done, mine, strict=True)], found,
                        [d.track for d in done])
     if any(bare) and not lined:
-        fast = fast_bodies_of(first)
+        fast = fast_bodies_of(first) if unheld is None else unheld
         held = [d.track for d in done if d.track.valid.any()]
         for i in np.flatnonzero(bare):
             lines[i] = _untracked(fast, held, done[i].choice.band_m, doppler)
@@ -178,7 +179,8 @@ def converted_along(cap: Capture, first: First, done: list[Converted], moving: l
     out = list(done)
     one_each = [[k] for k in range(len(wanted))]
     for lane in lanes([got[1] for _, _, got in wanted], RUN_PAIRS) if packed else one_each:
-        if not any(_could_gain(done[wanted[k][0]].track, wanted[k][2][1]) for k in lane):
+        if not any(_could_gain(done[j].track, got[1], _run_pairs(bare[j])) for j, _, got in
+                   (wanted[k] for k in lane)):
             continue                    # the conversion would change nothing
         d = done[wanted[lane[0]][0]]
         plan = replace(d.plan.with_band(user), course=merged([wanted[k][2][:2] for k in lane]))
@@ -193,7 +195,7 @@ def converted_along(cap: Capture, first: First, done: list[Converted], moving: l
             # beside another object is a crossing's, which the parts' ends tell (identities)
             r, width = got[2]
             near = got[1] & (np.abs(track.distance_m - r) <= width) & _apart(track, others, doppler)
-            gained = _runs(track.valid & ~done[i].track.valid & near, RUN_PAIRS)
+            gained = _runs(track.valid & ~done[i].track.valid & near, _run_pairs(bare[i]))
             if gained.any():
                 joined = objects.joined(done[i].track, objects.invalidated(track, track.valid & ~gained))
                 joined.attrs[COURSE_ATTR] = 1
@@ -237,7 +239,7 @@ def _untracked(fast: list[tuple[np.ndarray, np.ndarray, np.ndarray]], held: list
 
 def objects_along(cap: Capture, first: First, own: list[Converted], scene: list[objects.SceneObject],
                   processor: ChunkProcessor, seconds, progress, lined: bool = False,
-                  found: list | None = None) -> list[objects.SceneObject]:
+                  found: list | None = None, unheld: list | None = None) -> list[objects.SceneObject]:
     """The objects told apart and joined (identities.untangled; `own`: the conversion of
     each), each mover converted again along its course as several candidates'
     conversions are (`converted_along`; `lined`: only those the echo table's lines go
@@ -246,7 +248,7 @@ def objects_along(cap: Capture, first: First, own: list[Converted], scene: list[
     `found`: as `converted_along`'s."""
     done = [replace(d, track=o.track, joined=False, whole=None) for o, d in zip(scene, own, strict=True)]
     done = converted_along(cap, first, done, [o.moving for o in scene], processor, seconds, progress,
-                           packed=len({id(d) for d in own}) == 1, lined=lined, found=found)
+                           packed=len({id(d) for d in own}) == 1, lined=lined, found=found, unheld=unheld)
     return [replace(o, track=d.track) for o, d in zip(scene, done, strict=True)]
 
 
@@ -263,12 +265,21 @@ def _apart(track: Track, others: list[tuple[Track, bool]], k: tuple[float, float
     return out
 
 
-def _could_gain(track: Track, known: np.ndarray) -> bool:
+def _run_pairs(bare: bool) -> int:
+    """The new verified pairs in a row that join a mover's track: RUN_PAIRS (a few in a
+    crossing would move its parts' ends, which the identities read), or any where no
+    tracker held it (`bare`: it has no parts yet; a weak glide at 0.3-0.5 m/s, 39 mm from
+    the target, its pairs `unstable` one in three: movers.py seed 1, capture 19, 33 -> 52 %
+    of its periods)."""
+    return 1 if bare else RUN_PAIRS
+
+
+def _could_gain(track: Track, known: np.ndarray, pairs: int) -> bool:
     """Whether a conversion along a course known at the pairs `known` can gain `track` a
-    run: only the known pairs its tracker did not verify can join it, RUN_PAIRS in a row
-    (a sway crossed by a glide stronger than itself, verified throughout: 0.2 s of a 2.5
-    s capture's CPU for nothing)."""
-    return bool(_runs(known & ~track.valid, RUN_PAIRS).any())
+    run of `pairs` (`_run_pairs`): only the known pairs its tracker did not verify can
+    join it (a sway crossed by a glide stronger than itself, verified throughout: 0.2 s
+    of a 2.5 s capture's CPU for nothing)."""
+    return bool(_runs(known & ~track.valid, pairs).any())
 
 
 def _runs(new: np.ndarray, pairs: int) -> np.ndarray:

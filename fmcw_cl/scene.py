@@ -120,7 +120,8 @@ def _lone(cap: Capture, first: First, own: Converted, moving: bool, processor: C
     fast = course_bodies.fast_bodies_of(first) if options.dechirp else []
     plain = cache(lambda: course_bodies.bodies_of(first))
     k = first.plan.model.k
-    bare = unheld_movers.unheld(fast, plain, [own.track], own.choice.band_m, [moving], k)
+    loose = unheld_movers.bodies_of(fast, plain(), [own.track]) if options.dechirp else []
+    bare = unheld_movers.unheld(loose, plain, [own.track], own.choice.band_m, [moving], k)
     if body is own.track and bodies < 2 and bare is None:
         return [objects.SceneObject(1, moving, own.track, "the target: no other echo")], 0, own
     if bodies < 2 and bare is None:     # another echo held briefly: its pairs ambiguous
@@ -135,10 +136,10 @@ def _lone(cap: Capture, first: First, own: Converted, moving: bool, processor: C
     def courses(scene: list[objects.SceneObject]) -> list[objects.SceneObject]:
         held = any(o.moving and o.track.valid.any() for o in scene)    # as converted_along asks
         return along.objects_along(cap, first, [own] * len(scene), scene, processor, seconds, progress,
-                                   found=plain() + fast if held else [])
+                                   found=plain() + fast if held else [], unheld=loose)
 
     return _told_apart(found, [own], own, options, True, lone=True, courses=lambda scene: (
-        unheld_movers.with_unheld(scene, fast, plain, own.choice.band_m, k, courses)))
+        unheld_movers.with_unheld(scene, loose, plain, own.choice.band_m, k, courses)))
 
 
 def _told_apart(found: list[objects.SceneObject], done: list[Converted], own: Converted, options,

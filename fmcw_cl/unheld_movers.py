@@ -18,9 +18,37 @@ from collections.abc import Callable
 
 import numpy as np
 
-from . import along, course_bodies, objects
+from . import along, course_bodies, fixed_echoes, moving_echoes, objects
 from .stages import faults
 from .track import Track
+
+SLOW_TRAVEL_M = fixed_echoes.MIN_TRAVEL_M   # an echo table's body that travels this far is a mover's
+
+
+def bodies_of(fast: list[tuple[np.ndarray, np.ndarray, np.ndarray]],
+              plain: list[tuple[np.ndarray, np.ndarray, np.ndarray]], held: list[Track]
+              ) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """The bodies a mover no tracker held may leave: the velocity bank's `fast`, and the
+    echo table's `plain` (course_bodies.bodies_of) that travel SLOW_TRAVEL_M or more and
+    lie on no harmonic of a `held` track (2 and 3 times its distance, within
+    fixed_echoes.APART_M, for most of their points): a weaker glide at 0.1-0.5 m/s, 39
+    mm from the target, too slow to smear its plain peak (movers.py seed 1, capture 19)."""
+    slow = [b for b in plain if np.ptp(b[1]) >= SLOW_TRAVEL_M and not _harmonic(b[0], b[1], held)]
+    return list(fast) + slow
+
+
+def _harmonic(t: np.ndarray, d: np.ndarray, held: list[Track]) -> bool:
+    """Whether most of a body's distances `d` (m, at `t` s) lie within
+    fixed_echoes.APART_M of two or three times a `held` track's verified distance then."""
+    on = np.zeros(t.size, bool)
+    for track in held:
+        ok = track.valid
+        if ok.sum() < 2:
+            continue
+        near = np.interp(t, track.time_s[ok], track.distance_m[ok])
+        for m in moving_echoes.HARMONICS:
+            on |= np.abs(d - m * near) <= fixed_echoes.APART_M
+    return bool(on.mean() > 0.5)
 
 
 def unheld(fast: list[tuple[np.ndarray, np.ndarray, np.ndarray]],

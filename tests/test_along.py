@@ -390,7 +390,7 @@ def test_a_conversion_along_a_course_that_can_gain_nothing_is_not_made(tmp_path,
     fewer = process(path)
     skipped = sum(made)
     made.clear()
-    monkeypatch.setattr(along, "_could_gain", lambda track, known: True)
+    monkeypatch.setattr(along, "_could_gain", lambda track, known, pairs: True)
     every = process(path)
     assert sum(made) == skipped + 1 == 3, (skipped, sum(made))
     assert len(fewer.objects) == len(every.objects) == 2

@@ -109,3 +109,37 @@ def test_a_weak_glide_whose_few_pairs_are_a_fixed_part_is_an_object(tmp_path):
     assert best[0] >= 0.9 and best[1] >= 0.15, best
     assert any("no tracker held" in o.note for o in track.objects)
 
+
+
+def test_a_slow_body_of_the_echo_table_is_a_mover_no_tracker_held(tmp_path):
+    """A glide (the target) leaving a sway 5.4 dB weaker, lab SNR (movers.py seed 1,
+    capture 19): the sway at 0.1-0.5 m/s, 35-39 mm beyond the glide for 60 ms, is too
+    slow to smear its plain peak, so the velocity bank has no body of it, and the glide's
+    span holds its range: one candidate, whose tracker never held it. The echo table's
+    body of it, travelling 15 mm, is an unheld mover's (unheld_movers.bodies_of); along
+    its course its verified pairs join it one by one (along._run_pairs; 1 in 3 of them
+    `unstable`): the sway in 7 -> 52 % of its periods, the glide as before, no pair off
+    its own object."""
+    from fmcw_cl.simulator.scene import sway
+
+    target = glide(0.7, 0.09760146343630924, 0.36080475427831826, 0.03600071875481442, 0.26626863179132304)
+    other = sway(0.7, 0.15576168258780607, 0.019339683967690424, 4.373446977173887, 3.584963098651965)
+    track, scores = two_movers(tmp_path / "glide_sway.h5", target, other, 267.03138773007197, True, 611,
+                               0.027111506469481364, 0.11907825352378819)
+    best = best_held(scores, 2)
+    assert best[0] >= 0.85 and best[1] >= 0.45, best
+
+
+def test_the_echo_tables_bodies_that_travel_and_lie_on_no_harmonic_may_be_movers(jump_track):
+    """unheld_movers.bodies_of: the velocity bank's bodies, and the echo table's that
+    travel SLOW_TRAVEL_M (10 mm) or more, not those that stay (a fixed echo's) nor those
+    on twice or three times a held track's distance (its harmonics)."""
+    held = read_track(jump_track)
+    t = np.linspace(0.01, 0.05, 161)
+    d_held = np.interp(t, held.time_s[held.valid], held.distance_m[held.valid])
+    fast = [(t, 0.30 - 2.0 * (t - 0.01), np.full(t.size, -2.0))]
+    slow = (t, 0.32 + 0.3 * (t - 0.01), np.full(t.size, 0.3))              # 12 mm in 40 ms
+    still = (t, np.full(t.size, 0.25), np.zeros(t.size))
+    harmonic = (t, 2 * d_held + 0.3 * (t - 0.01), np.full(t.size, 0.3))
+    got = unheld_movers.bodies_of(fast, [slow, still, harmonic], [held])
+    assert [b[1][0] for b in got] == [fast[0][1][0], slow[1][0]]
