@@ -268,9 +268,9 @@ def _apart(track: Track, others: list[tuple[Track, bool]], k: tuple[float, float
 def _run_pairs(bare: bool) -> int:
     """The new verified pairs in a row that join a mover's track: RUN_PAIRS (a few in a
     crossing would move its parts' ends, which the identities read), or any where no
-    tracker held it (`bare`: it has no parts yet; a weak glide at 0.3-0.5 m/s, 39 mm from
-    the target, its pairs `unstable` one in three: movers.py seed 1, capture 19, 33 -> 52 %
-    of its periods)."""
+    tracker held it (`bare`: it has no parts yet; a sway 5.4 dB under a glide, 35-39 mm
+    beyond it at 0.3-0.5 m/s, its pairs `unstable` one in three: movers.py seed 1, capture
+    19, 33 -> 52 % of its periods)."""
     return 1 if bare else RUN_PAIRS
 
 

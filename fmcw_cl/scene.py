@@ -115,8 +115,9 @@ def _lone(cap: Capture, first: First, own: Converted, moving: bool, processor: C
     # without the de-chirp (the paper's method) a mover's peaks smear over centimetres
     # and pass between bodies within one: the test is the de-chirped tracker's
     bodies, body = lone_bodies.count(own.track, moving) if options.dechirp else (1, own.track)
-    # a mover its tracker never held, which the velocity bank saw (none on the paper's
-    # method); the echo table's bodies (a loop in Python, 0.05-0.2 s) sought once, if asked
+    # a mover its tracker never held, which the velocity bank saw or whose echo table's
+    # body travels (none on the paper's method); the echo table's bodies (a loop in
+    # Python: 10 ms on the 0.3 s jump alone, up to 0.2 s on a full table) sought once
     fast = course_bodies.fast_bodies_of(first) if options.dechirp else []
     plain = cache(lambda: course_bodies.bodies_of(first))
     k = first.plan.model.k

@@ -4,8 +4,9 @@ Two movers within one moving span are one candidate (fmcw_cl.objects): its track
 follows one echo at a time, and a weaker mover it never held leaves no part to tell
 apart (a hand 3.3 dB under the jump at -1.5 to -2 m/s across it: one object, the hand
 in none of its periods). A mover faster than about 1 m/s leaves no plain peak, but the
-velocity bank (fmcw_cl.fast_echoes) sees it: its bodies that lie on no verified pair
-of the candidate's (along._untracked) are an object of their own, holding no pair yet,
+velocity bank (fmcw_cl.fast_echoes) sees it; a slower one leaves the echo table a body
+that travels (`bodies_of`): its bodies that lie on no verified pair of the candidate's
+(along._untracked) are an object of their own, holding no pair yet,
 converted along their course once the identities are told, as a candidate no tracker
 held is (along.converted_along). Not where the tables show several candidates: a leg's
 take-off so made an object (seed 1 of benchmarks/objects.py's two legs 40 ms apart)
@@ -31,8 +32,9 @@ def bodies_of(fast: list[tuple[np.ndarray, np.ndarray, np.ndarray]],
     """The bodies a mover no tracker held may leave: the velocity bank's `fast`, and the
     echo table's `plain` (course_bodies.bodies_of) that travel SLOW_TRAVEL_M or more and
     lie on no harmonic of a `held` track (2 and 3 times its distance, within
-    fixed_echoes.APART_M, for most of their points): a weaker glide at 0.1-0.5 m/s, 39
-    mm from the target, too slow to smear its plain peak (movers.py seed 1, capture 19)."""
+    fixed_echoes.APART_M, for most of their points): a sway 5.4 dB under a glide, 35-39
+    mm beyond it at 0.1-0.5 m/s, too slow to smear its plain peak (movers.py seed 1,
+    capture 19)."""
     slow = [b for b in plain if np.ptp(b[1]) >= SLOW_TRAVEL_M and not _harmonic(b[0], b[1], held)]
     return list(fast) + slow
 
@@ -55,8 +57,9 @@ def unheld(fast: list[tuple[np.ndarray, np.ndarray, np.ndarray]],
            plain: Callable[[], list[tuple[np.ndarray, np.ndarray, np.ndarray]]], held: list[Track],
            band_m: tuple[float, float | None], moving: list[bool], k: tuple[float, float]
            ) -> objects.SceneObject | None:
-    """A moving object holding no pair (`bare`) where the velocity bank's bodies `fast`
-    (course_bodies.fast_bodies_of) in `band_m` (m) lie on none of the `held` tracks, clear of
+    """A moving object holding no pair (`bare`) where the bodies `fast` (`bodies_of`: the
+    velocity bank's and the echo table's that travel) in `band_m` (m) lie on none of the
+    `held` tracks, clear of
     them (course_bodies.clear), and go on as none of the movers among them (`moving`;
     course_bodies.continuing, with the echo table's bodies `plain()`, course_bodies.bodies_of:
     a glide's own body beyond its part's end, which its course then took, made a second
@@ -65,7 +68,7 @@ def unheld(fast: list[tuple[np.ndarray, np.ndarray, np.ndarray]],
     a weak glide's 2 ms held as one kept the bank's body of its next 100 ms: 1 % of its
     periods, seed 2, capture 33); else None."""
     fast = [b for b in fast if course_bodies.clear(*b[:2], held, b[2], k)] if held else []
-    if not fast:            # the common case: the echo table's bodies (a loop in Python) not sought
+    if not fast:            # the common case
         return None
     goes = [t if m else None for t, m in zip(held, moving, strict=True)]
     taken = [c[0] for c in course_bodies.continuing(goes, plain() + fast, held) if c is not None]
@@ -73,7 +76,8 @@ def unheld(fast: list[tuple[np.ndarray, np.ndarray, np.ndarray]],
         fast = [b for b in fast if np.mean(np.isin(b[0], np.concatenate(taken))) < 0.5]
     if along._untracked(fast, held, band_m, k) is None:
         return None
-    return objects.SceneObject(0, True, bare(held[0]), "a mover no tracker held: the velocity bank's bodies")
+    return objects.SceneObject(0, True, bare(held[0]),
+                               "a mover no tracker held: its bodies in the echo tables")
 
 
 def with_unheld(scene: list[objects.SceneObject], fast: list, plain: Callable[[], list],
@@ -81,7 +85,7 @@ def with_unheld(scene: list[objects.SceneObject], fast: list, plain: Callable[[]
                 convert: Callable[[list[objects.SceneObject]], list[objects.SceneObject]]
                 ) -> list[objects.SceneObject]:
     """`convert(scene)` (its objects converted along their courses, along.objects_along)
-    with, last, a bare object of the velocity bank's bodies `fast` that go on as none
+    with, last, a bare object of the bodies `fast` (`bodies_of`) that go on as none
     of its movers (`unheld`; `plain`, `band_m` as there), converted along its course with
     them, unless it is a twin (`without_twin`)."""
     kept = [o for o in scene if o.track.valid.any()]
