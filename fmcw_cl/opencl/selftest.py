@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from fmcw_cl import spectrum_ops
+from fmcw_cl.opencl import spectrum as k_spectrum
 from fmcw_cl.opencl import track as k_track
 from fmcw_cl.opencl import verify as k_verify
 from fmcw_cl.opencl.buffers import DeviceRows
@@ -206,11 +207,13 @@ def spectra(be, rng, group: str) -> None:
     got = be.measure(d_x, beta, v[pick], model, Search(3, nfft // 2), pick)
     want = doppler.measure(x, beta, v[pick], model, Search(3, nfft // 2), pick)
     close("de-chirp + FFT + peak, picked rows", got[0], want[0], 1e-4)
-    # the range check's 4096-point transform, in the lanes local memory holds (spectrum.lanes_of)
-    check = replace(model, nfft=4096)
-    got = be.measure(d_x, beta, None, check, Search(3, 2000))
-    want = doppler.measure(x, beta, None, check, Search(3, 2000))
-    close("FFT + peak at 4096 points (the range check)", got[0], want[0], 1e-4)
+    # the range check's 4096-point transform, in the lanes local memory holds (spectrum.lanes_of),
+    # where the device holds it at all (else the numpy twin takes it: Oclgrind's 32 KiB)
+    if k_spectrum.fits(be.rt, 4096):
+        check = replace(model, nfft=4096)
+        got = be.measure(d_x, beta, None, check, Search(3, 2000))
+        want = doppler.measure(x, beta, None, check, Search(3, 2000))
+        close("FFT + peak at 4096 points (the range check)", got[0], want[0], 1e-4)
     # the phase at a fractional peak (phase.cl), de-chirped and plain, both directions
     bins = [rng.uniform(20, 40, sweeps), rng.uniform(20, 40, sweeps)]
     for vel in (v, None):
