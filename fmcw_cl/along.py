@@ -162,10 +162,10 @@ def converted_along(cap: Capture, first: First, done: list[Converted], moving: l
     lines = continuing([d.track if w else None for d, w in zip(done, mine, strict=True)], found,
                        [d.track for d in done])
     if any(bare) and not lined:
-        fast = fast_bodies_of(first) if unheld is None else unheld
+        loose = fast_bodies_of(first) if unheld is None else unheld
         held = [d.track for d in done if d.track.valid.any()]
         for i in np.flatnonzero(bare):
-            lines[i] = _untracked(fast, held, done[i].choice.band_m, doppler)
+            lines[i] = _untracked(loose, held, done[i].choice.band_m, doppler)
     wanted = []
     for i, d in enumerate(done):
         if not (mine[i] or (bare[i] and lines[i] is not None)) or (lined and lines[i] is None):

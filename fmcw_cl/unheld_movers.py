@@ -53,11 +53,11 @@ def _harmonic(t: np.ndarray, d: np.ndarray, held: list[Track]) -> bool:
     return bool(on.mean() > 0.5)
 
 
-def unheld(fast: list[tuple[np.ndarray, np.ndarray, np.ndarray]],
+def unheld(loose: list[tuple[np.ndarray, np.ndarray, np.ndarray]],
            plain: Callable[[], list[tuple[np.ndarray, np.ndarray, np.ndarray]]], held: list[Track],
            band_m: tuple[float, float | None], moving: list[bool], k: tuple[float, float]
            ) -> objects.SceneObject | None:
-    """A moving object holding no pair (`bare`) where the bodies `fast` (`bodies_of`: the
+    """A moving object holding no pair (`bare`) where the bodies `loose` (`bodies_of`: the
     velocity bank's and the echo table's that travel) in `band_m` (m) lie on none of the
     `held` tracks, clear of
     them (course_bodies.clear), and go on as none of the movers among them (`moving`;
@@ -67,29 +67,29 @@ def unheld(fast: list[tuple[np.ndarray, np.ndarray, np.ndarray]],
     periods, movers.py seed 1, capture 16; a fixed part is converted along no course, and
     a weak glide's 2 ms held as one kept the bank's body of its next 100 ms: 1 % of its
     periods, seed 2, capture 33); else None."""
-    fast = [b for b in fast if course_bodies.clear(*b[:2], held, b[2], k)] if held else []
-    if not fast:            # the common case
+    clear = [b for b in loose if course_bodies.clear(*b[:2], held, b[2], k)] if held else []
+    if not clear:            # the common case
         return None
     goes = [t if m else None for t, m in zip(held, moving, strict=True)]
-    taken = [c[0] for c in course_bodies.continuing(goes, plain() + fast, held) if c is not None]
+    taken = [c[0] for c in course_bodies.continuing(goes, plain() + clear, held) if c is not None]
     if taken:
-        fast = [b for b in fast if np.mean(np.isin(b[0], np.concatenate(taken))) < 0.5]
-    if along._untracked(fast, held, band_m, k) is None:
+        clear = [b for b in clear if np.mean(np.isin(b[0], np.concatenate(taken))) < 0.5]
+    if along._untracked(clear, held, band_m, k) is None:
         return None
     return objects.SceneObject(0, True, bare(held[0]),
                                "a mover no tracker held: its bodies in the echo tables")
 
 
-def with_unheld(scene: list[objects.SceneObject], fast: list, plain: Callable[[], list],
+def with_unheld(scene: list[objects.SceneObject], loose: list, plain: Callable[[], list],
                 band_m: tuple[float, float | None], k: tuple[float, float],
                 convert: Callable[[list[objects.SceneObject]], list[objects.SceneObject]]
                 ) -> list[objects.SceneObject]:
     """`convert(scene)` (its objects converted along their courses, along.objects_along)
-    with, last, a bare object of the bodies `fast` (`bodies_of`) that go on as none
+    with, last, a bare object of the bodies `loose` (`bodies_of`) that go on as none
     of its movers (`unheld`; `plain`, `band_m` as there), converted along its course with
     them, unless it is a twin (`without_twin`)."""
     kept = [o for o in scene if o.track.valid.any()]
-    bare = unheld(fast, plain, [o.track for o in kept], band_m, [o.moving for o in kept], k)
+    bare = unheld(loose, plain, [o.track for o in kept], band_m, [o.moving for o in kept], k)
     return convert(scene) if bare is None else without_twin(convert(scene + [bare]))
 
 

@@ -110,7 +110,6 @@ def test_a_weak_glide_whose_few_pairs_are_a_fixed_part_is_an_object(tmp_path):
     assert any("no tracker held" in o.note for o in track.objects)
 
 
-
 def test_a_slow_body_of_the_echo_table_is_a_mover_no_tracker_held(tmp_path):
     """A glide (the target) leaving a sway 5.4 dB weaker, lab SNR (movers.py seed 1,
     capture 19): the sway at 0.1-0.5 m/s, 35-39 mm beyond the glide for 60 ms, is too
