@@ -10,7 +10,12 @@ each direction is the mover's interval there, from its distance to its plain pea
 (Doppler-shifted by k v; the de-chirped peak lies at the distance), widened by WIDTH_M
 and by what an acceleration could have moved it since its nearest verified pair (at
 most MAX_WIDTH_M), and cut half way to every other object's interval there (its plain
-peak and its image de-chirped at the mover's velocity) that lies wholly on one side.
+peak and its image de-chirped at the mover's velocity) that lies wholly on one side;
+where the two intervals overlap, a pair first measured de-chirped at the mover's
+velocity (SEED_MPS or faster) is cut half way between its distance and the other's
+image, where those are told apart (crossings.MOVERS_M): two sways 13-21 mm apart at 1.2
+and 0.85 m/s, their peaks 3-11 mm apart in one direction, which the whole band held,
+the tracker passing between them.
 Where nothing is known of the mover, or the others overlap it (the two cannot be told
 apart; their pairs end `ambiguous`, fmcw_cl.crossings), the candidate's own band stands.
 The runs of RUN_PAIRS or more new verified pairs join the mover's old track
@@ -55,7 +60,9 @@ def course_of(track: Track, others: list[tuple[Track, bool]], k: tuple[float, fl
     as it: course_bodies.continuing) at each of its pairs' times, in each direction of Doppler
     factors `k` (m per m/s: rising, falling), at least `room_m` (m) either side (the
     peak's noise floor lies beyond its guard), cut half way to each of `others` (track,
-    moving) wholly on one side of it; `band_m` (m) where it is not known. With which
+    moving) wholly on one side of it (or, at a pair first measured de-chirped, between
+    its distance and the other's image there, told apart); `band_m` (m) where it is not
+    known. With which
     pairs it knows, and where the mover can be there (its distance and the half-width
     about it, m); None where it knows none."""
     t, ok = track.time_s, track.valid
@@ -70,18 +77,24 @@ def course_of(track: Track, others: list[tuple[Track, bool]], k: tuple[float, fl
         return None
     present = [_where(o, t, moving) for o, moving in others]
     lo_m, hi_m = np.empty((2, t.size)), np.empty((2, t.size))
+    # a mover fast enough to smear its plain peak is first measured de-chirped at its velocity
+    seed = np.where(known & (np.abs(v) >= SEED_MPS), v, 0.0)
     for j, kj in enumerate(k):
         a, b = np.minimum(r, r + kj * v), np.maximum(r, r + kj * v)
         lo, hi = a - np.maximum(width, room_m), b + np.maximum(width, room_m)
         for seen, r_o, v_o in present:
             p, i = r_o + kj * v_o, r_o + kj * (v_o - v)         # plain peak, image at the mover's velocity
             oa, ob = np.minimum(p, i), np.maximum(p, i)
-            lo = np.where(seen & (ob < a), np.maximum(lo, 0.5 * (ob + a)), lo)
-            hi = np.where(seen & (oa > b), np.minimum(hi, 0.5 * (oa + b)), hi)
+            below, above = seen & (ob < a), seen & (oa > b)
+            lo = np.where(below, np.maximum(lo, 0.5 * (ob + a)), lo)
+            hi = np.where(above, np.minimum(hi, 0.5 * (oa + b)), hi)
+            # the intervals overlap, but a seeded pair is measured de-chirped, where its
+            # peak and the other's image, told apart, are cut half way between them
+            both = seen & (seed != 0) & ~below & ~above & (np.abs(i - r) > crossings.MOVERS_M)
+            lo = np.where(both & (i < r), np.maximum(lo, 0.5 * (i + r)), lo)
+            hi = np.where(both & (i > r), np.minimum(hi, 0.5 * (i + r)), hi)
         lo_m[j] = np.where(known, lo, band_m[0])
         hi_m[j] = np.where(known, hi, np.inf if band_m[1] is None else band_m[1])
-    # a mover fast enough to smear its plain peak is first measured de-chirped at its velocity
-    seed = np.where(known & (np.abs(v) >= SEED_MPS), v, 0.0)
     return Course(t, lo_m, np.minimum(hi_m, 1e3), seed), known, (r, width)
 
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from conftest import process, scene_of, two_movers
 
-from fmcw_cl import along, course_bodies
+from fmcw_cl import along, course_bodies, crossings
 from fmcw_cl.evaluate import best_held
 from fmcw_cl.stages import faults
 from fmcw_cl.track import Track
@@ -159,6 +159,36 @@ def test_a_course_is_cut_half_way_to_another_object_wholly_on_one_side():
     gone = ~seen & (np.arange(n) > n // 2 + along.OTHER_GAP_S / PERIOD)
     np.testing.assert_allclose(course2.hi_m[0][gone], (top + room)[gone])
     np.testing.assert_allclose(course2.hi_m[0][:200], course.hi_m[0][:200])
+
+
+def test_a_seeded_course_is_cut_half_way_to_another_movers_image():
+    """Two movers 15 mm apart at 1.0 and 1.35 m/s (two sways crossing): each direction's
+    intervals (distance to plain peak) overlap, so the rule above cuts nothing; but a
+    pair this fast is first measured de-chirped at its velocity (a seeded course), where
+    its peak stands at its distance and the other's image k (v_o - v) off the other's:
+    each band is cut half way between those two. Not where the image lies within
+    crossings.MOVERS_M of the distance (5 mm apart at 1.0 and 1.1 m/s, rising: 2.3 mm;
+    the two peaks are not told apart), nor below SEED_MPS (0.4 and 0.3 m/s, 5 mm apart)."""
+    n = 400
+    t = PERIOD * (np.arange(n) + 0.5)
+    room = 0.01
+    cut_where = []
+    for v1, v0, gap in ((1.0, 1.35, 0.015), (1.0, 1.1, 0.005), (0.4, 0.3, 0.005)):
+        d1 = 0.2 + v1 * t
+        d0 = d1 - gap
+        mover = _track(d1, np.full(n, v1), np.ones(n, bool))
+        other = _track(d0, np.full(n, v0), np.ones(n, bool))
+        course, _, _ = along.course_of(mover, [(other, True)], K, (0.03, None), room)
+        seeded = v1 >= along.SEED_MPS
+        assert (course.v_mps != 0).all() == seeded
+        for j, kj in enumerate(K):
+            a = np.minimum(d1, d1 + kj * v1)
+            plain, image = d0 + kj * v0, d0 + kj * (v0 - v1)
+            assert (np.maximum(plain, image) > a).all()           # the intervals overlap
+            cut = seeded and (np.abs(image - d1) > crossings.MOVERS_M).all()
+            np.testing.assert_allclose(course.lo_m[j], 0.5 * (image + d1) if cut else a - room, atol=1e-12)
+            cut_where.append(cut)
+    assert cut_where == [True, True, False, True, False, False]
 
 
 def test_pairs_along_a_course_beside_a_mover_told_apart_from_it_are_gained():
