@@ -62,9 +62,8 @@ def course_of(track: Track, others: list[tuple[Track, bool]], k: tuple[float, fl
     peak's noise floor lies beyond its guard), cut half way to each of `others` (track,
     moving) wholly on one side of it (or, at a pair first measured de-chirped, between
     its distance and the other's image there, told apart); `band_m` (m) where it is not
-    known. With which
-    pairs it knows, and where the mover can be there (its distance and the half-width
-    about it, m); None where it knows none."""
+    known. With which pairs it knows, and where the mover can be there (its distance and
+    the half-width about it, m); None where it knows none."""
     t, ok = track.time_s, track.valid
     if ok.sum() + (0 if lines is None else lines[0].size) < 2:
         return None
