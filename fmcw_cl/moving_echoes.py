@@ -239,10 +239,17 @@ def _beside(t: np.ndarray, c: np.ndarray, held_t: np.ndarray, held_d: np.ndarray
     if not held_t.size:
         return False
     off = np.abs(t - held_t[nearest(held_t, t)]) <= GAP_S
-    near = np.interp(t, held_t, held_d)
-    for m in (1, *HARMONICS):
-        off &= np.abs(c - m * near) > APART_M
+    off &= ~on_multiples(c, np.interp(t, held_t, held_d), (1, *HARMONICS))
     return bool(np.mean(off) > 0.5)
+
+
+def on_multiples(c: np.ndarray, near: np.ndarray, multiples) -> np.ndarray:
+    """Which distances `c` (m) lie within APART_M of one of `multiples` times the
+    distances `near` (m) of a tracked echo then: its own line (1) or its harmonics."""
+    on = np.zeros(np.shape(c), bool)
+    for m in multiples:
+        on |= np.abs(c - m * near) <= APART_M
+    return on
 
 
 def _run_ends(track: Track) -> tuple[np.ndarray, np.ndarray]:

@@ -47,9 +47,8 @@ def _harmonic(t: np.ndarray, d: np.ndarray, held: list[Track]) -> bool:
         ok = track.valid
         if ok.sum() < 2:
             continue
-        near = np.interp(t, track.time_s[ok], track.distance_m[ok])
-        for m in moving_echoes.HARMONICS:
-            on |= np.abs(d - m * near) <= fixed_echoes.APART_M
+        on |= moving_echoes.on_multiples(d, np.interp(t, track.time_s[ok], track.distance_m[ok]),
+                                         moving_echoes.HARMONICS)
     return bool(on.mean() > 0.5)
 
 
