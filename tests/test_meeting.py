@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from conftest import two_movers
 
-from fmcw_cl import meeting
+from fmcw_cl import meeting, objects
 from fmcw_cl.evaluate import best_held
 from fmcw_cl.objects import SceneObject
 from fmcw_cl.simulator.scene import glide
@@ -174,3 +174,54 @@ def test_movers_lost_at_a_crossing_or_at_rest_are_one_object_again(tmp_path, cas
     best = best_held(scores, 2)
     assert best[0] >= want[0] and best[1] >= want[1], best
     assert any("met" in o.note for o in track.objects)
+
+
+def _take_off(tracked: tuple[float, float], own: str, other_from: float) -> list[SceneObject]:
+    """Two feet at rest at 0.070 m, one taking off at 0.008 s at 120 m/s^2: the tracker
+    follows the take-off from `tracked[0]` to `tracked[1]` (s), then comes back on
+    `own` ("rest": the other foot, still at rest; "course": the take-off) until 0.3 s;
+    the take-off's own course is a mover from `other_from` (movers.py seed 24,
+    capture 35)."""
+    u = np.maximum(T - 0.008, 0.0)
+    flight, speed = 0.070 + 60.0 * u * u, 120.0 * u
+    a = _object(flight, speed, tracked[0], tracked[1])
+    later = tracked[1] + 2.9e-3
+    b = (_object(np.full(T.size, 0.070), np.zeros(T.size), later, 0.3) if own == "rest"
+         else _object(flight, speed, later, 0.3))
+    tracker = SceneObject(0, True, objects.joined(a.track, b.track), "the tracker")
+    return [tracker, _object(flight, speed, other_from, 0.3)]
+
+
+def test_a_course_that_goes_on_across_a_movers_gap_takes_its_part_before():
+    """The take-off's pairs before the gap go with its course, not with the other foot at
+    rest the tracker came back on; none are cut where the tracker's own pairs go on,
+    where the course does not go on as them, or where another mover on the course
+    between contests that join (a jump's parts 61 ms apart cut and not joined again:
+    movers.py seed 1, capture 35, 38 -> 34 %)."""
+    tracker, course = _take_off((0.004, 0.0156), "rest", 0.0176)
+    scene = meeting.met([tracker, course])
+    assert len(scene) == 2
+    held = [o for o in scene if o.track.valid[T > 0.05].any() and o.track.valid[T < 0.0157].any()]
+    flying = next(o for o in scene if np.nanmax(o.track.distance_m[o.track.valid]) > 0.08)
+    resting = next(o for o in scene if o is not flying)
+    assert np.array_equal(flying.track.valid, (T >= 0.004) & (T <= 0.0156) | (T >= 0.0176))
+    assert not resting.track.valid[T < 0.0184].any() and resting.track.valid[T > 0.019].all()
+    assert len(held) == 1 and held[0] is flying
+    # the tracker's own course goes on: nothing cut (the course's part stays its own)
+    tracker, course = _take_off((0.004, 0.0156), "course", 0.0176)
+    scene = meeting.met([tracker, course])
+    assert any(np.array_equal(o.track.valid, tracker.track.valid) for o in scene)
+    # a course first seen within the gap but not going on as the take-off: nothing cut
+    tracker, course = _take_off((0.004, 0.0156), "rest", 0.0176)
+    far = SceneObject(0, True, objects.invalidated(course.track, np.zeros(T.size, bool)), "far")
+    far.track.distance_m[:] += 0.02
+    assert any(np.array_equal(o.track.valid, tracker.track.valid) for o in meeting.met([tracker, far]))
+    # another mover on the course between the two: the join is contested, so no cut
+    tracker, course = _take_off((0.004, 0.0156), "rest", 0.0176)
+    u = np.maximum(T - 0.008, 0.0)
+    through = _object(0.071 + 60.0 * u * u, 120.0 * u, 0.0150, 0.0170)
+    scene = meeting.met([tracker, course, through])
+    assert any(np.array_equal(o.track.valid, tracker.track.valid) for o in scene)
+    # a mover with no verified pair left is passed over
+    empty = SceneObject(0, True, objects.invalidated(tracker.track, np.ones(T.size, bool)), "none")
+    assert len(meeting.met([empty, tracker, course])) == 3

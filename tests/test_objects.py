@@ -633,15 +633,14 @@ def test_a_legs_motion_is_not_the_other_legs_slow_part_seen_later(tmp_path):
     scene_of(process(path), path)
 
 
-@pytest.mark.xfail(reason="#68: a take-off beside the other foot at rest, held by its object", strict=False)
 def test_a_take_off_beside_a_foot_at_rest_is_not_the_resting_foots(tmp_path):
     """Two legs 51 ms apart, the other 1.1 dB weaker, lab (movers.py seed 24, capture 35,
     drawn after the rules): both feet at rest 0-2 mm apart, then one takes off. The first
     candidate's tracker followed the take-off to 0.0156 s (0.0742 m, +0.85 m/s) and came
     back at 0.0184 s on the foot at rest, 5.4 mm off one body's trapezoid but within
     verification.reachable's impact bounds; the leaving foot's own object begins at
-    0.0176 s on the take-off's course. Open: 70 valid pairs of the take-off, 2-4.2 mm
-    off, stay on the resting foot's object (the same on 53c9ba6)."""
+    0.0176 s on the take-off's course: 70 valid pairs of the take-off, 2-4.2 mm off,
+    stayed on the resting foot's object (meeting._taken_on cuts it there)."""
     from conftest import scene_of
 
     from fmcw_cl.simulator.scene import Trajectory, jump
