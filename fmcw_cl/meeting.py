@@ -106,7 +106,7 @@ def _handed(o: SceneObject, scene: list[SceneObject]) -> list[tuple[float, Track
         mid = 0.5 * (x.time_s[p] + x.time_s[n])
         for y in movers:
             first, last = np.flatnonzero(y.valid)[[0, -1]]
-            if p < first < n and _goes_on(_pair(x, p), _pair(y, first)):
+            if p < first < n and _goes_on(end, _pair(y, first)):
                 out.append((mid, y, True))
             if p < last < n and _goes_on(_pair(y, last), _pair(x, n)):
                 out.append((mid, y, False))

@@ -71,7 +71,8 @@ def unheld(loose: list[tuple[np.ndarray, np.ndarray, np.ndarray]],
         return None
     goes = [t if m else None for t, m in zip(held, moving, strict=True)]
     # the slow ones among them are the echo table's own (`bodies_of`): each body once
-    found = plain() + [b for b in clear if not any(b is p for p in plain())]
+    table = plain()
+    found = table + [b for b in clear if not any(b is p for p in table)]
     taken = [c[0] for c in course_bodies.continuing(goes, found, held) if c is not None]
     if taken:
         clear = [b for b in clear if np.mean(np.isin(b[0], np.concatenate(taken))) < 0.5]
