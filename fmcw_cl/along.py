@@ -172,7 +172,7 @@ def converted_along(cap: Capture, first: First, done: list[Converted], moving: l
     if found is None:
         found = bodies_of(first) + fast_bodies_of(first) if any(mine) else []
     lines = continuing([d.track if w else None for d, w in zip(done, mine, strict=True)], found,
-                       [d.track for d in done])
+                       [d.track for d in done], [d.track for d, w in zip(done, moving, strict=True) if not w])
     if any(bare) and not lined:
         loose = fast_bodies_of(first) if unheld is None else unheld
         held = [d.track for d in done if d.track.valid.any()]

@@ -22,17 +22,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import along, course_bodies, identities, objects
+from . import course_bodies, identities, objects
+from .braking import MOVING_MPS, comes_to_rest
 from .numeric import centred_slope
 from .objects import SceneObject
 from .track import Track
 
-GAP_S = course_bodies.GAP_S         # a gap this long or shorter is joined across ...
-REST_GAP_S = 0.05           # ... this long between a mover and its rest (it may rest a while unseen)
-MOVING_MPS = along.SEED_MPS   # ends this fast: a body in motion, never two at rest side by side
-BRAKE_MPS2 = 10.0           # an end's acceleration this strong against (or with) its motion is braking
-REST_M = 3e-3               # the rest within this, or REST_SHARE of the way, of where the braking ends it
-REST_SHARE = 0.3
+GAP_S = course_bodies.GAP_S         # a gap this long or shorter is joined across
 
 
 def met(scene: list[SceneObject]) -> list[SceneObject]:
@@ -82,7 +78,7 @@ def _taken_on(scene: list[SceneObject]) -> list[SceneObject]:
 def _handed(o: SceneObject, scene: list[SceneObject]) -> list[tuple[float, Track, bool]]:
     """(time s, track, before) of each gap of mover `o`'s verified pairs across which
     its own course is no one body's steady motion (identities.goes_on) nor a join's
-    (`_goes_on`, `_rests`) while another mover's goes on as its part (`_goes_on`): one
+    (`_goes_on`, `braking.comes_to_rest`) while another mover's goes on as its part (`_goes_on`): one
     first seen within the gap from its pair before it (`before`), or one last seen
     within it to its pair after (the tracker followed a foot's take-off to +0.85 m/s,
     then came back 2.9 ms later on the other foot at rest 4.2 mm behind, while the
@@ -101,7 +97,7 @@ def _handed(o: SceneObject, scene: list[SceneObject]) -> list[tuple[float, Track
     for g in np.flatnonzero(~steady):
         p, n = before[g], after[g]
         end = (*_pair(x, p)[:4], trend[g])
-        if _goes_on(end, _pair(x, n)) or _rests(end, x.distance_m[n], x.time_s[n] - x.time_s[p]):
+        if _goes_on(end, _pair(x, n)) or comes_to_rest(end, x.distance_m[n], x.time_s[n] - x.time_s[p]):
             continue                # its own pairs a join would make
         mid = 0.5 * (x.time_s[p] + x.time_s[n])
         for y in movers:
@@ -144,25 +140,10 @@ def _goes_on(a: tuple, z: tuple) -> bool:
                 and a[3] * z[3] > 0 and course_bodies.one_body(a[1:4], z[1:4]))
 
 
-def _rests(end: tuple, rest_m: float, dt: float) -> bool:
-    """Whether a body in motion at `end` (index, t, d, v, acc; its acceleration taken
-    against its motion: a mover's last pair, or a set-off's first with time reversed)
-    comes to rest at `rest_m` (m) within `dt` (s): braking, the rest ahead of it within
-    REST_M or REST_SHARE of where its braking ends it (a glide's braking eases as it
-    comes to rest: 8.0 and 10.0 mm forecast, 10.1 and 11.7 mm), in time at the least
-    braking that stops it there (2 s / |v|)."""
-    v, acc = end[3], end[4]
-    ahead = (rest_m - end[2]) * np.sign(v)
-    if abs(v) < MOVING_MPS or acc * v > -BRAKE_MPS2 * abs(v) or ahead <= 0 or not 0 < dt <= REST_GAP_S:
-        return False
-    stop = v * v / (2.0 * abs(acc))
-    return bool(abs(ahead - stop) <= max(REST_M, REST_SHARE * stop) and 2.0 * ahead / abs(v) <= dt)
-
-
 def _joins(scene: list[SceneObject], ends: list) -> list[tuple[float, int, int]]:
     """(cost, i, j): object i's last verified pair goes on as object j's first (a
     mover's as a mover's, `_goes_on`; a mover's as its rest, or a rest's as the mover
-    that set off from it, `_rests`)."""
+    that set off from it, `braking.comes_to_rest`)."""
     out = []
     for i, e in enumerate(ends):
         for j, f in enumerate(ends):
@@ -173,9 +154,9 @@ def _joins(scene: list[SceneObject], ends: list) -> list[tuple[float, int, int]]
             if mi and mj:
                 ok = _goes_on(a, z)
             elif mi:
-                ok = _rests(a, _still_at(scene[j]), dt)
+                ok = comes_to_rest(a, _still_at(scene[j]), dt)
             elif mj:        # time reversed: set off from rest is a rest come to backwards
-                ok = _rests((z[0], -z[1], z[2], -z[3], z[4]), _still_at(scene[i]), dt)
+                ok = comes_to_rest((z[0], -z[1], z[2], -z[3], z[4]), _still_at(scene[i]), dt)
             else:
                 ok = False
             if ok:

@@ -114,6 +114,60 @@ def test_bodies_that_go_on_as_a_movers_body_carry_its_course_on():
     assert not np.isin(near[0], held[0][0]).any() and not np.isin(far[0], held[0][0]).any()
 
 
+def test_a_course_braking_to_a_rest_is_not_carried_onto_a_body_moving_off_the_other_way():
+    """A landing foot verified for 12 ms, braking at 220 m/s^2 (-3.5 -> -0.87 m/s), its
+    rest (a fixed object) seen from 30 ms where the braking stops it, and a body moving
+    off the other way at +2.98 m/s from 24 ms (movers.py seed 5, capture 22: a hand;
+    610 valid pairs of it on the foot when the foot's course went on as it): not the
+    foot's course (course_bodies._turning), although one body's motion crosses the gap.
+    Carried where no rest lies where the braking ends it (15 mm beyond), where the foot
+    does not brake, where the rest was seen before it braked, or where the rest ended
+    before the body moved off (a turn at rest: a jump's apex); a body going on the same
+    way is no turn. Time reversed: a set-off from a rest seen until 4.5 ms before it is
+    not carried back onto a body that came the other way while it rested."""
+    n = 1200
+    t = PERIOD * (np.arange(n) + 0.5)
+
+    def mover(d, v, ok):
+        return _track(d, v, ok), (t[ok][-1], d[ok][-1], v[ok][-1]), (t[ok][0], d[ok][0], v[ok][0])
+
+    def body(a: float, b: float, at: tuple, v: float):
+        """A body at `v` m/s over a..b s that one body's motion joins to the point `at`."""
+        grid = np.arange(a, b, 2.5e-4)
+        z = grid[0] if grid[0] > at[0] else grid[-1]
+        d = at[1] + (z - at[0]) * 0.5 * (at[2] + v) + v * (grid - z)
+        return grid, d, np.full(grid.size, v)
+
+    def carried(x: Track, off: tuple, rest_at: float, rest_ok: np.ndarray) -> bool:
+        ok = x.valid
+        on = np.arange(t[ok][-1] - 0.005, t[ok][-1], 2.5e-4) if t[ok][0] < 0.005 else \
+            np.arange(t[ok][0], t[ok][0] + 0.005, 2.5e-4)
+        on = (on, np.interp(on, t[ok], x.distance_m[ok]), np.interp(on, t[ok], x.velocity_mps[ok]))
+        rest = _track(np.full(n, rest_at), np.zeros(n), rest_ok)
+        got = course_bodies.continuing([x], [on, off], (), [rest])[0]
+        return got is not None and bool(np.isin(off[0], got[0]).any())
+
+    foot, end, _ = mover(0.1028 - 3.5 * t + 110.0 * t ** 2, -3.5 + 220.0 * t, t < 0.012)
+    stop = 0.1028 - 3.5 ** 2 / (2 * 220.0)                 # where its braking stops it: 0.0750 m
+    hand = body(0.024, 0.04, end, 2.98)
+    assert course_bodies.one_body(end, (hand[0][0], hand[1][0], hand[2][0]))
+    assert not carried(foot, hand, stop, t >= 0.03)
+    assert carried(foot, hand, stop - 0.015, t >= 0.03)
+    assert carried(foot, hand, stop, t >= 0.0)
+    assert carried(foot, hand, stop, (t >= 0.017) & (t < 0.023))     # it turned there: a jump's apex
+    assert carried(foot, body(0.024, 0.04, end, -0.86), stop, t >= 0.03)
+    steady, end, _ = mover(0.1028 - 0.86 * t, np.full(n, -0.86), t < 0.012)
+    assert carried(steady, body(0.024, 0.04, end, 2.98), end[1] - 0.86 * 0.004, t >= 0.03)
+    # time reversed: at rest until 7.5 ms, set off at 220 m/s^2 and verified from 12 ms
+    off, _, start = mover(0.075 + 110.0 * (t - 0.008) ** 2, 220.0 * (t - 0.008), (t >= 0.012) & (t < 0.03))
+    came = body(0.0, 0.0015, start, -3.0)
+    assert course_bodies.one_body((came[0][-1], came[1][-1], came[2][-1]), start)
+    assert not carried(off, came, 0.075, t < 0.0075)
+    assert carried(off, came, 0.075, t < 0.0)
+    assert carried(off, came, 0.075, (t >= 0.002) & (t < 0.0075))
+    assert carried(off, came, 0.06, t < 0.0075)
+
+
 def test_a_body_passing_through_the_start_of_a_movers_course_goes_on_as_it():
     """A glide's rest and set-off, its body 3.9 ms past the first point of the body its
     course goes on as (movers.py seed 1, capture 1: 57 -> 77 % of its periods): it
