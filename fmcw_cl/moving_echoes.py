@@ -56,56 +56,76 @@ def lines(time_s: np.ndarray, distance_m: np.ndarray) -> list[np.ndarray]:
         return []
     # a half-sweep holds one to three detections and a few lines are open: Python's
     # floats link them several times faster than numpy's calls on such small arrays, and
-    # a lone detection goes to its nearest line without the matching's sort (3x)
+    # a lone detection goes to its nearest line without the matching's sort (3x); a line
+    # keeps its last time, distance and velocity, made once as a detection joins it
     t, d = time_s.tolist(), distance_m.tolist()
     starts = np.r_[0, np.flatnonzero(np.diff(time_s) > 0) + 1, time_s.size].tolist()
-    open_: list[list[int]] = []
+    open_: list[_Line] = []
     out: list[list[int]] = []
     for a, b in zip(starts[:-1], starts[1:], strict=True):
         now = t[a]
         kept = []
         for x in open_:
-            if now - t[x[-1]] <= (GAP_S if len(x) > 1 else START_S):
+            if now - x.t <= (GAP_S if len(x.at) > 1 else START_S):
                 kept.append(x)
-            elif len(x) > 1:
-                out.append(x)
+            elif len(x.at) > 1:
+                out.append(x.at)
         open_ = kept
         if not open_:
-            open_ = [[i] for i in range(a, b)]
+            open_ = [_Line(i, t, d) for i in range(a, b)]
             continue
-        ahead = [_ahead(x, t, d, now) for x in open_]        # (where, reach) of each line
         if b - a == 1:
-            best, miss = -1, 0.0
-            for n, (at, reach) in enumerate(ahead):
-                m = abs(d[a] - at)
-                if m <= reach and (best < 0 or m < miss):       # the nearest, on a tie the first
-                    best, miss = n, m
-            if best < 0:
-                open_.append([a])
+            best, miss, here = None, 0.0, d[a]
+            for x in open_:
+                at, reach = x.ahead(now)
+                m = abs(here - at)
+                if m <= reach and (best is None or m < miss):       # the nearest, on a tie the first
+                    best, miss = x, m
+            if best is None:
+                open_.append(_Line(a, t, d))
             else:
-                open_[best].append(a)
+                best.add(a, t, d)
             continue
+        ahead = [x.ahead(now) for x in open_]        # (where, reach) of each line
         near = [(m, i, n) for n, (at, reach) in enumerate(ahead) for i in range(b - a)
                 if (m := abs(d[a + i] - at)) <= reach]        # (miss, detection, line) within reach
         taken = [False] * (b - a)
         for i, n in matched(near):                      # one detection a line
-            open_[n].append(a + i)
+            open_[n].add(a + i, t, d)
             taken[i] = True
-        open_ += [[a + i] for i in range(b - a) if not taken[i]]
-    out += open_
+        open_ += [_Line(a + i, t, d) for i in range(b - a) if not taken[i]]
+    out += [x.at for x in open_]
     return [np.asarray(x) for x in out
             if len(x) >= MIN_DETECTIONS and t[x[-1]] - t[x[0]] >= MIN_SPAN_S]
 
 
-def _ahead(x: list[int], t: list[float], d: list[float], now: float) -> tuple[float, float]:
-    """Where the line of detections `x` (indices of times `t` s, distances `d` m) is at
-    `now` (s), moved on at its velocity, and how far from there a detection may lie to
-    go on it (m; -1: none may)."""
-    last, back = x[-1], x[-TREND] if len(x) >= TREND else x[0]
-    dt, span = now - t[last], t[last] - t[back]
-    if span <= 0:
-        return d[last], LINK_M + START_MPS * dt if dt <= START_S else -1.0
-    return d[last] + (d[last] - d[back]) / span * dt, LINK_M + 0.5 * ACCEL_MAX * dt * dt
+class _Line:
+    """An open line of `lines`: its detections `at` (indices of times s and distances m),
+    its last time `t` and distance `d`, and its velocity `v` (m/s; None while its
+    detections span no time)."""
+
+    __slots__ = ("at", "t", "d", "v")
+
+    def __init__(self, i: int, t: list[float], d: list[float]) -> None:
+        self.at, self.t, self.d, self.v = [i], t[i], d[i], None
+
+    def add(self, i: int, t: list[float], d: list[float]) -> None:
+        """Detection `i` of times `t` and distances `d` joins: the velocity over the last
+        TREND detections (all while fewer)."""
+        at = self.at
+        at.append(i)
+        back = at[-TREND] if len(at) >= TREND else at[0]
+        self.t, self.d = now, here = t[i], d[i]
+        span = now - t[back]
+        self.v = (here - d[back]) / span if span > 0 else None
+
+    def ahead(self, now: float) -> tuple[float, float]:
+        """Where the line is at `now` (s), moved on at its velocity, and how far from
+        there a detection may lie to go on it (m; -1: none may)."""
+        dt = now - self.t
+        if self.v is None:
+            return self.d, LINK_M + START_MPS * dt if dt <= START_S else -1.0
+        return self.d + self.v * dt, LINK_M + 0.5 * ACCEL_MAX * dt * dt
 
 
 def unheld(e: echoes.Echoes, k_rise: float, k_fall: float, track: Track, band: tuple[float, float | None],

@@ -11,6 +11,7 @@ import pytest
 
 from fmcw_cl import fixed_echoes, moving_echoes
 from fmcw_cl.echoes import Echoes
+from fmcw_cl.stages.verification import ACCEL_MAX
 from fmcw_cl.track import Track
 
 PERIOD = 50e-6
@@ -166,6 +167,17 @@ def test_a_slow_end_after_a_smeared_span_is_that_spans_body(seed):
     assert abs(found[0][1] - np.percentile(body[T >= 0.055], 99)) < 1e-3
 
 
+def _ahead(x: list[int], t: list[float], d: list[float], now: float) -> tuple[float, float]:
+    """Where the line of detections `x` is at `now`, and its reach, as first written: from
+    its detections at each half-sweep (moving_echoes._Line keeps them as it goes)."""
+    me = moving_echoes
+    last, back = x[-1], x[-me.TREND] if len(x) >= me.TREND else x[0]
+    dt, span = now - t[last], t[last] - t[back]
+    if span <= 0:
+        return d[last], me.LINK_M + me.START_MPS * dt if dt <= me.START_S else -1.0
+    return d[last] + (d[last] - d[back]) / span * dt, me.LINK_M + 0.5 * ACCEL_MAX * dt * dt
+
+
 def _lines_by_matching(time_s: np.ndarray, distance_m: np.ndarray) -> list[np.ndarray]:
     """moving_echoes.lines as first written: every half-sweep's detections matched to the
     open lines by numeric.matched, a lone one too (the reference of its shortcut)."""
@@ -185,7 +197,7 @@ def _lines_by_matching(time_s: np.ndarray, distance_m: np.ndarray) -> list[np.nd
             continue
         near = []
         for n, x in enumerate(open_):
-            at, reach = moving_echoes._ahead(x, t, d, t[a])
+            at, reach = _ahead(x, t, d, t[a])
             near += [(m, i, n) for i in range(b - a) if (m := abs(d[a + i] - at)) <= reach]
         taken = [False] * (b - a)
         for i, n in matched(near):
@@ -200,9 +212,10 @@ def _lines_by_matching(time_s: np.ndarray, distance_m: np.ndarray) -> list[np.nd
 @pytest.mark.parametrize("seed", [1, 2, 3])
 def test_lines_link_a_lone_detection_as_the_matching_does(seed):
     """A half-sweep's lone detection goes to the nearest line within reach (on a tie the
-    first opened) without the matching's sort: the lines of tables of two crossing
-    glides, a rest, fades and noise (one to four detections a half-sweep) are those of
-    matching every half-sweep's detections."""
+    first opened) without the matching's sort, and a line's velocity is kept as
+    detections join it: the lines of tables of two crossing glides, a rest, fades and
+    noise (one to four detections a half-sweep) are those of matching every half-sweep's
+    detections with each line's reach made from its detections."""
     rng = np.random.default_rng(seed)
     glide = 0.10 + 1.5 * T
     cross = 0.30 - 1.2 * T
