@@ -10,6 +10,8 @@ either end), clear of every other object (fmcw_cl.along converts the mover along
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from . import braking, crossings, fast_echoes, moving_echoes, numeric, objects
@@ -27,6 +29,8 @@ ACCEL_MPS2 = 500.0    # what a body can have moved since its nearest verified pa
 MATCH_S = 1e-3        # a body of the echo table on a mover's verified pairs this long ...
 MATCH_M = 0.0015      # ... within this of them (median) is its; it says its course ...
 BEYOND_S = 1e-3       # ... this far from every one of them (where the tracker held another echo)
+
+Turns = Callable[[tuple, tuple, bool], bool]   # `_turning`'s test of two points across a gap
 
 
 def bodies_of(first: First) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
@@ -48,7 +52,8 @@ def fast_bodies_of(first: First) -> list[tuple[np.ndarray, np.ndarray, np.ndarra
 
 def going_on(mine: list[tuple[np.ndarray, np.ndarray, np.ndarray]],
               left: list[tuple[np.ndarray, np.ndarray, np.ndarray]], ends: tuple | None = None,
-              within_s: float = np.inf, turns=None) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+              within_s: float = np.inf, turns: Turns | None = None
+              ) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
     """The bodies of `left` (time s, distance m, velocity m/s each) that go on as the
     bodies `mine` before the first of them or after the last, and those that go on as
     those in turn, the nearest in time first (a body seen again far off passes over the
@@ -164,7 +169,7 @@ def continuing(tracks: list[Track | None], found: list[tuple[np.ndarray, np.ndar
 
 
 def _turning(t: np.ndarray, v: np.ndarray, bodies: list[tuple[np.ndarray, np.ndarray, np.ndarray]],
-             rests: list[Track]):
+             rests: list[Track]) -> Turns:
     """A function of two points (t s, d m, v m/s) either side of a gap of a mover (its
     verified pairs' times `t` and velocities `v`, its `bodies`), the earlier its own
     (`after`) or the later: whether it braked to
