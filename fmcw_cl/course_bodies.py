@@ -172,13 +172,12 @@ def _turning(t: np.ndarray, v: np.ndarray, bodies: list[tuple[np.ndarray, np.nda
              rests: list[Track]) -> Turns:
     """A function of two points (t s, d m, v m/s) either side of a gap of a mover (its
     verified pairs' times `t` and velocities `v`, its `bodies`), the earlier its own
-    (`after`) or the later: whether it braked to
-    rest at one of the fixed objects `rests` (braking.comes_to_rest, its velocities'
-    slope over identities.TREND_S up to the earlier point; time reversed, set off from
-    one after the later), which is first seen after it (last seen before it) and still
-    there when the other point moves the other way (already there), both
-    braking.MOVING_MPS or faster: a body that turned at its rest (a jump's apex) sets
-    off from there after it, not while it rests. A landing
+    (`after`) or the later: whether it braked to rest at one of the fixed objects
+    `rests` (braking.comes_to_rest, its velocities' slope over identities.TREND_S up to
+    the earlier point; time reversed, set off from one after the later), first seen
+    after it (last seen before it) and still there when the other point moves the other
+    way (already there), both braking.MOVING_MPS or faster: a body that turned at its
+    rest (a jump's apex) sets off from there after it, not while it rests. A landing
     foot's course (-0.86 m/s, braking at 220 m/s^2, its rest seen 17 ms on 3 mm from
     where it braked) went on as a hand flying off at +2.98 m/s 11 ms later: 610 valid
     pairs of the hand on the foot, movers.py seed 5, capture 22."""

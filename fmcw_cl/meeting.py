@@ -78,12 +78,12 @@ def _taken_on(scene: list[SceneObject]) -> list[SceneObject]:
 def _handed(o: SceneObject, scene: list[SceneObject]) -> list[tuple[float, Track, bool]]:
     """(time s, track, before) of each gap of mover `o`'s verified pairs across which
     its own course is no one body's steady motion (identities.goes_on) nor a join's
-    (`_goes_on`, `braking.comes_to_rest`) while another mover's goes on as its part (`_goes_on`): one
-    first seen within the gap from its pair before it (`before`), or one last seen
-    within it to its pair after (the tracker followed a foot's take-off to +0.85 m/s,
-    then came back 2.9 ms later on the other foot at rest 4.2 mm behind, while the
-    take-off's course went on from within the gap at +1.19 m/s: movers.py seed 24,
-    capture 35, 70 valid pairs of the take-off on the foot at rest)."""
+    (`_goes_on`, `braking.comes_to_rest`) while another mover's goes on as its part
+    (`_goes_on`): one first seen within the gap from its pair before it (`before`), or
+    one last seen within it to its pair after (the tracker followed a foot's take-off
+    to +0.85 m/s, then came back 2.9 ms later on the other foot at rest 4.2 mm behind,
+    while the take-off's course went on from within the gap at +1.19 m/s: movers.py
+    seed 24, capture 35, 70 valid pairs of the take-off on the foot at rest)."""
     x = o.track
     if not (o.moving and x.valid.any()):
         return []
