@@ -34,3 +34,10 @@ def comes_to_rest(end: tuple, rest_m: float, dt: float) -> bool:
         return False
     stop = v * v / (2.0 * abs(acc))
     return bool(abs(ahead - stop) <= max(REST_M, REST_SHARE * stop) and 2.0 * ahead / abs(v) <= dt)
+
+
+def set_off_from(end: tuple, rest_m: float, dt: float) -> bool:
+    """Whether a body in motion at `end` (index, t, d, v, acc: a set-off's first pair)
+    set off from rest at `rest_m` (m) within `dt` (s) before: `comes_to_rest` with time
+    reversed (a set-off is a rest come to backwards)."""
+    return comes_to_rest((end[0], -end[1], end[2], -end[3], end[4]), rest_m, dt)

@@ -15,7 +15,7 @@ from collections.abc import Callable
 import numpy as np
 
 from . import braking, crossings, fast_echoes, moving_echoes, numeric, objects
-from .braking import comes_to_rest
+from .braking import comes_to_rest, set_off_from
 from .conversions import First
 from .identities import TREND_S
 from .moving_echoes import AGREE_MPS
@@ -147,6 +147,7 @@ def continuing(tracks: list[Track | None], found: list[tuple[np.ndarray, np.ndar
                                          -np.inf)))].append(body)
     left = [b for n, b in enumerate(found) if not np.isfinite(near[n]).any()]
     out: list[tuple[np.ndarray, np.ndarray, np.ndarray] | None] = [None] * len(tracks)
+    rested = [(r.time_s[r.valid], float(np.median(r.distance_m[r.valid]))) for r in rests if r.valid.any()]
     for j, track in enumerate(tracks):
         if not owned[j]:
             continue
@@ -157,7 +158,7 @@ def continuing(tracks: list[Track | None], found: list[tuple[np.ndarray, np.ndar
         # earlier stretches, between which it passed a stronger object's peaks)
         others = [h for h in held if h is not track]
         free = [b for b in left if clear(b[0], b[1], others)]
-        gone = going_on(owned[j], free, ends, GAP_S, _turning(t_ok, v_ok, owned[j], rests))
+        gone = going_on(owned[j], free, ends, GAP_S, _turning(t_ok, v_ok, owned[j], rested))
         gone += [b for b in free if _fills(b, t_ok, d_ok, v_ok) and not any(b is g for g in gone)]
         left = [b for b in left if not any(b is g for g in gone)]
         for grid, at, v in owned[j] + gone:
@@ -169,19 +170,22 @@ def continuing(tracks: list[Track | None], found: list[tuple[np.ndarray, np.ndar
 
 
 def _turning(t: np.ndarray, v: np.ndarray, bodies: list[tuple[np.ndarray, np.ndarray, np.ndarray]],
-             rests: list[Track]) -> Turns:
+             rests: list[tuple[np.ndarray, float]]) -> Turns | None:
     """A function of two points (t s, d m, v m/s) either side of a gap of a mover (its
     verified pairs' times `t` and velocities `v`, its `bodies`), the earlier its own
     (`after`) or the later: whether it braked to rest at one of the fixed objects
-    `rests` (braking.comes_to_rest, its velocities' slope over identities.TREND_S up to
-    the earlier point; time reversed, set off from one after the later), first seen
+    `rests` (the times s of its verified pairs, its distance m; braking.comes_to_rest,
+    its velocities' slope over identities.TREND_S up to the earlier point;
+    braking.set_off_from one, over TREND_S from the later point), first seen
     after it (last seen before it) and still there when the other point moves the other
     way (already there), both braking.MOVING_MPS or faster: a body that turned at its
     rest (a jump's apex) sets off from there after it, not while it rests. A landing
     foot's course (-0.86 m/s, braking at 220 m/s^2, its rest seen 17 ms on 3 mm from
     where it braked) went on as a hand flying off at +2.98 m/s 11 ms later: 610 valid
-    pairs of the hand on the foot, movers.py seed 5, capture 22."""
-    at = [(r.time_s[r.valid], float(np.median(r.distance_m[r.valid]))) for r in rests if r.valid.any()]
+    pairs of the hand on the foot, movers.py seed 5, capture 22. None where there is
+    no rest."""
+    if not rests:
+        return None
     tt = np.concatenate([t, *(b[0] for b in bodies)])
     vv = np.concatenate([v, *(b[2] for b in bodies)])
 
@@ -190,13 +194,13 @@ def _turning(t: np.ndarray, v: np.ndarray, bodies: list[tuple[np.ndarray, np.nda
         return centred_slope(tt[near], vv[near])[0] if near.sum() >= 3 else 0.0
 
     def turns(a: tuple, z: tuple, after: bool) -> bool:
-        if a[2] * z[2] >= 0 or min(abs(a[2]), abs(z[2])) < braking.MOVING_MPS or not at:
+        if a[2] * z[2] >= 0 or min(abs(a[2]), abs(z[2])) < braking.MOVING_MPS:
             return False
         if after:       # braked at a, and still at rest once z moved
-            end = (0, a[0], a[1], a[2], acc(a[0] - TREND_S, a[0]))
-            return any(comes_to_rest(end, r, s[0] - a[0]) and s[-1] > z[0] for s, r in at)
-        end = (0, -z[0], z[1], -z[2], acc(z[0], z[0] + TREND_S))          # set off at z, at rest as a moved
-        return any(comes_to_rest(end, r, z[0] - s[-1]) and s[0] < a[0] for s, r in at)
+            end = (0, *a, acc(a[0] - TREND_S, a[0]))
+            return any(comes_to_rest(end, r, s[0] - a[0]) and s[-1] > z[0] for s, r in rests)
+        end = (0, *z, acc(z[0], z[0] + TREND_S))          # set off at z, at rest as a moved
+        return any(set_off_from(end, r, z[0] - s[-1]) and s[0] < a[0] for s, r in rests)
 
     return turns
 

@@ -23,7 +23,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import course_bodies, identities, objects
-from .braking import MOVING_MPS, comes_to_rest
+from .braking import MOVING_MPS, comes_to_rest, set_off_from
 from .numeric import centred_slope
 from .objects import SceneObject
 from .track import Track
@@ -143,7 +143,7 @@ def _goes_on(a: tuple, z: tuple) -> bool:
 def _joins(scene: list[SceneObject], ends: list) -> list[tuple[float, int, int]]:
     """(cost, i, j): object i's last verified pair goes on as object j's first (a
     mover's as a mover's, `_goes_on`; a mover's as its rest, or a rest's as the mover
-    that set off from it, `braking.comes_to_rest`)."""
+    that set off from it, `braking.comes_to_rest`, `braking.set_off_from`)."""
     out = []
     for i, e in enumerate(ends):
         for j, f in enumerate(ends):
@@ -155,8 +155,8 @@ def _joins(scene: list[SceneObject], ends: list) -> list[tuple[float, int, int]]
                 ok = _goes_on(a, z)
             elif mi:
                 ok = comes_to_rest(a, _still_at(scene[j]), dt)
-            elif mj:        # time reversed: set off from rest is a rest come to backwards
-                ok = comes_to_rest((z[0], -z[1], z[2], -z[3], z[4]), _still_at(scene[i]), dt)
+            elif mj:
+                ok = set_off_from(z, _still_at(scene[i]), dt)
             else:
                 ok = False
             if ok:

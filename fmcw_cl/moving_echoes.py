@@ -112,12 +112,11 @@ class _Line:
     def add(self, i: int, t: list[float], d: list[float]) -> None:
         """Detection `i` of times `t` and distances `d` joins: the velocity over the last
         TREND detections (all while fewer)."""
-        at = self.at
-        at.append(i)
-        back = at[-TREND] if len(at) >= TREND else at[0]
-        self.t, self.d = now, here = t[i], d[i]
-        span = now - t[back]
-        self.v = (here - d[back]) / span if span > 0 else None
+        self.at.append(i)
+        back = self.at[-TREND] if len(self.at) >= TREND else self.at[0]
+        self.t, self.d = t[i], d[i]
+        span = self.t - t[back]
+        self.v = (self.d - d[back]) / span if span > 0 else None
 
     def ahead(self, now: float) -> tuple[float, float]:
         """Where the line is at `now` (s), moved on at its velocity, and how far from
