@@ -73,7 +73,8 @@ def unheld(loose: list[tuple[np.ndarray, np.ndarray, np.ndarray]],
     # the slow ones among them are the echo table's own (`bodies_of`): each body once
     table = plain()
     found = table + [b for b in clear if not any(b is p for p in table)]
-    taken = [c[0] for c in course_bodies.continuing(goes, found, held) if c is not None]
+    rests = [t for t, m in zip(held, moving, strict=True) if not m]
+    taken = [c[0] for c in course_bodies.continuing(goes, found, held, rests) if c is not None]
     if taken:
         clear = [b for b in clear if np.mean(np.isin(b[0], np.concatenate(taken))) < 0.5]
     if along._untracked(clear, held, band_m, k) is None:
