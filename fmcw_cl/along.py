@@ -157,10 +157,11 @@ def converted_along(cap: Capture, first: First, done: list[Converted], moving: l
     more verified pairs that gives where its track had none. `packed` (one
     conversion's plan and choice for all): movers whose courses are known at other
     times share a conversion (course.lanes), each pair in the course known there. `lined`:
-    only the movers that lines go on as. `found`: the table's bodies (course_bodies.bodies_of,
-    with fast_bodies_of), where already known. A mover that no tracker held (no
-    verified pair) is converted along the course of the bodies its band holds
-    (`_untracked`): `unheld`'s (unheld_movers.bodies_of), else the velocity bank's."""
+    only the movers that lines go on as, and, with `unheld`, those no tracker held.
+    `found`: the table's bodies (course_bodies.bodies_of, with fast_bodies_of), where
+    already known. A mover that no tracker held (no verified pair) is converted along
+    the course of the bodies its band holds (`_untracked`): `unheld`'s
+    (unheld_movers.bodies_of), else the velocity bank's."""
     if len(done) < 2 and not lined:
         return done
     m = first.plan.model
@@ -173,7 +174,7 @@ def converted_along(cap: Capture, first: First, done: list[Converted], moving: l
         found = bodies_of(first) + fast_bodies_of(first) if any(mine) else []
     lines = continuing([d.track if w else None for d, w in zip(done, mine, strict=True)], found,
                        [d.track for d in done], [d.track for d, w in zip(done, moving, strict=True) if not w])
-    if any(bare) and not lined:
+    if any(bare) and (not lined or unheld is not None):
         loose = fast_bodies_of(first) if unheld is None else unheld
         held = [d.track for d in done if d.track.valid.any()]
         for i in np.flatnonzero(bare):

@@ -83,14 +83,16 @@ def objects_of(cap: Capture, first: First, choice: target.Choice, own: Converted
     done = _distinct(done, first, seconds, processor)
     done = rest_spans.bounded(done, [_moving(d) for d in done], processor, seconds)
     moving = any(_moving(d) for d in done)
-    plain = course_bodies.bodies_of(first) if moving else []
+    table = cache(lambda: course_bodies.bodies_of(first))
+    plain = table() if moving else []
     done = along.converted_along(cap, first, done, [_moving(d) for d in done], processor, seconds, progress,
                                  found=plain)
     # the velocity bank's bodies carry courses once the identities are told: before, the
     # pairs they gained moved the parts' ends that the joins read (a glide split in two)
+    fast = course_bodies.fast_bodies_of(first)
     lines = []
     if plain or any(_moving(d) for d in done):
-        lines = (plain if moving else course_bodies.bodies_of(first)) + course_bodies.fast_bodies_of(first)
+        lines = table() + fast
     unseen = {(i, j) for i, d in enumerate(done) for j in _unseen(d, done, first)}
     done = _unveiled(done, unseen, seconds, processor)
     done = _exclusive(done, unseen, first, seconds, processor)
@@ -98,12 +100,24 @@ def objects_of(cap: Capture, first: First, choice: target.Choice, own: Converted
     several = sum(o.moving and o.track.valid.any() for o in found) >= 2
     of = {id(d.track): d for d in done}
 
+    # a mover no tracker held, which the velocity bank saw or whose echo table's body
+    # travels, as beside a lone candidate (`_lone`)
+    k = first.plan.model.k
+    loose = unheld_movers.bodies_of(fast, table(), [d.track for d in done], _fixed_m(first), k) \
+        if options.dechirp else []
+
     def lined(scene: list[objects.SceneObject]) -> list[objects.SceneObject]:
         conv = [of.get(id(o.track if o.whole is None else o.whole), own) for o in scene]
         return along.objects_along(cap, first, conv, scene, processor, seconds, progress, lined=True,
-                                   found=lines)
+                                   found=lines, unheld=loose)
 
-    return _told_apart(found, done, own, options, several, courses=lined)
+    return _told_apart(found, done, own, options, several, courses=lambda scene: (
+        unheld_movers.with_unheld(scene, loose, table, own.choice.band_m, k, lined)))
+
+
+def _fixed_m(first: First) -> np.ndarray:
+    """The distances (m) of every fixed echo `first`'s tables list."""
+    return np.array([d for d, _ in first.fixed.listed], float)
 
 
 def _lone(cap: Capture, first: First, own: Converted, moving: bool, processor: ChunkProcessor,
@@ -121,7 +135,7 @@ def _lone(cap: Capture, first: First, own: Converted, moving: bool, processor: C
     fast = course_bodies.fast_bodies_of(first) if options.dechirp else []
     plain = cache(lambda: course_bodies.bodies_of(first))
     k = first.plan.model.k
-    loose = unheld_movers.bodies_of(fast, plain(), [own.track]) if options.dechirp else []
+    loose = unheld_movers.bodies_of(fast, plain(), [own.track], _fixed_m(first), k) if options.dechirp else []
     bare = unheld_movers.unheld(loose, plain, [own.track], own.choice.band_m, [moving], k)
     if body is own.track and bodies < 2 and bare is None:
         return [objects.SceneObject(1, moving, own.track, "the target: no other echo")], 0, own

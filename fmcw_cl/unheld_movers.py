@@ -1,17 +1,17 @@
-"""A mover that shares a lone candidate's band but that no tracker held.
+"""A mover that shares a candidate's band but that no tracker held.
 
 Two movers within one moving span are one candidate (fmcw_cl.objects): its tracker
 follows one echo at a time, and a weaker mover it never held leaves no part to tell
 apart (a hand 3.3 dB under the jump at -1.5 to -2 m/s across it: one object, the hand
 in none of its periods). A mover faster than about 1 m/s leaves no plain peak, but the
 velocity bank (fmcw_cl.fast_echoes) sees it; a slower one leaves the echo table a body
-that travels (`bodies_of`): its bodies that lie on no verified pair of the candidate's
+that travels (`bodies_of`): its bodies that lie on no verified pair of the candidates'
 (along._untracked) are an object of their own, holding no pair yet,
 converted along their course once the identities are told, as a candidate no tracker
-held is (along.converted_along). Not where the tables show several candidates: a leg's
-take-off so made an object (seed 1 of benchmarks/objects.py's two legs 40 ms apart)
-and the legs' coherence cuts then left them in pieces (80 / 40 -> 43 / 31 %).
-"""
+held is (along.converted_along), beside one candidate or several (a leg landing at 5
+m/s onto the ground where the other foot rests, whose moving candidate's tracker held
+the resting foot: 1 -> 34 % of the landing leg's periods). A body whose plain peak in
+one direction stays at a fixed echo is no body (`_image`)."""
 
 from __future__ import annotations
 
@@ -24,19 +24,45 @@ from .stages import faults
 from .track import Track
 
 SLOW_TRAVEL_M = fixed_echoes.MIN_TRAVEL_M   # an echo table's body that travels this far is a mover's
+IMAGE_M = 3e-3          # a body whose plain peak in one direction lies this near a fixed echo ...
+IMAGE_SHARE = 0.8       # ... at this share of its points is that echo's peak paired with another's
 
 
 def bodies_of(fast: list[tuple[np.ndarray, np.ndarray, np.ndarray]],
-              plain: list[tuple[np.ndarray, np.ndarray, np.ndarray]], held: list[Track]
+              plain: list[tuple[np.ndarray, np.ndarray, np.ndarray]], held: list[Track],
+              fixed_m=(), k: tuple[float, float] = (0.0, 0.0)
               ) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
     """The bodies a mover no tracker held may leave: the velocity bank's `fast`, and the
     echo table's `plain` (course_bodies.bodies_of) that travel SLOW_TRAVEL_M or more and
     lie on no harmonic of a `held` track (2 and 3 times its distance, within
     fixed_echoes.APART_M, for most of their points): a sway 5.4 dB under a glide, 35-39
     mm beyond it at 0.1-0.5 m/s, too slow to smear its plain peak (movers.py seed 1,
-    capture 19)."""
+    capture 19); none that is a fixed echo's image (`_image`; `fixed_m`: the tables'
+    fixed echoes, m; `k`: the Doppler factors, m per m/s, rising and falling)."""
     slow = [b for b in plain if np.ptp(b[1]) >= SLOW_TRAVEL_M and not _harmonic(b[0], b[1], held)]
-    return list(fast) + slow
+    return [b for b in list(fast) + slow if not _image(b[1], b[2], fixed_m, k)]
+
+
+def _image(d: np.ndarray, v: np.ndarray, fixed_m: np.ndarray, k: tuple[float, float]) -> bool:
+    """Whether a body (distances `d` m, velocities `v` m/s) has its plain peak in one
+    direction (d + k v, `k` that direction's m per m/s) within IMAGE_M of one of the fixed
+    echoes `fixed_m` (m) at IMAGE_SHARE of its points: a fixed echo's peak in that
+    direction paired with a mover's in the other solves to a body half way between them
+    whose velocity can follow its distance for a while (a hand coming down at -1.3 m/s
+    past a foot at rest at 0.070 m: a body 10 mm beyond the hand, 14 ms long, its falling
+    peak 1-2 mm from the foot's; made an object, its course made the foot's and the
+    hand's pairs `ambiguous`: 93 / 100 -> 72 / 86 % of their periods, movers.py seed 3,
+    capture 12). A mover's own peak stays still so only while its velocity decays as
+    exp(-t / |k|) (29 ms), and at a fixed echo's distance by chance."""
+    fixed_m = np.asarray(fixed_m, float)
+    if not fixed_m.size:
+        return False
+    for kd in k:
+        peak = d + kd * v
+        near = np.min(np.abs(peak[:, None] - fixed_m[None, :]), axis=1) <= IMAGE_M
+        if np.mean(near) >= IMAGE_SHARE:
+            return True
+    return False
 
 
 def _harmonic(t: np.ndarray, d: np.ndarray, held: list[Track]) -> bool:

@@ -54,6 +54,23 @@ def two_movers(path, target, other, amplitude: float, lab: bool, seed: int, star
     return track, scene_of(track, path)
 
 
+def shifted_jump(off: float):
+    """The jump `off` s ahead, at rest before its start: benchmarks/movers.py's second
+    leg (its jump tabulated over 0.9 s, the trajectory over 0.7 s)."""
+    import numpy as np
+
+    from fmcw_cl.simulator.scene import Trajectory
+
+    x = jump(0.9)
+
+    def at(t, k):
+        u = np.asarray(t) + off
+        return np.where(u >= 0, x.at(np.maximum(u, 0.0))[k], 0.0)
+
+    return Trajectory.from_velocity(0.0, 0.7, lambda t: at(t, 1), lambda t: at(t, 2),
+                                    float(x.at(max(off, 0.0))[0]))
+
+
 def bent_lut():
     """A 500-interval LUT of a 160 GHz sweep over 160-480 mA bent as ((I - 0.16) /
     0.32)^1.3, and its window: the kernels' and the tracker's test sweep."""

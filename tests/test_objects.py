@@ -7,7 +7,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from conftest import process, two_movers
+from conftest import process, shifted_jump, two_movers
 
 from fmcw_cl import crossings, exchanges, identities, objects, rests
 from fmcw_cl.capture import Capture
@@ -1450,20 +1450,6 @@ def test_no_pair_is_made_of_two_bodies_peaks(tmp_path):
     assert sum(s["wrong"] for s in scores) == 0, scores
 
 
-def _shifted_jump(off: float):
-    """The jump `off` s ahead, at rest before its start (benchmarks/movers.py)."""
-    from fmcw_cl.simulator.scene import Trajectory, jump
-
-    x = jump(0.9)
-
-    def at(t, k):
-        u = np.asarray(t) + off
-        return np.where(u >= 0, x.at(np.maximum(u, 0.0))[k], 0.0)
-
-    return Trajectory.from_velocity(0.0, 0.7, lambda t: at(t, 1), lambda t: at(t, 2),
-                                    float(x.at(max(off, 0.0))[0]))
-
-
 @pytest.mark.parametrize("scene, least", [("rail", [0.25, 0.5]), ("legs", [0.6, 0.25])])
 def test_a_tracker_that_left_one_mover_for_another_holds_neither_as_the_other(tmp_path, scene, least):
     """movers.py seed 20, captures 21 and 30 (lab SNR). A rail coming to rest 1.2 mm
@@ -1489,7 +1475,7 @@ def test_a_tracker_that_left_one_mover_for_another_holds_neither_as_the_other(tm
         other = glide(0.7, 0.2806125734603363, 0.05663798671126663, 0.12110403543466615, 0.2501362550401419)
         db, seed, start, span = 1.9898185261912573, 430, 0.05145974469113768, 0.24355316732732407
     else:
-        target, other = jump(0.7), _shifted_jump(-0.0262246691522528)
+        target, other = jump(0.7), shifted_jump(-0.0262246691522528)
         db, seed, start, span = 3.2426179269540203, 788, 0.1889500667750489, 0.12391670570513387
     config = replace(several.LAB_SCENE, movers=(Mover(other, 500.0 * 10 ** (db / 20)),))
     simulate_capture(path, target, span, seed=seed, config=config, start_s=start)
@@ -1519,7 +1505,7 @@ def test_a_pair_of_one_bodys_peak_and_anothers_is_an_image(tmp_path, scene):
                                 0.3332332221505043), -3.471015099261416, 42
         start, span = 0.16829569439930592, 0.19600123778267292
     else:
-        other, db, seed = _shifted_jump(0.036957226346843564), -2.7782987189840624, 673
+        other, db, seed = shifted_jump(0.036957226346843564), -2.7782987189840624, 673
         start, span = 0.09918163565546856, 0.2687123106970273
     config = replace(several.LAB_SCENE, movers=(Mover(other, 500.0 * 10 ** (db / 20)),))
     simulate_capture(path, jump(0.7), span, seed=seed, config=config, start_s=start)

@@ -1,4 +1,4 @@
-"""A mover that shares a lone candidate's band but that no tracker held
+"""A mover that shares a candidate's band but that no tracker held
 (fmcw_cl.unheld_movers): the velocity bank's bodies make it an object of its own."""
 
 from __future__ import annotations
@@ -7,7 +7,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from conftest import two_movers
+from conftest import shifted_jump, two_movers
 
 from fmcw_cl import unheld_movers
 from fmcw_cl.evaluate import best_held
@@ -127,6 +127,46 @@ def test_a_slow_body_of_the_echo_table_is_a_mover_no_tracker_held(tmp_path):
                                0.027111506469481364, 0.11907825352378819)
     best = best_held(scores, 2)
     assert best[0] >= 0.85 and best[1] >= 0.45, best
+
+
+@pytest.mark.long
+def test_a_landing_no_tracker_held_beside_several_candidates_is_an_object(tmp_path):
+    """Two jumps 34 ms apart, the second leg 5.1 dB stronger, lab SNR (movers.py seed 3,
+    capture 10): the first foot at rest bouncing by +-0.4 m/s, the second landing at
+    up to 5 m/s from 0.21 m onto the same ground. Two candidates (the moving echo
+    0.055-0.188 m and the fixed echo at 0.070 m, its rest); the moving one's tracker
+    held the bouncing foot throughout, and the landing, which the velocity bank saw
+    whole, was in no object's periods: an unheld mover is sought beside several
+    candidates as beside one (1 -> 34 % of the landing leg's periods), no pair off its
+    own object."""
+    track, scores = two_movers(tmp_path / "legs.h5", jump(0.7), shifted_jump(-0.03436138147507793),
+                               500.0 * 10 ** (5.057129544405381 / 20), True, 731, 0.2051311997109243,
+                               0.07332302718785345)
+    best = best_held(scores, 2)
+    assert best[0] >= 0.5 and best[1] >= 0.25, best
+    assert any("no tracker held" in o.note for o in track.objects)
+
+
+def test_a_fixed_echos_peak_paired_with_a_movers_is_no_body():
+    """The velocity bank pairs each rising echo with each falling one: a hand's rising
+    peak with a foot's at rest (0.070 m) solves to a body half way between, moving as
+    its distance does (movers.py seed 3, capture 12). Its falling peak (R + k_f v) stays
+    at the foot's: no body (unheld_movers._image); the hand itself, the body with the
+    fixed echo elsewhere or none, are bodies."""
+    k = (-0.0287, 0.0287)
+    t = np.arange(0.0, 0.014, 2.5e-4)
+    v = -1.3 + 20.0 * t                                   # the hand, slowing
+    r = 0.0883 - 1.3 * t + 10.0 * t * t
+    rise, fall = r + k[0] * v, np.full(t.size, 0.070)     # its rising peak, the foot's falling one
+    ghost = (t, (k[1] * rise - k[0] * fall) / (k[1] - k[0]), (fall - rise) / (k[1] - k[0]))
+    hand = (t, r, v)
+    assert np.ptp(ghost[1]) > 0.01 and np.all(ghost[2] < -0.5)          # it travels, fast
+    assert unheld_movers._image(ghost[1], ghost[2], np.array([0.0695]), k)
+    assert not unheld_movers._image(hand[1], hand[2], np.array([0.0695]), k)
+    assert not unheld_movers._image(ghost[1], ghost[2], np.array([0.080]), k)
+    assert not unheld_movers._image(ghost[1], ghost[2], (), k)
+    kept = unheld_movers.bodies_of([ghost, hand], [], [], np.array([0.0695, 0.3]), k)
+    assert len(kept) == 1 and kept[0] is hand
 
 
 def test_the_echo_tables_bodies_that_travel_and_lie_on_no_harmonic_may_be_movers(jump_track):
