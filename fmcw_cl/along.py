@@ -29,7 +29,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from . import conversions, crossings, numeric, objects
+from . import conversions, crossings, fast_echoes, numeric, objects
 from .capture import Capture
 from .chunks import capture_parts
 from .conversions import Converted, First
@@ -176,9 +176,10 @@ def converted_along(cap: Capture, first: First, done: list[Converted], moving: l
                        [d.track for d in done], [d.track for d, w in zip(done, moving, strict=True) if not w])
     if any(bare) and (not lined or unheld is not None):
         loose = fast_bodies_of(first) if unheld is None else unheld
+        short = [] if first.track.echoes is None else fast_echoes.fragments(first.track.echoes.fast)
         held = [d.track for d in done if d.track.valid.any()]
         for i in np.flatnonzero(bare):
-            lines[i] = _untracked(loose, held, done[i].choice.band_m, doppler)
+            lines[i] = _untracked(loose, held, done[i].choice.band_m, doppler, short)
     wanted = []
     for i, d in enumerate(done):
         if not (mine[i] or (bare[i] and lines[i] is not None)) or (lined and lines[i] is None):
@@ -217,16 +218,19 @@ def converted_along(cap: Capture, first: First, done: list[Converted], moving: l
 
 
 def _untracked(fast: list[tuple[np.ndarray, np.ndarray, np.ndarray]], held: list[Track],
-               band_m: tuple[float, float | None], k: tuple[float, float] | None = None
+               band_m: tuple[float, float | None], k: tuple[float, float] | None = None,
+               fragments: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = ()
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
     """The points (time s, distance m, velocity m/s) of the velocity bank's bodies `fast`
     (fast_echoes.bodies) that a mover's `band_m` (m) holds (most of each) and that lie
     on none of the `held` tracks (most of each more than objects.GATE_M from their
     verified pairs, where those lie within OTHER_GAP_S; with the Doppler factors `k`,
     m per m/s, or told apart from them as two movers are), none two at once (the longer
-    kept), with those beyond the band that go on as them (objects.seen_again): the course
-    of a candidate that no tracker held (its plain peaks smeared, or shifted out of its
-    band by their Doppler term). None where there are none."""
+    kept), with those beyond the band that go on as them (objects.seen_again), and the
+    bank's `fragments` (fast_echoes.fragments) on none of them that carry that on across
+    a fade (fast_echoes.carried): the course of a candidate that no tracker held (its
+    plain peaks smeared, or shifted out of its band by their Doppler term). None where
+    there are none."""
     hi = np.inf if band_m[1] is None else band_m[1]
 
     def free(grid: np.ndarray, at: np.ndarray, v: np.ndarray) -> bool:
@@ -247,7 +251,13 @@ def _untracked(fast: list[tuple[np.ndarray, np.ndarray, np.ndarray]], held: list
     mine += going_on(mine, [b for b in left if not any(b[0] is c[0] for c in mine)])   # not itself again
     t, d, v = (np.concatenate(x) for x in zip(*mine, strict=True))
     order = np.argsort(t, kind="stable")
-    return t[order], d[order], v[order]
+    t, d, v = t[order], d[order], v[order]
+    more = fast_echoes.carried((t, d, v), [f for f in fragments if free(*f)])
+    if more:
+        t, d, v = (np.concatenate(x) for x in zip((t, d, v), *more, strict=True))
+        order = np.argsort(t, kind="stable")
+        t, d, v = t[order], d[order], v[order]
+    return t, d, v
 
 
 def objects_along(cap: Capture, first: First, own: list[Converted], scene: list[objects.SceneObject],

@@ -18,6 +18,8 @@ at the mean of its velocity and the point's, reaches it within LINK_M + ACCEL_MA
 MIN_POINTS or more over MIN_SPAN_S whose velocities are its distances' slope (within
 AGREE_MPS, the median) is a body, in moving_echoes.bodies' form (its points at
 moving_echoes.STEP_S steps): two bodies' echoes paired, or noise, do not run so.
+A shorter chain of FRAGMENT_POINTS or more that runs so is one of the `fragments`: it only carries
+a known body's course on across a fade (`carried`), as its points would link.
 """
 
 from __future__ import annotations
@@ -35,6 +37,8 @@ GAP_S = 0.005              # ... after at most this without one
 MIN_POINTS = 6             # a chain of this many points ...
 MIN_SPAN_S = 0.006         # ... over this long is a body's
 SLOPE_S = 0.004            # a chain's distance slope: least squares within this either side (5 picks)
+FRAGMENT_POINTS = 3        # a shorter chain of this many points only carries a known body's course on
+FRAGMENT_GAP_S = 0.02      # ... across at most this
 
 
 def bodies(pts: dict) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
@@ -54,6 +58,56 @@ def bodies(pts: dict) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
         grid = np.arange(tc[0], tc[-1], STEP_S)
         out.append((grid, np.interp(grid, tc, dc), np.interp(grid, tc, vc)))
     return out
+
+
+def fragments(pts: dict) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """The chains of `bodies` too short to be a body (FRAGMENT_POINTS or more points)
+    whose velocities are their distances' slope, in its form."""
+    t, d, v = (np.asarray(pts[k]) for k in POINT_KEYS[:3])
+    order = np.argsort(t, kind="stable")
+    t, d, v = t[order], d[order], v[order]
+    out = []
+    for c in _chains(t, d, v):
+        tc, dc, vc = t[c], d[c], v[c]
+        if c.size < FRAGMENT_POINTS or (c.size >= MIN_POINTS and tc[-1] - tc[0] >= MIN_SPAN_S):
+            continue
+        if np.median(np.abs(vc - slope(tc, dc, tc, SLOPE_S))) > AGREE_MPS:
+            continue
+        grid = np.arange(tc[0], tc[-1] + 0.5 * STEP_S, STEP_S)
+        out.append((grid, np.interp(grid, tc, dc), np.interp(grid, tc, vc)))
+    return out
+
+
+def carried(course: tuple[np.ndarray, np.ndarray, np.ndarray],
+            frags: list[tuple[np.ndarray, np.ndarray, np.ndarray]]) -> list:
+    """The fragments of `frags` that go on as `course` (time s, distance m, velocity m/s;
+    sorted) before its first point or after its last, one after another, as a chain's
+    points do (`_chains`' link) across FRAGMENT_GAP_S at most."""
+    got = []
+    pool = list(frags)
+    first = (course[0][0], course[1][0], course[2][0])
+    last = (course[0][-1], course[1][-1], course[2][-1])
+    while pool:
+        best, key = None, np.inf
+        for n, f in enumerate(pool):
+            for a, z in (((f[0][-1], f[1][-1], f[2][-1]), first), (last, (f[0][0], f[1][0], f[2][0]))):
+                dt = z[0] - a[0]
+                if not 0 < dt <= FRAGMENT_GAP_S:
+                    continue
+                miss = abs(z[1] - a[1] - 0.5 * (a[2] + z[2]) * dt)
+                links = (miss <= LINK_M + ACCEL_MAX * dt * dt / 8
+                         and abs(z[2] - a[2]) <= AGREE_MPS + ACCEL_MAX * dt)
+                if links and dt < key:
+                    best, key = n, dt
+        if best is None:
+            break
+        f = pool.pop(best)
+        got.append(f)
+        if f[0][0] < first[0]:
+            first = (f[0][0], f[1][0], f[2][0])
+        else:
+            last = (f[0][-1], f[1][-1], f[2][-1])
+    return got
 
 
 def _chains(t: np.ndarray, d: np.ndarray, v: np.ndarray) -> list[np.ndarray]:

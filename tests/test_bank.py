@@ -132,6 +132,34 @@ def test_two_crossing_bodies_among_noise_points_are_two_bodies(seed):
     assert fast_echoes.bodies(alone) == []
 
 
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_a_short_chain_carries_a_bodys_course_on_across_a_fade(seed):
+    """A hand at +2.2 m/s seen for 24 ms, lost 8 ms, then three picks (a fade of a weak
+    mover at a lab's SNR: movers.py seed 2, capture 12), noise points among them: the
+    three are a fragment (fast_echoes.fragments), too short for a body, that carries the
+    body's course on (`carried`); not one 10 mm off its motion, nor one 25 ms on."""
+    rng = np.random.default_rng(seed)
+    pick = 32 * PERIOD_S
+    t = np.arange(0, 0.024, pick)
+    hand = (0.11, 2.2, 10.0)
+    later = 0.032 + pick * np.arange(3)
+    noise_t = np.arange(0, 0.07, pick)
+    noise = np.c_[noise_t, rng.uniform(0.25, 0.45, noise_t.size), rng.uniform(-7, 7, noise_t.size)]
+    every = np.vstack([_truth_points(rng, *hand, t, 0.0), _truth_points(rng, *hand, later, 0.0), noise])
+    pts = dict(zip(bank.POINT_KEYS, (*every.T, np.full(len(every), 20.0)), strict=True))
+    body, = fast_echoes.bodies(pts)
+    short = fast_echoes.fragments(pts)
+    assert any(abs(f[0][0] - later[0]) < 1e-9 for f in short)
+    got = fast_echoes.carried(body, short)
+    assert len(got) == 1 and abs(got[0][0][0] - later[0]) < 1e-9
+    r0, v0, a = hand
+    off = _truth_points(rng, r0 + 0.01, v0, a, later, 0.0)
+    far = _truth_points(rng, *hand, later + 0.025, 0.0)
+    for wrong in (off, far):
+        f = (wrong[:, 0], wrong[:, 1], wrong[:, 2])
+        assert fast_echoes.carried(body, [f]) == []
+
+
 def test_a_glide_no_tracker_held_is_found_fast_and_followed_along_its_course(tmp_path, monkeypatch):
     """Two glides (movers.py seed 3, capture 18): the second, 4.4 dB stronger, at rest
     then away at up to 3.4 m/s, leaves no plain line, and its candidate's band (from its

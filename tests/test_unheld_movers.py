@@ -169,6 +169,21 @@ def test_a_fixed_echos_peak_paired_with_a_movers_is_no_body():
     assert len(kept) == 1 and kept[0] is hand
 
 
+@pytest.mark.long
+def test_an_unheld_movers_course_goes_on_across_its_bodys_fade(tmp_path):
+    """The jump at rest and a hand 2.5 dB weaker glided up from 0.031 m past it at up to
+    2.3 m/s, lab SNR (movers.py seed 2, capture 12): the velocity bank's body of the
+    hand ends at 0.069 s, 0.108 m; then no pick for 18 ms, then three in 3 ms on its
+    motion, too few for a body. They carry its course on (fast_echoes.carried): 37 -> 51
+    % of the hand's periods, the foot as before, no pair off its own object."""
+    hand = glide(0.7, 0.03131963076169191, 0.40592311834112405, 0.1784097577396993, 0.48323554949090813)
+    amplitude = 500.0 * 10 ** (-2.5286649105369694 / 20)
+    _, scores = two_movers(tmp_path / "hand.h5", jump(0.7), hand, amplitude, True, 605, 0.21293079794739125,
+                           0.09814874384475501)
+    best = best_held(scores, 2)
+    assert best[0] >= 0.85 and best[1] >= 0.45, best
+
+
 def test_the_echo_tables_bodies_that_travel_and_lie_on_no_harmonic_may_be_movers(jump_track):
     """unheld_movers.bodies_of: the velocity bank's bodies, and the echo table's that
     travel SLOW_TRAVEL_M (10 mm) or more, not those that stay (a fixed echo's) nor those
