@@ -249,15 +249,17 @@ def _untracked(fast: list[tuple[np.ndarray, np.ndarray, np.ndarray]], held: list
     if not mine:
         return None
     mine += going_on(mine, [b for b in left if not any(b[0] is c[0] for c in mine)])   # not itself again
-    t, d, v = (np.concatenate(x) for x in zip(*mine, strict=True))
+    course = _in_order(mine)
+    more = fast_echoes.carried(course, [f for f in fragments if free(*f)])
+    return _in_order([course, *more]) if more else course
+
+
+def _in_order(parts: list[tuple[np.ndarray, np.ndarray, np.ndarray]]
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The points (time s, distance m, velocity m/s) of `parts`, in time order."""
+    t, d, v = (np.concatenate(x) for x in zip(*parts, strict=True))
     order = np.argsort(t, kind="stable")
-    t, d, v = t[order], d[order], v[order]
-    more = fast_echoes.carried((t, d, v), [f for f in fragments if free(*f)])
-    if more:
-        t, d, v = (np.concatenate(x) for x in zip((t, d, v), *more, strict=True))
-        order = np.argsort(t, kind="stable")
-        t, d, v = t[order], d[order], v[order]
-    return t, d, v
+    return t[order], d[order], v[order]
 
 
 def objects_along(cap: Capture, first: First, own: list[Converted], scene: list[objects.SceneObject],

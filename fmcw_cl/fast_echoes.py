@@ -18,8 +18,8 @@ at the mean of its velocity and the point's, reaches it within LINK_M + ACCEL_MA
 MIN_POINTS or more over MIN_SPAN_S whose velocities are its distances' slope (within
 AGREE_MPS, the median) is a body, in moving_echoes.bodies' form (its points at
 moving_echoes.STEP_S steps): two bodies' echoes paired, or noise, do not run so.
-A shorter chain of FRAGMENT_POINTS or more that runs so is one of the `fragments`: it only carries
-a known body's course on across a fade (`carried`), as its points would link.
+A shorter chain of FRAGMENT_POINTS or more that runs so (`fragments`) only carries a
+known body's course on across a fade (`carried`), as its points would link.
 """
 
 from __future__ import annotations
@@ -44,37 +44,38 @@ FRAGMENT_GAP_S = 0.02      # ... across at most this
 def bodies(pts: dict) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
     """(times s, distances m, velocities m/s) at moving_echoes.STEP_S steps of each body
     the points `pts` (`points`, in time order) show."""
-    t, d, v = (np.asarray(pts[k]) for k in POINT_KEYS[:3])
-    order = np.argsort(t, kind="stable")
-    t, d, v = t[order], d[order], v[order]
-    chains = _chains(t, d, v)
     out = []
-    for c in chains:
-        tc, dc, vc = t[c], d[c], v[c]
-        if c.size < MIN_POINTS or tc[-1] - tc[0] < MIN_SPAN_S:
-            continue
-        if np.median(np.abs(vc - slope(tc, dc, tc, SLOPE_S))) > AGREE_MPS:
-            continue
-        grid = np.arange(tc[0], tc[-1], STEP_S)
-        out.append((grid, np.interp(grid, tc, dc), np.interp(grid, tc, vc)))
+    for tc, dc, vc in _running(pts):
+        if tc.size >= MIN_POINTS and tc[-1] - tc[0] >= MIN_SPAN_S:
+            grid = np.arange(tc[0], tc[-1], STEP_S)
+            out.append((grid, np.interp(grid, tc, dc), np.interp(grid, tc, vc)))
     return out
 
 
 def fragments(pts: dict) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
-    """The chains of `bodies` too short to be a body (FRAGMENT_POINTS or more points)
-    whose velocities are their distances' slope, in its form."""
+    """The chains of the points `pts` too short for a body (`bodies`; FRAGMENT_POINTS or
+    more points) whose velocities are their distances' slope, in its form (their last
+    point too)."""
+    out = []
+    for tc, dc, vc in _running(pts):
+        if not (tc.size >= MIN_POINTS and tc[-1] - tc[0] >= MIN_SPAN_S):
+            grid = np.arange(tc[0], tc[-1] + 0.5 * STEP_S, STEP_S)
+            out.append((grid, np.interp(grid, tc, dc), np.interp(grid, tc, vc)))
+    return out
+
+
+def _running(pts: dict) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """(times s, distances m, velocities m/s) of each chain of FRAGMENT_POINTS or more
+    of the points `pts` (`_chains`) whose velocities are its distances' slope (within
+    AGREE_MPS, the median)."""
     t, d, v = (np.asarray(pts[k]) for k in POINT_KEYS[:3])
     order = np.argsort(t, kind="stable")
     t, d, v = t[order], d[order], v[order]
     out = []
     for c in _chains(t, d, v):
         tc, dc, vc = t[c], d[c], v[c]
-        if c.size < FRAGMENT_POINTS or (c.size >= MIN_POINTS and tc[-1] - tc[0] >= MIN_SPAN_S):
-            continue
-        if np.median(np.abs(vc - slope(tc, dc, tc, SLOPE_S))) > AGREE_MPS:
-            continue
-        grid = np.arange(tc[0], tc[-1] + 0.5 * STEP_S, STEP_S)
-        out.append((grid, np.interp(grid, tc, dc), np.interp(grid, tc, vc)))
+        if c.size >= FRAGMENT_POINTS and np.median(np.abs(vc - slope(tc, dc, tc, SLOPE_S))) <= AGREE_MPS:
+            out.append((tc, dc, vc))
     return out
 
 
