@@ -83,7 +83,7 @@ def carried(course: tuple[np.ndarray, np.ndarray, np.ndarray],
             frags: list[tuple[np.ndarray, np.ndarray, np.ndarray]]) -> list:
     """The fragments of `frags` that go on as `course` (time s, distance m, velocity m/s;
     sorted) before its first point or after its last, one after another, as a chain's
-    points do (`_chains`' link) across FRAGMENT_GAP_S at most."""
+    points do (`_links`) across FRAGMENT_GAP_S at most."""
     got = []
     pool = list(frags)
     first = (course[0][0], course[1][0], course[2][0])
@@ -96,9 +96,7 @@ def carried(course: tuple[np.ndarray, np.ndarray, np.ndarray],
                 if not 0 < dt <= FRAGMENT_GAP_S:
                     continue
                 miss = abs(z[1] - a[1] - 0.5 * (a[2] + z[2]) * dt)
-                links = (miss <= LINK_M + ACCEL_MAX * dt * dt / 8
-                         and abs(z[2] - a[2]) <= AGREE_MPS + ACCEL_MAX * dt)
-                if links and dt < key:
+                if _links(miss, z[2] - a[2], dt) and dt < key:
                     best, key = n, dt
         if best is None:
             break
@@ -128,14 +126,20 @@ def _chains(t: np.ndarray, d: np.ndarray, v: np.ndarray) -> list[np.ndarray]:
             dt = now - t[last]
             at = d[last][None, :] + 0.5 * (v[last][None, :] + v[a:b, None]) * dt[None, :]
             miss = np.abs(d[a:b, None] - at)
-            fits = (miss <= LINK_M + ACCEL_MAX * dt * dt / 8) & (
-                np.abs(v[a:b, None] - v[last][None, :]) <= AGREE_MPS + ACCEL_MAX * dt)
+            fits = _links(miss, v[a:b, None] - v[last][None, :], dt)
             miss[~fits] = np.inf
             for i, n in nearest_first(miss):
                 open_[n].append(a + i)
                 taken[i] = True
         open_ += [[a + int(i)] for i in np.flatnonzero(~taken)]
     return [np.asarray(c) for c in out + open_]
+
+
+def _links(miss, dv, dt):
+    """Whether a point `miss` (m) off where a chain's motion carries it across `dt` (s),
+    its velocity `dv` (m/s) off the chain's, goes on the chain: within LINK_M + ACCEL_MAX
+    dt^2 / 8 and AGREE_MPS + ACCEL_MAX dt (arrays, or one of each)."""
+    return (miss <= LINK_M + ACCEL_MAX * dt * dt / 8) & (np.abs(dv) <= AGREE_MPS + ACCEL_MAX * dt)
 
 
 def outside(pts: dict, spans: list[tuple[float, float]]) -> dict:
