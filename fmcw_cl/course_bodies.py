@@ -14,7 +14,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from . import braking, crossings, fast_echoes, moving_echoes, numeric, objects
+from . import braking, crossings, fast_echoes, moving_echoes, numeric, objects, touches
 from .braking import comes_to_rest, set_off_from
 from .conversions import First
 from .identities import TREND_S
@@ -30,7 +30,7 @@ MATCH_S = 1e-3        # a body of the echo table on a mover's verified pairs thi
 MATCH_M = 0.0015      # ... within this of them (median) is its; it says its course ...
 BEYOND_S = 1e-3       # ... this far from every one of them (where the tracker held another echo)
 
-Turns = Callable[[tuple, tuple, bool], bool]   # `_turning`'s test of two points across a gap
+Turns = Callable[[tuple, tuple, bool], bool]   # a test that bars a join of two points across a gap
 
 
 def bodies_of(first: First) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
@@ -60,8 +60,8 @@ def going_on(mine: list[tuple[np.ndarray, np.ndarray, np.ndarray]],
     ones between), then the nearest in place: one body seen again (objects.seen_again)
     or, with `ends` ((first, last) points (t, d, v) of the object beyond its bodies: its
     verified pairs'), one body's motion across a gap of `within_s` at most (`one_body`),
-    unless `turns` (a function of the two points, `_turning`) says it came to rest and
-    turned."""
+    unless `turns` (a function of the two points, `_barred`) bars it: it came to rest
+    and turned (`_turning`), or another mover goes on as its end (`_taken_across`)."""
     got: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
     pool = list(left)
     while pool:
@@ -121,7 +121,14 @@ def continuing(tracks: list[Track | None], found: list[tuple[np.ndarray, np.ndar
     that go on as them beyond the track's verified pairs (`going_on`, gaps of GAP_S at
     most) or inside a gap of them (`_fills`) and lie clear of every other object of
     `held` (`clear`), none where the track braked to one of the fixed objects `rests`
-    and the body moves off the other way (`_turning`)."""
+    and the body moves off the other way (`_turning`) nor across a gap where another
+    mover of `held` goes on as the track's end (`_taken_across`). Each body is cut
+    where one of `held` touches it first (touches.pieces: it may have gone on from one
+    mover to another there)."""
+    seen = [(h.time_s[h.valid], h.distance_m[h.valid], h.velocity_mps[h.valid]) for h in held
+            if h.valid.any()]
+    cut = [(n, p) for n, b in enumerate(found) for p in touches.pieces(b, seen)]
+    found, origin = [p for _, p in cut], {id(p[0]): n for n, p in cut}   # each piece's body
     near = np.full((len(found), len(tracks)), np.inf)
     along = np.zeros((len(found), len(tracks)))          # how long it lies on each (steps)
     for j, track in enumerate(tracks):
@@ -157,8 +164,12 @@ def continuing(tracks: list[Track | None], found: list[tuple[np.ndarray, np.ndar
         # and the bodies no track holds that go on as them beyond its ends (a fast glide's
         # earlier stretches, between which it passed a stronger object's peaks)
         others = [h for h in held if h is not track]
-        free = [b for b in left if clear(b[0], b[1], others)]
-        gone = going_on(owned[j], free, ends, GAP_S, _turning(t_ok, v_ok, owned[j], rested))
+        # (not a piece of a body it holds: that body touched another mover there)
+        mine = {origin[id(b[0])] for b in owned[j]}
+        free = [b for b in left if clear(b[0], b[1], others) and origin.get(id(b[0])) not in mine]
+        movers = [h for h in others if not any(h is r for r in rests)]
+        gone = going_on(owned[j], free, ends, GAP_S, _barred(_turning(t_ok, v_ok, owned[j], rested),
+                                                             _taken_across(movers)))
         gone += [b for b in free if _fills(b, t_ok, d_ok, v_ok) and not any(b is g for g in gone)]
         left = [b for b in left if not any(b is g for g in gone)]
         for grid, at, v in owned[j] + gone:
@@ -203,6 +214,35 @@ def _turning(t: np.ndarray, v: np.ndarray, bodies: list[tuple[np.ndarray, np.nda
         return any(set_off_from(end, r, z[0] - s[-1]) and s[0] < a[0] for s, r in rests)
 
     return turns
+
+
+def _taken_across(movers: list[Track]) -> Turns:
+    """A function of two points (t s, d m, v m/s) either side of a gap of a mover, the
+    earlier its own (`after`) or the later: whether another of the `movers` seen inside
+    the gap goes on as the mover's end there (`one_body` from its verified pair nearest
+    that end): the mover's part beyond its end is that one's, and a body beyond the gap
+    is no more its own. A leg's descent from its apex, its part before the apex 3.8 ms
+    earlier another object (cut where its tracker passed to the other leg), went on
+    backwards as the other leg's take-off 19 ms earlier, 20 mm off its trapezoid: 554
+    valid pairs of the other leg (movers.py seed 32, capture 20)."""
+    seen = [(m.time_s[m.valid], m.distance_m[m.valid], m.velocity_mps[m.valid]) for m in movers]
+
+    def taken(a: tuple, z: tuple, after: bool) -> bool:
+        for t, d, v in seen:
+            inside = np.flatnonzero((t > a[0]) & (t < z[0]))
+            if inside.size:
+                k = inside[0] if after else inside[-1]
+                if one_body(a, (t[k], d[k], v[k])) if after else one_body((t[k], d[k], v[k]), z):
+                    return True
+        return False
+
+    return taken
+
+
+def _barred(*tests: Turns | None) -> Turns | None:
+    """One test of two points across a gap (`Turns`) that bars where any of `tests` does."""
+    tests = tuple(f for f in tests if f is not None)
+    return (lambda a, z, after: any(f(a, z, after) for f in tests)) if tests else None
 
 
 def _fills(b: tuple[np.ndarray, np.ndarray, np.ndarray], t: np.ndarray, d: np.ndarray, v: np.ndarray) -> bool:

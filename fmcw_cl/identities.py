@@ -21,15 +21,17 @@ motions are not: a rail at +1.9 m/s continues at +2.5 m/s, not at -2.9 m/s. So:
   either instead; contests wherever the parts hold two movers), and only where a body
   can move so (verification.reachable's bounds), the cheapest first; else the parts stay
   objects of their own (fewer periods tracked, none on the wrong object); then a
-  conversion's parts across kinds on one body's steady course (a sway's turn). Parts of one
-  object cut at crossings alone that are all joined again are that object as it was.
+  conversion's parts across kinds on one body's steady course (a sway's turn); never
+  into a part that starts, nor out of one that ends, where another mover's path touches
+  it (fmcw_cl.touches: the echo tables' bodies). Parts of one object cut at crossings
+  alone that are all joined again are that object as it was.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from . import fixed_echoes, handovers, objects
+from . import fixed_echoes, handovers, objects, touches
 from .numeric import centred_slope
 from .objects import SceneObject
 from .stages import faults
@@ -240,8 +242,8 @@ def split(o: SceneObject, parts: list[np.ndarray], why: str) -> list[SceneObject
     return out
 
 
-def rejoined(scene: list[SceneObject], contests: bool = False,
-             asked: handovers.Asked | None = None) -> list[SceneObject]:
+def rejoined(scene: list[SceneObject], contests: bool = False, asked: handovers.Asked | None = None,
+             touched: touches.Touched | None = None) -> list[SceneObject]:
     """The objects with those seen again joined (objects.returns): one object. Only
     objects of one kind: a fixed object that a mover crossed is not the mover after it
     (a swaying cable that a rail passed, the rail beyond it). Two parts of one track
@@ -252,13 +254,16 @@ def rejoined(scene: list[SceneObject], contests: bool = False,
     (`least_acceleration` within ACCEL_FLOOR: a sway's turn, too slow to move, between
     its swings; not a leg's part 33 ms later 10 mm off the trapezoid). Joined first, a
     glide's rest would have started before a later part's contest: the other glide's
-    part 90 ms before took a part of it."""
+    part 90 ms before took a part of it. Never into a part whose first verified pairs,
+    or out of one whose last, another mover's path touches (`touched`, touches.ends):
+    either body can be the one before (after) them."""
     asked = asked or handovers.Asked()
+    touched = touched or touches.Touched([])
     scene = list(scene)
     for across_kinds in (False, True) if contests else (False,):
         ends = [_Ends.row(o) for o in scene]
         while len(scene) > 1:
-            e = _Ends(ends, scene, asked, across_kinds)
+            e = _Ends(ends, scene, asked, across_kinds, touched)
             i, j = np.nonzero(np.triu(e.returns, 1))                 # (i, j) in order, i < j
             if contests:
                 keep = np.isfinite(e.cost[i, j])
@@ -298,7 +303,7 @@ class _Ends:
     verified times (for `contested`)."""
 
     def __init__(self, rows: list[tuple], scene: list[SceneObject], asked: handovers.Asked,
-                 across_kinds: bool = False):
+                 across_kinds: bool = False, touched: touches.Touched | None = None):
         self.moving, i0, i1, *pairs = (np.array(c) for c in zip(*rows, strict=True))
         self.t0, self.d0, self.v0, self.t1, self.d1, self.v1, self.a1 = pairs
         has = i0 >= 0
@@ -316,6 +321,8 @@ class _Ends:
             steady = least_acceleration(*span) <= ACCEL_FLOOR
             kind = (whole[:, None] == whole[None, :]) & np.where(self.later, steady, steady.T)
         self.returns = (back | back.T) & kind & ~handovers.across(scene, self.t1, self.t0, asked)
+        if touched is not None:
+            self.returns &= ~touched.barred([o.track for o in scene], self.later)
         cost = _costs(*span)
         self.cost = np.where(self.later, cost, cost.T)
         # every part's verified times in one sorted array: part k's shifted by k wide spans
@@ -426,10 +433,11 @@ def _costs(ta, da, va, tb, db, vb) -> np.ndarray:
     return np.where(possible, _least(ta, da, va, tb, db, vb), np.inf)
 
 
-def untangled(scene: list[SceneObject], several: bool) -> list[SceneObject]:
-    """The scene's objects `parted` and `rejoined`, each cut at crossings where it holds
-    `several` movers or a mover beside another object, joined by contests where it holds
-    `several` or its parts do (a sway at its turn a fixed candidate, its tracker and a
+def untangled(scene: list[SceneObject], several: bool, paths: list | None = None) -> list[SceneObject]:
+    """The scene's objects `parted` and `rejoined` (none across a touch of the movers'
+    `paths`, the echo tables' bodies: touches.Touched), each cut at crossings where it
+    holds `several` movers or a mover beside another object, joined by contests where it
+    holds `several` or its parts do (a sway at its turn a fixed candidate, its tracker and a
     glide's passing between them: a join 33 mm off the trapezoid, the velocity turned
     from +0.65 to -0.61 m/s, gave 171 valid pairs of the sway to the glide), and those
     cut at crossings alone and joined whole `restored` (a new list; `scene` is left as
@@ -438,7 +446,7 @@ def untangled(scene: list[SceneObject], several: bool) -> list[SceneObject]:
     asked = handovers.Asked()
     parts = parted(scene, several or (len(seen) >= 2 and any(o.moving for o in seen)), asked)
     several = several or sum(p.moving and p.track.valid.any() for p in parts) >= 2
-    return restored(rejoined(parts, several, asked), scene)
+    return restored(rejoined(parts, several, asked, touches.Touched(paths or [])), scene)
 
 
 def restored(parts: list[SceneObject], scene: list[SceneObject]) -> list[SceneObject]:

@@ -112,7 +112,7 @@ def objects_of(cap: Capture, first: First, choice: target.Choice, own: Converted
                                    found=lines, unheld=loose)
 
     return _told_apart(found, done, own, options, several, courses=lambda scene: (
-        unheld_movers.with_unheld(scene, loose, table, own.choice.band_m, k, lined)))
+        unheld_movers.with_unheld(scene, loose, table, own.choice.band_m, k, lined)), paths=lines)
 
 
 def _fixed_m(first: First) -> np.ndarray:
@@ -154,17 +154,19 @@ def _lone(cap: Capture, first: First, own: Converted, moving: bool, processor: C
                                    found=plain() + fast if held else [], unheld=loose)
 
     return _told_apart(found, [own], own, options, True, lone=True, courses=lambda scene: (
-        unheld_movers.with_unheld(scene, loose, plain, own.choice.band_m, k, courses)))
+        unheld_movers.with_unheld(scene, loose, plain, own.choice.band_m, k, courses)),
+        paths=plain() + fast)
 
 
 def _told_apart(found: list[objects.SceneObject], done: list[Converted], own: Converted, options,
                 several: bool, lone: bool = False,
-                courses: Callable[[list[objects.SceneObject]], list[objects.SceneObject]] | None = None
-                ) -> tuple[list[objects.SceneObject], int, Converted]:
+                courses: Callable[[list[objects.SceneObject]], list[objects.SceneObject]] | None = None,
+                paths: list | None = None) -> tuple[list[objects.SceneObject], int, Converted]:
     """`objects_of`'s objects from the conversions `done` (`found`: an object each):
-    bodies told apart (identities.untangled, by contests where `several` movers may be),
-    with pairs along their `courses` where given (along.objects_along: a lone
-    candidate's parts; several conversions' movers the echo table's lines go on as) and
+    bodies told apart (identities.untangled, by contests where `several` movers may be,
+    none joined across a touch of the echo tables' bodies `paths`), with pairs along
+    their `courses` where given (along.objects_along: a lone candidate's parts;
+    several conversions' movers the echo table's lines go on as) and
     the parts those carried to meet joined (meeting.met), numbered in the order they
     were seen, the target chosen by the user's rule. Each object's pairs are `ambiguous`
     where another's course passes within objects.GATE_M (crossings.passing); a `lone`
@@ -180,7 +182,7 @@ def _told_apart(found: list[objects.SceneObject], done: list[Converted], own: Co
     on the objects told apart; not a still object's in rows without still echoes); and
     where a fixed object's pairs read moving (crossings.read_moving)."""
     of = {id(d.track): d for d in done}
-    scene = exchanges.apart(rests.rests_parted(identities.untangled(found, several)),
+    scene = exchanges.apart(rests.rests_parted(identities.untangled(found, several, paths)),
                            [o.track for o in found if not o.moving])
     if courses is not None:       # pairs along a body's course, once its identity is told
         scene = meeting.met(courses(scene))

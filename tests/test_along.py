@@ -168,6 +168,38 @@ def test_a_course_braking_to_a_rest_is_not_carried_onto_a_body_moving_off_the_ot
     assert carried(off, came, 0.06, t < 0.0075)
 
 
+def test_a_course_is_not_carried_across_a_gap_another_mover_goes_on_as_its_end():
+    """A leg's descent from its apex, verified from 56.1 ms, its part before the apex
+    another object (verified 45-52.3 ms: its tracker passed to the other leg between),
+    and the other leg's take-off as a body ending at 36.8 ms 20 mm off the trapezoid to
+    the descent's first pair, which one body's motion crosses (movers.py seed 32,
+    capture 20: 554 valid pairs of the other leg on the descent's object). The other
+    object goes on as the descent's start inside the gap: the body is not its course
+    (course_bodies._taken_across); carried without that object, or with it where it
+    does not go on so (12 mm off)."""
+    n = 2400
+    t = PERIOD * (np.arange(n) + 0.5)
+    apex = 0.3036 - 125.0 * (t - 0.052) ** 2, -250.0 * (t - 0.052)       # a leg over its apex at 250 m/s^2
+    descent = _track(*apex, t >= 0.0561)
+    before = _track(*apex, (t >= 0.045) & (t < 0.0523))
+    on = np.arange(0.0562, 0.062, 2.5e-4)
+    on = (on, np.interp(on, t, apex[0]), np.interp(on, t, apex[1]))
+    grid = np.arange(0.008, 0.0368 + 1e-9, 2.5e-4)
+    v = np.interp(grid, [0.008, 0.0368], [4.92, 2.16])
+    d = 0.2709 - np.r_[np.cumsum((0.5 * (v[1:] + v[:-1]) * np.diff(grid))[::-1])[::-1], 0.0]
+    takeoff = (grid, d, v)
+    first = (t[descent.valid][0], apex[0][descent.valid][0], apex[1][descent.valid][0])
+    assert course_bodies.one_body((grid[-1], d[-1], v[-1]), first)
+
+    def carried(held: list[Track]) -> bool:
+        got = course_bodies.continuing([descent], [on, takeoff], [descent, *held])[0]
+        return got is not None and bool(np.isin(grid, got[0]).any())
+
+    assert not carried([before])
+    assert carried([])
+    assert carried([_track(apex[0] + 0.012, apex[1], before.valid)])
+
+
 def test_a_body_passing_through_the_start_of_a_movers_course_goes_on_as_it():
     """A glide's rest and set-off, its body 3.9 ms past the first point of the body its
     course goes on as (movers.py seed 1, capture 1: 57 -> 77 % of its periods): it
