@@ -7,14 +7,14 @@ the other leg arriving beside it and braking as the first set off again, their
 velocities crossing at +0.35 m/s: the tracker stepped onto their one peak, then held
 the second at rest, and its parts either side, seen again at rest 4.8 ms apart, were
 joined: 1147 valid pairs of one leg on the other's objects, movers.py seed 33,
-capture 35). The other mover's path is known where
-the echo tables saw it (course_bodies.bodies_of, .fast_bodies_of): one that touches a
-part's first (last) verified pairs and parts from it beyond crossings.MOVERS_M within
-TOUCH_S after (came from there before), both one body's motion throughout, touches
-that end (`ends`): no part is joined across it (fmcw_cl.identities). A body of the
-echo tables that touches an object, unless it crosses it, is a piece on either side
-(`pieces`): its lines may have gone on from one mover to the other there, and a course
-carried along it would (fmcw_cl.course_bodies).
+capture 35). The other mover's path is known where the echo tables saw it
+(course_bodies.bodies_of, .fast_bodies_of): one that touches a part's first (last)
+verified pairs and parts from it beyond crossings.MOVERS_M within TOUCH_S after (came
+from there before), both one body's motion throughout and their separation following
+their velocities, touches that end (`ends`): no part is joined across it
+(fmcw_cl.identities). A body of the echo tables that touches an object, unless it
+crosses it, is a piece on either side (`pieces`): its lines may have gone on from one
+mover to the other there, and a course carried along it would (fmcw_cl.course_bodies).
 """
 
 from __future__ import annotations
