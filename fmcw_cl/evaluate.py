@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.interpolate import CubicSpline
 
+from . import fixed_echoes
 from .capture_format import Truth
 from .stages import faults
 from .track import Track
@@ -183,8 +184,7 @@ def objects_cell(track: Track, truths: list[Truth]) -> str:
 
 
 UNTRACKED = ("held", "as one", "beside", "elsewhere", "outside", "unverified", "missed")
-ONE_M = 2e-3     # two echoes this close make one peak: two range resolutions at 160 GHz (c / 2B
-                 # = 0.94 mm), a Hann window's main lobe at half power
+ONE_M = fixed_echoes.ONE_M     # two echoes this close make one peak (two range resolutions)
 
 
 def untracked(track: Track, truths: list[Truth], gate_m: float = 0.01) -> list[dict]:

@@ -21,6 +21,8 @@ from .swing import peak_offsets, shift_per_mps
 FIXED_SHARE = 0.5     # of the slices a fixed echo is seen in
 MOVING_MPS = 0.3      # a verified pair this fast belongs to the moving echo
 GATE_M = 0.01         # pairs this close to an echo the target cannot be told from are ambiguous
+ONE_M = 2e-3          # two echoes this close make one peak: two range resolutions at 160 GHz (c / 2B
+                      # = 0.94 mm), a Hann window's main lobe at half power
 APART_M = 0.02        # fixed echoes closer than this are one (a smeared peak's lobes); nearer the
                       # target's span than this, a fixed echo is not left out of the band
 MIN_TRAVEL_M = 0.01   # a moving echo's verified pairs span at least this (a biased velocity is no motion)

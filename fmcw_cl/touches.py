@@ -1,6 +1,6 @@
 """Where another mover's path touches a tracked mover's: two bodies as one echo there.
 
-Where another mover's echo lies within a range resolution of a track's (evaluate.ONE_M)
+Where another mover's echo lies within a range resolution of a track's (fixed_echoes.ONE_M)
 at a velocity alike (objects.alike: one body's within STEADY_S), nothing in the track
 tells which of the two it follows on after (a leg at rest on its plateau at 0.282 m,
 the other leg arriving beside it and braking as the first set off again, their
@@ -22,7 +22,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import crossings, fixed_echoes, numeric, objects
-from .evaluate import ONE_M
+from .fixed_echoes import ONE_M
 from .stages.verification import KINEMATIC_S
 from .track import Track
 
@@ -95,7 +95,7 @@ def cuts(path: Path, others: list[Path]) -> np.ndarray:
 
 def _runs(path: Path, others: list[Path], through: bool) -> list[tuple[int, int, int, int]]:
     """Each run [a, b) of `path`'s points (time s, distance m, velocity m/s) where one
-    of `others` is seen (within SEEN_S) and touches it: within evaluate.ONE_M, their
+    of `others` is seen (within SEEN_S) and touches it: within fixed_echoes.ONE_M, their
     velocities objects.alike; and whether the other came from, or went to, beyond
     crossings.MOVERS_M of it within TOUCH_S before (after): the side it lay on (+1
     beyond `path`, -1 nearer), 0 where it did not. `through`: only where each
