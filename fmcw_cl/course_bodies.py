@@ -125,8 +125,7 @@ def continuing(tracks: list[Track | None], found: list[tuple[np.ndarray, np.ndar
     mover of `held` goes on as the track's end (`_taken_across`). Each body is cut
     where one of `held` touches it first (touches.pieces: it may have gone on from one
     mover to another there)."""
-    seen = [(h.time_s[h.valid], h.distance_m[h.valid], h.velocity_mps[h.valid]) for h in held
-            if h.valid.any()]
+    seen = [touches.path_of(h) for h in held if h.valid.any()]
     cut = [(n, p) for n, b in enumerate(found) for p in touches.pieces(b, seen)]
     found, origin = [p for _, p in cut], {id(p[0]): n for n, p in cut}   # each piece's body
     near = np.full((len(found), len(tracks)), np.inf)
@@ -225,7 +224,7 @@ def _taken_across(movers: list[Track]) -> Turns:
     earlier another object (cut where its tracker passed to the other leg), went on
     backwards as the other leg's take-off 19 ms earlier, 20 mm off its trapezoid: 554
     valid pairs of the other leg (movers.py seed 32, capture 20)."""
-    seen = [(m.time_s[m.valid], m.distance_m[m.valid], m.velocity_mps[m.valid]) for m in movers]
+    seen = [touches.path_of(m) for m in movers]
 
     def taken(a: tuple, z: tuple, after: bool) -> bool:
         for t, d, v in seen:

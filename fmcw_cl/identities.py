@@ -258,7 +258,6 @@ def rejoined(scene: list[SceneObject], contests: bool = False, asked: handovers.
     or out of one whose last, another mover's path touches (`touched`, touches.ends):
     either body can be the one before (after) them."""
     asked = asked or handovers.Asked()
-    touched = touched or touches.Touched([])
     scene = list(scene)
     for across_kinds in (False, True) if contests else (False,):
         ends = [_Ends.row(o) for o in scene]
@@ -446,7 +445,7 @@ def untangled(scene: list[SceneObject], several: bool, paths: list | None = None
     asked = handovers.Asked()
     parts = parted(scene, several or (len(seen) >= 2 and any(o.moving for o in seen)), asked)
     several = several or sum(p.moving and p.track.valid.any() for p in parts) >= 2
-    return restored(rejoined(parts, several, asked, touches.Touched(paths or [])), scene)
+    return restored(rejoined(parts, several, asked, touches.Touched(paths) if paths else None), scene)
 
 
 def restored(parts: list[SceneObject], scene: list[SceneObject]) -> list[SceneObject]:

@@ -61,16 +61,21 @@ def ends(track: Track, paths: list[Path]) -> tuple[bool, bool]:
     KINEMATIC_S) and parts from it after, or its last, having come from apart before
     (`_runs`, `through`): (first, last). Where a part starts (ends) at a touch, the
     body before (after) it may be either of the two."""
-    ok = np.flatnonzero(track.valid)
-    if ok.size < 2:
+    path = path_of(track)
+    t = path[0]
+    if t.size < 2:
         return False, False
-    t = track.time_s[ok]
-    path = (t, track.distance_m[ok], track.velocity_mps[ok])
     first = last = False
     for a, b, came, went in _runs(path, paths, True):
         first |= bool(went) and t[a] - t[0] <= KINEMATIC_S
         last |= bool(came) and t[-1] - t[b - 1] <= KINEMATIC_S
     return bool(first), bool(last)
+
+
+def path_of(track: Track) -> Path:
+    """A track's verified pairs as a path (times s, distances m, velocities m/s)."""
+    ok = track.valid
+    return track.time_s[ok], track.distance_m[ok], track.velocity_mps[ok]
 
 
 def pieces(path: Path, others: list[Path]) -> list[Path]:
@@ -108,7 +113,8 @@ def _runs(path: Path, others: list[Path], through: bool) -> list[tuple[int, int,
     out: list[tuple[int, int, int, int]] = []
     if t.size < 2:
         return out
-    steady = (np.diff(t) <= KINEMATIC_S) & objects.one_body(t[:-1], d[:-1], v[:-1], t[1:], d[1:], v[1:])
+    if through:
+        steady = (np.diff(t) <= KINEMATIC_S) & objects.one_body(t[:-1], d[:-1], v[:-1], t[1:], d[1:], v[1:])
     for g, at, vp in others:
         if g.size < 2:
             continue
@@ -118,12 +124,12 @@ def _runs(path: Path, others: list[Path], through: bool) -> list[tuple[int, int,
         sep, dv = d - np.interp(t, g, at), v - np.interp(t, g, vp)
         near = seen & (np.abs(sep) <= ONE_M) & objects.alike(0.0, dv, 0.0)
         apart = np.flatnonzero(seen & (np.abs(sep) > crossings.MOVERS_M))
-        # links broken up to each point: its own, the other's about that time, or unseen
-        own = np.cumsum(~np.r_[False, (np.diff(g) <= KINEMATIC_S) & objects.one_body(
-            g[:-1], at[:-1], vp[:-1], g[1:], at[1:], vp[1:])])
-        broken = (np.cumsum(~(seen & np.r_[False, steady]))
-                  + own[np.clip(np.searchsorted(g, t, "right") - 1, 0, g.size - 1)]
-                  + own[np.clip(np.searchsorted(g, t), 0, g.size - 1)])
+        if through:     # links broken up to each point: its own, the other's about that time, or unseen
+            own = np.cumsum(~np.r_[False, (np.diff(g) <= KINEMATIC_S) & objects.one_body(
+                g[:-1], at[:-1], vp[:-1], g[1:], at[1:], vp[1:])])
+            broken = (np.cumsum(~(seen & np.r_[False, steady]))
+                      + own[np.clip(np.searchsorted(g, t, "right") - 1, 0, g.size - 1)]
+                      + own[np.clip(np.searchsorted(g, t), 0, g.size - 1)])
         for a, b in numeric.runs(near):
             c = apart[(apart < a) & (t[apart] >= t[a] - TOUCH_S)][-1:]     # the nearest apart before
             w = apart[(apart >= b) & (t[apart] <= t[b - 1] + TOUCH_S)][:1]  # ... and after
